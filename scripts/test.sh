@@ -1,0 +1,65 @@
+#!/usr/bin/env bash
+# SPDX-License-Identifier: BSD-3-Clause
+# Install what is missing, then build and run the whole test suite twice:
+# Release (build/) and Debug (build-debug/, run-time checks and FP traps).
+# Both runs always happen; the script exits non-zero if either fails. The last
+# line is the total over both runs, "N passed, N failed". A configuration that
+# does not build counts as one failed test.
+set -uo pipefail
+cd "$(dirname "${BASH_SOURCE[0]}")/.."
+
+bash scripts/install-deps.sh || exit 1
+
+total_passed=0
+total_failed=0
+status=0
+summaries=()
+
+# run_suite <build type> <build dir>
+run_suite() {
+  local build_type=$1 build_dir=$2 log line failed total
+  echo "=== ${build_type}: build ==="
+  if ! bash scripts/build.sh "$build_type"; then
+    echo "=== ${build_type}: build FAILED ==="
+    summaries+=("${build_type}: build failed")
+    total_failed=$((total_failed + 1))
+    status=1
+    return
+  fi
+
+  echo "=== ${build_type}: ctest ==="
+  log=$(mktemp)
+  (cd "$build_dir" && ctest --output-on-failure --no-tests=error -j "${KUMO_TEST_JOBS:-2}") 2>&1 | tee "$log"
+  if ((PIPESTATUS[0] != 0)); then
+    status=1
+  fi
+
+  # ctest's summary: "92% tests passed, 1 tests failed out of 12"
+  line=$(grep -E 'tests passed, [0-9]+ tests? failed out of [0-9]+' "$log" | tail -n 1)
+  rm -f "$log"
+  if [[ $line =~ ([0-9]+)\ tests?\ failed\ out\ of\ ([0-9]+) ]]; then
+    failed=${BASH_REMATCH[1]}
+    total=${BASH_REMATCH[2]}
+    total_passed=$((total_passed + total - failed))
+    total_failed=$((total_failed + failed))
+    summaries+=("${build_type}: $((total - failed)) passed, ${failed} failed")
+  else
+    echo "=== ${build_type}: no ctest summary found ==="
+    summaries+=("${build_type}: ctest did not report a summary")
+    total_failed=$((total_failed + 1))
+    status=1
+  fi
+}
+
+run_suite Release build
+run_suite Debug build-debug
+
+echo "=== summary ==="
+for s in "${summaries[@]}"; do
+  echo "$s"
+done
+if ((total_failed > 0)); then
+  status=1
+fi
+echo "${total_passed} passed, ${total_failed} failed"
+exit "$status"

@@ -1,0 +1,234 @@
+! SPDX-License-Identifier: BSD-3-Clause
+!> The voxel atmosphere: levels, 1-D layers, the 3-D region, components and their optics.
+!>
+!> Layers are numbered 1..nz from the bottom; layer k lies between levels z(k-1) and z(k). The
+!> 3-D region covers layers k3_lo..k3_hi with nx x ny columns over the periodic domain
+!> [0, lx) x [0, ly). Each cell holds several components (extinction, single-scattering albedo,
+!> phase function). Cells store what the photon loop needs: the total extinction, the mixture
+!> single-scattering albedo, and the cumulative scattering fractions with which the scattering
+!> component is chosen (seed text section 3.4.3, method b: weight times the mixture albedo, then
+!> the scatterer drawn by its scattering coefficient).
+!>
+!> Each 1-D layer gets a class at setup so the photon loop does only the work it needs: clear
+!> layers are crossed, purely absorbing layers attenuate the weight along the path, scattering
+!> layers are traced analytically (their extinction is uniform, no null collisions), and 3-D
+!> layers use the super-voxel majorant grid.
+module kumo_atmosphere
+  use kumo_kinds, only: wp
+  use kumo_error, only: error_t, set_error, str
+  use kumo_phase, only: phase_t
+  use kumo_supervoxel, only: supervoxel_grid_t, supervoxel_options_t, build_supervoxels
+  implicit none
+  private
+  public :: atmosphere_t, atmosphere_options_t, atmosphere_init
+  public :: LAYER_CLEAR, LAYER_ABSORBING, LAYER_SCATTERING, LAYER_3D, LAYER_CLASS_NAMES
+
+  integer, parameter :: LAYER_CLEAR = 0, LAYER_ABSORBING = 1, LAYER_SCATTERING = 2, LAYER_3D = 3
+  character(len=10), parameter :: LAYER_CLASS_NAMES(0:3) = &
+                                  ['clear     ', 'absorbing ', 'scattering', '3-D       ']
+
+  !> Setup choices; each fast path can be switched off to test that it changes nothing.
+  type :: atmosphere_options_t
+    logical :: use_1d_layers = .true.        !! .false.: every layer goes through the 3-D tracer
+    logical :: use_absorbing_layers = .true. !! .false.: absorbing layers collide like others
+    type(supervoxel_options_t) :: sv
+  end type atmosphere_options_t
+
+  type :: atmosphere_t
+    integer :: nz = 0                        !! number of layers
+    integer :: nx = 1, ny = 1                !! columns of the 3-D region
+    integer :: k3_lo = 1, k3_hi = 0          !! layers of the 3-D region (empty if k3_hi < k3_lo)
+    integer :: n3 = 0                        !! number of 3-D layers
+    integer :: ncomp1 = 0                    !! components per 1-D layer
+    integer :: ncomp = 0                     !! components per 3-D voxel (1-D ones first)
+    real(wp) :: lx = 1.0_wp, ly = 1.0_wp     !! domain size [m]
+    real(wp) :: dx = 1.0_wp, dy = 1.0_wp     !! column size of the 3-D region [m]
+    real(wp) :: inv_dx = 1.0_wp, inv_dy = 1.0_wp
+    real(wp), allocatable :: z(:)            !! levels z(0:nz) [m]
+    integer, allocatable :: layer_class(:)   !! LAYER_* per layer
+    real(wp), allocatable :: ext1(:)         !! 1-D layers: total extinction [m-1]
+    real(wp), allocatable :: omg1(:)         !! 1-D layers: mixture single-scattering albedo
+    real(wp), allocatable :: csca1(:, :)     !! (ncomp1, nz) cumulative scattering fraction
+    integer, allocatable :: iph1(:, :)       !! (ncomp1, nz) phase function per component
+    real(wp), allocatable :: ext3(:, :, :)   !! (nx, ny, n3) total extinction [m-1]
+    real(wp), allocatable :: omg3(:, :, :)   !! (nx, ny, n3) mixture single-scattering albedo
+    real(wp), allocatable :: csca3(:, :, :, :) !! (ncomp, nx, ny, n3) cumulative fractions
+    integer, allocatable :: iph3(:, :, :, :) !! (ncomp, nx, ny, n3) phase function index
+    type(phase_t), allocatable :: phases(:)  !! phase functions referenced by index
+    type(supervoxel_grid_t) :: sv            !! majorant grid of the 3-D region
+  end type atmosphere_t
+
+contains
+
+  !> Build the atmosphere from per-component optics.
+  !>
+  !> `ext1d`, `ssa1d`, `iph1d` are (nz, ncomp1) and describe every layer; inside the 3-D region
+  !> they are added to the voxel components `ext3d`, `ssa3d`, `iph3d` (nx, ny, n3, ncomp3), as a
+  !> background (e.g. molecules around a cloud).
+  subroutine atmosphere_init(atm, z, lx, ly, ext1d, ssa1d, iph1d, phases, opts, error, &
+                             k3_lo, ext3d, ssa3d, iph3d)
+    type(atmosphere_t), intent(out) :: atm
+    real(wp), intent(in) :: z(0:)              !! levels [m], strictly increasing
+    real(wp), intent(in) :: lx, ly             !! domain size [m]
+    real(wp), intent(in) :: ext1d(:, :)        !! (nz, ncomp1) extinction [m-1]
+    real(wp), intent(in) :: ssa1d(:, :)        !! (nz, ncomp1) single-scattering albedo
+    integer, intent(in) :: iph1d(:, :)         !! (nz, ncomp1) phase-function index
+    type(phase_t), intent(in) :: phases(:)     !! the phase functions
+    type(atmosphere_options_t), intent(in) :: opts
+    type(error_t), allocatable, intent(out) :: error
+    integer, intent(in), optional :: k3_lo     !! lowest layer of the 3-D region
+    real(wp), intent(in), optional :: ext3d(:, :, :, :)  !! (nx, ny, n3, ncomp3) [m-1]
+    real(wp), intent(in), optional :: ssa3d(:, :, :, :)
+    integer, intent(in), optional :: iph3d(:, :, :, :)
+    integer :: nz, k, ic, nc1, nc3, ix, iy, kr, klo, khi, ncomp
+    real(wp), allocatable :: e(:), s(:)
+    integer, allocatable :: p(:)
+    logical :: has3d
+
+    nz = size(z) - 1
+    nc1 = size(ext1d, 2)
+    if (nz < 1) then
+      call set_error(error, 'atmosphere: at least one layer is needed')
+      return
+    end if
+    do k = 1, nz
+      if (.not. (z(k) > z(k - 1))) then
+        call set_error(error, 'atmosphere: levels must increase strictly (z_levels('// &
+                       str(k)//') <= z_levels('//str(k - 1)//'))')
+        return
+      end if
+    end do
+    if (any(iph1d < 1) .or. any(iph1d > size(phases))) then
+      call set_error(error, 'atmosphere: a 1-D phase-function index is outside 1..'// &
+                     str(size(phases)))
+      return
+    end if
+    atm%nz = nz
+    atm%z = z
+    atm%lx = lx
+    atm%ly = ly
+    atm%ncomp1 = nc1
+    atm%phases = phases
+
+    ! 1-D layers: totals and cumulative scattering fractions
+    allocate (atm%ext1(nz), atm%omg1(nz), atm%csca1(max(nc1, 1), nz), atm%iph1(max(nc1, 1), nz))
+    atm%iph1 = 1
+    do k = 1, nz
+      call mix(ext1d(k, :), ssa1d(k, :), atm%ext1(k), atm%omg1(k), atm%csca1(1:nc1, k))
+      atm%iph1(1:nc1, k) = iph1d(k, :)
+    end do
+
+    has3d = present(k3_lo) .and. present(ext3d) .and. present(ssa3d)
+    if (has3d) then
+      klo = k3_lo
+      khi = k3_lo + size(ext3d, 3) - 1
+      atm%nx = size(ext3d, 1)
+      atm%ny = size(ext3d, 2)
+      nc3 = size(ext3d, 4)
+      if (klo < 1 .or. khi > nz) then
+        call set_error(error, 'atmosphere: the 3-D region (layers '//str(klo)//'..'// &
+                       str(khi)//') must lie within layers 1..'//str(nz))
+        return
+      end if
+      if (present(iph3d)) then
+        if (any(iph3d < 1) .or. any(iph3d > size(phases))) then
+          call set_error(error, 'atmosphere: a 3-D phase-function index is outside 1..'// &
+                         str(size(phases)))
+          return
+        end if
+      end if
+    else
+      klo = 1
+      khi = 0
+      nc3 = 0
+    end if
+    if (.not. opts%use_1d_layers) then
+      ! Every layer goes through the 3-D tracer: the region is widened to the whole column.
+      klo = 1
+      khi = nz
+    end if
+    atm%k3_lo = klo
+    atm%k3_hi = khi
+    atm%n3 = max(0, khi - klo + 1)
+    atm%dx = lx/atm%nx
+    atm%dy = ly/atm%ny
+    atm%inv_dx = atm%nx/lx
+    atm%inv_dy = atm%ny/ly
+
+    allocate (atm%layer_class(nz))
+    do k = 1, nz
+      if (k >= klo .and. k <= khi) then
+        atm%layer_class(k) = LAYER_3D
+      else if (atm%ext1(k) <= 0.0_wp) then
+        atm%layer_class(k) = LAYER_CLEAR
+      else if (atm%omg1(k) <= 0.0_wp .and. opts%use_absorbing_layers) then
+        atm%layer_class(k) = LAYER_ABSORBING
+      else
+        atm%layer_class(k) = LAYER_SCATTERING
+      end if
+    end do
+
+    if (atm%n3 > 0) then
+      ncomp = nc1 + nc3
+      atm%ncomp = ncomp
+      allocate (atm%ext3(atm%nx, atm%ny, atm%n3), atm%omg3(atm%nx, atm%ny, atm%n3))
+      allocate (atm%csca3(ncomp, atm%nx, atm%ny, atm%n3), atm%iph3(ncomp, atm%nx, atm%ny, atm%n3))
+      allocate (e(ncomp), s(ncomp), p(ncomp))
+      do kr = 1, atm%n3
+        k = klo + kr - 1
+        do iy = 1, atm%ny
+          do ix = 1, atm%nx
+            e(1:nc1) = ext1d(k, :)
+            s(1:nc1) = ssa1d(k, :)
+            p(1:nc1) = iph1d(k, :)
+            if (has3d .and. k >= k3_lo .and. k < k3_lo + size(ext3d, 3)) then
+              do ic = 1, nc3
+                e(nc1 + ic) = ext3d(ix, iy, k - k3_lo + 1, ic)
+                s(nc1 + ic) = ssa3d(ix, iy, k - k3_lo + 1, ic)
+                if (present(iph3d)) then
+                  p(nc1 + ic) = iph3d(ix, iy, k - k3_lo + 1, ic)
+                else
+                  p(nc1 + ic) = 1
+                end if
+              end do
+            else if (nc3 > 0) then
+              e(nc1 + 1:) = 0.0_wp
+              s(nc1 + 1:) = 0.0_wp
+              p(nc1 + 1:) = 1
+            end if
+            call mix(e, s, atm%ext3(ix, iy, kr), atm%omg3(ix, iy, kr), atm%csca3(:, ix, iy, kr))
+            atm%iph3(:, ix, iy, kr) = p
+          end do
+        end do
+      end do
+      call build_supervoxels(atm%ext3, atm%dx, atm%dy, z(klo:khi) - z(klo - 1:khi - 1), &
+                             opts%sv, atm%sv)
+    end if
+  end subroutine atmosphere_init
+
+  !> Total extinction, mixture albedo and cumulative scattering fractions of one cell.
+  pure subroutine mix(ext, ssa, ext_tot, omega, csca)
+    real(wp), intent(in) :: ext(:), ssa(:)
+    real(wp), intent(out) :: ext_tot, omega, csca(:)
+    real(wp) :: sca_tot, acc
+    integer :: i
+    ext_tot = sum(ext)
+    sca_tot = sum(ext*ssa)
+    if (ext_tot > 0.0_wp) then
+      omega = min(1.0_wp, sca_tot/ext_tot)
+    else
+      omega = 1.0_wp
+    end if
+    acc = 0.0_wp
+    do i = 1, size(ext)
+      acc = acc + ext(i)*ssa(i)
+      if (sca_tot > 0.0_wp) then
+        csca(i) = acc/sca_tot
+      else
+        csca(i) = real(i, wp)/size(ext)
+      end if
+    end do
+    if (size(csca) > 0) csca(size(csca)) = 1.0_wp
+  end subroutine mix
+
+end module kumo_atmosphere

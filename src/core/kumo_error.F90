@@ -1,0 +1,82 @@
+! SPDX-License-Identifier: BSD-3-Clause
+!> Error objects: library code returns them, only programs stop.
+!>
+!> "No error" is an unallocated `type(error_t), allocatable` variable. Messages name the input
+!> and the bound that was violated, e.g. `&kumo_control: n_batches = 1 must be >= 2`.
+module kumo_error
+  use, intrinsic :: iso_fortran_env, only: error_unit, int64, real64
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_nan
+  implicit none
+  private
+  public :: error_t, set_error, add_context, stop_on_error, str
+
+  !> Text of a number for messages: `str(3)` is '3', `str(0.25d0)` is '0.25'.
+  interface str
+    module procedure str_int, str_int64, str_real
+  end interface str
+
+  !> An error with its message.
+  type :: error_t
+    character(len=:), allocatable :: message  !! what went wrong, naming the input and the bound
+  end type error_t
+
+contains
+
+  !> Create an error with the given message.
+  subroutine set_error(error, message)
+    type(error_t), allocatable, intent(out) :: error
+    character(len=*), intent(in) :: message
+    allocate (error)
+    error%message = message
+  end subroutine set_error
+
+  !> Prefix an existing error with the name of the calling context.
+  subroutine add_context(error, context)
+    type(error_t), allocatable, intent(inout) :: error
+    character(len=*), intent(in) :: context
+    if (allocated(error)) error%message = context//': '//error%message
+  end subroutine add_context
+
+  !> Print the message and stop with a non-zero exit code. Only programs call this.
+  subroutine stop_on_error(error)
+    type(error_t), allocatable, intent(in) :: error
+    if (.not. allocated(error)) return
+    write (error_unit, '(a)') 'kumo error: '//error%message
+    error stop 1
+  end subroutine stop_on_error
+
+  pure function str_int(i) result(s)
+    integer, intent(in) :: i
+    character(len=:), allocatable :: s
+    character(len=24) :: buf
+    write (buf, '(i0)') i
+    s = trim(buf)
+  end function str_int
+
+  pure function str_int64(i) result(s)
+    integer(int64), intent(in) :: i
+    character(len=:), allocatable :: s
+    character(len=24) :: buf
+    write (buf, '(i0)') i
+    s = trim(buf)
+  end function str_int64
+
+  !> Shortest general form with up to 10 significant digits.
+  pure function str_real(x) result(s)
+    real(real64), intent(in) :: x
+    character(len=:), allocatable :: s
+    character(len=32) :: buf
+    if (ieee_is_nan(x)) then
+      s = 'NaN'
+      return
+    end if
+    write (buf, '(g0.10)') x
+    s = trim(adjustl(buf))
+    if (index(s, 'E') == 0 .and. index(s, '.') > 0) then
+      do while (s(len(s):len(s)) == '0')
+        s = s(1:len(s) - 1)
+      end do
+      if (s(len(s):len(s)) == '.') s = s(1:len(s) - 1)
+    end if
+  end function str_real
+end module kumo_error

@@ -1,0 +1,39 @@
+! SPDX-License-Identifier: BSD-3-Clause
+!> Small geometry helpers for photon directions.
+module kumo_math
+  use kumo_kinds, only: wp
+  implicit none
+  private
+  public :: rotate_direction, UZ_MIN
+
+  !> Smallest |uz| a photon may travel with. Plane crossings divide by uz; directions closer to
+  !> the horizontal are nudged to this value and the nudge is counted as an anomaly.
+  real(wp), parameter :: UZ_MIN = 1.0e-10_wp
+
+contains
+
+  !> Turn the unit vector (ux, uy, uz) by the polar angle whose cosine is `mu` and the azimuth
+  !> given by (cos_phi, sin_phi) about the original direction (rotation formula of the seed text,
+  !> App. A5, eq. A5.5/A5.6). The result is renormalised to remove round-off drift.
+  pure subroutine rotate_direction(ux, uy, uz, mu, cos_phi, sin_phi)
+    real(wp), intent(inout) :: ux, uy, uz  !! direction cosines, unit length
+    real(wp), intent(in) :: mu              !! cosine of the turning (scattering) angle
+    real(wp), intent(in) :: cos_phi, sin_phi !! azimuth of the turn about the old direction
+    real(wp) :: sin_t, s, vx, vy, vz, norm
+    sin_t = sqrt(max(0.0_wp, 1.0_wp - mu*mu))
+    s = sqrt(max(0.0_wp, ux*ux + uy*uy))
+    if (s < 1.0e-8_wp) then
+      vx = sin_t*cos_phi
+      vy = sin_t*sin_phi
+      vz = mu*sign(1.0_wp, uz)
+    else
+      vx = mu*ux + sin_t*(cos_phi*ux*uz - sin_phi*uy)/s
+      vy = mu*uy + sin_t*(cos_phi*uy*uz + sin_phi*ux)/s
+      vz = mu*uz - sin_t*cos_phi*s
+    end if
+    norm = 1.0_wp/sqrt(vx*vx + vy*vy + vz*vz)
+    ux = vx*norm
+    uy = vy*norm
+    uz = vz*norm
+  end subroutine rotate_direction
+end module kumo_math

@@ -1,0 +1,549 @@
+! SPDX-License-Identifier: BSD-3-Clause
+!> Orchestration: configuration → scene setup → batches over ranks → reduction → results.
+!>
+!> `simulate` runs a validated configuration and returns the result set (on rank 0); tests call
+!> it directly. `run_case` is what the program does: read the namelist, check that the output
+!> can be written, simulate, log and write the netCDF file.
+module kumo_driver
+  use, intrinsic :: iso_fortran_env, only: output_unit
+  use kumo_kinds, only: wp, dp, i8
+  use kumo_constants, only: KUMO_VERSION, DEG2RAD, SECONDS_PER_DAY
+  use kumo_error, only: error_t, set_error, add_context, str
+  use kumo_rng, only: rng_t, rng_init
+  use kumo_phase, only: phase_t, new_phase_isotropic, new_phase_rayleigh, new_phase_hg, phase_from_table, &
+                        PHASE_ISOTROPIC, PHASE_RAYLEIGH, PHASE_HG, PHASE_TABLE
+  use kumo_atmosphere, only: atmosphere_t, atmosphere_options_t, atmosphere_init, &
+                             LAYER_CLASS_NAMES
+  use kumo_surface, only: surface_t, surface_init
+  use kumo_tally, only: tally_layout_t, tally_t, stats_t, layout_init, tally_reset, stats_init, &
+                        stats_add_batch, stats_mean, stats_stderr, N_ANOMALIES, ANOMALY_NAMES
+  use kumo_transport, only: source_t, tracer_options_t, source_init, trace_batch
+  use kumo_results, only: result_set_t, add_dim, add_var, add_attr
+  use kumo_config, only: config_t, read_config, config_echo
+  use kumo_textio, only: read_two_columns, read_whole_file
+  use kumo_netcdf, only: write_results, check_writable, read_scene_3d, read_albedo_map
+  use kumo_parallel, only: par_rank, par_size, par_is_root, par_sum_to_root, &
+                           par_allreduce_sum, par_wtime, par_bcast_int, PAR_IS_MPI
+  implicit none
+  private
+  public :: run_case, simulate, scene_t, setup_scene, run_summary_t
+
+  !> Everything the photon loop reads.
+  type :: scene_t
+    type(atmosphere_t) :: atm
+    type(surface_t) :: sfc
+    type(source_t) :: src
+    type(tracer_options_t) :: tracer
+    real(wp) :: mu0 = 1.0_wp
+  end type scene_t
+
+  !> Figures of a finished run, for the log and for tests.
+  type :: run_summary_t
+    integer(i8) :: n_photons = 0_i8
+    integer(i8) :: n_batches = 0_i8
+    integer :: n_ranks = 1
+    real(dp) :: wall_time = 0.0_dp      !! [s]
+    real(dp) :: cpu_time = 0.0_dp       !! summed over ranks [s]
+    real(dp) :: setup_time = 0.0_dp     !! [s]
+    integer(i8) :: anomalies(N_ANOMALIES) = 0_i8
+  end type run_summary_t
+
+contains
+
+  !> The program's job: namelist file in, netCDF file out.
+  subroutine run_case(path, error)
+    character(len=*), intent(in) :: path
+    type(error_t), allocatable, intent(out) :: error
+    type(config_t) :: cfg
+    type(result_set_t) :: set
+    type(run_summary_t) :: summary
+    character(len=:), allocatable :: nml_text
+    integer :: status(1)
+
+    call read_config(path, cfg, error)
+    if (allocated(error)) return
+    call read_whole_file(path, nml_text, error)
+    if (allocated(error)) return
+    status = 0
+    if (par_is_root()) then
+      call check_writable(trim(cfg%output%file), error)
+      if (allocated(error)) status = 1
+    end if
+    call par_bcast_int(status)
+    if (status(1) /= 0) then
+      if (.not. allocated(error)) call set_error(error, 'output file cannot be written')
+      return
+    end if
+    if (par_is_root() .and. cfg%control%verbose >= 1) then
+      write (output_unit, '(a)') 'kumo '//KUMO_VERSION//': '//trim(path)
+      write (output_unit, '(a)') config_echo(cfg)
+    end if
+    call simulate(cfg, set, summary, error, nml_text)
+    if (allocated(error)) return
+    if (par_is_root()) then
+      call write_results(trim(cfg%output%file), set, error)
+      if (allocated(error)) return
+      if (cfg%control%verbose >= 1) call log_summary(set, summary, trim(cfg%output%file))
+    end if
+  end subroutine run_case
+
+  !> Resolve a path given in the namelist: relative paths are relative to the namelist's folder.
+  function resolve(path, nml_path) result(full)
+    character(len=*), intent(in) :: path, nml_path
+    character(len=:), allocatable :: full
+    integer :: i
+    full = trim(path)
+    if (len(full) == 0) return
+    if (full(1:1) == '/') return
+    i = index(nml_path, '/', back=.true.)
+    if (i > 0) full = nml_path(1:i)//full
+  end function resolve
+
+  !> Build the scene (phase functions, atmosphere, surface, source) from a configuration.
+  subroutine setup_scene(cfg, scene, error)
+    type(config_t), intent(in) :: cfg
+    type(scene_t), intent(out) :: scene
+    type(error_t), allocatable, intent(out) :: error
+    type(phase_t), allocatable :: phases(:)
+    type(atmosphere_options_t) :: aopts
+    real(wp), allocatable :: ang(:), val(:), ext3(:, :, :, :), ssa3(:, :, :, :), alb(:, :)
+    integer, allocatable :: iph3(:, :, :, :)
+    logical :: has_iph
+    integer :: i, nxs, nys
+    character(len=:), allocatable :: nml_path
+
+    nml_path = ''
+    if (allocated(cfg%path)) nml_path = cfg%path
+    allocate (phases(cfg%phase%n_phase))
+    do i = 1, cfg%phase%n_phase
+      select case (cfg%phase%kind(i))
+      case (PHASE_ISOTROPIC)
+        phases(i) = new_phase_isotropic()
+      case (PHASE_RAYLEIGH)
+        phases(i) = new_phase_rayleigh()
+      case (PHASE_HG)
+        phases(i) = new_phase_hg(cfg%phase%g(i), error)
+      case (PHASE_TABLE)
+        call read_two_columns(resolve(cfg%phase%file(i), nml_path), ang, val, error)
+        if (.not. allocated(error)) phases(i) = phase_from_table(ang, val, cfg%phase%n_table, error)
+      end select
+      if (allocated(error)) then
+        call add_context(error, '&kumo_phase: phase function '//str(i))
+        return
+      end if
+    end do
+
+    aopts%use_1d_layers = cfg%vr%use_1d_layers
+    aopts%use_absorbing_layers = cfg%vr%use_absorbing_layers
+    aopts%sv%enabled = cfg%vr%use_supervoxels
+    aopts%sv%fsupg = cfg%vr%sv_fsupg
+    aopts%sv%fsupi = cfg%vr%sv_fsupi
+    aopts%sv%max_layers = cfg%vr%sv_max_layers
+    if (len_trim(cfg%atm%scene_file) > 0) then
+      call read_scene_3d(resolve(cfg%atm%scene_file, nml_path), cfg%atm%nx, cfg%atm%ny, &
+                         cfg%atm%nz3, cfg%atm%n_components_3d, ext3, ssa3, iph3, has_iph, error)
+      if (allocated(error)) return
+      if (.not. has_iph) then
+        allocate (iph3(cfg%atm%nx, cfg%atm%ny, cfg%atm%nz3, cfg%atm%n_components_3d))
+        do i = 1, cfg%atm%n_components_3d
+          iph3(:, :, :, i) = cfg%atm%phase3d(i)
+        end do
+      end if
+      call atmosphere_init(scene%atm, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, cfg%atm%ext1d, &
+                           cfg%atm%ssa1d, cfg%atm%phase1d, phases, aopts, error, &
+                           cfg%atm%k3d_bottom, ext3, ssa3, iph3)
+    else
+      call atmosphere_init(scene%atm, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, cfg%atm%ext1d, &
+                           cfg%atm%ssa1d, cfg%atm%phase1d, phases, aopts, error)
+    end if
+    if (allocated(error)) return
+
+    if (len_trim(cfg%surface%albedo_file) > 0) then
+      call read_albedo_map(resolve(cfg%surface%albedo_file, nml_path), &
+                           trim(cfg%surface%albedo_var), nxs, nys, alb, error)
+      if (allocated(error)) return
+    else
+      allocate (alb(1, 1))
+      alb = cfg%surface%albedo
+    end if
+    call surface_init(scene%sfc, alb, cfg%atm%lx, cfg%atm%ly, error)
+    if (allocated(error)) return
+
+    scene%src = source_init(cfg%source%sza_deg, cfg%source%phi0_deg)
+    scene%mu0 = cos(cfg%source%sza_deg*DEG2RAD)
+    scene%tracer%rr_threshold = cfg%vr%rr_threshold
+    scene%tracer%rr_weight = cfg%vr%rr_weight
+    scene%tracer%max_events = cfg%control%max_events
+  end subroutine setup_scene
+
+  !> Run the batches of a configuration on all ranks and gather the results on rank 0.
+  subroutine simulate(cfg, set, summary, error, nml_text)
+    type(config_t), intent(in) :: cfg
+    type(result_set_t), intent(out) :: set
+    type(run_summary_t), intent(out) :: summary
+    type(error_t), allocatable, intent(out) :: error
+    character(len=*), intent(in), optional :: nml_text
+    type(scene_t) :: scene
+    type(tally_layout_t) :: lay
+    type(tally_t) :: tal
+    type(stats_t) :: st
+    type(rng_t) :: rng
+    real(dp), allocatable :: rec(:, :), tmp(:, :)
+    real(dp) :: t0, t1, c0, c1, cpu, buf2(3), rel
+    integer(i8) :: nphot, counts(2 + N_ANOMALIES)
+    integer :: ib, ib_next, nb_round, rank, nranks, itarget, nb_done
+    integer, allocatable :: map_levels(:)
+    logical :: maps, voxel
+
+    t0 = par_wtime()
+    rank = par_rank()
+    nranks = par_size()
+    call setup_scene(cfg, scene, error)
+    if (allocated(error)) return
+    summary%setup_time = par_wtime() - t0
+
+    maps = cfg%output%column_fluxes .and. scene%atm%n3 > 0 .and. &
+           (scene%atm%nx > 1 .or. scene%atm%ny > 1)
+    voxel = cfg%output%voxel_absorption .and. scene%atm%n3 > 0
+    if (maps) then
+      map_levels = cfg%output%flux_levels
+    else
+      allocate (map_levels(0))
+    end if
+    call layout_init(lay, scene%atm%nz, scene%atm%nx*scene%atm%ny, scene%atm%n3, map_levels, voxel)
+    call stats_init(st, lay)
+    call tally_reset(tal, lay)
+
+    select case (trim(cfg%control%target_output))
+    case ('transmittance')
+      itarget = lay%i_dn + 1
+    case ('absorptance')
+      itarget = lay%i_atm + 1
+    case default
+      itarget = lay%i_up + lay%nz + 1
+    end select
+
+    nphot = cfg%control%n_photons_per_batch
+    nb_round = cfg%control%n_batches
+    allocate (rec(3, 0))
+    ib_next = 1
+    cpu = 0.0_dp
+    do
+      allocate (tmp(3, ib_next + nb_round - 1))
+      tmp = 0.0_dp
+      tmp(:, 1:size(rec, 2)) = rec
+      call move_alloc(tmp, rec)
+      call cpu_time(c0)
+      do ib = ib_next, ib_next + nb_round - 1
+        if (mod(ib - 1, nranks) /= rank) cycle
+        call rng_init(rng, cfg%control%seed, int(ib, i8))
+        call tally_reset(tal, lay)
+        call trace_batch(scene%atm, scene%sfc, scene%src, scene%tracer, lay, rng, nphot, tal)
+        call stats_add_batch(st, lay, tal, nphot)
+        rec(1, ib) = tal%buf(lay%i_up + lay%nz + 1)/real(nphot, dp)
+        rec(2, ib) = (tal%buf(lay%i_dir + 1) + tal%buf(lay%i_dif + 1))/real(nphot, dp)
+        rec(3, ib) = sum(tal%buf(lay%i_abs + 1:lay%i_abs + lay%nz))/real(nphot, dp)
+      end do
+      call cpu_time(c1)
+      cpu = cpu + (c1 - c0)
+      ib_next = ib_next + nb_round
+      if (cfg%control%target_rel_error <= 0.0_dp) exit
+      ! every rank takes the same decision from the same global sums
+      buf2 = [st%s1(itarget), st%s2(itarget), real(st%n_batches, dp)]
+      call par_allreduce_sum(buf2)
+      rel = relative_error(buf2)
+      if (par_is_root() .and. cfg%control%verbose >= 2) then
+        write (output_unit, '(a)') '  batches '//str(ib_next - 1)//': '// &
+          trim(cfg%control%target_output)//' relative standard error '//str(rel)
+      end if
+      if (rel <= cfg%control%target_rel_error) exit
+      if (int(ib_next - 1 + nb_round, i8)*nphot > cfg%control%max_photons) exit
+    end do
+    nb_done = ib_next - 1
+
+    counts(1) = st%n_batches
+    counts(2) = st%n_photons
+    counts(3:) = st%anomalies
+    call par_sum_to_root(st%s1)
+    call par_sum_to_root(st%s2)
+    call par_sum_to_root(counts)
+    block
+      real(dp), allocatable :: flat(:)
+      flat = reshape(rec, [size(rec)])
+      flat = [flat, cpu]
+      call par_sum_to_root(flat)
+      rec = reshape(flat(1:size(rec)), shape(rec))
+      cpu = flat(size(flat))
+    end block
+    st%n_batches = counts(1)
+    st%n_photons = counts(2)
+    st%anomalies = counts(3:)
+    t1 = par_wtime()
+
+    summary%n_photons = st%n_photons
+    summary%n_batches = st%n_batches
+    summary%n_ranks = nranks
+    summary%wall_time = t1 - t0
+    summary%cpu_time = cpu
+    summary%anomalies = st%anomalies
+    if (.not. par_is_root()) return
+    call build_results(cfg, scene, lay, st, rec(:, 1:nb_done), summary, set)
+    if (present(nml_text)) call add_attr(set, 'namelist', nml_text)
+  end subroutine simulate
+
+  pure real(dp) function relative_error(b) result(rel)
+    real(dp), intent(in) :: b(3)  !! S1, S2, number of batches
+    real(dp) :: m, v
+    if (b(3) < 2.0_dp) then
+      rel = huge(1.0_dp)
+      return
+    end if
+    m = b(1)/b(3)
+    v = max(0.0_dp, b(2)/b(3) - m*m)/(b(3) - 1.0_dp)
+    if (m == 0.0_dp) then
+      rel = huge(1.0_dp)
+    else
+      rel = sqrt(v)/abs(m)
+    end if
+  end function relative_error
+
+  !> Lay out every product with its standard error, units and provenance.
+  subroutine build_results(cfg, scene, lay, st, rec, summary, set)
+    type(config_t), intent(in) :: cfg
+    type(scene_t), intent(in) :: scene
+    type(tally_layout_t), intent(in) :: lay
+    type(stats_t), intent(in) :: st
+    real(dp), intent(in) :: rec(:, :)
+    type(run_summary_t), intent(in) :: summary
+    type(result_set_t), intent(inout) :: set
+    integer :: nz, k, n_out, i, ncol, kr
+    integer, allocatable :: lev(:)
+    real(dp), allocatable :: z(:), zmid(:), dz(:), m(:), e(:), fac(:)
+    real(dp) :: f_hor
+    integer :: tv(8)
+    character(len=*), parameter :: NORM = ' normalised by the incident solar flux on a horizontal plane'
+    character(len=32) :: stamp
+    associate (atm => scene%atm)
+      nz = atm%nz
+      z = atm%z
+      zmid = 0.5_dp*(z(1:nz) + z(0:nz - 1))
+      dz = z(1:nz) - z(0:nz - 1)
+      lev = cfg%output%flux_levels
+      n_out = size(lev)
+      ncol = lay%ncol
+      f_hor = cfg%source%solar_flux*scene%mu0   ! incident flux on a horizontal plane [W m-2]
+
+      call add_dim(set, 'level', n_out, coord=z(lev), units='m', &
+                   long_name='height of the flux levels')
+      call add_dim(set, 'layer', nz, coord=zmid, units='m', long_name='height of the layer centres')
+      call add_dim(set, 'batch', size(rec, 2))
+
+      ! domain-mean fluxes at the chosen levels
+      call put('flux_up', 'upward flux'//NORM, lay%i_up + lev + 1)
+      call put('flux_down', 'downward flux (direct + diffuse)'//NORM, lay%i_dn + lev + 1)
+      call put('flux_down_direct', 'downward direct (unscattered) flux'//NORM, lay%i_dir + lev + 1)
+      call put('flux_down_diffuse', 'downward diffuse flux'//NORM, lay%i_dif + lev + 1)
+      call put('reflectance', 'upward flux at the top of the atmosphere'//NORM, [lay%i_up + nz + 1])
+      call put('transmittance', 'downward flux at the surface (direct + diffuse)'//NORM, &
+               [lay%i_dn + 1])
+      call put('transmittance_direct', 'downward direct flux at the surface'//NORM, [lay%i_dir + 1])
+      call put('transmittance_diffuse', 'downward diffuse flux at the surface'//NORM, &
+               [lay%i_dif + 1])
+      call put('absorptance_atmosphere', 'power absorbed by the atmosphere'//NORM, [lay%i_atm + 1])
+      call put('absorptance_surface', 'power absorbed by the surface'//NORM, [lay%i_sfc + 1])
+      call put('absorptance_layer', 'power absorbed in each layer'//NORM, &
+               [(lay%i_abs + k, k=1, nz)], dims=['layer'])
+      call put('roulette_weight_balance', 'net weight created by Russian roulette'//NORM// &
+               ' (zero in expectation)', [lay%i_rr + 1])
+      call put('weight_lost', 'weight of photons stopped at a loop cap'//NORM, [lay%i_lost + 1])
+      call put('energy_closure', 'reflectance + absorptance_atmosphere + absorptance_surface'// &
+               ' - roulette_weight_balance + weight_lost (1 to round-off)', [lay%i_closure + 1])
+
+      ! heating of the layers
+      if (f_hor > 0.0_dp) then
+        fac = f_hor/dz
+        m = stats_mean(st, lay%i_abs + 1, lay%i_abs + nz)*fac
+        e = stats_stderr(st, lay%i_abs + 1, lay%i_abs + nz)*fac
+        call add_var(set, 'flux_up_wm2', 'upward flux', 'W m-2', ['level'], &
+                     stats_mean1(lay%i_up + lev + 1)*f_hor, stats_err1(lay%i_up + lev + 1)*f_hor)
+        call add_var(set, 'flux_down_wm2', 'downward flux (direct + diffuse)', 'W m-2', &
+                     ['level'], stats_mean1(lay%i_dn + lev + 1)*f_hor, &
+                     stats_err1(lay%i_dn + lev + 1)*f_hor)
+        call add_var(set, 'flux_down_direct_wm2', 'downward direct flux', 'W m-2', ['level'], &
+                     stats_mean1(lay%i_dir + lev + 1)*f_hor, stats_err1(lay%i_dir + lev + 1)*f_hor)
+        call add_var(set, 'absorbed_power_density_layer', 'layer-mean absorbed power per volume', &
+                     'W m-3', ['layer'], m, e)
+        if (allocated(cfg%atm%air_density)) then
+          fac = SECONDS_PER_DAY/(cfg%atm%air_density*cfg%atm%cp_air)
+          call add_var(set, 'heating_rate_layer', 'layer-mean heating rate', 'K day-1', &
+                       ['layer'], m*fac, e*fac)
+        end if
+      else
+        fac = 1.0_dp/dz
+        call add_var(set, 'absorbed_power_density_layer', 'layer-mean absorbed power per volume'// &
+                     ' per unit incident solar flux on a horizontal plane', 'm-1', ['layer'], &
+                     stats_mean(st, lay%i_abs + 1, lay%i_abs + nz)*fac, &
+                     stats_err1([(lay%i_abs + k, k=1, nz)])*fac)
+      end if
+
+      ! per-column maps and voxel absorption of the 3-D region
+      if (lay%do_maps .or. lay%do_voxel) then
+        call add_dim(set, 'x', atm%nx, coord=[((i - 0.5_dp)*atm%dx, i=1, atm%nx)], units='m', &
+                     long_name='x of the column centres')
+        call add_dim(set, 'y', atm%ny, coord=[((i - 0.5_dp)*atm%dy, i=1, atm%ny)], units='m', &
+                     long_name='y of the column centres')
+      end if
+      if (lay%do_maps) then
+        call put('flux_up_map', 'upward flux per column'//NORM, &
+                 [(lay%i_map_up + i, i=1, n_out*ncol)], dims=['x    ', 'y    ', 'level'])
+        call put('flux_down_direct_map', 'downward direct flux per column'//NORM, &
+                 [(lay%i_map_dir + i, i=1, n_out*ncol)], dims=['x    ', 'y    ', 'level'])
+        call put('flux_down_diffuse_map', 'downward diffuse flux per column'//NORM, &
+                 [(lay%i_map_dif + i, i=1, n_out*ncol)], dims=['x    ', 'y    ', 'level'])
+      end if
+      if (lay%do_voxel) then
+        call add_dim(set, 'z3d', atm%n3, coord=zmid(atm%k3_lo:atm%k3_hi), units='m', &
+                     long_name='height of the layer centres of the 3-D region')
+        call put('absorptance_voxel', 'power absorbed per voxel per unit column area'//NORM, &
+                 [(lay%i_vox + i, i=1, atm%n3*ncol)], dims=['x  ', 'y  ', 'z3d'])
+        allocate (fac(atm%n3*ncol))
+        do kr = 1, atm%n3
+          fac((kr - 1)*ncol + 1:kr*ncol) = 1.0_dp/dz(atm%k3_lo + kr - 1)
+        end do
+        m = stats_mean(st, lay%i_vox + 1, lay%i_vox + atm%n3*ncol)*fac
+        e = stats_stderr(st, lay%i_vox + 1, lay%i_vox + atm%n3*ncol)*fac
+        if (f_hor > 0.0_dp) then
+          call add_var(set, 'absorbed_power_density_voxel', 'absorbed power per volume', &
+                       'W m-3', ['x  ', 'y  ', 'z3d'], m*f_hor, e*f_hor)
+          if (allocated(cfg%atm%air_density)) then
+            do kr = 1, atm%n3
+              fac((kr - 1)*ncol + 1:kr*ncol) = f_hor*SECONDS_PER_DAY/ &
+                (cfg%atm%air_density(atm%k3_lo + kr - 1)*cfg%atm%cp_air)
+            end do
+            call add_var(set, 'heating_rate_voxel', 'heating rate', 'K day-1', &
+                         ['x  ', 'y  ', 'z3d'], m*fac, e*fac)
+          end if
+        else
+          call add_var(set, 'absorbed_power_density_voxel', 'absorbed power per volume per'// &
+                       ' unit incident solar flux on a horizontal plane', 'm-1', &
+                       ['x  ', 'y  ', 'z3d'], m, e)
+        end if
+      end if
+
+      call add_var(set, 'batch_reflectance', 'reflectance of each batch', '1', ['batch'], rec(1, :))
+      call add_var(set, 'batch_transmittance', 'transmittance of each batch', '1', ['batch'], &
+                   rec(2, :))
+      call add_var(set, 'batch_absorptance', 'atmospheric absorptance of each batch', '1', &
+                   ['batch'], rec(3, :))
+
+      call date_and_time(values=tv)
+      write (stamp, '(i4.4,"-",i2.2,"-",i2.2,"T",i2.2,":",i2.2,":",i2.2)') tv(1:3), tv(5:7)
+      call add_attr(set, 'title', 'kumo Monte Carlo radiative transfer results')
+      call add_attr(set, 'source', 'kumo '//KUMO_VERSION)
+      call add_attr(set, 'history', trim(stamp)//' kumo '//cfg%path)
+      call add_attr(set, 'kumo_version', KUMO_VERSION)
+      call add_attr(set, 'configuration', config_echo(cfg))
+      call add_attr(set, 'seed', str(cfg%control%seed))
+      call add_attr(set, 'n_photons', str(summary%n_photons))
+      call add_attr(set, 'n_batches', str(summary%n_batches))
+      call add_attr(set, 'n_photons_per_batch', str(cfg%control%n_photons_per_batch))
+      call add_attr(set, 'n_ranks', str(summary%n_ranks))
+      call add_attr(set, 'parallel', merge('MPI   ', 'serial', PAR_IS_MPI))
+      call add_attr(set, 'wall_time_s', str(summary%wall_time))
+      call add_attr(set, 'cpu_time_s', str(summary%cpu_time))
+      call add_attr(set, 'setup_time_s', str(summary%setup_time))
+      call add_attr(set, 'solar_zenith_angle_deg', str(cfg%source%sza_deg))
+      call add_attr(set, 'normalisation', 'fluxes and absorptances are divided by the incident'// &
+                    ' solar flux on a horizontal plane, mu0*F0; *_wm2 and power densities use F0 = '// &
+                    str(cfg%source%solar_flux)//' W m-2')
+      call add_attr(set, 'layer_classes', classes())
+      call add_attr(set, 'supervoxels', sv_text())
+      do i = 1, N_ANOMALIES
+        call add_attr(set, 'anomaly_'//trim(ANOMALY_NAMES(i)), str(summary%anomalies(i)))
+      end do
+    end associate
+
+  contains
+
+    subroutine put(name, long_name, idx, dims)
+      character(len=*), intent(in) :: name, long_name
+      integer, intent(in) :: idx(:)
+      character(len=*), intent(in), optional :: dims(:)
+      if (present(dims)) then
+        call add_var(set, name, long_name, '1', dims, stats_mean1(idx), stats_err1(idx))
+      else if (size(idx) == 1) then
+        call add_var(set, name, long_name, '1', [character(len=1) ::], stats_mean1(idx), &
+                     stats_err1(idx))
+      else
+        call add_var(set, name, long_name, '1', ['level'], stats_mean1(idx), stats_err1(idx))
+      end if
+    end subroutine put
+
+    function stats_mean1(idx) result(v)
+      integer, intent(in) :: idx(:)
+      real(dp) :: v(size(idx))
+      integer :: j
+      do j = 1, size(idx)
+        v(j) = st%s1(idx(j))/real(st%n_batches, dp)
+      end do
+    end function stats_mean1
+
+    function stats_err1(idx) result(v)
+      integer, intent(in) :: idx(:)
+      real(dp) :: v(size(idx))
+      integer :: j
+      real(dp) :: tmp(1)
+      do j = 1, size(idx)
+        tmp = stats_stderr(st, idx(j), idx(j))
+        v(j) = tmp(1)
+      end do
+    end function stats_err1
+
+    function classes() result(s)
+      character(len=:), allocatable :: s
+      integer :: kk
+      s = ''
+      do kk = 1, scene%atm%nz
+        if (kk > 1) s = s//', '
+        s = s//trim(LAYER_CLASS_NAMES(scene%atm%layer_class(kk)))
+      end do
+    end function classes
+
+    function sv_text() result(s)
+      character(len=:), allocatable :: s
+      integer :: j
+      s = str(scene%atm%sv%ns)//' super-layers'
+      do j = 1, scene%atm%sv%ns
+        s = s//'; layers '//str(scene%atm%k3_lo + scene%atm%sv%kb(j) - 1)//'-'// &
+            str(scene%atm%k3_lo + scene%atm%sv%kt(j) - 1)//': blocks of '// &
+            str(scene%atm%sv%bx(j))//'x'//str(scene%atm%sv%by(j))//' voxels'
+      end do
+    end function sv_text
+  end subroutine build_results
+
+  !> Print the headline numbers, their standard errors and the anomaly counts.
+  subroutine log_summary(set, summary, path)
+    type(result_set_t), intent(in) :: set
+    type(run_summary_t), intent(in) :: summary
+    character(len=*), intent(in) :: path
+    character(len=24), parameter :: names(5) = [character(len=24) :: 'reflectance', &
+      'transmittance', 'absorptance_atmosphere', 'absorptance_surface', 'energy_closure']
+    integer :: i, j
+    write (output_unit, '(a)') 'photons '//str(summary%n_photons)//' in '// &
+      str(summary%n_batches)//' batches on '//str(summary%n_ranks)//' rank(s); wall '// &
+      str(summary%wall_time)//' s, cpu '//str(summary%cpu_time)//' s'
+    do i = 1, size(names)
+      do j = 1, size(set%vars)
+        if (trim(set%vars(j)%name) == trim(names(i))) then
+          write (output_unit, '(2x,a24,f12.6,a,f10.6)') names(i), set%vars(j)%mean(1), ' +- ', &
+            set%vars(j)%stderr(1)
+        end if
+      end do
+    end do
+    do i = 1, N_ANOMALIES
+      if (summary%anomalies(i) > 0) write (output_unit, '(a)') '  anomaly '// &
+        trim(ANOMALY_NAMES(i))//': '//str(summary%anomalies(i))
+    end do
+    write (output_unit, '(a)') 'wrote '//path
+  end subroutine log_summary
+end module kumo_driver

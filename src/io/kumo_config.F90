@@ -1,0 +1,747 @@
+! SPDX-License-Identifier: BSD-3-Clause
+!> Namelist configuration: one group per area, read into validated `*_cfg_t` types.
+!>
+!> Groups: &kumo_control (photon budget, seed, stopping rule), &kumo_atmosphere (levels, 1-D
+!> layers, 3-D region), &kumo_phase (phase functions), &kumo_surface, &kumo_source,
+!> &kumo_output, &kumo_vr (roulette and tracer fast paths). Every variable, its default, units
+!> and range is listed in namelists/reference.nml. Namelist variables are local variables copied
+!> into the types, so the file syntax does not depend on component names. Every rank reads and
+!> validates the namelist itself, so all ranks fail the same way.
+module kumo_config
+  use, intrinsic :: iso_fortran_env, only: iostat_end
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
+  use kumo_kinds, only: wp, i8
+  use kumo_error, only: error_t, set_error, str
+  use kumo_phase, only: phase_kind_from_name
+  implicit none
+  private
+  public :: config_t, control_cfg_t, atmosphere_cfg_t, phase_cfg_t, surface_cfg_t, &
+            source_cfg_t, output_cfg_t, vr_cfg_t, read_config, config_echo
+  public :: MAX_LAYERS, MAX_COMP, MAX_PHASE, TARGET_NAMES
+
+  integer, parameter :: MAX_LAYERS = 2000   !! most layers a namelist can describe
+  integer, parameter :: MAX_COMP = 8        !! most components per layer
+  integer, parameter :: MAX_PHASE = 64      !! most phase functions
+  integer, parameter :: PATH_LEN = 512
+  real(wp), parameter :: UNSET = -huge(1.0_wp)
+  integer, parameter :: IUNSET = -huge(1)
+  character(len=16), parameter :: TARGET_NAMES(3) = &
+    [character(len=16) :: 'reflectance', 'transmittance', 'absorptance']
+  character(len=16), parameter :: GROUP_NAMES(7) = &
+    [character(len=16) :: 'kumo_control', 'kumo_atmosphere', 'kumo_phase', 'kumo_surface', &
+     'kumo_source', 'kumo_output', 'kumo_vr']
+
+  !> &kumo_control: photon budget, seeding and stopping rule.
+  type :: control_cfg_t
+    integer(i8) :: n_photons_per_batch = 100000_i8 !! photons traced per batch
+    integer :: n_batches = 20                      !! batches (>= 2 for a standard error)
+    integer(i8) :: seed = 1_i8                     !! global seed; stream = batch index
+    real(wp) :: target_rel_error = 0.0_wp          !! > 0: add rounds of n_batches until reached
+    character(len=16) :: target_output = 'reflectance' !! one of TARGET_NAMES
+    integer(i8) :: max_photons = 1000000000_i8     !! photon cap of the target-error mode
+    integer(i8) :: max_events = 1000000_i8         !! collisions + reflections per photon
+    integer :: verbose = 1                         !! 0 quiet, 1 summary, 2 per round
+  end type control_cfg_t
+
+  !> &kumo_atmosphere: levels, 1-D layers and the 3-D region.
+  type :: atmosphere_cfg_t
+    integer :: nz = 0                              !! number of layers
+    real(wp), allocatable :: z(:)                  !! levels z(0:nz) [m]
+    real(wp) :: lx = 1000.0_wp, ly = 1000.0_wp     !! periodic domain size [m]
+    integer :: n_components = 1                    !! components of the 1-D layers
+    real(wp), allocatable :: ext1d(:, :)           !! (nz, n_components) extinction [m-1]
+    real(wp), allocatable :: ssa1d(:, :)           !! single-scattering albedo
+    integer, allocatable :: phase1d(:, :)          !! phase-function index
+    character(len=PATH_LEN) :: scene_file = ''     !! netCDF file of the 3-D region
+    integer :: k3d_bottom = 0                      !! lowest layer of the 3-D region (0 = none)
+    integer :: nx = 1, ny = 1, nz3 = 0             !! 3-D region size (checked against the file)
+    integer :: n_components_3d = 1                 !! components in the scene file
+    integer, allocatable :: phase3d(:)             !! phase index per 3-D component
+    real(wp), allocatable :: air_density(:)        !! (nz) [kg m-3], for heating rates in K/day
+    real(wp) :: cp_air = 1004.64_wp                !! specific heat [J kg-1 K-1]
+  end type atmosphere_cfg_t
+
+  !> &kumo_phase: the phase functions, referenced by index from layers and voxels.
+  type :: phase_cfg_t
+    integer :: n_phase = 1
+    integer, allocatable :: kind(:)                !! PHASE_* code
+    character(len=16), allocatable :: kind_name(:)
+    real(wp), allocatable :: g(:)                  !! HG asymmetry parameter
+    character(len=PATH_LEN), allocatable :: file(:)!! table file (angle [deg], value)
+    integer :: n_table = 20000                     !! inverse-CDF table size
+  end type phase_cfg_t
+
+  !> &kumo_surface: Lambert surface.
+  type :: surface_cfg_t
+    real(wp) :: albedo = 0.0_wp                    !! uniform albedo
+    character(len=PATH_LEN) :: albedo_file = ''    !! netCDF 2-D albedo map (overrides albedo)
+    character(len=64) :: albedo_var = 'albedo'     !! variable name in albedo_file
+  end type surface_cfg_t
+
+  !> &kumo_source: the solar beam.
+  type :: source_cfg_t
+    real(wp) :: sza_deg = 0.0_wp                   !! solar zenith angle [deg], 0 <= sza < 90
+    real(wp) :: phi0_deg = 0.0_wp                  !! azimuth the beam travels towards [deg]
+    real(wp) :: solar_flux = 0.0_wp                !! F0 normal to the beam [W m-2]; 0 = unknown
+  end type source_cfg_t
+
+  !> &kumo_output: what to write and where.
+  type :: output_cfg_t
+    character(len=PATH_LEN) :: file = 'kumo_out.nc'!! output netCDF file
+    integer, allocatable :: flux_levels(:)         !! levels (0..nz) written; default all
+    logical :: column_fluxes = .true.              !! per-column flux maps (3-D scenes)
+    logical :: voxel_absorption = .true.           !! absorption/heating per voxel (3-D scenes)
+  end type output_cfg_t
+
+  !> &kumo_vr: Russian roulette and the tracer's fast paths.
+  type :: vr_cfg_t
+    real(wp) :: rr_threshold = 0.25_wp             !! roulette below this weight
+    real(wp) :: rr_weight = 0.5_wp                 !! survivors' weight
+    logical :: use_supervoxels = .true.            !! .false.: one majorant for the 3-D region
+    real(wp) :: sv_fsupg = 2.0_wp                  !! merge rule: optical size factor
+    real(wp) :: sv_fsupi = 1.3_wp                  !! merge rule: real/majorant factor
+    integer :: sv_max_layers = 50                  !! most layers per super-layer
+    logical :: use_1d_layers = .true.              !! analytic 1-D layers (else 3-D tracer)
+    logical :: use_absorbing_layers = .true.       !! absorbing layers without collisions
+  end type vr_cfg_t
+
+  type :: config_t
+    character(len=:), allocatable :: path          !! namelist file
+    type(control_cfg_t) :: control
+    type(atmosphere_cfg_t) :: atm
+    type(phase_cfg_t) :: phase
+    type(surface_cfg_t) :: surface
+    type(source_cfg_t) :: source
+    type(output_cfg_t) :: output
+    type(vr_cfg_t) :: vr
+  end type config_t
+
+contains
+
+  !> Read and validate every group of the namelist file `path`.
+  subroutine read_config(path, cfg, error)
+    character(len=*), intent(in) :: path
+    type(config_t), intent(out) :: cfg
+    type(error_t), allocatable, intent(out) :: error
+    integer :: unit, ios
+    character(len=512) :: msg
+    logical :: present_groups(size(GROUP_NAMES))
+    cfg%path = path
+    open (newunit=unit, file=path, status='old', action='read', iostat=ios, iomsg=msg)
+    if (ios /= 0) then
+      call set_error(error, 'cannot open namelist file "'//trim(path)//'": '//trim(msg))
+      return
+    end if
+    call scan_groups(unit, present_groups, error)
+    if (.not. allocated(error)) call read_control(unit, present_groups(1), cfg%control, error)
+    if (.not. allocated(error)) call read_atmosphere(unit, present_groups(2), cfg%atm, error)
+    if (.not. allocated(error)) call read_phase(unit, present_groups(3), cfg%phase, error)
+    if (.not. allocated(error)) call read_surface(unit, present_groups(4), cfg%surface, error)
+    if (.not. allocated(error)) call read_source(unit, present_groups(5), cfg%source, error)
+    if (.not. allocated(error)) call read_output(unit, present_groups(6), cfg%atm%nz, &
+                                                 cfg%output, error)
+    if (.not. allocated(error)) call read_vr(unit, present_groups(7), cfg%vr, error)
+    close (unit)
+    if (.not. allocated(error)) call consolidate(cfg, error)
+  end subroutine read_config
+
+  !> Find which groups are present and reject unknown group names.
+  subroutine scan_groups(unit, present_groups, error)
+    integer, intent(in) :: unit
+    logical, intent(out) :: present_groups(:)
+    type(error_t), allocatable, intent(out) :: error
+    character(len=1024) :: line
+    character(len=64) :: name
+    integer :: ios, i, j
+    logical :: known
+    present_groups = .false.
+    rewind (unit)
+    do
+      read (unit, '(a)', iostat=ios) line
+      if (ios /= 0) exit
+      line = adjustl(line)
+      if (line(1:1) /= '&') cycle
+      j = scan(line(2:), ' ,/!')
+      if (j == 0) j = len_trim(line)
+      name = lower(line(2:j))
+      if (trim(name) == 'end' .or. len_trim(name) == 0) cycle
+      known = .false.
+      do i = 1, size(GROUP_NAMES)
+        if (trim(name) == trim(GROUP_NAMES(i))) then
+          if (present_groups(i)) then
+            call set_error(error, 'namelist group &'//trim(name)//' appears more than once')
+            return
+          end if
+          present_groups(i) = .true.
+          known = .true.
+        end if
+      end do
+      if (.not. known) then
+        call set_error(error, 'unknown namelist group &'//trim(name)//'; known groups: '// &
+                       join(GROUP_NAMES))
+        return
+      end if
+    end do
+    rewind (unit)
+  end subroutine scan_groups
+
+  !> Turn the iostat of a namelist read into an error (or nothing).
+  subroutine check_read(group, present, ios, msg, error)
+    character(len=*), intent(in) :: group, msg
+    logical, intent(in) :: present
+    integer, intent(in) :: ios
+    type(error_t), allocatable, intent(out) :: error
+    if (ios == 0) return
+    if (ios == iostat_end .and. .not. present) return
+    if (ios == iostat_end) then
+      call set_error(error, 'namelist &'//group//' is malformed: a value could not be read '// &
+                     '(check numbers, quotes and the closing /)')
+    else
+      call set_error(error, 'namelist &'//group//': '//trim(msg))
+    end if
+  end subroutine check_read
+
+  subroutine read_control(unit, present, cfg, error)
+    integer, intent(in) :: unit
+    logical, intent(in) :: present
+    type(control_cfg_t), intent(inout) :: cfg
+    type(error_t), allocatable, intent(out) :: error
+    integer(i8) :: n_photons_per_batch, seed, max_photons, max_events
+    integer :: n_batches, verbose, ios
+    real(wp) :: target_rel_error
+    character(len=16) :: target_output
+    character(len=512) :: msg
+    namelist /kumo_control/ n_photons_per_batch, n_batches, seed, target_rel_error, &
+      target_output, max_photons, max_events, verbose
+    n_photons_per_batch = cfg%n_photons_per_batch
+    n_batches = cfg%n_batches
+    seed = cfg%seed
+    target_rel_error = cfg%target_rel_error
+    target_output = cfg%target_output
+    max_photons = cfg%max_photons
+    max_events = cfg%max_events
+    verbose = cfg%verbose
+    rewind (unit)
+    msg = ''
+    read (unit, nml=kumo_control, iostat=ios, iomsg=msg)
+    call check_read('kumo_control', present, ios, msg, error)
+    if (allocated(error)) return
+    cfg%n_photons_per_batch = n_photons_per_batch
+    cfg%n_batches = n_batches
+    cfg%seed = seed
+    cfg%target_rel_error = target_rel_error
+    cfg%target_output = lower(target_output)
+    cfg%max_photons = max_photons
+    cfg%max_events = max_events
+    cfg%verbose = verbose
+    if (n_photons_per_batch < 1) then
+      call set_error(error, '&kumo_control: n_photons_per_batch = '//str(n_photons_per_batch)// &
+                     ' must be >= 1')
+    else if (n_batches < 2) then
+      call set_error(error, '&kumo_control: n_batches = '//str(n_batches)// &
+                     ' must be >= 2 (batches give the standard error)')
+    else if (seed < 0) then
+      call set_error(error, '&kumo_control: seed = '//str(seed)//' must be >= 0')
+    else if (.not. (ieee_is_finite(target_rel_error) .and. target_rel_error >= 0.0_wp)) then
+      call set_error(error, '&kumo_control: target_rel_error = '//str(target_rel_error)// &
+                     ' must be >= 0 (0 = fixed photon budget)')
+    else if (findloc(TARGET_NAMES, cfg%target_output, 1) == 0) then
+      call set_error(error, '&kumo_control: target_output = "'//trim(target_output)// &
+                     '" must be one of '//join(TARGET_NAMES))
+    else if (max_photons < 1) then
+      call set_error(error, '&kumo_control: max_photons = '//str(max_photons)//' must be >= 1')
+    else if (max_events < 1) then
+      call set_error(error, '&kumo_control: max_events = '//str(max_events)//' must be >= 1')
+    end if
+  end subroutine read_control
+
+  subroutine read_atmosphere(unit, present, cfg, error)
+    integer, intent(in) :: unit
+    logical, intent(in) :: present
+    type(atmosphere_cfg_t), intent(inout) :: cfg
+    type(error_t), allocatable, intent(out) :: error
+    integer :: nz, n_components, k3d_bottom, nx, ny, nz3, n_components_3d, ios, k, ic
+    real(wp) :: lx, ly, cp_air
+    real(wp) :: z_levels(0:MAX_LAYERS), ext1d(MAX_LAYERS, MAX_COMP), ssa1d(MAX_LAYERS, MAX_COMP)
+    real(wp) :: air_density(MAX_LAYERS)
+    integer :: phase1d(MAX_LAYERS, MAX_COMP), phase3d(MAX_COMP)
+    character(len=PATH_LEN) :: scene_file
+    character(len=512) :: msg
+    namelist /kumo_atmosphere/ nz, z_levels, lx, ly, n_components, ext1d, ssa1d, phase1d, &
+      scene_file, k3d_bottom, nx, ny, nz3, n_components_3d, phase3d, air_density, cp_air
+    if (.not. present) then
+      call set_error(error, 'namelist group &kumo_atmosphere is required (levels and layers)')
+      return
+    end if
+    nz = 0
+    z_levels = UNSET
+    lx = cfg%lx
+    ly = cfg%ly
+    n_components = cfg%n_components
+    ext1d = UNSET
+    ssa1d = UNSET
+    phase1d = IUNSET
+    scene_file = ''
+    k3d_bottom = 0
+    nx = 1
+    ny = 1
+    nz3 = 0
+    n_components_3d = 1
+    phase3d = 1
+    air_density = UNSET
+    cp_air = cfg%cp_air
+    rewind (unit)
+    msg = ''
+    read (unit, nml=kumo_atmosphere, iostat=ios, iomsg=msg)
+    call check_read('kumo_atmosphere', present, ios, msg, error)
+    if (allocated(error)) return
+    if (nz < 1 .or. nz > MAX_LAYERS) then
+      call set_error(error, '&kumo_atmosphere: nz = '//str(nz)//' must be within 1..'// &
+                     str(MAX_LAYERS))
+      return
+    end if
+    if (n_components < 1 .or. n_components > MAX_COMP) then
+      call set_error(error, '&kumo_atmosphere: n_components = '//str(n_components)// &
+                     ' must be within 1..'//str(MAX_COMP))
+      return
+    end if
+    if (any(z_levels(0:nz) == UNSET)) then
+      call set_error(error, '&kumo_atmosphere: z_levels needs nz + 1 = '//str(nz + 1)// &
+                     ' values (levels 0..nz, bottom first) [m]')
+      return
+    end if
+    if (any(z_levels(nz + 1:) /= UNSET)) then
+      call set_error(error, '&kumo_atmosphere: z_levels has more than nz + 1 = '// &
+                     str(nz + 1)//' values')
+      return
+    end if
+    do k = 0, nz
+      if (.not. ieee_is_finite(z_levels(k))) then
+        call set_error(error, '&kumo_atmosphere: z_levels('//str(k)//') is not finite')
+        return
+      end if
+      if (k > 0) then
+        if (.not. z_levels(k) > z_levels(k - 1)) then
+          call set_error(error, '&kumo_atmosphere: z_levels must increase strictly, but z_levels('// &
+                         str(k)//') = '//str(z_levels(k))//' <= z_levels('//str(k - 1)//') = '// &
+                         str(z_levels(k - 1)))
+          return
+        end if
+      end if
+    end do
+    if (.not. (lx > 0.0_wp .and. ly > 0.0_wp .and. ieee_is_finite(lx) .and. ieee_is_finite(ly))) then
+      call set_error(error, '&kumo_atmosphere: lx = '//str(lx)//' and ly = '//str(ly)// &
+                     ' must be > 0 [m]')
+      return
+    end if
+    if (any(ext1d(nz + 1:, :) /= UNSET) .or. any(ext1d(:, n_components + 1:) /= UNSET) .or. &
+        any(ssa1d(nz + 1:, :) /= UNSET) .or. any(ssa1d(:, n_components + 1:) /= UNSET) .or. &
+        any(phase1d(nz + 1:, :) /= IUNSET) .or. any(phase1d(:, n_components + 1:) /= IUNSET)) then
+      call set_error(error, '&kumo_atmosphere: ext1d/ssa1d/phase1d have values beyond '// &
+                     'layer nz = '//str(nz)//' or component n_components = '//str(n_components))
+      return
+    end if
+    do ic = 1, n_components
+      do k = 1, nz
+        if (ext1d(k, ic) == UNSET) ext1d(k, ic) = 0.0_wp
+        if (ssa1d(k, ic) == UNSET) ssa1d(k, ic) = 1.0_wp
+        if (phase1d(k, ic) == IUNSET) phase1d(k, ic) = 1
+        if (.not. (ieee_is_finite(ext1d(k, ic)) .and. ext1d(k, ic) >= 0.0_wp)) then
+          call set_error(error, '&kumo_atmosphere: ext1d('//str(k)//','//str(ic)//') = '// &
+                         str(ext1d(k, ic))//' must be finite and >= 0 [m-1]')
+          return
+        end if
+        if (.not. (ssa1d(k, ic) >= 0.0_wp .and. ssa1d(k, ic) <= 1.0_wp)) then
+          call set_error(error, '&kumo_atmosphere: ssa1d('//str(k)//','//str(ic)//') = '// &
+                         str(ssa1d(k, ic))//' must be within [0, 1]')
+          return
+        end if
+      end do
+    end do
+    if (len_trim(scene_file) > 0) then
+      if (k3d_bottom < 1 .or. nz3 < 1 .or. k3d_bottom + nz3 - 1 > nz) then
+        call set_error(error, '&kumo_atmosphere: with scene_file, the 3-D region k3d_bottom = '// &
+                       str(k3d_bottom)//' .. k3d_bottom + nz3 - 1 = '//str(k3d_bottom + nz3 - 1)// &
+                       ' must lie within layers 1..nz = '//str(nz))
+        return
+      end if
+      if (nx < 1 .or. ny < 1) then
+        call set_error(error, '&kumo_atmosphere: nx = '//str(nx)//' and ny = '//str(ny)// &
+                       ' must be >= 1')
+        return
+      end if
+      if (n_components_3d < 1 .or. n_components_3d > MAX_COMP) then
+        call set_error(error, '&kumo_atmosphere: n_components_3d = '//str(n_components_3d)// &
+                       ' must be within 1..'//str(MAX_COMP))
+        return
+      end if
+    else if (k3d_bottom /= 0 .or. nz3 /= 0) then
+      call set_error(error, '&kumo_atmosphere: k3d_bottom/nz3 are set but scene_file is empty')
+      return
+    end if
+    if (.not. (cp_air > 0.0_wp)) then
+      call set_error(error, '&kumo_atmosphere: cp_air = '//str(cp_air)//' must be > 0')
+      return
+    end if
+    if (any(air_density(1:nz) /= UNSET)) then
+      if (any(air_density(1:nz) == UNSET) .or. any(air_density(nz + 1:) /= UNSET)) then
+        call set_error(error, '&kumo_atmosphere: air_density needs exactly nz = '//str(nz)// &
+                       ' values [kg m-3]')
+        return
+      end if
+      if (.not. all(air_density(1:nz) > 0.0_wp .and. ieee_is_finite(air_density(1:nz)))) then
+        call set_error(error, '&kumo_atmosphere: air_density values must be finite and > 0')
+        return
+      end if
+      cfg%air_density = air_density(1:nz)
+    end if
+    cfg%nz = nz
+    cfg%z = z_levels(0:nz)
+    cfg%lx = lx
+    cfg%ly = ly
+    cfg%n_components = n_components
+    cfg%ext1d = ext1d(1:nz, 1:n_components)
+    cfg%ssa1d = ssa1d(1:nz, 1:n_components)
+    cfg%phase1d = phase1d(1:nz, 1:n_components)
+    cfg%scene_file = scene_file
+    cfg%k3d_bottom = k3d_bottom
+    cfg%nx = nx
+    cfg%ny = ny
+    cfg%nz3 = nz3
+    cfg%n_components_3d = n_components_3d
+    cfg%phase3d = phase3d(1:n_components_3d)
+    cfg%cp_air = cp_air
+  end subroutine read_atmosphere
+
+  subroutine read_phase(unit, present, cfg, error)
+    integer, intent(in) :: unit
+    logical, intent(in) :: present
+    type(phase_cfg_t), intent(inout) :: cfg
+    type(error_t), allocatable, intent(out) :: error
+    integer :: n_phase, n_table, ios, i
+    character(len=16) :: phase_kind(MAX_PHASE)
+    real(wp) :: phase_g(MAX_PHASE)
+    character(len=PATH_LEN) :: phase_file(MAX_PHASE)
+    character(len=512) :: msg
+    namelist /kumo_phase/ n_phase, phase_kind, phase_g, phase_file, n_table
+    n_phase = 1
+    phase_kind = 'isotropic'
+    phase_g = 0.0_wp
+    phase_file = ''
+    n_table = cfg%n_table
+    rewind (unit)
+    msg = ''
+    read (unit, nml=kumo_phase, iostat=ios, iomsg=msg)
+    call check_read('kumo_phase', present, ios, msg, error)
+    if (allocated(error)) return
+    if (n_phase < 1 .or. n_phase > MAX_PHASE) then
+      call set_error(error, '&kumo_phase: n_phase = '//str(n_phase)//' must be within 1..'// &
+                     str(MAX_PHASE))
+      return
+    end if
+    if (n_table < 100) then
+      call set_error(error, '&kumo_phase: n_table = '//str(n_table)//' must be >= 100')
+      return
+    end if
+    allocate (cfg%kind(n_phase))
+    do i = 1, n_phase
+      call phase_kind_from_name(phase_kind(i), cfg%kind(i), error)
+      if (allocated(error)) then
+        error%message = '&kumo_phase: phase_kind('//str(i)//'): '//error%message
+        return
+      end if
+      if (.not. (abs(phase_g(i)) < 1.0_wp)) then
+        call set_error(error, '&kumo_phase: phase_g('//str(i)//') = '//str(phase_g(i))// &
+                       ' must satisfy |g| < 1')
+        return
+      end if
+      if (trim(lower(phase_kind(i))) == 'table' .and. len_trim(phase_file(i)) == 0) then
+        call set_error(error, '&kumo_phase: phase_file('//str(i)//') is needed for a table')
+        return
+      end if
+    end do
+    cfg%n_phase = n_phase
+    cfg%kind_name = phase_kind(1:n_phase)
+    cfg%g = phase_g(1:n_phase)
+    cfg%file = phase_file(1:n_phase)
+    cfg%n_table = n_table
+  end subroutine read_phase
+
+  subroutine read_surface(unit, present, cfg, error)
+    integer, intent(in) :: unit
+    logical, intent(in) :: present
+    type(surface_cfg_t), intent(inout) :: cfg
+    type(error_t), allocatable, intent(out) :: error
+    real(wp) :: albedo
+    character(len=PATH_LEN) :: albedo_file
+    character(len=64) :: albedo_var
+    integer :: ios
+    character(len=512) :: msg
+    namelist /kumo_surface/ albedo, albedo_file, albedo_var
+    albedo = cfg%albedo
+    albedo_file = cfg%albedo_file
+    albedo_var = cfg%albedo_var
+    rewind (unit)
+    msg = ''
+    read (unit, nml=kumo_surface, iostat=ios, iomsg=msg)
+    call check_read('kumo_surface', present, ios, msg, error)
+    if (allocated(error)) return
+    if (.not. (albedo >= 0.0_wp .and. albedo <= 1.0_wp)) then
+      call set_error(error, '&kumo_surface: albedo = '//str(albedo)//' must be within [0, 1]')
+      return
+    end if
+    cfg%albedo = albedo
+    cfg%albedo_file = albedo_file
+    cfg%albedo_var = albedo_var
+  end subroutine read_surface
+
+  subroutine read_source(unit, present, cfg, error)
+    integer, intent(in) :: unit
+    logical, intent(in) :: present
+    type(source_cfg_t), intent(inout) :: cfg
+    type(error_t), allocatable, intent(out) :: error
+    real(wp) :: sza_deg, phi0_deg, solar_flux
+    integer :: ios
+    character(len=512) :: msg
+    namelist /kumo_source/ sza_deg, phi0_deg, solar_flux
+    sza_deg = cfg%sza_deg
+    phi0_deg = cfg%phi0_deg
+    solar_flux = cfg%solar_flux
+    rewind (unit)
+    msg = ''
+    read (unit, nml=kumo_source, iostat=ios, iomsg=msg)
+    call check_read('kumo_source', present, ios, msg, error)
+    if (allocated(error)) return
+    if (.not. (sza_deg >= 0.0_wp .and. sza_deg < 90.0_wp)) then
+      call set_error(error, '&kumo_source: sza_deg = '//str(sza_deg)// &
+                     ' must satisfy 0 <= sza_deg < 90')
+    else if (.not. ieee_is_finite(phi0_deg)) then
+      call set_error(error, '&kumo_source: phi0_deg = '//str(phi0_deg)//' must be finite')
+    else if (.not. (solar_flux >= 0.0_wp .and. ieee_is_finite(solar_flux))) then
+      call set_error(error, '&kumo_source: solar_flux = '//str(solar_flux)// &
+                     ' must be >= 0 [W m-2] (0 = normalised output only)')
+    end if
+    cfg%sza_deg = sza_deg
+    cfg%phi0_deg = phi0_deg
+    cfg%solar_flux = solar_flux
+  end subroutine read_source
+
+  subroutine read_output(unit, present, nz, cfg, error)
+    integer, intent(in) :: unit
+    logical, intent(in) :: present
+    integer, intent(in) :: nz
+    type(output_cfg_t), intent(inout) :: cfg
+    type(error_t), allocatable, intent(out) :: error
+    character(len=PATH_LEN) :: file
+    integer :: flux_levels(0:MAX_LAYERS), ios, n, i
+    logical :: column_fluxes, voxel_absorption
+    character(len=512) :: msg
+    namelist /kumo_output/ file, flux_levels, column_fluxes, voxel_absorption
+    file = cfg%file
+    flux_levels = IUNSET
+    column_fluxes = cfg%column_fluxes
+    voxel_absorption = cfg%voxel_absorption
+    rewind (unit)
+    msg = ''
+    read (unit, nml=kumo_output, iostat=ios, iomsg=msg)
+    call check_read('kumo_output', present, ios, msg, error)
+    if (allocated(error)) return
+    if (len_trim(file) == 0) then
+      call set_error(error, '&kumo_output: file must not be empty')
+      return
+    end if
+    n = count(flux_levels /= IUNSET)
+    if (n == 0) then
+      cfg%flux_levels = [(i, i=0, nz)]
+    else
+      if (any(flux_levels(n:) /= IUNSET)) then
+        call set_error(error, '&kumo_output: flux_levels must be a list without gaps')
+        return
+      end if
+      cfg%flux_levels = flux_levels(0:n - 1)
+      do i = 1, n
+        if (cfg%flux_levels(i) < 0 .or. cfg%flux_levels(i) > nz) then
+          call set_error(error, '&kumo_output: flux_levels('//str(i)//') = '// &
+                         str(cfg%flux_levels(i))//' must be within 0..nz = '//str(nz))
+          return
+        end if
+        if (i > 1) then
+          if (cfg%flux_levels(i) <= cfg%flux_levels(i - 1)) then
+            call set_error(error, '&kumo_output: flux_levels must increase strictly')
+            return
+          end if
+        end if
+      end do
+    end if
+    cfg%file = file
+    cfg%column_fluxes = column_fluxes
+    cfg%voxel_absorption = voxel_absorption
+  end subroutine read_output
+
+  subroutine read_vr(unit, present, cfg, error)
+    integer, intent(in) :: unit
+    logical, intent(in) :: present
+    type(vr_cfg_t), intent(inout) :: cfg
+    type(error_t), allocatable, intent(out) :: error
+    real(wp) :: rr_threshold, rr_weight, sv_fsupg, sv_fsupi
+    integer :: sv_max_layers, ios
+    logical :: use_supervoxels, use_1d_layers, use_absorbing_layers
+    character(len=512) :: msg
+    namelist /kumo_vr/ rr_threshold, rr_weight, use_supervoxels, sv_fsupg, sv_fsupi, &
+      sv_max_layers, use_1d_layers, use_absorbing_layers
+    rr_threshold = cfg%rr_threshold
+    rr_weight = cfg%rr_weight
+    use_supervoxels = cfg%use_supervoxels
+    sv_fsupg = cfg%sv_fsupg
+    sv_fsupi = cfg%sv_fsupi
+    sv_max_layers = cfg%sv_max_layers
+    use_1d_layers = cfg%use_1d_layers
+    use_absorbing_layers = cfg%use_absorbing_layers
+    rewind (unit)
+    msg = ''
+    read (unit, nml=kumo_vr, iostat=ios, iomsg=msg)
+    call check_read('kumo_vr', present, ios, msg, error)
+    if (allocated(error)) return
+    if (.not. (rr_threshold >= 0.0_wp .and. rr_threshold <= rr_weight)) then
+      call set_error(error, '&kumo_vr: rr_threshold = '//str(rr_threshold)// &
+                     ' must be within [0, rr_weight = '//str(rr_weight)//']')
+    else if (.not. (rr_weight > 0.0_wp .and. ieee_is_finite(rr_weight))) then
+      call set_error(error, '&kumo_vr: rr_weight = '//str(rr_weight)//' must be > 0')
+    else if (.not. (sv_fsupg > 0.0_wp .and. sv_fsupi > 0.0_wp)) then
+      call set_error(error, '&kumo_vr: sv_fsupg and sv_fsupi must be > 0')
+    else if (sv_max_layers < 1) then
+      call set_error(error, '&kumo_vr: sv_max_layers = '//str(sv_max_layers)//' must be >= 1')
+    end if
+    cfg%rr_threshold = rr_threshold
+    cfg%rr_weight = rr_weight
+    cfg%use_supervoxels = use_supervoxels
+    cfg%sv_fsupg = sv_fsupg
+    cfg%sv_fsupi = sv_fsupi
+    cfg%sv_max_layers = sv_max_layers
+    cfg%use_1d_layers = use_1d_layers
+    cfg%use_absorbing_layers = use_absorbing_layers
+  end subroutine read_vr
+
+  !> Cross-group checks.
+  subroutine consolidate(cfg, error)
+    type(config_t), intent(inout) :: cfg
+    type(error_t), allocatable, intent(out) :: error
+    integer :: np
+    np = cfg%phase%n_phase
+    if (any(cfg%atm%phase1d < 1) .or. any(cfg%atm%phase1d > np)) then
+      call set_error(error, '&kumo_atmosphere: phase1d values must be within 1..n_phase = '// &
+                     str(np)//' (&kumo_phase)')
+    else if (any(cfg%atm%phase3d < 1) .or. any(cfg%atm%phase3d > np)) then
+      call set_error(error, '&kumo_atmosphere: phase3d values must be within 1..n_phase = '// &
+                     str(np)//' (&kumo_phase)')
+    else if (allocated(cfg%atm%air_density) .and. cfg%source%solar_flux <= 0.0_wp) then
+      call set_error(error, '&kumo_atmosphere: air_density is given but &kumo_source: '// &
+                     'solar_flux is not; heating rates in K/day need both')
+    end if
+  end subroutine consolidate
+
+  !> The effective configuration as 'group.name = value' lines, for the log and the output file.
+  function config_echo(cfg) result(text)
+    type(config_t), intent(in) :: cfg
+    character(len=:), allocatable :: text
+    character(len=1), parameter :: nl = new_line('a')
+    integer :: i
+    text = 'kumo_control.n_photons_per_batch = '//str(cfg%control%n_photons_per_batch)//nl// &
+           'kumo_control.n_batches = '//str(cfg%control%n_batches)//nl// &
+           'kumo_control.seed = '//str(cfg%control%seed)//nl// &
+           'kumo_control.target_rel_error = '//str(cfg%control%target_rel_error)//nl// &
+           'kumo_control.target_output = '//trim(cfg%control%target_output)//nl// &
+           'kumo_control.max_photons = '//str(cfg%control%max_photons)//nl// &
+           'kumo_control.max_events = '//str(cfg%control%max_events)//nl// &
+           'kumo_atmosphere.nz = '//str(cfg%atm%nz)//nl// &
+           'kumo_atmosphere.z_levels = '//join_real(cfg%atm%z)//nl// &
+           'kumo_atmosphere.lx = '//str(cfg%atm%lx)//nl// &
+           'kumo_atmosphere.ly = '//str(cfg%atm%ly)//nl// &
+           'kumo_atmosphere.n_components = '//str(cfg%atm%n_components)//nl
+    do i = 1, cfg%atm%n_components
+      text = text//'kumo_atmosphere.ext1d(:,'//str(i)//') = '//join_real(cfg%atm%ext1d(:, i))//nl// &
+             'kumo_atmosphere.ssa1d(:,'//str(i)//') = '//join_real(cfg%atm%ssa1d(:, i))//nl// &
+             'kumo_atmosphere.phase1d(:,'//str(i)//') = '//join_int(cfg%atm%phase1d(:, i))//nl
+    end do
+    text = text//'kumo_atmosphere.scene_file = '//trim(cfg%atm%scene_file)//nl// &
+           'kumo_atmosphere.k3d_bottom = '//str(cfg%atm%k3d_bottom)//nl// &
+           'kumo_atmosphere.nx = '//str(cfg%atm%nx)//nl// &
+           'kumo_atmosphere.ny = '//str(cfg%atm%ny)//nl// &
+           'kumo_atmosphere.nz3 = '//str(cfg%atm%nz3)//nl// &
+           'kumo_atmosphere.n_components_3d = '//str(cfg%atm%n_components_3d)//nl// &
+           'kumo_atmosphere.phase3d = '//join_int(cfg%atm%phase3d)//nl
+    if (allocated(cfg%atm%air_density)) text = text//'kumo_atmosphere.air_density = '// &
+                                               join_real(cfg%atm%air_density)//nl
+    text = text//'kumo_atmosphere.cp_air = '//str(cfg%atm%cp_air)//nl// &
+           'kumo_phase.n_phase = '//str(cfg%phase%n_phase)//nl
+    do i = 1, cfg%phase%n_phase
+      text = text//'kumo_phase('//str(i)//') = '//trim(cfg%phase%kind_name(i))// &
+             ' g='//str(cfg%phase%g(i))
+      if (len_trim(cfg%phase%file(i)) > 0) text = text//' file='//trim(cfg%phase%file(i))
+      text = text//nl
+    end do
+    text = text//'kumo_phase.n_table = '//str(cfg%phase%n_table)//nl// &
+           'kumo_surface.albedo = '//str(cfg%surface%albedo)//nl// &
+           'kumo_surface.albedo_file = '//trim(cfg%surface%albedo_file)//nl// &
+           'kumo_surface.albedo_var = '//trim(cfg%surface%albedo_var)//nl// &
+           'kumo_source.sza_deg = '//str(cfg%source%sza_deg)//nl// &
+           'kumo_source.phi0_deg = '//str(cfg%source%phi0_deg)//nl// &
+           'kumo_source.solar_flux = '//str(cfg%source%solar_flux)//nl// &
+           'kumo_output.file = '//trim(cfg%output%file)//nl// &
+           'kumo_output.flux_levels = '//join_int(cfg%output%flux_levels)//nl// &
+           'kumo_output.column_fluxes = '//merge('T', 'F', cfg%output%column_fluxes)//nl// &
+           'kumo_output.voxel_absorption = '//merge('T', 'F', cfg%output%voxel_absorption)//nl// &
+           'kumo_vr.rr_threshold = '//str(cfg%vr%rr_threshold)//nl// &
+           'kumo_vr.rr_weight = '//str(cfg%vr%rr_weight)//nl// &
+           'kumo_vr.use_supervoxels = '//merge('T', 'F', cfg%vr%use_supervoxels)//nl// &
+           'kumo_vr.sv_fsupg = '//str(cfg%vr%sv_fsupg)//nl// &
+           'kumo_vr.sv_fsupi = '//str(cfg%vr%sv_fsupi)//nl// &
+           'kumo_vr.sv_max_layers = '//str(cfg%vr%sv_max_layers)//nl// &
+           'kumo_vr.use_1d_layers = '//merge('T', 'F', cfg%vr%use_1d_layers)//nl// &
+           'kumo_vr.use_absorbing_layers = '//merge('T', 'F', cfg%vr%use_absorbing_layers)//nl
+  end function config_echo
+
+  pure function lower(s) result(t)
+    character(len=*), intent(in) :: s
+    character(len=len(s)) :: t
+    integer :: i, c
+    t = s
+    do i = 1, len(s)
+      c = iachar(s(i:i))
+      if (c >= iachar('A') .and. c <= iachar('Z')) t(i:i) = achar(c + 32)
+    end do
+  end function lower
+
+  pure function join(names) result(s)
+    character(len=*), intent(in) :: names(:)
+    character(len=:), allocatable :: s
+    integer :: i
+    s = ''
+    do i = 1, size(names)
+      if (i > 1) s = s//', '
+      s = s//trim(names(i))
+    end do
+  end function join
+
+  pure function join_real(v) result(s)
+    real(wp), intent(in) :: v(:)
+    character(len=:), allocatable :: s
+    integer :: i
+    s = ''
+    do i = 1, size(v)
+      if (i > 1) s = s//', '
+      s = s//str(v(i))
+    end do
+  end function join_real
+
+  pure function join_int(v) result(s)
+    integer, intent(in) :: v(:)
+    character(len=:), allocatable :: s
+    integer :: i
+    s = ''
+    do i = 1, size(v)
+      if (i > 1) s = s//', '
+      s = s//str(v(i))
+    end do
+  end function join_int
+end module kumo_config

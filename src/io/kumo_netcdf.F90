@@ -1,0 +1,1226 @@
+! SPDX-License-Identifier: BSD-3-Clause
+!> netCDF input and output: the 3-D scene, surface albedo maps and the result file.
+!>
+!> This is the only module that uses the netCDF library. Every library call is checked; a failure
+!> returns an `error_t` whose message reads `<routine>(<file>:<variable>): <netCDF message>`, and
+!> nothing here stops the program.
+!>
+!> Dimension order: the netCDF Fortran API lists dimensions with the fastest-varying first, the
+!> reverse of what `ncdump` shows. A Fortran array `ext(nx, ny, nz, ncomp)` is the file variable
+!> `extinction(component, z, y, x)`. The file formats are described in `docs/input-netcdf.md`.
+!>
+!> Files are written atomically: the data go to `<path>.tmp` in the same directory, which is
+!> renamed to `<path>` only after it was closed without error, and removed on any error. A failed
+!> write therefore never leaves a partial file behind, and an older file at `<path>` stays intact.
+module kumo_netcdf
+  use, intrinsic :: iso_c_binding, only: c_char, c_int, c_null_char
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite, ieee_is_nan
+  use netcdf, only: nf90_create, nf90_open, nf90_close, nf90_enddef, nf90_def_dim, nf90_def_var, &
+                    nf90_put_att, nf90_get_att, nf90_put_var, nf90_get_var, nf90_inq_dimid, &
+                    nf90_inq_varid, nf90_inquire_dimension, nf90_inquire_variable, &
+                    nf90_inquire_attribute, nf90_strerror, NF90_NOERR, NF90_ENOTATT, &
+                    NF90_NOWRITE, NF90_CLOBBER, NF90_NETCDF4, NF90_CLASSIC_MODEL, NF90_GLOBAL, &
+                    NF90_DOUBLE, NF90_FLOAT, NF90_INT, NF90_SHORT, NF90_BYTE, NF90_CHAR, &
+                    NF90_FILL_DOUBLE, NF90_FILL_FLOAT, NF90_FILL_INT, NF90_FILL_SHORT, &
+                    NF90_FILL_BYTE, NF90_MAX_VAR_DIMS, NF90_MAX_NAME
+  use kumo_kinds, only: wp, dp
+  use kumo_error, only: error_t, set_error
+  use kumo_results, only: result_set_t
+  implicit none
+  private
+  public :: write_results, check_writable
+  public :: read_scene_3d, write_scene_3d, read_albedo_map
+  public :: read_var_1d, read_text_attr
+
+  !> netCDF-4 file restricted to the classic data model (readable by every netCDF-4 tool).
+  integer, parameter :: CREATE_MODE = ior(NF90_CLOBBER, ior(NF90_NETCDF4, NF90_CLASSIC_MODEL))
+  character(len=*), parameter :: CONVENTIONS = 'CF-1.8'
+  character(len=*), parameter :: TMP_SUFFIX = '.tmp'
+  character(len=*), parameter :: DEFAULT_ALBEDO_NAME = 'albedo'
+  !> Conversion of an extinction coefficient from km-1 to m-1.
+  real(wp), parameter :: PER_KM_TO_PER_M = 1.0e-3_wp
+
+  !> Scene file: dimension names in Fortran order (first varies fastest), and as ncdump shows them.
+  character(len=*), parameter :: SCENE_DIM_NAMES(4) = &
+                                 [character(len=9) :: 'x', 'y', 'z', 'component']
+  character(len=*), parameter :: SCENE_INDEX = '(x,y,z,component)'
+  character(len=*), parameter :: SCENE_CDL_DIMS = '(component, z, y, x)'
+  !> Albedo map: dimension names in Fortran order, and as ncdump shows them.
+  character(len=*), parameter :: MAP_DIM_NAMES(2) = [character(len=2) :: 'xs', 'ys']
+  character(len=*), parameter :: MAP_INDEX = '(xs,ys)'
+  character(len=*), parameter :: MAP_CDL_DIMS = '(ys, xs)'
+
+  interface
+    !> C `rename` (stdio.h): atomic replacement of `newpath` on POSIX file systems.
+    function c_rename(oldpath, newpath) bind(C, name='rename') result(status)
+      import :: c_char, c_int
+      implicit none
+      character(kind=c_char), intent(in) :: oldpath(*)
+      character(kind=c_char), intent(in) :: newpath(*)
+      integer(c_int) :: status
+    end function c_rename
+
+    !> C `remove` (stdio.h): delete a file.
+    function c_remove(path) bind(C, name='remove') result(status)
+      import :: c_char, c_int
+      implicit none
+      character(kind=c_char), intent(in) :: path(*)
+      integer(c_int) :: status
+    end function c_remove
+  end interface
+
+contains
+
+  ! ------------------------------------------------------------------------------------------------
+  ! Output
+  ! ------------------------------------------------------------------------------------------------
+
+  !> Write a result set as a CF-1.8 netCDF-4 (classic model) file, atomically.
+  !>
+  !> Each dimension is written; a dimension with `coord` allocated also gets a coordinate variable.
+  !> Each result variable becomes a double variable `<name>` (the mean) and, if its standard error
+  !> is allocated, `<name>_stderr`. The set is validated first (dimensions exist, sizes agree,
+  !> values finite, standard errors >= 0): an invalid set creates no file at all.
+  subroutine write_results(path, set, error)
+    character(len=*), intent(in) :: path                !! output file
+    type(result_set_t), intent(in) :: set               !! dimensions, variables, global attributes
+    type(error_t), allocatable, intent(out) :: error
+    character(len=*), parameter :: R = 'write_results'
+    integer :: ncid
+
+    call validate_result_set(R, trim(path), set, error)
+    if (allocated(error)) return
+    call create_temp(R, trim(path), ncid, error)
+    if (allocated(error)) return
+    call write_results_body(R, trim(path), ncid, set, error)
+    call commit_temp(R, trim(path), ncid, error)
+  end subroutine write_results
+
+  !> Check, before a run starts, that the output file can be created: a probe file `<path>.tmp`
+  !> is created, closed and deleted. The error message names the path.
+  subroutine check_writable(path, error)
+    character(len=*), intent(in) :: path                !! output file the run will write
+    type(error_t), allocatable, intent(out) :: error
+    character(len=*), parameter :: R = 'check_writable'
+    character(len=512) :: msg
+    character(len=:), allocatable :: p
+    integer :: unit, ios
+    logical :: is_dir
+
+    p = trim(path)
+    if (len(p) == 0) then
+      call set_error(error, R//': output path is empty')
+      return
+    end if
+    ! A directory "exists" with "/." appended; a regular file does not.
+    inquire (file=p//'/.', exist=is_dir)
+    if (is_dir) then
+      call set_error(error, R//'('//p//'): output path is a directory')
+      return
+    end if
+    open (newunit=unit, file=p//TMP_SUFFIX, status='replace', action='write', iostat=ios, iomsg=msg)
+    if (ios /= 0) then
+      call set_error(error, R//'('//p//'): cannot create the output file: '//trim(msg))
+      return
+    end if
+    close (unit, status='delete', iostat=ios, iomsg=msg)
+    if (ios /= 0) then
+      call set_error(error, R//'('//p//'): cannot delete the probe file '//p//TMP_SUFFIX//': '// &
+                     trim(msg))
+    end if
+  end subroutine check_writable
+
+  !> Write a 3-D scene file in the format read by `read_scene_3d`, atomically.
+  !>
+  !> The arrays are validated with the reader's rules first, so a file written here always reads
+  !> back. `ext_units` selects the units stored in the file ("m-1", the default, or "km-1"); the
+  !> values passed in are always in m-1.
+  subroutine write_scene_3d(path, ext, ssa, phase_index, error, ext_units)
+    character(len=*), intent(in) :: path                !! output file
+    real(wp), intent(in) :: ext(:, :, :, :)             !! extinction (nx, ny, nz3, ncomp) [m-1]
+    real(wp), intent(in) :: ssa(:, :, :, :)             !! single-scattering albedo, same shape [1]
+    integer, intent(in), optional :: phase_index(:, :, :, :) !! 1-based phase function index
+    type(error_t), allocatable, intent(out) :: error
+    character(len=*), intent(in), optional :: ext_units !! "m-1" (default) or "km-1"
+    character(len=*), parameter :: R = 'write_scene_3d'
+    character(len=:), allocatable :: p, units
+    integer :: ncid
+
+    p = trim(path)
+    units = 'm-1'
+    if (present(ext_units)) units = trim(ext_units)
+    if (units /= 'm-1' .and. units /= 'km-1') then
+      call set_error(error, R//'('//p//':extinction): ext_units = "'//units// &
+                     '" not allowed; allowed units are "m-1" and "km-1"')
+      return
+    end if
+    if (any(shape(ssa) /= shape(ext))) then
+      call set_error(error, R//'('//p//':ssa): shape '//int_list(shape(ssa))// &
+                     ' differs from the shape of extinction '//int_list(shape(ext)))
+      return
+    end if
+    if (present(phase_index)) then
+      if (any(shape(phase_index) /= shape(ext))) then
+        call set_error(error, R//'('//p//':phase_index): shape '//int_list(shape(phase_index))// &
+                       ' differs from the shape of extinction '//int_list(shape(ext)))
+        return
+      end if
+    end if
+    if (size(ext) == 0) then
+      call set_error(error, R//'('//p//':extinction): every dimension must be >= 1, shape is '// &
+                     int_list(shape(ext)))
+      return
+    end if
+    call check_real_4d(R//'('//p//':extinction)', ext, real(NF90_FILL_DOUBLE, wp), .false., error)
+    if (allocated(error)) return
+    call check_real_4d(R//'('//p//':ssa)', ssa, real(NF90_FILL_DOUBLE, wp), .true., error)
+    if (allocated(error)) return
+    if (present(phase_index)) then
+      call check_index_4d(R//'('//p//':phase_index)', phase_index, NF90_FILL_INT, error)
+      if (allocated(error)) return
+    end if
+
+    call create_temp(R, p, ncid, error)
+    if (allocated(error)) return
+    call write_scene_body(R, p, ncid, ext, units, ssa, phase_index, error)
+    call commit_temp(R, p, ncid, error)
+  end subroutine write_scene_3d
+
+  ! ------------------------------------------------------------------------------------------------
+  ! Input
+  ! ------------------------------------------------------------------------------------------------
+
+  !> Read the optical properties of the 3-D region from a scene file (see docs/input-netcdf.md).
+  !>
+  !> The dimensions `x`, `y`, `z`, `component` must have the expected sizes. Extinction in "km-1"
+  !> is converted to m-1. Values are validated: extinction finite and >= 0, ssa finite in [0, 1],
+  !> phase_index >= 1; fill values (missing data) and packed variables are rejected. On error all
+  !> outputs are deallocated.
+  subroutine read_scene_3d(path, nx, ny, nz3, ncomp, ext, ssa, phase_index, has_phase_index, error)
+    character(len=*), intent(in) :: path                !! scene file
+    integer, intent(in) :: nx                           !! expected size of dimension x
+    integer, intent(in) :: ny                           !! expected size of dimension y
+    integer, intent(in) :: nz3                          !! expected layers of the 3-D region (z)
+    integer, intent(in) :: ncomp                        !! expected number of components
+    real(wp), allocatable, intent(out) :: ext(:, :, :, :) !! extinction (nx, ny, nz3, ncomp) [m-1]
+    real(wp), allocatable, intent(out) :: ssa(:, :, :, :) !! single-scattering albedo [1]
+    integer, allocatable, intent(out) :: phase_index(:, :, :, :) !! allocated if present in the file
+    logical, intent(out) :: has_phase_index             !! whether the file has phase_index
+    type(error_t), allocatable, intent(out) :: error
+    character(len=*), parameter :: R = 'read_scene_3d'
+    integer :: ncid
+
+    has_phase_index = .false.
+    call open_read(R, trim(path), ncid, error)
+    if (allocated(error)) return
+    call read_scene_body(R, trim(path), ncid, [nx, ny, nz3, ncomp], ext, ssa, phase_index, &
+                         has_phase_index, error)
+    call close_read(R, trim(path), ncid, error)
+    if (allocated(error)) then
+      if (allocated(ext)) deallocate (ext)
+      if (allocated(ssa)) deallocate (ssa)
+      if (allocated(phase_index)) deallocate (phase_index)
+      has_phase_index = .false.
+    end if
+  end subroutine read_scene_3d
+
+  !> Read a 2-D surface albedo map `albedo(ys, xs)` (ncdump order) on its own grid.
+  !>
+  !> The sizes come from the file. Values must be finite and within [0, 1].
+  subroutine read_albedo_map(path, varname, nxs, nys, albedo, error)
+    character(len=*), intent(in) :: path                !! map file
+    character(len=*), intent(in) :: varname             !! variable name; blank means "albedo"
+    integer, intent(out) :: nxs                         !! size of dimension xs
+    integer, intent(out) :: nys                         !! size of dimension ys
+    real(wp), allocatable, intent(out) :: albedo(:, :)  !! albedo (nxs, nys) [1]
+    type(error_t), allocatable, intent(out) :: error
+    character(len=*), parameter :: R = 'read_albedo_map'
+    character(len=:), allocatable :: name
+    integer :: ncid
+
+    nxs = 0
+    nys = 0
+    name = trim(varname)
+    if (len(name) == 0) name = DEFAULT_ALBEDO_NAME
+    call open_read(R, trim(path), ncid, error)
+    if (allocated(error)) return
+    call read_albedo_body(R, trim(path), ncid, name, nxs, nys, albedo, error)
+    call close_read(R, trim(path), ncid, error)
+    if (allocated(error)) then
+      if (allocated(albedo)) deallocate (albedo)
+      nxs = 0
+      nys = 0
+    end if
+  end subroutine read_albedo_map
+
+  !> Read a numeric variable of any rank as doubles, flattened in Fortran order.
+  subroutine read_var_1d(path, varname, values, error)
+    character(len=*), intent(in) :: path                !! netCDF file
+    character(len=*), intent(in) :: varname            !! variable name
+    real(dp), allocatable, intent(out) :: values(:)    !! values, first file dimension fastest
+    type(error_t), allocatable, intent(out) :: error
+    character(len=*), parameter :: R = 'read_var_1d'
+    integer :: ncid
+
+    call open_read(R, trim(path), ncid, error)
+    if (allocated(error)) return
+    call read_var_body(R, trim(path), ncid, trim(varname), values, error)
+    call close_read(R, trim(path), ncid, error)
+    if (allocated(error) .and. allocated(values)) deallocate (values)
+  end subroutine read_var_1d
+
+  !> Read a global text attribute. Trailing NUL characters written by some C tools are dropped.
+  subroutine read_text_attr(path, attname, value, error)
+    character(len=*), intent(in) :: path                !! netCDF file
+    character(len=*), intent(in) :: attname             !! global attribute name
+    character(len=:), allocatable, intent(out) :: value !! attribute text
+    type(error_t), allocatable, intent(out) :: error
+    character(len=*), parameter :: R = 'read_text_attr'
+    integer :: ncid
+    logical :: found
+
+    call open_read(R, trim(path), ncid, error)
+    if (allocated(error)) return
+    call get_text_att(R, trim(path), ncid, NF90_GLOBAL, trim(attname), value, found, error)
+    if (.not. allocated(error) .and. .not. found) then
+      call set_error(error, R//'('//trim(path)//':'//trim(attname)// &
+                     '): global attribute not found')
+    end if
+    call close_read(R, trim(path), ncid, error)
+    if (allocated(error) .and. allocated(value)) deallocate (value)
+  end subroutine read_text_attr
+
+  ! ------------------------------------------------------------------------------------------------
+  ! Bodies (the file is open; the caller closes it)
+  ! ------------------------------------------------------------------------------------------------
+
+  subroutine write_results_body(routine, path, ncid, set, error)
+    character(len=*), intent(in) :: routine, path
+    integer, intent(in) :: ncid
+    type(result_set_t), intent(in) :: set
+    type(error_t), allocatable, intent(out) :: error
+    integer, allocatable :: dimids(:), coord_ids(:), mean_ids(:), stderr_ids(:)
+    integer :: vdims(4), counts(4)
+    integer :: ndim, nvar, i, k, nd
+    character(len=:), allocatable :: name, at, long_name
+
+    ndim = 0
+    nvar = 0
+    if (allocated(set%dims)) ndim = size(set%dims)
+    if (allocated(set%vars)) nvar = size(set%vars)
+    allocate (dimids(ndim), coord_ids(ndim), mean_ids(nvar), stderr_ids(nvar))
+    coord_ids = -1
+    stderr_ids = -1
+
+    ! Global attributes: the convention first, then the set's own attributes in order.
+    at = where_text(routine, path, 'Conventions')
+    call nc_check(nf90_put_att(ncid, NF90_GLOBAL, 'Conventions', CONVENTIONS), at, error)
+    if (allocated(error)) return
+    if (allocated(set%attrs)) then
+      do i = 1, size(set%attrs)
+        name = trim(set%attrs(i)%name)
+        at = where_text(routine, path, name)
+        if (allocated(set%attrs(i)%value)) then
+          call nc_check(nf90_put_att(ncid, NF90_GLOBAL, name, set%attrs(i)%value), at, error)
+        else
+          call nc_check(nf90_put_att(ncid, NF90_GLOBAL, name, ''), at, error)
+        end if
+        if (allocated(error)) return
+      end do
+    end if
+
+    ! Dimensions and coordinate variables.
+    do i = 1, ndim
+      name = trim(set%dims(i)%name)
+      at = where_text(routine, path, name)
+      call nc_check(nf90_def_dim(ncid, name, set%dims(i)%size, dimids(i)), at, error)
+      if (allocated(error)) return
+      if (.not. allocated(set%dims(i)%coord)) cycle
+      call nc_check(nf90_def_var(ncid, name, NF90_DOUBLE, [dimids(i)], coord_ids(i)), at, error)
+      if (allocated(error)) return
+      call put_text_att_if_set(at, ncid, coord_ids(i), 'units', set%dims(i)%units, error)
+      if (allocated(error)) return
+      call put_text_att_if_set(at, ncid, coord_ids(i), 'long_name', set%dims(i)%long_name, error)
+      if (allocated(error)) return
+    end do
+
+    ! Result variables: <name> and <name>_stderr, dimensions in Fortran order.
+    do k = 1, nvar
+      associate (v => set%vars(k))
+        nd = v%ndims
+        do i = 1, nd
+          vdims(i) = dimids(dim_position(set, v%dim_names(i)))
+        end do
+        name = trim(v%name)
+        long_name = name
+        if (allocated(v%long_name)) then
+          if (len_trim(v%long_name) > 0) long_name = trim(v%long_name)
+        end if
+        at = where_text(routine, path, name)
+        call nc_check(nf90_def_var(ncid, name, NF90_DOUBLE, vdims(1:nd), mean_ids(k)), at, error)
+        if (allocated(error)) return
+        call put_text_att_if_set(at, ncid, mean_ids(k), 'long_name', long_name, error)
+        if (allocated(error)) return
+        call put_text_att_if_set(at, ncid, mean_ids(k), 'units', v%units, error)
+        if (allocated(error)) return
+        if (allocated(v%stderr)) then
+          at = where_text(routine, path, name//'_stderr')
+          call nc_check(nf90_def_var(ncid, name//'_stderr', NF90_DOUBLE, vdims(1:nd), &
+                                     stderr_ids(k)), at, error)
+          if (allocated(error)) return
+          call put_text_att_if_set(at, ncid, stderr_ids(k), 'long_name', &
+                                   'standard error of '//long_name, error)
+          if (allocated(error)) return
+          call put_text_att_if_set(at, ncid, stderr_ids(k), 'units', v%units, error)
+          if (allocated(error)) return
+        end if
+      end associate
+    end do
+
+    call nc_check(nf90_enddef(ncid), where_text(routine, path, ''), error)
+    if (allocated(error)) return
+
+    do i = 1, ndim
+      if (coord_ids(i) < 0) cycle
+      at = where_text(routine, path, trim(set%dims(i)%name))
+      call nc_check(nf90_put_var(ncid, coord_ids(i), set%dims(i)%coord), at, error)
+      if (allocated(error)) return
+    end do
+    do k = 1, nvar
+      associate (v => set%vars(k))
+        nd = v%ndims
+        do i = 1, nd
+          counts(i) = set%dims(dim_position(set, v%dim_names(i)))%size
+        end do
+        at = where_text(routine, path, trim(v%name))
+        call put_flat(ncid, mean_ids(k), nd, counts, v%mean, at, error)
+        if (allocated(error)) return
+        if (stderr_ids(k) >= 0) then
+          at = where_text(routine, path, trim(v%name)//'_stderr')
+          call put_flat(ncid, stderr_ids(k), nd, counts, v%stderr, at, error)
+          if (allocated(error)) return
+        end if
+      end associate
+    end do
+  end subroutine write_results_body
+
+  subroutine write_scene_body(routine, path, ncid, ext, units, ssa, phase_index, error)
+    character(len=*), intent(in) :: routine, path
+    integer, intent(in) :: ncid
+    real(wp), intent(in) :: ext(:, :, :, :)
+    character(len=*), intent(in) :: units                !! "m-1" or "km-1"
+    real(wp), intent(in) :: ssa(:, :, :, :)
+    integer, intent(in), optional :: phase_index(:, :, :, :)
+    type(error_t), allocatable, intent(out) :: error
+    integer :: dimids(4), shp(4), ext_id, ssa_id, pi_id, i
+    logical :: in_km
+
+    shp = shape(ext)
+    in_km = units == 'km-1'
+    call nc_check(nf90_put_att(ncid, NF90_GLOBAL, 'Conventions', CONVENTIONS), &
+                  where_text(routine, path, 'Conventions'), error)
+    if (allocated(error)) return
+    call nc_check(nf90_put_att(ncid, NF90_GLOBAL, 'title', 'kumo 3-D scene optical properties'), &
+                  where_text(routine, path, 'title'), error)
+    if (allocated(error)) return
+    do i = 1, 4
+      call nc_check(nf90_def_dim(ncid, trim(SCENE_DIM_NAMES(i)), shp(i), dimids(i)), &
+                    where_text(routine, path, trim(SCENE_DIM_NAMES(i))), error)
+      if (allocated(error)) return
+    end do
+
+    call def_scene_var('extinction', NF90_DOUBLE, 'volume extinction coefficient', units, ext_id)
+    if (allocated(error)) return
+    call def_scene_var('ssa', NF90_DOUBLE, 'single-scattering albedo', '1', ssa_id)
+    if (allocated(error)) return
+    if (present(phase_index)) then
+      call def_scene_var('phase_index', NF90_INT, &
+                         'index of the phase function in the namelist list (1-based)', '', pi_id)
+      if (allocated(error)) return
+    end if
+    call nc_check(nf90_enddef(ncid), where_text(routine, path, ''), error)
+    if (allocated(error)) return
+
+    if (in_km) then
+      call nc_check(nf90_put_var(ncid, ext_id, ext/PER_KM_TO_PER_M), &
+                    where_text(routine, path, 'extinction'), error)
+    else
+      call nc_check(nf90_put_var(ncid, ext_id, ext), where_text(routine, path, 'extinction'), error)
+    end if
+    if (allocated(error)) return
+    call nc_check(nf90_put_var(ncid, ssa_id, ssa), where_text(routine, path, 'ssa'), error)
+    if (allocated(error)) return
+    if (present(phase_index)) then
+      call nc_check(nf90_put_var(ncid, pi_id, phase_index), &
+                    where_text(routine, path, 'phase_index'), error)
+    end if
+
+  contains
+
+    subroutine def_scene_var(name, xtype, long_name, var_units, varid)
+      character(len=*), intent(in) :: name, long_name, var_units
+      integer, intent(in) :: xtype
+      integer, intent(out) :: varid
+      character(len=:), allocatable :: at
+      at = where_text(routine, path, name)
+      call nc_check(nf90_def_var(ncid, name, xtype, dimids, varid), at, error)
+      if (allocated(error)) return
+      call put_text_att_if_set(at, ncid, varid, 'long_name', long_name, error)
+      if (allocated(error)) return
+      call put_text_att_if_set(at, ncid, varid, 'units', var_units, error)
+    end subroutine def_scene_var
+  end subroutine write_scene_body
+
+  subroutine read_scene_body(routine, path, ncid, expected, ext, ssa, phase_index, &
+                             has_phase_index, error)
+    character(len=*), intent(in) :: routine, path
+    integer, intent(in) :: ncid
+    integer, intent(in) :: expected(4)
+    real(wp), allocatable, intent(out) :: ext(:, :, :, :), ssa(:, :, :, :)
+    integer, allocatable, intent(out) :: phase_index(:, :, :, :)
+    logical, intent(inout) :: has_phase_index
+    type(error_t), allocatable, intent(out) :: error
+    character(len=*), parameter :: EXPECTED_NAMES(4) = &
+                                   [character(len=5) :: 'nx', 'ny', 'nz3', 'ncomp']
+    integer :: dimids(4), length, varid, status, i
+    real(wp) :: fill
+    integer :: ifill
+    character(len=:), allocatable :: units, at
+    logical :: found, in_km
+
+    ! Dimensions: present and of the expected size, checked before anything is read.
+    do i = 1, 4
+      at = where_text(routine, path, trim(SCENE_DIM_NAMES(i)))
+      call nc_check(nf90_inq_dimid(ncid, trim(SCENE_DIM_NAMES(i)), dimids(i)), at, error)
+      if (allocated(error)) return
+      call nc_check(nf90_inquire_dimension(ncid, dimids(i), len=length), at, error)
+      if (allocated(error)) return
+      if (length /= expected(i)) then
+        call set_error(error, at//': dimension size '//int_text(length)// &
+                       ' in the file does not match the expected size '// &
+                       trim(EXPECTED_NAMES(i))//' = '//int_text(expected(i)))
+        return
+      end if
+    end do
+
+    ! Extinction: layout, units, values.
+    at = where_text(routine, path, 'extinction')
+    call nc_check(nf90_inq_varid(ncid, 'extinction', varid), at, error)
+    if (allocated(error)) return
+    call check_real_var(at, ncid, varid, dimids, SCENE_CDL_DIMS, fill, error)
+    if (allocated(error)) return
+    call get_text_att(routine, path, ncid, varid, 'units', units, found, error)
+    if (allocated(error)) return
+    if (.not. found) then
+      call set_error(error, at//': units attribute missing; allowed units are "m-1" and "km-1"')
+      return
+    end if
+    if (units /= 'm-1' .and. units /= 'km-1') then
+      call set_error(error, at//': units "'//units// &
+                     '" not allowed; allowed units are "m-1" and "km-1"')
+      return
+    end if
+    in_km = units == 'km-1'
+    allocate (ext(expected(1), expected(2), expected(3), expected(4)))
+    call nc_check(nf90_get_var(ncid, varid, ext), at, error)
+    if (allocated(error)) return
+    call check_real_4d(at, ext, fill, .false., error)
+    if (allocated(error)) return
+    if (in_km) ext = ext*PER_KM_TO_PER_M
+
+    ! Single-scattering albedo: dimensionless.
+    at = where_text(routine, path, 'ssa')
+    call nc_check(nf90_inq_varid(ncid, 'ssa', varid), at, error)
+    if (allocated(error)) return
+    call check_real_var(at, ncid, varid, dimids, SCENE_CDL_DIMS, fill, error)
+    if (allocated(error)) return
+    call check_dimensionless(routine, path, at, ncid, varid, error)
+    if (allocated(error)) return
+    allocate (ssa(expected(1), expected(2), expected(3), expected(4)))
+    call nc_check(nf90_get_var(ncid, varid, ssa), at, error)
+    if (allocated(error)) return
+    call check_real_4d(at, ssa, fill, .true., error)
+    if (allocated(error)) return
+
+    ! Optional phase-function index.
+    at = where_text(routine, path, 'phase_index')
+    status = nf90_inq_varid(ncid, 'phase_index', varid)
+    if (status /= NF90_NOERR) return        ! absent: every component uses its own phase function
+    call check_layout(at, ncid, varid, dimids, SCENE_CDL_DIMS, error)
+    if (allocated(error)) return
+    call integer_fill(at, ncid, varid, ifill, error)
+    if (allocated(error)) return
+    allocate (phase_index(expected(1), expected(2), expected(3), expected(4)))
+    call nc_check(nf90_get_var(ncid, varid, phase_index), at, error)
+    if (allocated(error)) return
+    call check_index_4d(at, phase_index, ifill, error)
+    if (allocated(error)) return
+    has_phase_index = .true.
+  end subroutine read_scene_body
+
+  subroutine read_albedo_body(routine, path, ncid, name, nxs, nys, albedo, error)
+    character(len=*), intent(in) :: routine, path, name
+    integer, intent(in) :: ncid
+    integer, intent(inout) :: nxs, nys
+    real(wp), allocatable, intent(out) :: albedo(:, :)
+    type(error_t), allocatable, intent(out) :: error
+    integer :: dimids(2), lengths(2), varid, i, ix, iy
+    real(wp) :: fill
+    character(len=:), allocatable :: at
+
+    do i = 1, 2
+      at = where_text(routine, path, trim(MAP_DIM_NAMES(i)))
+      call nc_check(nf90_inq_dimid(ncid, trim(MAP_DIM_NAMES(i)), dimids(i)), at, error)
+      if (allocated(error)) return
+      call nc_check(nf90_inquire_dimension(ncid, dimids(i), len=lengths(i)), at, error)
+      if (allocated(error)) return
+    end do
+    at = where_text(routine, path, name)
+    call nc_check(nf90_inq_varid(ncid, name, varid), at, error)
+    if (allocated(error)) return
+    call check_real_var(at, ncid, varid, dimids, MAP_CDL_DIMS, fill, error)
+    if (allocated(error)) return
+    call check_dimensionless(routine, path, at, ncid, varid, error)
+    if (allocated(error)) return
+    allocate (albedo(lengths(1), lengths(2)))
+    call nc_check(nf90_get_var(ncid, varid, albedo), at, error)
+    if (allocated(error)) return
+    do iy = 1, lengths(2)
+      do ix = 1, lengths(1)
+        if (.not. value_ok(albedo(ix, iy), fill, .true.)) then
+          call set_error(error, at//': value '//real_text(albedo(ix, iy))//' at '//MAP_INDEX// &
+                         ' = '//int_list([ix, iy])//' '// &
+                         value_problem(albedo(ix, iy), fill, .true.))
+          return
+        end if
+      end do
+    end do
+    nxs = lengths(1)
+    nys = lengths(2)
+  end subroutine read_albedo_body
+
+  subroutine read_var_body(routine, path, ncid, name, values, error)
+    character(len=*), intent(in) :: routine, path, name
+    integer, intent(in) :: ncid
+    real(dp), allocatable, intent(out) :: values(:)
+    type(error_t), allocatable, intent(out) :: error
+    integer :: varid, xtype, ndims, i
+    integer :: dimids(NF90_MAX_VAR_DIMS)
+    integer, allocatable :: counts(:)
+    character(len=:), allocatable :: at
+
+    at = where_text(routine, path, name)
+    call nc_check(nf90_inq_varid(ncid, name, varid), at, error)
+    if (allocated(error)) return
+    call nc_check(nf90_inquire_variable(ncid, varid, xtype=xtype, ndims=ndims, dimids=dimids), &
+                  at, error)
+    if (allocated(error)) return
+    if (xtype == NF90_CHAR) then
+      call set_error(error, at//': variable holds text, not numbers')
+      return
+    end if
+    allocate (counts(ndims))
+    do i = 1, ndims
+      call nc_check(nf90_inquire_dimension(ncid, dimids(i), len=counts(i)), at, error)
+      if (allocated(error)) return
+    end do
+    allocate (values(product(counts)))
+    if (ndims == 0) then
+      call nc_check(nf90_get_var(ncid, varid, values(1)), at, error)
+    else if (size(values) > 0) then
+      call nc_check(nf90_get_var(ncid, varid, values, start=spread(1, 1, ndims), count=counts), &
+                    at, error)
+    end if
+  end subroutine read_var_body
+
+  ! ------------------------------------------------------------------------------------------------
+  ! Validation
+  ! ------------------------------------------------------------------------------------------------
+
+  !> Check a result set before any file is created.
+  subroutine validate_result_set(routine, path, set, error)
+    character(len=*), intent(in) :: routine, path
+    type(result_set_t), intent(in) :: set
+    type(error_t), allocatable, intent(out) :: error
+    integer :: i, j, n, expected_size
+    integer :: counts(4)
+    character(len=:), allocatable :: at
+
+    if (allocated(set%attrs)) then
+      do i = 1, size(set%attrs)
+        at = where_text(routine, path, trim(set%attrs(i)%name))
+        if (len_trim(set%attrs(i)%name) == 0) then
+          call set_error(error, at//': global attribute '//int_text(i)//' has no name')
+          return
+        end if
+        if (trim(set%attrs(i)%name) == 'Conventions') then
+          call set_error(error, at//': the Conventions attribute is set by the writer ("'// &
+                         CONVENTIONS//'") and must not be in the result set')
+          return
+        end if
+      end do
+    end if
+
+    if (allocated(set%dims)) then
+      do i = 1, size(set%dims)
+        at = where_text(routine, path, trim(set%dims(i)%name))
+        if (len_trim(set%dims(i)%name) == 0) then
+          call set_error(error, at//': dimension '//int_text(i)//' has no name')
+          return
+        end if
+        if (dim_position(set, set%dims(i)%name) /= i) then
+          call set_error(error, at//': dimension defined twice')
+          return
+        end if
+        if (set%dims(i)%size < 1) then
+          call set_error(error, at//': dimension size '//int_text(set%dims(i)%size)// &
+                         ' must be >= 1')
+          return
+        end if
+        if (allocated(set%dims(i)%coord)) then
+          if (size(set%dims(i)%coord) /= set%dims(i)%size) then
+            call set_error(error, at//': coordinate has '//int_text(size(set%dims(i)%coord))// &
+                           ' values, dimension size is '//int_text(set%dims(i)%size))
+            return
+          end if
+          call check_finite_flat(at, set%dims(i)%coord, 1, [set%dims(i)%size], &
+                                 '('//trim(set%dims(i)%name)//')', .false., error)
+          if (allocated(error)) return
+        end if
+      end do
+    end if
+
+    if (.not. allocated(set%vars)) return
+    do i = 1, size(set%vars)
+      associate (v => set%vars(i))
+        at = where_text(routine, path, trim(v%name))
+        if (len_trim(v%name) == 0) then
+          call set_error(error, at//': variable '//int_text(i)//' has no name')
+          return
+        end if
+        n = v%ndims
+        if (n < 0 .or. n > size(v%dim_names)) then
+          call set_error(error, at//': ndims = '//int_text(n)//' must be in [0, '// &
+                         int_text(size(v%dim_names))//']')
+          return
+        end if
+        do j = 1, n
+          if (dim_position(set, v%dim_names(j)) == 0) then
+            call set_error(error, at//': dimension "'//trim(v%dim_names(j))// &
+                           '" is not defined in the result set')
+            return
+          end if
+          counts(j) = set%dims(dim_position(set, v%dim_names(j)))%size
+        end do
+        expected_size = product(counts(1:n))
+        if (.not. allocated(v%mean)) then
+          call set_error(error, at//': mean values not allocated')
+          return
+        end if
+        if (size(v%mean) /= expected_size) then
+          call set_error(error, at//': '//int_text(size(v%mean))//' mean values, expected '// &
+                         int_text(expected_size)//' from its dimensions')
+          return
+        end if
+        call check_finite_flat(at, v%mean, n, counts(1:n), dim_tuple(v%dim_names(1:n)), &
+                               .false., error)
+        if (allocated(error)) return
+        if (allocated(v%stderr)) then
+          at = where_text(routine, path, trim(v%name)//'_stderr')
+          if (size(v%stderr) /= expected_size) then
+            call set_error(error, at//': '//int_text(size(v%stderr))// &
+                           ' standard errors, expected '//int_text(expected_size)// &
+                           ' from its dimensions')
+            return
+          end if
+          call check_finite_flat(at, v%stderr, n, counts(1:n), dim_tuple(v%dim_names(1:n)), &
+                                 .true., error)
+          if (allocated(error)) return
+        end if
+      end associate
+    end do
+  end subroutine validate_result_set
+
+  !> Flattened values must be finite (and >= 0 if `nonnegative`); the message gives the index.
+  subroutine check_finite_flat(at, values, ndims, counts, index_names, nonnegative, error)
+    character(len=*), intent(in) :: at
+    real(dp), intent(in) :: values(:)
+    integer, intent(in) :: ndims
+    integer, intent(in) :: counts(:)
+    character(len=*), intent(in) :: index_names
+    logical, intent(in) :: nonnegative
+    type(error_t), allocatable, intent(out) :: error
+    integer :: k, j, rest, idx(4)
+    character(len=:), allocatable :: problem, place
+
+    do k = 1, size(values)
+      problem = ''
+      if (.not. ieee_is_finite(values(k))) then
+        problem = 'is not finite'
+      else if (nonnegative) then
+        if (values(k) < 0.0_dp) problem = 'must be >= 0'
+      end if
+      if (len(problem) == 0) cycle
+      if (ndims == 0) then
+        place = ''
+      else
+        rest = k - 1
+        do j = 1, ndims
+          idx(j) = mod(rest, counts(j)) + 1
+          rest = rest/counts(j)
+        end do
+        place = ' at '//index_names//' = '//int_list(idx(1:ndims))
+      end if
+      call set_error(error, at//': value '//real_text(values(k))//place//' '//problem)
+      return
+    end do
+  end subroutine check_finite_flat
+
+  !> Finite, not the fill value, >= 0 and, if `unit_interval`, <= 1.
+  subroutine check_real_4d(at, values, fill, unit_interval, error)
+    character(len=*), intent(in) :: at
+    real(wp), intent(in) :: values(:, :, :, :)
+    real(wp), intent(in) :: fill
+    logical, intent(in) :: unit_interval
+    type(error_t), allocatable, intent(out) :: error
+    integer :: ix, iy, iz, ic
+
+    do ic = 1, size(values, 4)
+      do iz = 1, size(values, 3)
+        do iy = 1, size(values, 2)
+          do ix = 1, size(values, 1)
+            if (value_ok(values(ix, iy, iz, ic), fill, unit_interval)) cycle
+            call set_error(error, at//': value '//real_text(values(ix, iy, iz, ic))//' at '// &
+                           SCENE_INDEX//' = '//int_list([ix, iy, iz, ic])//' '// &
+                           value_problem(values(ix, iy, iz, ic), fill, unit_interval))
+            return
+          end do
+        end do
+      end do
+    end do
+  end subroutine check_real_4d
+
+  !> Phase-function indices are 1-based; the fill value marks missing data.
+  subroutine check_index_4d(at, values, fill, error)
+    character(len=*), intent(in) :: at
+    integer, intent(in) :: values(:, :, :, :)
+    integer, intent(in) :: fill
+    type(error_t), allocatable, intent(out) :: error
+    integer :: ix, iy, iz, ic
+    character(len=:), allocatable :: problem
+
+    do ic = 1, size(values, 4)
+      do iz = 1, size(values, 3)
+        do iy = 1, size(values, 2)
+          do ix = 1, size(values, 1)
+            if (values(ix, iy, iz, ic) >= 1 .and. values(ix, iy, iz, ic) /= fill) cycle
+            if (values(ix, iy, iz, ic) == fill) then
+              problem = 'is the fill value (missing data)'
+            else
+              problem = 'must be >= 1'
+            end if
+            call set_error(error, at//': value '//int_text(values(ix, iy, iz, ic))//' at '// &
+                           SCENE_INDEX//' = '//int_list([ix, iy, iz, ic])//' '//problem)
+            return
+          end do
+        end do
+      end do
+    end do
+  end subroutine check_index_4d
+
+  !> Exact match with the fill value (spelt without == to keep -Wcompare-reals quiet).
+  pure logical function is_fill(x, fill)
+    real(wp), intent(in) :: x, fill
+    is_fill = x >= fill .and. x <= fill
+  end function is_fill
+
+  !> Cheap test used in the loops; `value_problem` explains a failure.
+  pure logical function value_ok(x, fill, unit_interval)
+    real(wp), intent(in) :: x, fill
+    logical, intent(in) :: unit_interval
+    value_ok = .false.
+    if (.not. ieee_is_finite(x)) return      ! tested first: no ordered comparison with NaN
+    if (is_fill(x, fill)) return
+    if (x < 0.0_wp) return
+    if (unit_interval) then
+      if (x > 1.0_wp) return
+    end if
+    value_ok = .true.
+  end function value_ok
+
+  function value_problem(x, fill, unit_interval) result(problem)
+    real(wp), intent(in) :: x, fill
+    logical, intent(in) :: unit_interval
+    character(len=:), allocatable :: problem
+    if (.not. ieee_is_finite(x)) then
+      problem = 'is not finite'
+    else if (is_fill(x, fill)) then
+      problem = 'is the fill value (missing data)'
+    else if (x < 0.0_wp) then
+      problem = 'must be >= 0'
+    else if (unit_interval .and. x > 1.0_wp) then
+      problem = 'must be <= 1'
+    else
+      problem = 'is valid'
+    end if
+  end function value_problem
+
+  !> A floating-point variable with the expected dimensions, not packed; returns its fill value.
+  subroutine check_real_var(at, ncid, varid, expected_dimids, expected_cdl, fill, error)
+    character(len=*), intent(in) :: at
+    integer, intent(in) :: ncid, varid
+    integer, intent(in) :: expected_dimids(:)
+    character(len=*), intent(in) :: expected_cdl
+    real(wp), intent(out) :: fill
+    type(error_t), allocatable, intent(out) :: error
+    integer :: xtype, status
+
+    fill = 0.0_wp
+    call nc_check(nf90_inquire_variable(ncid, varid, xtype=xtype), at, error)
+    if (allocated(error)) return
+    if (xtype /= NF90_DOUBLE .and. xtype /= NF90_FLOAT) then
+      call set_error(error, at//': variable type must be double or float')
+      return
+    end if
+    call check_layout(at, ncid, varid, expected_dimids, expected_cdl, error)
+    if (allocated(error)) return
+    call check_not_packed(at, ncid, varid, error)
+    if (allocated(error)) return
+    status = nf90_inquire_attribute(ncid, varid, '_FillValue')
+    if (status == NF90_NOERR) then
+      call nc_check(nf90_get_att(ncid, varid, '_FillValue', fill), at//'/_FillValue', error)
+    else if (xtype == NF90_DOUBLE) then
+      fill = real(NF90_FILL_DOUBLE, wp)
+    else
+      fill = real(NF90_FILL_FLOAT, wp)
+    end if
+  end subroutine check_real_var
+
+  !> The fill value of an integer variable (its _FillValue or the netCDF default for its type).
+  subroutine integer_fill(at, ncid, varid, fill, error)
+    character(len=*), intent(in) :: at
+    integer, intent(in) :: ncid, varid
+    integer, intent(out) :: fill
+    type(error_t), allocatable, intent(out) :: error
+    integer :: xtype, status
+
+    fill = 0
+    call nc_check(nf90_inquire_variable(ncid, varid, xtype=xtype), at, error)
+    if (allocated(error)) return
+    select case (xtype)
+    case (NF90_BYTE)
+      fill = int(NF90_FILL_BYTE)
+    case (NF90_SHORT)
+      fill = int(NF90_FILL_SHORT)
+    case (NF90_INT)
+      fill = int(NF90_FILL_INT)
+    case default
+      call set_error(error, at//': variable type must be an integer type (byte, short or int)')
+      return
+    end select
+    call check_not_packed(at, ncid, varid, error)
+    if (allocated(error)) return
+    status = nf90_inquire_attribute(ncid, varid, '_FillValue')
+    if (status == NF90_NOERR) then
+      call nc_check(nf90_get_att(ncid, varid, '_FillValue', fill), at//'/_FillValue', error)
+    end if
+  end subroutine integer_fill
+
+  !> The variable's dimensions must be exactly `expected_dimids` (Fortran order).
+  subroutine check_layout(at, ncid, varid, expected_dimids, expected_cdl, error)
+    character(len=*), intent(in) :: at
+    integer, intent(in) :: ncid, varid
+    integer, intent(in) :: expected_dimids(:)
+    character(len=*), intent(in) :: expected_cdl
+    type(error_t), allocatable, intent(out) :: error
+    integer :: ndims, i
+    integer :: dimids(NF90_MAX_VAR_DIMS)
+    character(len=NF90_MAX_NAME) :: dname
+    character(len=:), allocatable :: actual
+    logical :: same
+
+    call nc_check(nf90_inquire_variable(ncid, varid, ndims=ndims, dimids=dimids), at, error)
+    if (allocated(error)) return
+    same = ndims == size(expected_dimids)
+    if (same) same = all(dimids(1:ndims) == expected_dimids)
+    if (same) return
+    actual = '('
+    do i = ndims, 1, -1                     ! ncdump (C) order: slowest-varying first
+      call nc_check(nf90_inquire_dimension(ncid, dimids(i), name=dname), at, error)
+      if (allocated(error)) return
+      actual = actual//trim(dname)
+      if (i > 1) actual = actual//', '
+    end do
+    actual = actual//')'
+    call set_error(error, at//': dimensions are '//actual//' in ncdump order; expected '// &
+                   expected_cdl)
+  end subroutine check_layout
+
+  !> nf90_get_var does not unpack, so scale_factor/add_offset would give wrong numbers silently.
+  subroutine check_not_packed(at, ncid, varid, error)
+    character(len=*), intent(in) :: at
+    integer, intent(in) :: ncid, varid
+    type(error_t), allocatable, intent(out) :: error
+    if (nf90_inquire_attribute(ncid, varid, 'scale_factor') == NF90_NOERR .or. &
+        nf90_inquire_attribute(ncid, varid, 'add_offset') == NF90_NOERR) then
+      call set_error(error, at//': packed variables (scale_factor/add_offset) are not '// &
+                     'supported; store the unpacked values')
+    end if
+  end subroutine check_not_packed
+
+  !> A dimensionless variable has units "1" or no units attribute.
+  subroutine check_dimensionless(routine, path, at, ncid, varid, error)
+    character(len=*), intent(in) :: routine, path, at
+    integer, intent(in) :: ncid, varid
+    type(error_t), allocatable, intent(out) :: error
+    character(len=:), allocatable :: units
+    logical :: found
+
+    call get_text_att(routine, path, ncid, varid, 'units', units, found, error)
+    if (allocated(error)) return
+    if (.not. found) return
+    if (units /= '1') then
+      call set_error(error, at//': units "'//units// &
+                     '" not allowed; the variable is dimensionless: units must be "1" or absent')
+    end if
+  end subroutine check_dimensionless
+
+  ! ------------------------------------------------------------------------------------------------
+  ! netCDF helpers
+  ! ------------------------------------------------------------------------------------------------
+
+  !> Turn a netCDF status into an error located at `at` ("routine(file:name)").
+  subroutine nc_check(status, at, error)
+    integer, intent(in) :: status
+    character(len=*), intent(in) :: at
+    type(error_t), allocatable, intent(out) :: error
+    if (status == NF90_NOERR) return
+    call set_error(error, at//': '//trim(nf90_strerror(status)))
+  end subroutine nc_check
+
+  !> "routine(file:name)", or "routine(file)" for an empty name.
+  pure function where_text(routine, path, name) result(at)
+    character(len=*), intent(in) :: routine, path, name
+    character(len=:), allocatable :: at
+    if (len(name) == 0) then
+      at = routine//'('//path//')'
+    else
+      at = routine//'('//path//':'//name//')'
+    end if
+  end function where_text
+
+  subroutine open_read(routine, path, ncid, error)
+    character(len=*), intent(in) :: routine, path
+    integer, intent(out) :: ncid
+    type(error_t), allocatable, intent(out) :: error
+    ncid = -1
+    call nc_check(nf90_open(path, NF90_NOWRITE, ncid), where_text(routine, path, ''), error)
+  end subroutine open_read
+
+  !> Close a file opened for reading; an earlier error is kept and the close status ignored.
+  subroutine close_read(routine, path, ncid, error)
+    character(len=*), intent(in) :: routine, path
+    integer, intent(in) :: ncid
+    type(error_t), allocatable, intent(inout) :: error
+    integer :: status
+    status = nf90_close(ncid)
+    if (allocated(error)) return
+    call nc_check(status, where_text(routine, path, ''), error)
+  end subroutine close_read
+
+  !> Create `<path>.tmp` (replacing a stale one from an interrupted run).
+  subroutine create_temp(routine, path, ncid, error)
+    character(len=*), intent(in) :: routine, path
+    integer, intent(out) :: ncid
+    type(error_t), allocatable, intent(out) :: error
+    integer :: status, slash
+    logical :: dir_exists
+
+    ncid = -1
+    status = nf90_create(path//TMP_SUFFIX, CREATE_MODE, ncid)
+    if (status == NF90_NOERR) return
+    call remove_file(path//TMP_SUFFIX)
+    ! HDF5 reports a missing directory as "Permission denied": say what is wrong.
+    slash = index(path, '/', back=.true.)
+    dir_exists = .true.
+    if (slash > 1) inquire (file=path(1:slash - 1)//'/.', exist=dir_exists)
+    if (dir_exists) then
+      call set_error(error, where_text(routine, path//TMP_SUFFIX, '')//': '// &
+                     trim(nf90_strerror(status))//' (cannot create the temporary file)')
+    else
+      call set_error(error, where_text(routine, path//TMP_SUFFIX, '')//': '// &
+                     trim(nf90_strerror(status))//' (directory '//path(1:slash - 1)// &
+                     ' does not exist)')
+    end if
+  end subroutine create_temp
+
+  !> Close `<path>.tmp` and rename it to `<path>`; on any error (earlier or here) remove it.
+  subroutine commit_temp(routine, path, ncid, error)
+    character(len=*), intent(in) :: routine, path
+    integer, intent(in) :: ncid
+    type(error_t), allocatable, intent(inout) :: error
+    integer :: status
+
+    status = nf90_close(ncid)
+    if (.not. allocated(error)) then
+      call nc_check(status, where_text(routine, path//TMP_SUFFIX, ''), error)
+    end if
+    if (allocated(error)) then
+      call remove_file(path//TMP_SUFFIX)
+      return
+    end if
+    if (c_rename(path//TMP_SUFFIX//c_null_char, path//c_null_char) /= 0) then
+      call set_error(error, where_text(routine, path, '')//': cannot rename '//path//TMP_SUFFIX// &
+                     ' to '//path)
+      call remove_file(path//TMP_SUFFIX)
+    end if
+  end subroutine commit_temp
+
+  !> Delete a file if it exists; failures are ignored (used only while cleaning up).
+  subroutine remove_file(path)
+    character(len=*), intent(in) :: path
+    integer(c_int) :: status
+    status = c_remove(path//c_null_char)
+  end subroutine remove_file
+
+  !> Read a text attribute of a variable (or NF90_GLOBAL); `found` is false if it is absent.
+  subroutine get_text_att(routine, path, ncid, varid, name, value, found, error)
+    character(len=*), intent(in) :: routine, path
+    integer, intent(in) :: ncid, varid
+    character(len=*), intent(in) :: name
+    character(len=:), allocatable, intent(out) :: value
+    logical, intent(out) :: found
+    type(error_t), allocatable, intent(out) :: error
+    character(len=NF90_MAX_NAME) :: vname
+    character(len=:), allocatable :: at
+    integer :: status, xtype, length
+
+    found = .false.
+    if (varid == NF90_GLOBAL) then
+      at = where_text(routine, path, name)
+    else
+      call nc_check(nf90_inquire_variable(ncid, varid, name=vname), &
+                    where_text(routine, path, name), error)
+      if (allocated(error)) return
+      at = where_text(routine, path, trim(vname)//'/'//name)
+    end if
+    status = nf90_inquire_attribute(ncid, varid, name, xtype=xtype, len=length)
+    if (status == NF90_ENOTATT) return
+    call nc_check(status, at, error)
+    if (allocated(error)) return
+    if (xtype /= NF90_CHAR) then
+      call set_error(error, at//': attribute is not text')
+      return
+    end if
+    found = .true.
+    allocate (character(len=length) :: value)
+    if (length > 0) then
+      call nc_check(nf90_get_att(ncid, varid, name, value), at, error)
+      if (allocated(error)) return
+    end if
+    do while (len(value) > 0)
+      if (value(len(value):len(value)) /= c_null_char) exit
+      value = value(1:len(value) - 1)
+    end do
+  end subroutine get_text_att
+
+  !> Write a text attribute unless the text is absent or blank. An unallocated allocatable actual
+  !> argument counts as absent (Fortran 2008).
+  subroutine put_text_att_if_set(at, ncid, varid, name, text, error)
+    character(len=*), intent(in) :: at
+    integer, intent(in) :: ncid, varid
+    character(len=*), intent(in) :: name
+    character(len=*), intent(in), optional :: text
+    type(error_t), allocatable, intent(out) :: error
+    if (.not. present(text)) return
+    if (len_trim(text) == 0) return
+    call nc_check(nf90_put_att(ncid, varid, name, trim(text)), at//'/'//name, error)
+  end subroutine put_text_att_if_set
+
+  !> Write flattened values into a variable of `ndims` dimensions with the given counts.
+  subroutine put_flat(ncid, varid, ndims, counts, values, at, error)
+    integer, intent(in) :: ncid, varid, ndims
+    integer, intent(in) :: counts(:)
+    real(dp), intent(in) :: values(:)
+    character(len=*), intent(in) :: at
+    type(error_t), allocatable, intent(out) :: error
+    if (ndims == 0) then
+      call nc_check(nf90_put_var(ncid, varid, values(1)), at, error)
+    else
+      call nc_check(nf90_put_var(ncid, varid, values, start=spread(1, 1, ndims), &
+                                 count=counts(1:ndims)), at, error)
+    end if
+  end subroutine put_flat
+
+  !> Position of the named dimension in the set, 0 if absent.
+  pure integer function dim_position(set, name) result(pos)
+    type(result_set_t), intent(in) :: set
+    character(len=*), intent(in) :: name
+    integer :: i
+    pos = 0
+    if (.not. allocated(set%dims)) return
+    do i = 1, size(set%dims)
+      if (trim(set%dims(i)%name) == trim(name)) then
+        pos = i
+        return
+      end if
+    end do
+  end function dim_position
+
+  ! ------------------------------------------------------------------------------------------------
+  ! Text formatting
+  ! ------------------------------------------------------------------------------------------------
+
+  pure function int_text(i) result(text)
+    integer, intent(in) :: i
+    character(len=:), allocatable :: text
+    character(len=12) :: buffer
+    write (buffer, '(i0)') i
+    text = trim(buffer)
+  end function int_text
+
+  !> "(2,1,3)"
+  pure function int_list(values) result(text)
+    integer, intent(in) :: values(:)
+    character(len=:), allocatable :: text
+    integer :: i
+    text = '('
+    do i = 1, size(values)
+      text = text//int_text(values(i))
+      if (i < size(values)) text = text//','
+    end do
+    text = text//')'
+  end function int_list
+
+  !> "(x,y,z)" from Fortran-ordered dimension names.
+  pure function dim_tuple(names) result(text)
+    character(len=*), intent(in) :: names(:)
+    character(len=:), allocatable :: text
+    integer :: i
+    text = '('
+    do i = 1, size(names)
+      text = text//trim(names(i))
+      if (i < size(names)) text = text//','
+    end do
+    text = text//')'
+  end function dim_tuple
+
+  !> A real value in messages, with nine significant digits; NaN and infinities spelt out.
+  function real_text(x) result(text)
+    real(wp), intent(in) :: x
+    character(len=:), allocatable :: text
+    character(len=32) :: buffer
+    if (ieee_is_nan(x)) then
+      text = 'NaN'
+    else if (.not. ieee_is_finite(x)) then
+      if (x > 0.0_wp) then
+        text = '+Infinity'
+      else
+        text = '-Infinity'
+      end if
+    else
+      write (buffer, '(es16.8)') x
+      text = trim(adjustl(buffer))
+    end if
+  end function real_text
+end module kumo_netcdf

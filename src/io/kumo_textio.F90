@@ -1,0 +1,82 @@
+! SPDX-License-Identifier: BSD-3-Clause
+!> Small text-file readers: two-column tables (e.g. tabulated phase functions) and whole files.
+module kumo_textio
+  use, intrinsic :: iso_fortran_env, only: iostat_end
+  use kumo_kinds, only: wp
+  use kumo_error, only: error_t, set_error, str
+  implicit none
+  private
+  public :: read_two_columns, read_whole_file
+
+contains
+
+  !> Read a table of two numbers per line; blank lines and lines starting with '#' or '!' are
+  !> skipped. Any other line that does not hold two numbers is an error naming the line.
+  subroutine read_two_columns(path, a, b, error)
+    character(len=*), intent(in) :: path
+    real(wp), allocatable, intent(out) :: a(:), b(:)
+    type(error_t), allocatable, intent(out) :: error
+    integer :: unit, ios, n, line_no, pass
+    character(len=1024) :: line, msg
+    real(wp) :: va, vb
+    open (newunit=unit, file=path, status='old', action='read', iostat=ios, iomsg=msg)
+    if (ios /= 0) then
+      call set_error(error, 'cannot open table file "'//trim(path)//'": '//trim(msg))
+      return
+    end if
+    do pass = 1, 2
+      n = 0
+      line_no = 0
+      rewind (unit)
+      do
+        read (unit, '(a)', iostat=ios) line
+        if (ios == iostat_end) exit
+        line_no = line_no + 1
+        if (ios /= 0) then
+          call set_error(error, trim(path)//': cannot read line '//str(line_no))
+          close (unit)
+          return
+        end if
+        line = adjustl(line)
+        if (len_trim(line) == 0 .or. line(1:1) == '#' .or. line(1:1) == '!') cycle
+        read (line, *, iostat=ios) va, vb
+        if (ios /= 0) then
+          call set_error(error, trim(path)//': line '//str(line_no)// &
+                         ' does not hold two numbers: "'//trim(line)//'"')
+          close (unit)
+          return
+        end if
+        n = n + 1
+        if (pass == 2) then
+          a(n) = va
+          b(n) = vb
+        end if
+      end do
+      if (pass == 1) allocate (a(n), b(n))
+    end do
+    close (unit)
+    if (n == 0) call set_error(error, trim(path)//': no data lines')
+  end subroutine read_two_columns
+
+  !> The whole text of a file, lines joined with new-line characters.
+  subroutine read_whole_file(path, text, error)
+    character(len=*), intent(in) :: path
+    character(len=:), allocatable, intent(out) :: text
+    type(error_t), allocatable, intent(out) :: error
+    integer :: unit, ios
+    character(len=4096) :: line
+    character(len=512) :: msg
+    open (newunit=unit, file=path, status='old', action='read', iostat=ios, iomsg=msg)
+    if (ios /= 0) then
+      call set_error(error, 'cannot open "'//trim(path)//'": '//trim(msg))
+      return
+    end if
+    text = ''
+    do
+      read (unit, '(a)', iostat=ios) line
+      if (ios /= 0) exit
+      text = text//trim(line)//new_line('a')
+    end do
+    close (unit)
+  end subroutine read_whole_file
+end module kumo_textio

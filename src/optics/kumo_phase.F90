@@ -1,0 +1,550 @@
+! SPDX-License-Identifier: BSD-3-Clause
+!> Phase functions: evaluation and sampling of the scattering-angle cosine.
+!>
+!> Conventions used throughout:
+!>
+!> * mu is the cosine of the scattering angle Theta (mu = 1: forward, mu = -1: backward).
+!> * Normalisation (1/4pi) Int P dOmega = (1/2) Int_{-1}^{1} P dmu = 1, so the isotropic phase
+!>   function is P = 1, Rayleigh P = 3/4 (1 + mu^2) and Henyey-Greenstein
+!>   P = (1 - g^2)/(1 + g^2 - 2 g mu)^(3/2).
+!> * Every sampler is the inverse of the cumulative distribution accumulated from the backward
+!>   direction, F(mu) = (1/2) Int_{-1}^{mu} P dmu': the deviate u = 0 gives mu = -1 and u -> 1
+!>   gives mu -> 1, and mu is non-decreasing in u. Samplers take the deviate as an argument.
+!>
+!> Tabulated phase functions are converted once, at setup, into an inverse-CDF table on an
+!> equally spaced deviate grid (I3RC `inversePhaseFunctions`, MCARaTS), so sampling is one
+!> table interpolation per scattering event. Between the angles of the input table, P is
+!> interpolated linearly in the scattering angle of log P where both neighbouring values are
+!> positive (exact for an exponential decay of the forward peak; keeps P > 0 between positive
+!> nodes) and linearly in angle otherwise. The CDF of that interpolant is integrated in Theta,
+!> not in mu, on sub-intervals of at most 0.01 deg with 5-point Gauss-Legendre quadrature, so a
+!> forward peak such as the Deirmendjian C.1 cloud (P(0) ~ 1700) is resolved; the inverse is
+!> then solved to rounding within each sub-interval. `phase_eval` uses the same interpolant,
+!> so sampling and evaluation describe the same function.
+module kumo_phase
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
+  use kumo_kinds, only: wp
+  use kumo_constants, only: PI, DEG2RAD
+  use kumo_error, only: error_t, set_error
+  implicit none
+  private
+  public :: PHASE_ISOTROPIC, PHASE_RAYLEIGH, PHASE_HG, PHASE_TABLE, PHASE_NAMES
+  public :: PHASE_N_INV_DEFAULT
+  public :: phase_t, phase_kind_from_name
+  public :: new_phase_isotropic, new_phase_rayleigh, new_phase_hg, phase_from_table
+  public :: phase_sample_mu, phase_eval
+  public :: isotropic_sample_mu, rayleigh_sample_mu, hg_sample_mu, rayleigh_eval, hg_eval
+
+  integer, parameter :: PHASE_ISOTROPIC = 1  !! P = 1
+  integer, parameter :: PHASE_RAYLEIGH = 2   !! P = 3/4 (1 + mu^2)
+  integer, parameter :: PHASE_HG = 3         !! Henyey-Greenstein with asymmetry parameter g
+  integer, parameter :: PHASE_TABLE = 4      !! tabulated P(Theta), sampled from an inverse CDF
+
+  !> Names of the kinds, indexed by kind code (namelist strings, lower case).
+  character(len=9), parameter :: PHASE_NAMES(4) = [character(len=9) :: &
+                                                   'isotropic', 'rayleigh', 'hg', 'table']
+
+  !> Default number of points of the inverse-CDF table (the MCARaTS default is 20,000).
+  integer, parameter :: PHASE_N_INV_DEFAULT = 20000
+
+  !> Input angles 0 and 180 deg may be off by this much [deg].
+  real(wp), parameter :: ANGLE_TOL_DEG = 1.0e-6_wp
+  !> Largest quadrature sub-interval for tabulated phase functions [deg].
+  real(wp), parameter :: SUB_STEP_DEG = 0.01_wp
+
+  ! 5-point Gauss-Legendre nodes and weights on [-1, 1].
+  real(wp), parameter :: GL_X(5) = [-sqrt(5.0_wp + 2.0_wp*sqrt(10.0_wp/7.0_wp))/3.0_wp, &
+                                    -sqrt(5.0_wp - 2.0_wp*sqrt(10.0_wp/7.0_wp))/3.0_wp, 0.0_wp, &
+                                    sqrt(5.0_wp - 2.0_wp*sqrt(10.0_wp/7.0_wp))/3.0_wp, &
+                                    sqrt(5.0_wp + 2.0_wp*sqrt(10.0_wp/7.0_wp))/3.0_wp]
+  real(wp), parameter :: GL_W(5) = [(322.0_wp - 13.0_wp*sqrt(70.0_wp))/900.0_wp, &
+                                    (322.0_wp + 13.0_wp*sqrt(70.0_wp))/900.0_wp, &
+                                    128.0_wp/225.0_wp, &
+                                    (322.0_wp + 13.0_wp*sqrt(70.0_wp))/900.0_wp, &
+                                    (322.0_wp - 13.0_wp*sqrt(70.0_wp))/900.0_wp]
+
+  !> A phase function ready for evaluation and sampling. Build it with a constructor
+  !> (`new_phase_isotropic`, `new_phase_rayleigh`, `new_phase_hg`, `phase_from_table`); the
+  !> tables are allocated for `PHASE_TABLE` only. (The constructors of the analytic kinds carry
+  !> a `new_` prefix because Fortran names are case-insensitive: `phase_hg` would clash with
+  !> the kind code `PHASE_HG`.)
+  type :: phase_t
+    integer :: kind = PHASE_ISOTROPIC  !! one of PHASE_ISOTROPIC, _RAYLEIGH, _HG, _TABLE
+    real(wp) :: g = 0.0_wp             !! asymmetry parameter <mu> (computed for tables)
+    !> Factor the input table was multiplied by to be normalised (1 for analytic kinds);
+    !> 1/norm_factor = (1/2) Int P_input sin(Theta) dTheta of the interpolated input.
+    real(wp) :: norm_factor = 1.0_wp
+    !> Inverse CDF: mu_inv(j) = F^-1(xi_j), xi_j = (j-1)/(n_inv-1), F accumulated from mu = -1;
+    !> non-decreasing from mu_inv(1) (-1 unless P vanishes there) to mu_inv(n_inv) (+1 unless
+    !> P vanishes there).
+    real(wp), allocatable :: mu_inv(:)
+    real(wp), allocatable :: mu_tab(:)     !! input angles as cosines, ascending (-1 ... 1)
+    real(wp), allocatable :: theta_tab(:)  !! the same angles [rad], descending (pi ... 0)
+    real(wp), allocatable :: p_tab(:)      !! normalised P at mu_tab
+  end type phase_t
+
+contains
+
+  ! ------------------------------------------------------------------------------------------
+  ! Analytic phase functions
+  ! ------------------------------------------------------------------------------------------
+
+  !> Isotropic sample: mu = 2u - 1 (uniform in [-1, 1]).
+  elemental function isotropic_sample_mu(u) result(mu)
+    real(wp), intent(in) :: u  !! uniform deviate in [0, 1]
+    real(wp) :: mu             !! cosine of the scattering angle
+    mu = 2.0_wp*u - 1.0_wp
+  end function isotropic_sample_mu
+
+  !> Rayleigh phase function P = 3/4 (1 + mu^2).
+  elemental function rayleigh_eval(mu) result(p)
+    real(wp), intent(in) :: mu  !! cosine of the scattering angle
+    real(wp) :: p               !! phase function value
+    p = 0.75_wp*(1.0_wp + mu*mu)
+  end function rayleigh_eval
+
+  !> Exact Rayleigh sample: the real root of mu^3 + 3 mu + 4 - 8u = 0, i.e. F(mu) = u with
+  !> F(mu) = (mu^3 + 3 mu + 4)/8 (Cardano: mu = X - 1/X, X^3 = q + sqrt(q^2 + 1), q = 4u - 2).
+  !>
+  !> The root is odd in q, so it is computed for |q| and given the sign of q; with
+  !> Y^3 = 1 + w, w = |q| + q^2/(1 + sqrt(1 + q^2)) and Y - 1/Y = (Y + 1) w / (Y (Y^2 + Y + 1)),
+  !> every step adds positive terms: no cancellation for q < 0 or near mu = 0.
+  elemental function rayleigh_sample_mu(u) result(mu)
+    real(wp), intent(in) :: u  !! uniform deviate in [0, 1]
+    real(wp) :: mu             !! cosine of the scattering angle
+    real(wp) :: q, w, y
+    q = 4.0_wp*u - 2.0_wp
+    w = abs(q) + q*q/(1.0_wp + sqrt(1.0_wp + q*q))
+    y = (1.0_wp + w)**(1.0_wp/3.0_wp)
+    mu = sign((y + 1.0_wp)*w/(y*(y*y + y + 1.0_wp)), q)
+    mu = min(1.0_wp, max(-1.0_wp, mu))
+  end function rayleigh_sample_mu
+
+  !> Henyey-Greenstein phase function P = (1 - g^2)/(1 + g^2 - 2 g mu)^(3/2), with the
+  !> denominator written as a sum of non-negative terms ((1 - g)^2 + 2g (1 - mu) for g >= 0,
+  !> (1 + g)^2 - 2g (1 + mu) for g < 0) so the forward peak of g -> 1 keeps full precision.
+  elemental function hg_eval(g, mu) result(p)
+    real(wp), intent(in) :: g   !! asymmetry parameter, |g| < 1
+    real(wp), intent(in) :: mu  !! cosine of the scattering angle
+    real(wp) :: p               !! phase function value
+    real(wp) :: d
+    if (g >= 0.0_wp) then
+      d = (1.0_wp - g)**2 + 2.0_wp*g*(1.0_wp - mu)
+    else
+      d = (1.0_wp + g)**2 - 2.0_wp*g*(1.0_wp + mu)
+    end if
+    p = (1.0_wp - g)*(1.0_wp + g)/(d*sqrt(d))
+  end function hg_eval
+
+  !> Henyey-Greenstein sample by the inverse CDF. The textbook inverse
+  !> mu = [1 + g^2 - ((1 - g^2)/(1 - g + 2 g u))^2]/(2g) loses digits near mu = 1 for g -> 1
+  !> and is singular at g = 0; it is rewritten (exact algebra, with v = 1 - u and
+  !> d = (1 - g) v + (1 + g) u = 1 - g + 2 g u) as
+  !>
+  !>     1 - mu = 2 v (1 - g)^2 (v + (1 + g) u) / d^2
+  !>     1 + mu = 2 u (1 + g)^2 (u + (1 - g) v) / d^2
+  !>
+  !> Both are products of non-negative factors, accurate to a few rounding errors for every
+  !> |g| < 1 (g = 0 gives mu = 2u - 1 without a special case), and the smaller one is used.
+  elemental function hg_sample_mu(g, u) result(mu)
+    real(wp), intent(in) :: g  !! asymmetry parameter, |g| < 1
+    real(wp), intent(in) :: u  !! uniform deviate in [0, 1]
+    real(wp) :: mu             !! cosine of the scattering angle
+    real(wp) :: v, gm, gp, d2, one_minus_mu
+    v = 1.0_wp - u
+    gm = 1.0_wp - g
+    gp = 1.0_wp + g
+    d2 = (gm*v + gp*u)**2
+    one_minus_mu = 2.0_wp*v*gm*gm*(v + gp*u)/d2
+    if (one_minus_mu <= 1.0_wp) then
+      mu = 1.0_wp - one_minus_mu
+    else
+      mu = 2.0_wp*u*gp*gp*(u + gm*v)/d2 - 1.0_wp
+    end if
+    mu = min(1.0_wp, max(-1.0_wp, mu))
+  end function hg_sample_mu
+
+  ! ------------------------------------------------------------------------------------------
+  ! phase_t: construction, evaluation, sampling
+  ! ------------------------------------------------------------------------------------------
+
+  !> Kind code of a phase-function name (case-insensitive, surrounding blanks ignored).
+  subroutine phase_kind_from_name(name, kind, error)
+    character(len=*), intent(in) :: name            !! e.g. 'hg' or 'Rayleigh'
+    integer, intent(out) :: kind                    !! kind code (0 on error)
+    type(error_t), allocatable, intent(out) :: error  !! set if the name is unknown
+    character(len=:), allocatable :: key, allowed
+    integer :: i
+
+    key = to_lower(trim(adjustl(name)))
+    do i = 1, size(PHASE_NAMES)
+      if (key == trim(PHASE_NAMES(i))) then
+        kind = i
+        return
+      end if
+    end do
+    kind = 0
+    allowed = trim(PHASE_NAMES(1))
+    do i = 2, size(PHASE_NAMES)
+      allowed = allowed//', '//trim(PHASE_NAMES(i))
+    end do
+    call set_error(error, "phase function '"//trim(adjustl(name))//"' is unknown (allowed: "// &
+                   allowed//')')
+  end subroutine phase_kind_from_name
+
+  !> Isotropic phase function.
+  pure function new_phase_isotropic() result(ph)
+    type(phase_t) :: ph  !! P = 1, g = 0
+    ph%kind = PHASE_ISOTROPIC
+  end function new_phase_isotropic
+
+  !> Rayleigh phase function (no depolarisation correction).
+  pure function new_phase_rayleigh() result(ph)
+    type(phase_t) :: ph  !! P = 3/4 (1 + mu^2), g = 0
+    ph%kind = PHASE_RAYLEIGH
+  end function new_phase_rayleigh
+
+  !> Henyey-Greenstein phase function.
+  function new_phase_hg(g, error) result(ph)
+    real(wp), intent(in) :: g                         !! asymmetry parameter, |g| < 1
+    type(error_t), allocatable, intent(out) :: error  !! set if |g| >= 1 or g is NaN
+    type(phase_t) :: ph  !! the phase function (the default, isotropic, on error)
+    if (.not. (abs(g) < 1.0_wp)) then
+      call set_error(error, 'new_phase_hg: g = '//real_str(g)//' must satisfy |g| < 1')
+      return
+    end if
+    ph%kind = PHASE_HG
+    ph%g = g
+  end function new_phase_hg
+
+  !> Tabulated phase function P(Theta), normalised and converted to an inverse-CDF table.
+  !>
+  !> The input need not be normalised: it is multiplied by `norm_factor` so that
+  !> (1/2) Int P sin(Theta) dTheta = 1 for the interpolant described in the module header.
+  !> The asymmetry parameter g = (1/2) Int P cos(Theta) sin(Theta) dTheta is computed with the
+  !> same quadrature.
+  function phase_from_table(angle_deg, value, n_inv, error) result(ph)
+    !> scattering angles [deg], strictly increasing, first 0 and last 180 (within 1e-6 deg)
+    real(wp), intent(in) :: angle_deg(:)
+    real(wp), intent(in) :: value(:)      !! phase function at angle_deg, finite, >= 0, any scale
+    !> number of points of the inverse-CDF table (>= 2, default PHASE_N_INV_DEFAULT)
+    integer, intent(in), optional :: n_inv
+    type(error_t), allocatable, intent(out) :: error  !! set if the table is invalid
+    type(phase_t) :: ph  !! the phase function (the default, isotropic, on error)
+
+    character(len=*), parameter :: CTX = 'phase_from_table: '
+    real(wp), allocatable :: theta(:), th_f(:), cum(:)
+    integer, allocatable :: nsub(:), itab(:)
+    real(wp) :: total, moment1, target
+    integer :: n, ninv, nfine, i, j, k, m
+
+    ! --- validation -------------------------------------------------------------------------
+    n = size(angle_deg)
+    if (size(value) /= n) then
+      call set_error(error, CTX//'angle_deg and value have different sizes ('// &
+                     int_str(n)//' and '//int_str(size(value))//')')
+      return
+    end if
+    if (n < 2) then
+      call set_error(error, CTX//'the table has '//int_str(n)//' points, at least 2 are needed')
+      return
+    end if
+    ninv = PHASE_N_INV_DEFAULT
+    if (present(n_inv)) ninv = n_inv
+    if (ninv < 2) then
+      call set_error(error, CTX//'n_inv = '//int_str(ninv)//' must be >= 2')
+      return
+    end if
+    do i = 1, n
+      if (.not. ieee_is_finite(angle_deg(i))) then
+        call set_error(error, CTX//'angle_deg('//int_str(i)//') = '//real_str(angle_deg(i))// &
+                       ' is not finite')
+        return
+      end if
+    end do
+    if (abs(angle_deg(1)) > ANGLE_TOL_DEG) then
+      call set_error(error, CTX//'angle_deg(1) = '//real_str(angle_deg(1))// &
+                     ' must be 0 (within 1e-6 deg)')
+      return
+    end if
+    if (abs(angle_deg(n) - 180.0_wp) > ANGLE_TOL_DEG) then
+      call set_error(error, CTX//'angle_deg('//int_str(n)//') = '//real_str(angle_deg(n))// &
+                     ' must be 180 (within 1e-6 deg)')
+      return
+    end if
+    do i = 2, n
+      if (.not. (angle_deg(i) > angle_deg(i - 1))) then
+        call set_error(error, CTX//'angle_deg('//int_str(i)//') = '//real_str(angle_deg(i))// &
+                       ' must be > angle_deg('//int_str(i - 1)//') = '// &
+                       real_str(angle_deg(i - 1))//' (angles strictly increasing)')
+        return
+      end if
+    end do
+    do i = 2, n - 1
+      if (angle_deg(i) <= 0.0_wp .or. angle_deg(i) >= 180.0_wp) then
+        call set_error(error, CTX//'angle_deg('//int_str(i)//') = '//real_str(angle_deg(i))// &
+                       ' must lie strictly between 0 and 180')
+        return
+      end if
+    end do
+    do i = 1, n
+      if (.not. (ieee_is_finite(value(i)) .and. value(i) >= 0.0_wp)) then
+        call set_error(error, CTX//'value('//int_str(i)//') = '//real_str(value(i))// &
+                       ' must be finite and >= 0')
+        return
+      end if
+    end do
+    if (all(value <= 0.0_wp)) then
+      call set_error(error, CTX//'all '//int_str(n)//' values are 0; the phase function '// &
+                     'must have a positive integral')
+      return
+    end if
+
+    ! --- evaluation table, ascending in mu ---------------------------------------------------
+    theta = angle_deg*DEG2RAD
+    theta(1) = 0.0_wp
+    theta(n) = PI
+    ph%kind = PHASE_TABLE
+    ph%theta_tab = theta(n:1:-1)
+    ph%mu_tab = cos(ph%theta_tab)
+    ph%mu_tab(1) = -1.0_wp
+    ph%mu_tab(n) = 1.0_wp
+    ph%p_tab = value(n:1:-1)
+
+    ! --- CDF from mu = -1 on sub-intervals in Theta -----------------------------------------
+    ! Sub-interval k runs from th_f(k-1) down to th_f(k) (mu ascending) inside the evaluation
+    ! table interval itab(k), i.e. between theta_tab(itab(k)) and theta_tab(itab(k) + 1).
+    allocate (nsub(n - 1))
+    do i = 1, n - 1
+      nsub(i) = max(1, ceiling((ph%theta_tab(i) - ph%theta_tab(i + 1))/(SUB_STEP_DEG*DEG2RAD)))
+    end do
+    nfine = sum(nsub)
+    allocate (th_f(0:nfine), cum(0:nfine), itab(nfine))
+    th_f(0) = PI
+    cum(0) = 0.0_wp
+    moment1 = 0.0_wp
+    k = 0
+    do i = 1, n - 1
+      do m = 1, nsub(i)
+        k = k + 1
+        itab(k) = i
+        if (m == nsub(i)) then
+          th_f(k) = ph%theta_tab(i + 1)
+        else
+          th_f(k) = ph%theta_tab(i) + (ph%theta_tab(i + 1) - ph%theta_tab(i))*m/nsub(i)
+        end if
+        cum(k) = cum(k - 1) + table_partial(ph, i, th_f(k), th_f(k - 1), 0)
+        moment1 = moment1 + table_partial(ph, i, th_f(k), th_f(k - 1), 1)
+      end do
+    end do
+    total = cum(nfine)
+    ph%norm_factor = 1.0_wp/total
+    ph%g = moment1/total
+    ph%p_tab = ph%p_tab*ph%norm_factor
+
+    ! --- inverse CDF on xi_j = (j-1)/(ninv-1) -----------------------------------------------
+    ! cum is in units of the input table; the target of xi_j is xi_j*total.
+    allocate (ph%mu_inv(ninv))
+    k = 1
+    do while (cum(k) <= 0.0_wp)   ! F = 0 up to th_f(k-1): take the largest such mu
+      k = k + 1
+    end do
+    ph%mu_inv(1) = cos(th_f(k - 1))
+    do j = 2, ninv
+      if (j == ninv) then
+        target = total
+      else
+        target = total*(real(j - 1, wp)/real(ninv - 1, wp))
+      end if
+      do while (cum(k) < target .and. k < nfine)
+        k = k + 1
+      end do
+      ph%mu_inv(j) = cos(table_invert(ph, itab(k), th_f(k), th_f(k - 1), target - cum(k - 1), &
+                                      cum(k) - cum(k - 1)))
+      ph%mu_inv(j) = max(ph%mu_inv(j), ph%mu_inv(j - 1))
+    end do
+    ph%mu_inv(1) = max(ph%mu_inv(1), -1.0_wp)
+    ph%mu_inv(ninv) = min(ph%mu_inv(ninv), 1.0_wp)
+  end function phase_from_table
+
+  !> Value of the phase function at mu (normalised: (1/2) Int P dmu = 1).
+  pure function phase_eval(ph, mu) result(p)
+    type(phase_t), intent(in) :: ph  !! phase function
+    real(wp), intent(in) :: mu       !! cosine of the scattering angle
+    real(wp) :: p                    !! phase function value
+    real(wp) :: m
+    integer :: lo, hi, mid
+
+    select case (ph%kind)
+    case (PHASE_HG)
+      p = hg_eval(ph%g, mu)
+    case (PHASE_RAYLEIGH)
+      p = rayleigh_eval(mu)
+    case (PHASE_TABLE)
+      m = min(1.0_wp, max(-1.0_wp, mu))
+      lo = 1
+      hi = size(ph%mu_tab)
+      do while (hi - lo > 1)           ! invariant: mu_tab(lo) <= m <= mu_tab(hi)
+        mid = (lo + hi)/2
+        if (ph%mu_tab(mid) <= m) then
+          lo = mid
+        else
+          hi = mid
+        end if
+      end do
+      p = table_interp(ph, lo, acos(m))
+    case default
+      p = 1.0_wp
+    end select
+  end function phase_eval
+
+  !> Sample mu from the phase function with one uniform deviate (u = 0 gives the backward end,
+  !> see the module header). Tables: linear interpolation in the inverse-CDF table.
+  pure function phase_sample_mu(ph, u) result(mu)
+    type(phase_t), intent(in) :: ph  !! phase function
+    real(wp), intent(in) :: u        !! uniform deviate in [0, 1]
+    real(wp) :: mu                   !! cosine of the scattering angle
+    real(wp) :: x
+    integer :: j, n
+
+    select case (ph%kind)
+    case (PHASE_HG)
+      mu = hg_sample_mu(ph%g, u)
+    case (PHASE_TABLE)
+      n = size(ph%mu_inv)
+      x = min(real(n - 1, wp), max(0.0_wp, u*real(n - 1, wp)))
+      j = min(int(x), n - 2)
+      x = x - j
+      mu = ph%mu_inv(j + 1) + x*(ph%mu_inv(j + 2) - ph%mu_inv(j + 1))
+    case (PHASE_RAYLEIGH)
+      mu = rayleigh_sample_mu(u)
+    case default
+      mu = isotropic_sample_mu(u)
+    end select
+  end function phase_sample_mu
+
+  ! ------------------------------------------------------------------------------------------
+  ! Private helpers
+  ! ------------------------------------------------------------------------------------------
+
+  !> Interpolated table value at angle theta in evaluation-table interval i (between
+  !> theta_tab(i) and theta_tab(i+1)): linear in angle of log P if both ends are positive,
+  !> linear in angle of P otherwise.
+  pure function table_interp(ph, i, theta) result(p)
+    type(phase_t), intent(in) :: ph
+    integer, intent(in) :: i
+    real(wp), intent(in) :: theta  !! scattering angle [rad]
+    real(wp) :: p
+    real(wp) :: f, pa, pb
+    f = (theta - ph%theta_tab(i))/(ph%theta_tab(i + 1) - ph%theta_tab(i))
+    f = min(1.0_wp, max(0.0_wp, f))
+    pa = ph%p_tab(i)
+    pb = ph%p_tab(i + 1)
+    if (pa > 0.0_wp .and. pb > 0.0_wp) then
+      p = pa*(pb/pa)**f
+    else
+      p = pa + f*(pb - pa)
+    end if
+  end function table_interp
+
+  !> (1/2) Int_{t_lo}^{t_hi} P(theta) sin(theta) cos(theta)^moment dtheta for the interpolant
+  !> of evaluation-table interval i, by 5-point Gauss-Legendre quadrature.
+  pure function table_partial(ph, i, t_lo, t_hi, moment) result(s)
+    type(phase_t), intent(in) :: ph
+    integer, intent(in) :: i
+    real(wp), intent(in) :: t_lo, t_hi  !! limits [rad], t_lo <= t_hi
+    integer, intent(in) :: moment       !! 0: normalisation integral, 1: first moment
+    real(wp) :: s
+    real(wp) :: half, mid, t, f
+    integer :: q
+    half = 0.5_wp*(t_hi - t_lo)
+    mid = 0.5_wp*(t_hi + t_lo)
+    s = 0.0_wp
+    do q = 1, size(GL_X)
+      t = mid + half*GL_X(q)
+      f = table_interp(ph, i, t)*sin(t)
+      if (moment == 1) f = f*cos(t)
+      s = s + GL_W(q)*f
+    end do
+    s = 0.5_wp*half*s
+  end function table_partial
+
+  !> Angle theta in [t_lo, t_hi] with (1/2) Int_theta^t_hi P sin dtheta' = r, where
+  !> 0 <= r <= r_max = the integral over the whole sub-interval (safeguarded Newton iteration,
+  !> bisection when a Newton step leaves the bracket).
+  pure function table_invert(ph, i, t_lo, t_hi, r, r_max) result(theta)
+    type(phase_t), intent(in) :: ph
+    integer, intent(in) :: i
+    real(wp), intent(in) :: t_lo, t_hi  !! sub-interval [rad], inside table interval i
+    real(wp), intent(in) :: r, r_max
+    real(wp) :: theta
+    integer, parameter :: MAX_ITER = 100
+    real(wp) :: lo, hi, res, slope, step, mu_lo, mu_hi
+    integer :: iter
+
+    if (r >= r_max) then
+      theta = t_lo
+      return
+    else if (r <= 0.0_wp) then
+      theta = t_hi
+      return
+    end if
+    ! start from the linear-in-mu guess (P constant on the sub-interval)
+    mu_lo = cos(t_hi)
+    mu_hi = cos(t_lo)
+    theta = acos(min(1.0_wp, mu_lo + (r/r_max)*(mu_hi - mu_lo)))
+    theta = min(t_hi, max(t_lo, theta))
+    lo = t_lo
+    hi = t_hi
+    do iter = 1, MAX_ITER
+      res = table_partial(ph, i, theta, t_hi, 0) - r   ! decreases with theta
+      if (res > 0.0_wp) then
+        lo = theta
+      else if (res < 0.0_wp) then
+        hi = theta
+      else
+        return
+      end if
+      slope = 0.5_wp*table_interp(ph, i, theta)*sin(theta)
+      if (slope > 0.0_wp) then
+        step = res/slope
+        if (theta + step <= lo .or. theta + step >= hi) step = 0.5_wp*(lo + hi) - theta
+      else
+        step = 0.5_wp*(lo + hi) - theta
+      end if
+      theta = theta + step
+      if (abs(step) <= 4.0_wp*epsilon(1.0_wp)*theta .or. &
+          hi - lo <= 4.0_wp*epsilon(1.0_wp)*hi) return
+    end do
+  end function table_invert
+
+  !> Lower-case copy of an ASCII string.
+  pure function to_lower(s) result(t)
+    character(len=*), intent(in) :: s
+    character(len=len(s)) :: t
+    integer :: i, c
+    t = s
+    do i = 1, len(s)
+      c = iachar(s(i:i))
+      if (c >= iachar('A') .and. c <= iachar('Z')) t(i:i) = achar(c + 32)
+    end do
+  end function to_lower
+
+  !> Integer as text.
+  function int_str(i) result(s)
+    integer, intent(in) :: i
+    character(len=:), allocatable :: s
+    character(len=12) :: buf
+    write (buf, '(i0)') i
+    s = trim(buf)
+  end function int_str
+
+  !> Real as text (7 significant digits).
+  function real_str(x) result(s)
+    real(wp), intent(in) :: x
+    character(len=:), allocatable :: s
+    character(len=32) :: buf
+    write (buf, '(g0.7)') x
+    s = trim(adjustl(buf))
+  end function real_str
+end module kumo_phase

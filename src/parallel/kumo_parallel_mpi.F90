@@ -1,0 +1,92 @@
+! SPDX-License-Identifier: BSD-3-Clause
+!> MPI edges of kumo: start/stop, rank queries, broadcasts and the one reduction of the tallies.
+!>
+!> The only module that uses MPI. A serial build compiles kumo_parallel_serial.F90 instead, which
+!> provides the same module with trivial bodies.
+module kumo_parallel
+  use mpi_f08
+  use kumo_kinds, only: dp, i8
+  implicit none
+  private
+  public :: par_init, par_finalize, par_rank, par_size, par_is_root, par_sum_to_root, &
+            par_allreduce_sum, par_abort, par_barrier, par_wtime, par_bcast_int, PAR_IS_MPI
+
+  logical, parameter :: PAR_IS_MPI = .true.  !! this build distributes batches over MPI ranks
+
+  interface par_sum_to_root
+    module procedure sum_to_root_dp, sum_to_root_i8
+  end interface par_sum_to_root
+
+contains
+
+  subroutine par_init()
+    logical :: flag
+    call MPI_Initialized(flag)
+    if (.not. flag) call MPI_Init()
+  end subroutine par_init
+
+  subroutine par_finalize()
+    logical :: flag
+    call MPI_Finalized(flag)
+    if (.not. flag) call MPI_Finalize()
+  end subroutine par_finalize
+
+  integer function par_rank() result(r)
+    call MPI_Comm_rank(MPI_COMM_WORLD, r)
+  end function par_rank
+
+  integer function par_size() result(n)
+    call MPI_Comm_size(MPI_COMM_WORLD, n)
+  end function par_size
+
+  logical function par_is_root() result(root)
+    root = par_rank() == 0
+  end function par_is_root
+
+  !> Sum `buf` over ranks; the result is valid on rank 0 only.
+  subroutine sum_to_root_dp(buf)
+    real(dp), intent(inout) :: buf(:)
+    if (par_rank() == 0) then
+      call MPI_Reduce(MPI_IN_PLACE, buf, size(buf), MPI_DOUBLE_PRECISION, MPI_SUM, 0, &
+                      MPI_COMM_WORLD)
+    else
+      call MPI_Reduce(buf, buf, size(buf), MPI_DOUBLE_PRECISION, MPI_SUM, 0, MPI_COMM_WORLD)
+    end if
+  end subroutine sum_to_root_dp
+
+  subroutine sum_to_root_i8(buf)
+    integer(i8), intent(inout) :: buf(:)
+    if (par_rank() == 0) then
+      call MPI_Reduce(MPI_IN_PLACE, buf, size(buf), MPI_INTEGER8, MPI_SUM, 0, MPI_COMM_WORLD)
+    else
+      call MPI_Reduce(buf, buf, size(buf), MPI_INTEGER8, MPI_SUM, 0, MPI_COMM_WORLD)
+    end if
+  end subroutine sum_to_root_i8
+
+  !> Sum `buf` over ranks, result on every rank.
+  subroutine par_allreduce_sum(buf)
+    real(dp), intent(inout) :: buf(:)
+    call MPI_Allreduce(MPI_IN_PLACE, buf, size(buf), MPI_DOUBLE_PRECISION, MPI_SUM, &
+                       MPI_COMM_WORLD)
+  end subroutine par_allreduce_sum
+
+  !> Broadcast integers from rank 0.
+  subroutine par_bcast_int(buf)
+    integer, intent(inout) :: buf(:)
+    call MPI_Bcast(buf, size(buf), MPI_INTEGER, 0, MPI_COMM_WORLD)
+  end subroutine par_bcast_int
+
+  subroutine par_barrier()
+    call MPI_Barrier(MPI_COMM_WORLD)
+  end subroutine par_barrier
+
+  real(dp) function par_wtime() result(t)
+    t = MPI_Wtime()
+  end function par_wtime
+
+  !> Stop every rank with exit code `code` (no rank is left waiting).
+  subroutine par_abort(code)
+    integer, intent(in) :: code
+    call MPI_Abort(MPI_COMM_WORLD, code)
+  end subroutine par_abort
+end module kumo_parallel

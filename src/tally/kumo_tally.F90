@@ -1,0 +1,190 @@
+! SPDX-License-Identifier: BSD-3-Clause
+!> Tallies of one batch and the batch statistics built from them.
+!>
+!> All accumulators of a batch live in one contiguous real(dp) buffer, so merging is one array
+!> add and the MPI reduction is one call. The layout records where each quantity sits. After a
+!> batch, its normalised tallies x_b enter the running sums S1 = sum x_b and S2 = sum x_b**2,
+!> from which the mean and the standard error of the mean follow (batch method, as in the I3RC
+!> community model).
+module kumo_tally
+  use kumo_kinds, only: dp, i8
+  implicit none
+  private
+  public :: tally_layout_t, tally_t, stats_t, layout_init, tally_reset, stats_init, &
+            stats_add_batch, stats_mean, stats_stderr
+  public :: ANOM_UZ_NUDGED, ANOM_EVENT_CAP, ANOM_STEP_CAP, ANOM_POSITION_REPAIR, N_ANOMALIES, &
+            ANOMALY_NAMES
+
+  integer, parameter :: ANOM_UZ_NUDGED = 1       !! direction nudged away from the horizontal
+  integer, parameter :: ANOM_EVENT_CAP = 2       !! photon stopped at the event cap (weight lost)
+  integer, parameter :: ANOM_STEP_CAP = 3        !! photon stopped at the step cap (weight lost)
+  integer, parameter :: ANOM_POSITION_REPAIR = 4 !! position clamped back into its cell
+  integer, parameter :: N_ANOMALIES = 4
+  character(len=24), parameter :: ANOMALY_NAMES(N_ANOMALIES) = &
+    [character(len=24) :: 'uz_nudged', 'event_cap', 'step_cap', 'position_repair']
+
+  !> Where each quantity sits in the buffer. Offsets are 0-based: the quantity for level k is
+  !> buf(i_up + k + 1) etc.; see the accessor comments.
+  type :: tally_layout_t
+    integer :: nz = 0          !! layers
+    integer :: ncol = 1        !! columns of the 3-D region (nx*ny)
+    integer :: n3 = 0          !! layers of the 3-D region
+    integer :: n_map = 0       !! number of levels with per-column flux maps
+    logical :: do_maps = .false.
+    logical :: do_voxel = .false.
+    integer, allocatable :: map_slot(:)  !! (0:nz) slot of each level in the maps, 0 = none
+    integer :: i_up = 0        !! up flux at level k: buf(i_up + k + 1), k = 0..nz
+    integer :: i_dir = 0       !! direct down flux at level k
+    integer :: i_dif = 0       !! diffuse down flux at level k
+    integer :: i_abs = 0       !! absorbed in layer k: buf(i_abs + k), k = 1..nz
+    integer :: i_sfc = 0       !! absorbed by the surface: buf(i_sfc + 1)
+    integer :: i_rr = 0        !! net weight created by Russian roulette: buf(i_rr + 1)
+    integer :: i_lost = 0      !! weight lost at loop caps: buf(i_lost + 1)
+    integer :: i_dn = 0        !! derived per batch: total down flux at level k (direct + diffuse)
+    integer :: i_atm = 0       !! derived per batch: absorbed by the whole atmosphere
+    integer :: i_closure = 0   !! derived per batch: R + A_atm + A_sfc - roulette + lost (= 1)
+    integer :: i_map_up = 0    !! map: buf(i_map_up + (slot-1)*ncol + icol)
+    integer :: i_map_dir = 0
+    integer :: i_map_dif = 0
+    integer :: i_vox = 0       !! voxel absorption: buf(i_vox + (kr-1)*ncol + icol)
+    integer :: n = 0           !! buffer length
+  end type tally_layout_t
+
+  !> The accumulators of one batch.
+  type :: tally_t
+    real(dp), allocatable :: buf(:)
+    integer(i8) :: anomalies(N_ANOMALIES) = 0_i8
+  end type tally_t
+
+  !> Running batch statistics, same layout as the tally buffer.
+  type :: stats_t
+    real(dp), allocatable :: s1(:)      !! sum over batches of the per-photon batch means
+    real(dp), allocatable :: s2(:)      !! sum over batches of their squares
+    integer(i8) :: n_batches = 0_i8
+    integer(i8) :: n_photons = 0_i8
+    integer(i8) :: anomalies(N_ANOMALIES) = 0_i8
+  end type stats_t
+
+contains
+
+  !> Lay out the buffer. `map_levels` lists the levels (0..nz) that get per-column maps.
+  subroutine layout_init(lay, nz, ncol, n3, map_levels, do_voxel)
+    type(tally_layout_t), intent(out) :: lay
+    integer, intent(in) :: nz, ncol, n3
+    integer, intent(in) :: map_levels(:)
+    logical, intent(in) :: do_voxel
+    integer :: i, pos
+    lay%nz = nz
+    lay%ncol = ncol
+    lay%n3 = n3
+    allocate (lay%map_slot(0:nz))
+    lay%map_slot = 0
+    do i = 1, size(map_levels)
+      lay%map_slot(map_levels(i)) = i
+    end do
+    lay%n_map = size(map_levels)
+    lay%do_maps = lay%n_map > 0
+    lay%do_voxel = do_voxel .and. n3 > 0
+    pos = 0
+    lay%i_up = pos
+    pos = pos + nz + 1
+    lay%i_dir = pos
+    pos = pos + nz + 1
+    lay%i_dif = pos
+    pos = pos + nz + 1
+    lay%i_abs = pos
+    pos = pos + nz
+    lay%i_sfc = pos
+    pos = pos + 1
+    lay%i_rr = pos
+    pos = pos + 1
+    lay%i_lost = pos
+    pos = pos + 1
+    lay%i_dn = pos
+    pos = pos + nz + 1
+    lay%i_atm = pos
+    pos = pos + 1
+    lay%i_closure = pos
+    pos = pos + 1
+    lay%i_map_up = pos
+    pos = pos + lay%n_map*ncol
+    lay%i_map_dir = pos
+    pos = pos + lay%n_map*ncol
+    lay%i_map_dif = pos
+    pos = pos + lay%n_map*ncol
+    lay%i_vox = pos
+    if (lay%do_voxel) pos = pos + n3*ncol
+    lay%n = pos
+  end subroutine layout_init
+
+  !> Zero a tally (allocating it for the layout if needed).
+  subroutine tally_reset(tal, lay)
+    type(tally_t), intent(inout) :: tal
+    type(tally_layout_t), intent(in) :: lay
+    if (.not. allocated(tal%buf)) allocate (tal%buf(lay%n))
+    tal%buf = 0.0_dp
+    tal%anomalies = 0_i8
+  end subroutine tally_reset
+
+  subroutine stats_init(st, lay)
+    type(stats_t), intent(out) :: st
+    type(tally_layout_t), intent(in) :: lay
+    allocate (st%s1(lay%n), st%s2(lay%n))
+    st%s1 = 0.0_dp
+    st%s2 = 0.0_dp
+  end subroutine stats_init
+
+  !> Add one finished batch of `n_photons` photons. Per-column quantities are scaled by the number
+  !> of columns so that they are fluxes per unit column area normalised like the domain means.
+  subroutine stats_add_batch(st, lay, tal, n_photons)
+    type(stats_t), intent(inout) :: st
+    type(tally_layout_t), intent(in) :: lay
+    type(tally_t), intent(in) :: tal
+    integer(i8), intent(in) :: n_photons
+    real(dp) :: scale_dom, scale_col, x
+    real(dp), allocatable :: xd(:)
+    integer :: i, nz
+    nz = lay%nz
+    scale_dom = 1.0_dp/real(n_photons, dp)
+    scale_col = real(lay%ncol, dp)/real(n_photons, dp)
+    xd = tal%buf(1:lay%i_map_up)*scale_dom
+    ! derived quantities, formed per batch so that their standard errors include correlations
+    xd(lay%i_dn + 1:lay%i_dn + nz + 1) = xd(lay%i_dir + 1:lay%i_dir + nz + 1) + &
+                                         xd(lay%i_dif + 1:lay%i_dif + nz + 1)
+    xd(lay%i_atm + 1) = sum(xd(lay%i_abs + 1:lay%i_abs + nz))
+    xd(lay%i_closure + 1) = xd(lay%i_up + nz + 1) + xd(lay%i_atm + 1) + xd(lay%i_sfc + 1) &
+                            - xd(lay%i_rr + 1) + xd(lay%i_lost + 1)
+    st%s1(1:lay%i_map_up) = st%s1(1:lay%i_map_up) + xd
+    st%s2(1:lay%i_map_up) = st%s2(1:lay%i_map_up) + xd*xd
+    do i = lay%i_map_up + 1, lay%n
+      x = tal%buf(i)*scale_col
+      st%s1(i) = st%s1(i) + x
+      st%s2(i) = st%s2(i) + x*x
+    end do
+    st%n_batches = st%n_batches + 1_i8
+    st%n_photons = st%n_photons + n_photons
+    st%anomalies = st%anomalies + tal%anomalies
+  end subroutine stats_add_batch
+
+  !> Mean over batches of entries lo..hi (1-based buffer positions).
+  pure function stats_mean(st, lo, hi) result(m)
+    type(stats_t), intent(in) :: st
+    integer, intent(in) :: lo, hi
+    real(dp) :: m(hi - lo + 1)
+    m = st%s1(lo:hi)/real(max(1_i8, st%n_batches), dp)
+  end function stats_mean
+
+  !> Standard error of the mean over batches: sqrt((<x^2> - <x>^2)/(B - 1)).
+  pure function stats_stderr(st, lo, hi) result(e)
+    type(stats_t), intent(in) :: st
+    integer, intent(in) :: lo, hi
+    real(dp) :: e(hi - lo + 1)
+    real(dp) :: b
+    b = real(st%n_batches, dp)
+    if (st%n_batches < 2_i8) then
+      e = 0.0_dp
+      return
+    end if
+    e = sqrt(max(0.0_dp, st%s2(lo:hi)/b - (st%s1(lo:hi)/b)**2)/(b - 1.0_dp))
+  end function stats_stderr
+end module kumo_tally

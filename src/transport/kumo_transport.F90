@@ -1,0 +1,551 @@
+! SPDX-License-Identifier: BSD-3-Clause
+!> The photon loop: trace the photons of one batch through the atmosphere and tally them.
+!>
+!> Forward Monte Carlo with weights (seed text chapter 2-3): photons enter at the top with the
+!> solar direction; free paths are sampled in optical depth; at a collision the weight is
+!> multiplied by the cell's single-scattering albedo (the rest is absorbed there), Russian
+!> roulette keeps the weight in a window, the scattering component is drawn by its scattering
+!> coefficient and a new direction from its phase function. Fluxes are counted where photons
+!> cross levels (method I of the seed text, section 3.8.2), absorption where it happens.
+!>
+!> Per layer class (see kumo_atmosphere): clear layers are crossed in one step, purely absorbing
+!> layers multiply the weight by exp(-tau) along the path and deposit the difference, uniform
+!> scattering layers are traced analytically, and the 3-D region uses maximum-cross-section
+!> (null-collision) tracking inside super-voxels (seed text section 4.1). Photons carry the
+!> index of their layer and super-voxel; positions are set exactly onto faces when crossing them,
+!> and a position that round-off puts outside its cell is clamped back (and counted).
+!>
+!> No allocation, I/O or polymorphic dispatch happens in here.
+module kumo_transport
+  use kumo_kinds, only: wp, dp, i8
+  use kumo_constants, only: TWO_PI, DEG2RAD
+  use kumo_rng, only: rng_t, rng_uniform
+  use kumo_math, only: rotate_direction, UZ_MIN
+  use kumo_phase, only: phase_sample_mu
+  use kumo_atmosphere, only: atmosphere_t, LAYER_CLEAR, LAYER_ABSORBING, LAYER_SCATTERING, &
+                             LAYER_3D
+  use kumo_surface, only: surface_t
+  use kumo_tally, only: tally_layout_t, tally_t, ANOM_UZ_NUDGED, ANOM_EVENT_CAP, &
+                        ANOM_STEP_CAP, ANOM_POSITION_REPAIR
+  implicit none
+  private
+  public :: source_t, tracer_options_t, source_init, trace_batch
+
+  !> The solar source: a parallel beam entering at the top of the domain.
+  type :: source_t
+    real(wp) :: ux = 0.0_wp, uy = 0.0_wp, uz = -1.0_wp  !! propagation direction of the beam
+  end type source_t
+
+  !> Settings of the photon loop.
+  type :: tracer_options_t
+    real(wp) :: rr_threshold = 0.25_wp  !! Russian roulette below this weight ...
+    real(wp) :: rr_weight = 0.5_wp      !! ... survivors continue with this weight
+    integer(i8) :: max_events = 1000000_i8   !! collisions + reflections per photon
+    integer(i8) :: max_steps = 100000000_i8  !! flight steps per photon
+  end type tracer_options_t
+
+  integer, parameter :: EV_COLLISION = 1, EV_ESCAPE = 2, EV_SURFACE = 3, EV_KILLED = 4
+
+contains
+
+  !> Source for solar zenith angle `sza_deg` and propagation azimuth `phi0_deg` (from +x
+  !> towards +y; 0 means the beam travels towards +x, i.e. the sun is at low x).
+  pure function source_init(sza_deg, phi0_deg) result(src)
+    real(wp), intent(in) :: sza_deg, phi0_deg
+    type(source_t) :: src
+    real(wp) :: st
+    st = sin(sza_deg*DEG2RAD)
+    src%ux = st*cos(phi0_deg*DEG2RAD)
+    src%uy = st*sin(phi0_deg*DEG2RAD)
+    src%uz = -cos(sza_deg*DEG2RAD)
+  end function source_init
+
+  !> Trace `n_photons` photons, adding into `tal` (which the caller has reset).
+  subroutine trace_batch(atm, sfc, src, opts, lay, rng, n_photons, tal)
+    type(atmosphere_t), intent(in) :: atm
+    type(surface_t), intent(in) :: sfc
+    type(source_t), intent(in) :: src
+    type(tracer_options_t), intent(in) :: opts
+    type(tally_layout_t), intent(in) :: lay
+    type(rng_t), intent(inout) :: rng
+    integer(i8), intent(in) :: n_photons
+    type(tally_t), intent(inout) :: tal
+    integer(i8) :: ip, n_events, n_steps
+    real(wp) :: x, y, z, ux, uy, uz, w, tau, d, zb, e, wn, albedo, mu, phi
+    integer :: iz, order, cls, ev, ix, iy, kr, ic, iph, nc
+    logical :: in3d
+
+    do ip = 1, n_photons
+      x = rng_uniform(rng)*atm%lx
+      y = rng_uniform(rng)*atm%ly
+      z = atm%z(atm%nz)
+      ux = src%ux
+      uy = src%uy
+      uz = src%uz
+      w = 1.0_wp
+      order = 0
+      iz = atm%nz
+      n_events = 0
+      n_steps = 0
+      call tally_level(atm, lay, tal, atm%nz, .false., 0, w, x, y)
+
+      photon: do
+        tau = -log(1.0_wp - rng_uniform(rng))
+        flight: do
+          n_steps = n_steps + 1
+          if (n_steps > opts%max_steps) then
+            tal%anomalies(ANOM_STEP_CAP) = tal%anomalies(ANOM_STEP_CAP) + 1
+            tal%buf(lay%i_lost + 1) = tal%buf(lay%i_lost + 1) + w
+            exit photon
+          end if
+          cls = atm%layer_class(iz)
+          if (cls == LAYER_3D) then
+            call fly_3d(atm, lay, tal, rng, x, y, z, ux, uy, uz, w, order, iz, tau, n_steps, &
+                        opts%max_steps, ev, ix, iy, kr)
+            in3d = .true.
+          else
+            in3d = .false.
+            if (uz > 0.0_wp) then
+              zb = atm%z(iz)
+            else
+              zb = atm%z(iz - 1)
+            end if
+            d = (zb - z)/uz
+            ev = 0
+            select case (cls)
+            case (LAYER_SCATTERING)
+              e = atm%ext1(iz)
+              if (tau < e*d) then
+                d = tau/e
+                x = x + ux*d
+                y = y + uy*d
+                z = z + uz*d
+                call wrap(x, atm%lx)
+                call wrap(y, atm%ly)
+                ev = EV_COLLISION
+              else
+                tau = tau - e*d
+              end if
+            case (LAYER_ABSORBING)
+              wn = w*exp(-atm%ext1(iz)*d)
+              tal%buf(lay%i_abs + iz) = tal%buf(lay%i_abs + iz) + (w - wn)
+              w = wn
+            case default ! LAYER_CLEAR
+            end select
+            if (ev == 0) then
+              x = x + ux*d
+              y = y + uy*d
+              z = zb
+              call wrap(x, atm%lx)
+              call wrap(y, atm%ly)
+              call cross_level(atm, lay, tal, x, y, uz, w, order, iz, ev)
+              if (cls == LAYER_ABSORBING .and. ev == 0) then
+                call roulette(opts, lay, tal, rng, w)
+                if (w <= 0.0_wp) exit photon
+              end if
+            end if
+          end if
+
+          select case (ev)
+          case (0)
+            cycle flight
+          case (EV_ESCAPE, EV_KILLED)
+            exit photon
+          case (EV_SURFACE)
+            ! Lambert reflection (seed text section 3.6.3): weight times albedo, then a
+            ! cosine-weighted direction.
+            n_events = n_events + 1
+            if (sfc%black) then
+              tal%buf(lay%i_sfc + 1) = tal%buf(lay%i_sfc + 1) + w
+              exit photon
+            end if
+            albedo = sfc%albedo_at(x, y)
+            tal%buf(lay%i_sfc + 1) = tal%buf(lay%i_sfc + 1) + w*(1.0_wp - albedo)
+            w = w*albedo
+            if (w <= 0.0_wp) exit photon
+            call roulette(opts, lay, tal, rng, w)
+            if (w <= 0.0_wp) exit photon
+            mu = sqrt(rng_uniform(rng))
+            phi = TWO_PI*rng_uniform(rng)
+            if (mu < UZ_MIN) then
+              mu = UZ_MIN
+              tal%anomalies(ANOM_UZ_NUDGED) = tal%anomalies(ANOM_UZ_NUDGED) + 1
+            end if
+            uz = mu
+            mu = sqrt(max(0.0_wp, 1.0_wp - mu*mu))
+            ux = mu*cos(phi)
+            uy = mu*sin(phi)
+            order = order + 1
+            z = atm%z(0)
+            iz = 1
+            call tally_level(atm, lay, tal, 0, .true., order, w, x, y)
+            if (n_events > opts%max_events) then
+              call lose_photon(lay, tal, ANOM_EVENT_CAP, w)
+              exit photon
+            end if
+            exit flight
+          case (EV_COLLISION)
+            n_events = n_events + 1
+            order = order + 1
+            ! absorption and the scattering component (seed text section 3.4.3 b)
+            if (in3d) then
+              wn = w*atm%omg3(ix, iy, kr)
+              tal%buf(lay%i_abs + iz) = tal%buf(lay%i_abs + iz) + (w - wn)
+              if (lay%do_voxel) then
+                ic = lay%i_vox + (kr - 1)*lay%ncol + ix + (iy - 1)*atm%nx
+                tal%buf(ic) = tal%buf(ic) + (w - wn)
+              end if
+              w = wn
+            else
+              wn = w*atm%omg1(iz)
+              tal%buf(lay%i_abs + iz) = tal%buf(lay%i_abs + iz) + (w - wn)
+              w = wn
+            end if
+            if (w <= 0.0_wp) exit photon
+            call roulette(opts, lay, tal, rng, w)
+            if (w <= 0.0_wp) exit photon
+            if (n_events > opts%max_events) then
+              call lose_photon(lay, tal, ANOM_EVENT_CAP, w)
+              exit photon
+            end if
+            if (in3d) then
+              nc = atm%ncomp
+              iph = atm%iph3(1, ix, iy, kr)
+              if (nc > 1) then
+                e = rng_uniform(rng)
+                do ic = 1, nc
+                  if (e < atm%csca3(ic, ix, iy, kr)) exit
+                end do
+                iph = atm%iph3(min(ic, nc), ix, iy, kr)
+              end if
+            else
+              nc = atm%ncomp1
+              iph = atm%iph1(1, iz)
+              if (nc > 1) then
+                e = rng_uniform(rng)
+                do ic = 1, nc
+                  if (e < atm%csca1(ic, iz)) exit
+                end do
+                iph = atm%iph1(min(ic, nc), iz)
+              end if
+            end if
+            mu = phase_sample_mu(atm%phases(iph), rng_uniform(rng))
+            phi = TWO_PI*rng_uniform(rng)
+            call rotate_direction(ux, uy, uz, mu, cos(phi), sin(phi))
+            if (abs(uz) < UZ_MIN) then
+              uz = sign(UZ_MIN, uz)
+              tal%anomalies(ANOM_UZ_NUDGED) = tal%anomalies(ANOM_UZ_NUDGED) + 1
+            end if
+            exit flight
+          end select
+        end do flight
+      end do photon
+    end do
+  end subroutine trace_batch
+
+  !> Photon crosses the level at the end of its layer: tally it and move it to the next layer.
+  !> Sets `ev` to EV_ESCAPE at the top, EV_SURFACE at the bottom, 0 otherwise.
+  subroutine cross_level(atm, lay, tal, x, y, uz, w, order, iz, ev)
+    type(atmosphere_t), intent(in) :: atm
+    type(tally_layout_t), intent(in) :: lay
+    type(tally_t), intent(inout) :: tal
+    real(wp), intent(in) :: x, y, uz, w
+    integer, intent(in) :: order
+    integer, intent(inout) :: iz
+    integer, intent(out) :: ev
+    ev = 0
+    if (uz > 0.0_wp) then
+      call tally_level(atm, lay, tal, iz, .true., order, w, x, y)
+      if (iz == atm%nz) then
+        ev = EV_ESCAPE
+      else
+        iz = iz + 1
+      end if
+    else
+      call tally_level(atm, lay, tal, iz - 1, .false., order, w, x, y)
+      if (iz == 1) then
+        ev = EV_SURFACE
+      else
+        iz = iz - 1
+      end if
+    end if
+  end subroutine cross_level
+
+  !> Count weight `w` crossing level k upward (`up`) or downward, direct if order is 0.
+  subroutine tally_level(atm, lay, tal, k, up, order, w, x, y)
+    type(atmosphere_t), intent(in) :: atm
+    type(tally_layout_t), intent(in) :: lay
+    type(tally_t), intent(inout) :: tal
+    integer, intent(in) :: k, order
+    logical, intent(in) :: up
+    real(wp), intent(in) :: w, x, y
+    integer :: i, slot, icol
+    if (up) then
+      i = lay%i_up + k + 1
+    else if (order == 0) then
+      i = lay%i_dir + k + 1
+    else
+      i = lay%i_dif + k + 1
+    end if
+    tal%buf(i) = tal%buf(i) + w
+    if (.not. lay%do_maps) return
+    slot = lay%map_slot(k)
+    if (slot == 0) return
+    icol = column_of(atm, x, y)
+    if (up) then
+      i = lay%i_map_up
+    else if (order == 0) then
+      i = lay%i_map_dir
+    else
+      i = lay%i_map_dif
+    end if
+    i = i + (slot - 1)*lay%ncol + icol
+    tal%buf(i) = tal%buf(i) + w
+  end subroutine tally_level
+
+  !> Column (1..nx*ny) of the 3-D grid under (x, y).
+  pure integer function column_of(atm, x, y) result(icol)
+    type(atmosphere_t), intent(in) :: atm
+    real(wp), intent(in) :: x, y
+    integer :: ix, iy
+    ix = min(atm%nx, max(1, int(x*atm%inv_dx) + 1))
+    iy = min(atm%ny, max(1, int(y*atm%inv_dy) + 1))
+    icol = ix + (iy - 1)*atm%nx
+  end function column_of
+
+  !> Null-collision flight inside the 3-D region until a real collision (ev = EV_COLLISION, with
+  !> the voxel ix, iy, kr), or until the photon leaves the region through its top or bottom
+  !> (ev from cross_level: 0, EV_ESCAPE or EV_SURFACE). `tau` is the optical path left to fly.
+  subroutine fly_3d(atm, lay, tal, rng, x, y, z, ux, uy, uz, w, order, iz, tau, n_steps, &
+                    max_steps, ev, ix, iy, kr)
+    type(atmosphere_t), intent(in) :: atm
+    type(tally_layout_t), intent(in) :: lay
+    type(tally_t), intent(inout) :: tal
+    type(rng_t), intent(inout) :: rng
+    real(wp), intent(inout) :: x, y, z, tau
+    real(wp), intent(in) :: ux, uy, uz, w
+    integer, intent(in) :: order
+    integer, intent(inout) :: iz
+    integer(i8), intent(inout) :: n_steps
+    integer(i8), intent(in) :: max_steps
+    integer, intent(out) :: ev, ix, iy, kr
+    integer :: s, jx, jy, bx, by, nbx, nby, face, klo, khi
+    real(wp) :: xlo, xhi, ylo, yhi, zlo, zhi, dxf, dyf, dzf, d, smax, bdx, bdy
+
+    ev = 0
+    ix = 0
+    iy = 0
+    kr = iz - atm%k3_lo + 1
+    s = atm%sv%sl_of_layer(kr)
+    bx = atm%sv%bx(s)
+    by = atm%sv%by(s)
+    nbx = atm%sv%nbx(s)
+    nby = atm%sv%nby(s)
+    klo = atm%k3_lo + atm%sv%kb(s) - 1   ! lowest layer of the super-layer
+    khi = atm%k3_lo + atm%sv%kt(s) - 1   ! highest layer
+    zlo = atm%z(klo - 1)
+    zhi = atm%z(khi)
+    bdx = bx*atm%dx
+    bdy = by*atm%dy
+    jx = min(nbx, int(x/bdx) + 1)
+    jy = min(nby, int(y/bdy) + 1)
+
+    do
+      n_steps = n_steps + 1
+      if (n_steps > max_steps) then
+        ! the caller's step check stops the photon
+        return
+      end if
+      xlo = (jx - 1)*bdx
+      xhi = min(atm%lx, jx*bdx)
+      ylo = (jy - 1)*bdy
+      yhi = min(atm%ly, jy*bdy)
+      if (ux > 0.0_wp) then
+        dxf = (xhi - x)/ux
+      else if (ux < 0.0_wp) then
+        dxf = (xlo - x)/ux
+      else
+        dxf = huge(1.0_wp)
+      end if
+      if (uy > 0.0_wp) then
+        dyf = (yhi - y)/uy
+      else if (uy < 0.0_wp) then
+        dyf = (ylo - y)/uy
+      else
+        dyf = huge(1.0_wp)
+      end if
+      if (uz > 0.0_wp) then
+        dzf = (zhi - z)/uz
+      else
+        dzf = (zlo - z)/uz
+      end if
+      dxf = max(0.0_wp, dxf)
+      dyf = max(0.0_wp, dyf)
+      dzf = max(0.0_wp, dzf)
+      if (dzf <= dxf .and. dzf <= dyf) then
+        d = dzf
+        face = 3
+      else if (dxf <= dyf) then
+        d = dxf
+        face = 1
+      else
+        d = dyf
+        face = 2
+      end if
+      smax = atm%sv%maj(atm%sv%off(s) + jx + (jy - 1)*nbx)
+
+      if (smax*d <= tau) then
+        ! leave the super-voxel through `face`
+        tau = tau - smax*d
+        call move_inside(atm, lay, tal, x, y, z, ux, uy, uz, w, order, iz, klo, khi, d)
+        select case (face)
+        case (1)
+          if (ux > 0.0_wp) then
+            jx = jx + 1
+            x = xhi
+            if (jx > nbx) then
+              jx = 1
+              x = 0.0_wp
+            end if
+          else
+            jx = jx - 1
+            x = xlo
+            if (jx < 1) then
+              jx = nbx
+              x = atm%lx
+            end if
+          end if
+          call wrap(y, atm%ly)
+        case (2)
+          if (uy > 0.0_wp) then
+            jy = jy + 1
+            y = yhi
+            if (jy > nby) then
+              jy = 1
+              y = 0.0_wp
+            end if
+          else
+            jy = jy - 1
+            y = ylo
+            if (jy < 1) then
+              jy = nby
+              y = atm%ly
+            end if
+          end if
+          call wrap(x, atm%lx)
+        case default
+          call wrap(x, atm%lx)
+          call wrap(y, atm%ly)
+          if (uz > 0.0_wp) then
+            z = zhi
+            iz = khi
+          else
+            z = zlo
+            iz = klo
+          end if
+          call cross_level(atm, lay, tal, x, y, uz, w, order, iz, ev)
+          return
+        end select
+      else
+        ! tentative collision inside the super-voxel
+        d = tau/smax
+        call move_inside(atm, lay, tal, x, y, z, ux, uy, uz, w, order, iz, klo, khi, d)
+        ix = int(x*atm%inv_dx) + 1
+        iy = int(y*atm%inv_dy) + 1
+        if (ix < (jx - 1)*bx + 1 .or. ix > min(atm%nx, jx*bx) .or. &
+            iy < (jy - 1)*by + 1 .or. iy > min(atm%ny, jy*by)) then
+          ix = min(min(atm%nx, jx*bx), max((jx - 1)*bx + 1, ix))
+          iy = min(min(atm%ny, jy*by), max((jy - 1)*by + 1, iy))
+          tal%anomalies(ANOM_POSITION_REPAIR) = tal%anomalies(ANOM_POSITION_REPAIR) + 1
+        end if
+        kr = iz - atm%k3_lo + 1
+        if (rng_uniform(rng)*smax < atm%ext3(ix, iy, kr)) then
+          call wrap(x, atm%lx)
+          call wrap(y, atm%ly)
+          ev = EV_COLLISION
+          return
+        end if
+        tau = -log(1.0_wp - rng_uniform(rng))
+      end if
+    end do
+  end subroutine fly_3d
+
+  !> Move by distance d inside a super-layer, tallying the internal levels that are crossed.
+  !> The horizontal position is not wrapped here (the caller keeps it inside its super-voxel).
+  subroutine move_inside(atm, lay, tal, x, y, z, ux, uy, uz, w, order, iz, klo, khi, d)
+    type(atmosphere_t), intent(in) :: atm
+    type(tally_layout_t), intent(in) :: lay
+    type(tally_t), intent(inout) :: tal
+    real(wp), intent(inout) :: x, y, z
+    real(wp), intent(in) :: ux, uy, uz, w, d
+    integer, intent(in) :: order, klo, khi
+    integer, intent(inout) :: iz
+    real(wp) :: znew, t, xc, yc
+    znew = z + uz*d
+    if (uz > 0.0_wp) then
+      do while (iz < khi)
+        if (znew < atm%z(iz)) exit
+        t = (atm%z(iz) - z)/uz
+        xc = x + ux*t
+        yc = y + uy*t
+        call wrap(xc, atm%lx)
+        call wrap(yc, atm%ly)
+        call tally_level(atm, lay, tal, iz, .true., order, w, xc, yc)
+        iz = iz + 1
+      end do
+    else
+      do while (iz > klo)
+        if (znew >= atm%z(iz - 1)) exit
+        t = (atm%z(iz - 1) - z)/uz
+        xc = x + ux*t
+        yc = y + uy*t
+        call wrap(xc, atm%lx)
+        call wrap(yc, atm%ly)
+        call tally_level(atm, lay, tal, iz - 1, .false., order, w, xc, yc)
+        iz = iz - 1
+      end do
+    end if
+    x = x + ux*d
+    y = y + uy*d
+    z = znew
+  end subroutine move_inside
+
+  !> Russian roulette with a weight window (seed text section 3.4.4): below the threshold the
+  !> photon survives with probability w/W and then carries W. The net weight it creates or
+  !> destroys is tallied so that the energy budget can be closed exactly.
+  subroutine roulette(opts, lay, tal, rng, w)
+    type(tracer_options_t), intent(in) :: opts
+    type(tally_layout_t), intent(in) :: lay
+    type(tally_t), intent(inout) :: tal
+    type(rng_t), intent(inout) :: rng
+    real(wp), intent(inout) :: w
+    if (w >= opts%rr_threshold) return
+    if (rng_uniform(rng)*opts%rr_weight < w) then
+      tal%buf(lay%i_rr + 1) = tal%buf(lay%i_rr + 1) + (opts%rr_weight - w)
+      w = opts%rr_weight
+    else
+      tal%buf(lay%i_rr + 1) = tal%buf(lay%i_rr + 1) - w
+      w = 0.0_wp
+    end if
+  end subroutine roulette
+
+  !> Stop a photon at a loop cap: its weight is counted as lost, never silently dropped.
+  subroutine lose_photon(lay, tal, which, w)
+    type(tally_layout_t), intent(in) :: lay
+    type(tally_t), intent(inout) :: tal
+    integer, intent(in) :: which
+    real(wp), intent(inout) :: w
+    tal%anomalies(which) = tal%anomalies(which) + 1
+    tal%buf(lay%i_lost + 1) = tal%buf(lay%i_lost + 1) + w
+    w = 0.0_wp
+  end subroutine lose_photon
+
+  !> Map a coordinate back into the periodic interval [0, l).
+  pure subroutine wrap(x, l)
+    real(wp), intent(inout) :: x
+    real(wp), intent(in) :: l
+    if (x >= 0.0_wp .and. x < l) return
+    x = modulo(x, l)
+    if (x >= l) x = 0.0_wp
+  end subroutine wrap
+end module kumo_transport

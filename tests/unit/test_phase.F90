@@ -1,0 +1,576 @@
+! SPDX-License-Identifier: BSD-3-Clause
+!> Unit tests of kumo_phase: normalisation, exactness of the analytic inverse CDFs, tables built
+!> from Henyey-Greenstein and from the Deirmendjian C.1 cloud phase function, input validation.
+!>
+!> The C.1 table (I3RC Phase 1 file `C.1_PF`) is read from the path given as the first
+!> command-line argument; CTest passes `${KUMO_SHARED_DIR}/data/i3rc/phase1_inputs/C.1_PF`.
+!> Sampling formulas are tested with stratified deviates u = (i - 1/2)/n, no generator.
+module test_kumo_phase
+  use, intrinsic :: iso_fortran_env, only: real128
+  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_positive_inf
+  use kumo_kinds, only: wp
+  use kumo_constants, only: PI, DEG2RAD
+  use kumo_phase, only: PHASE_ISOTROPIC, PHASE_RAYLEIGH, PHASE_HG, PHASE_TABLE, PHASE_NAMES, &
+                        PHASE_N_INV_DEFAULT, phase_t, phase_kind_from_name, new_phase_isotropic, &
+                        new_phase_rayleigh, new_phase_hg, phase_from_table, phase_sample_mu, &
+                        phase_eval, isotropic_sample_mu, rayleigh_sample_mu, hg_sample_mu, &
+                        rayleigh_eval, hg_eval
+  use kumo_testing, only: error_t, unittest_t, new_unittest, check, check_close
+  implicit none
+  private
+  public :: collect_phase
+
+  integer, parameter :: qp = real128
+  real(wp), parameter :: HG_GS(6) = [0.0_wp, 0.3_wp, 0.85_wp, -0.5_wp, 0.99_wp, -0.95_wp]
+
+contains
+
+  !> All tests of this suite.
+  function collect_phase() result(tests)
+    type(unittest_t), allocatable :: tests(:)
+    tests = [new_unittest('kind_from_name', test_kind_from_name), &
+             new_unittest('normalisation_analytic', test_norm_analytic), &
+             new_unittest('isotropic_and_rayleigh_moments', test_moments_iso_rayleigh), &
+             new_unittest('hg_mean_cosine_equals_g', test_hg_mean_cosine), &
+             new_unittest('hg_inverse_cdf', test_hg_inverse), &
+             new_unittest('hg_sample_high_precision', test_hg_precision), &
+             new_unittest('hg_edges_and_small_g', test_hg_edges), &
+             new_unittest('hg_eval_forward_peak', test_hg_eval_peak), &
+             new_unittest('rayleigh_inverse_exact', test_rayleigh_inverse), &
+             new_unittest('new_phase_hg_rejects_bad_g', test_hg_constructor), &
+             new_unittest('table_from_hg', test_table_from_hg), &
+             new_unittest('table_c1_cloud', test_table_c1), &
+             new_unittest('table_with_zero_range', test_table_zeros), &
+             new_unittest('table_validation_errors', test_table_errors), &
+             new_unittest('samples_within_bounds', test_bounds)]
+  end function collect_phase
+
+  ! ------------------------------------------------------------------------------------------
+  ! Helpers
+  ! ------------------------------------------------------------------------------------------
+
+  !> (1/2) Int_0^pi P(cos t) sin t dt with n_int equal Gauss-Legendre (5-point) intervals in t;
+  !> with n_int a multiple of 1800, the nodes of a 0.1 deg table are interval ends.
+  function norm_integral(ph, n_int, moment) result(s)
+    type(phase_t), intent(in) :: ph
+    integer, intent(in) :: n_int
+    integer, intent(in) :: moment   !! 0: normalisation, 1: mean cosine
+    real(wp) :: s
+    real(wp), parameter :: x(5) = [-0.906179845938663992797626878299_wp, &
+                                   -0.538469310105683091036314420700_wp, 0.0_wp, &
+                                   0.538469310105683091036314420700_wp, &
+                                   0.906179845938663992797626878299_wp]
+    real(wp), parameter :: w(5) = [0.236926885056189087514264040720_wp, &
+                                   0.478628670499366468041291514836_wp, &
+                                   0.568888888888888888888888888889_wp, &
+                                   0.478628670499366468041291514836_wp, &
+                                   0.236926885056189087514264040720_wp]
+    real(wp) :: h, t, f
+    integer :: i, q
+    h = PI/n_int
+    s = 0.0_wp
+    do i = 1, n_int
+      do q = 1, 5
+        t = (i - 0.5_wp + 0.5_wp*x(q))*h
+        f = phase_eval(ph, cos(t))*sin(t)
+        if (moment == 1) f = f*cos(t)
+        s = s + w(q)*f
+      end do
+    end do
+    s = 0.25_wp*h*s
+  end function norm_integral
+
+  !> Henyey-Greenstein CDF from mu = -1:
+  !> F(mu) = (1 - g^2)/(2g) [(1 + g^2 - 2 g mu)^(-1/2) - 1/(1 + g)], F = (1 + mu)/2 for g = 0.
+  elemental function hg_cdf(g, mu) result(f)
+    real(wp), intent(in) :: g, mu
+    real(wp) :: f
+    if (abs(g) < 1.0e-12_wp) then
+      f = 0.5_wp*(1.0_wp + mu)
+    else
+      f = (1.0_wp - g*g)/(2.0_wp*g)*(1.0_wp/sqrt(1.0_wp + g*g - 2.0_wp*g*mu) - 1.0_wp/(1.0_wp + g))
+    end if
+  end function hg_cdf
+
+  !> Textbook HG inverse CDF evaluated in quadruple precision (reference values).
+  function hg_inverse_qp(g, u) result(mu)
+    real(wp), intent(in) :: g, u
+    real(wp) :: mu
+    real(qp) :: gq, uq, s
+    gq = real(g, qp)
+    uq = real(u, qp)
+    if (g == 0.0_wp) then
+      mu = real(2.0_qp*uq - 1.0_qp, wp)
+    else
+      s = (1.0_qp - gq*gq)/(1.0_qp - gq + 2.0_qp*gq*uq)
+      mu = real((1.0_qp + gq*gq - s*s)/(2.0_qp*gq), wp)
+    end if
+  end function hg_inverse_qp
+
+  !> Path of the C.1 phase-function file: the first command-line argument.
+  subroutine c1_path(path, error)
+    character(len=:), allocatable, intent(out) :: path
+    type(error_t), allocatable, intent(inout) :: error
+    integer :: length, stat
+    call get_command_argument(1, length=length, status=stat)
+    if (stat /= 0 .or. length == 0) then
+      call check(error, .false., 'no path of C.1_PF on the command line (CTest passes '// &
+                 '${KUMO_SHARED_DIR}/data/i3rc/phase1_inputs/C.1_PF)')
+      return
+    end if
+    allocate (character(len=length) :: path)
+    call get_command_argument(1, value=path)
+  end subroutine c1_path
+
+  !> Read a two-column table `angle value` (one pair per line).
+  subroutine read_table(path, angle, value, error)
+    character(len=*), intent(in) :: path
+    real(wp), allocatable, intent(out) :: angle(:), value(:)
+    type(error_t), allocatable, intent(inout) :: error
+    integer :: unit, ios, n, i
+    real(wp) :: a, v
+    character(len=256) :: msg
+    open (newunit=unit, file=path, status='old', action='read', iostat=ios, iomsg=msg)
+    if (ios /= 0) then
+      call check(error, .false., 'cannot open '//path//': '//trim(msg))
+      return
+    end if
+    n = 0
+    do
+      read (unit, *, iostat=ios) a, v
+      if (ios /= 0) exit
+      n = n + 1
+    end do
+    allocate (angle(n), value(n))
+    rewind (unit)
+    do i = 1, n
+      read (unit, *) angle(i), value(i)
+    end do
+    close (unit)
+  end subroutine read_table
+
+  !> Fail unless `err` is allocated and its message contains every string in `parts`.
+  subroutine expect_error(error, err, parts, what)
+    type(error_t), allocatable, intent(inout) :: error
+    type(error_t), allocatable, intent(in) :: err
+    character(len=*), intent(in) :: parts(:)
+    character(len=*), intent(in) :: what
+    integer :: i
+    if (allocated(error)) return
+    call check(error, allocated(err), what//': no error reported')
+    if (allocated(error)) return
+    do i = 1, size(parts)
+      call check(error, index(err%message, trim(parts(i))) > 0, &
+                 what//': message "'//err%message//'" lacks "'//trim(parts(i))//'"')
+    end do
+  end subroutine expect_error
+
+  ! ------------------------------------------------------------------------------------------
+  ! Tests
+  ! ------------------------------------------------------------------------------------------
+
+  subroutine test_kind_from_name(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(error_t), allocatable :: err
+    integer :: kind, i
+    do i = 1, size(PHASE_NAMES)
+      call phase_kind_from_name(PHASE_NAMES(i), kind, err)
+      call check(error, .not. allocated(err) .and. kind == i, 'name '//PHASE_NAMES(i))
+    end do
+    call phase_kind_from_name('  HG ', kind, err)
+    call check(error, kind == PHASE_HG .and. .not. allocated(err), "'  HG ' is not hg")
+    call phase_kind_from_name('Rayleigh', kind, err)
+    call check(error, kind == PHASE_RAYLEIGH, "'Rayleigh' is not rayleigh")
+    call phase_kind_from_name('TABLE', kind, err)
+    call check(error, kind == PHASE_TABLE, "'TABLE' is not table")
+    call phase_kind_from_name('Isotropic', kind, err)
+    call check(error, kind == PHASE_ISOTROPIC, "'Isotropic' is not isotropic")
+    call phase_kind_from_name('mie', kind, err)
+    call check(error, kind == 0, 'kind of an unknown name is not 0')
+    call expect_error(error, err, [character(len=40) :: "'mie'", &
+                                   'isotropic, rayleigh, hg, table'], 'unknown name')
+  end subroutine test_kind_from_name
+
+  !> (1/2) Int P dmu = 1 for isotropic, Rayleigh and HG (quadrature in angle).
+  subroutine test_norm_analytic(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(error_t), allocatable :: err
+    type(phase_t) :: ph
+    integer :: i
+    character(len=24) :: label
+    call check_close(error, norm_integral(new_phase_isotropic(), 200, 0), 1.0_wp, &
+                     abs_tol=1.0e-12_wp, label='isotropic')
+    call check_close(error, norm_integral(new_phase_rayleigh(), 200, 0), 1.0_wp, &
+                     abs_tol=1.0e-12_wp, label='rayleigh')
+    do i = 1, size(HG_GS)
+      ph = new_phase_hg(HG_GS(i), err)
+      call check(error, .not. allocated(err), 'new_phase_hg failed')
+      write (label, '(a, f0.2)') 'hg g = ', HG_GS(i)
+      call check_close(error, norm_integral(ph, 3600, 0), 1.0_wp, abs_tol=1.0e-12_wp, &
+                       label=trim(label))
+      call check_close(error, norm_integral(ph, 3600, 1), HG_GS(i), abs_tol=1.0e-12_wp, &
+                       label=trim(label)//' first moment')
+    end do
+  end subroutine test_norm_analytic
+
+  !> Stratified means of mu and mu^2: isotropic 0 and 1/3, Rayleigh 0 and 2/5.
+  subroutine test_moments_iso_rayleigh(error)
+    type(error_t), allocatable, intent(out) :: error
+    integer, parameter :: n = 100000
+    real(wp) :: u, m1i, m2i, m1r, m2r, mu
+    integer :: i
+    m1i = 0.0_wp
+    m2i = 0.0_wp
+    m1r = 0.0_wp
+    m2r = 0.0_wp
+    do i = 1, n
+      u = (i - 0.5_wp)/n
+      mu = isotropic_sample_mu(u)
+      m1i = m1i + mu/n
+      m2i = m2i + mu*mu/n
+      mu = rayleigh_sample_mu(u)
+      m1r = m1r + mu/n
+      m2r = m2r + mu*mu/n
+    end do
+    call check_close(error, m1i, 0.0_wp, abs_tol=1.0e-12_wp, label='isotropic <mu>')
+    call check_close(error, m2i, 1.0_wp/3.0_wp, abs_tol=1.0e-9_wp, label='isotropic <mu^2>')
+    call check_close(error, m1r, 0.0_wp, abs_tol=1.0e-12_wp, label='rayleigh <mu>')
+    call check_close(error, m2r, 0.4_wp, abs_tol=1.0e-9_wp, label='rayleigh <mu^2>')
+  end subroutine test_moments_iso_rayleigh
+
+  !> Stratified mean of hg_sample_mu(g, u) equals g (midpoint rule in u: error O(1/n^2)).
+  subroutine test_hg_mean_cosine(error)
+    type(error_t), allocatable, intent(out) :: error
+    integer, parameter :: n = 100000
+    real(wp) :: mean, mu
+    integer :: i, k
+    character(len=24) :: label
+    do k = 1, size(HG_GS)
+      mean = 0.0_wp
+      do i = 1, n
+        mu = hg_sample_mu(HG_GS(k), (i - 0.5_wp)/n)
+        call check(error, abs(mu) <= 1.0_wp, 'sampled mu outside [-1, 1]')
+        if (allocated(error)) return
+        mean = mean + mu/n
+      end do
+      write (label, '(a, f0.2)') '<mu>, g = ', HG_GS(k)
+      call check_close(error, mean, HG_GS(k), abs_tol=1.0e-6_wp, label=trim(label))
+    end do
+  end subroutine test_hg_mean_cosine
+
+  !> F(hg_sample_mu(g, u)) = u with the closed-form HG CDF.
+  subroutine test_hg_inverse(error)
+    type(error_t), allocatable, intent(out) :: error
+    integer, parameter :: n = 1000
+    real(wp) :: u
+    integer :: i, k
+    character(len=40) :: label
+    do k = 1, size(HG_GS)
+      do i = 0, n
+        u = real(i, wp)/n
+        write (label, '(a, f0.2, a, f0.3)') 'F(mu), g = ', HG_GS(k), ', u = ', u
+        call check_close(error, hg_cdf(HG_GS(k), hg_sample_mu(HG_GS(k), u)), u, &
+                         abs_tol=1.0e-12_wp, label=trim(label))
+        if (allocated(error)) return
+      end do
+    end do
+  end subroutine test_hg_inverse
+
+  !> hg_sample_mu agrees with the textbook inverse evaluated in quadruple precision to about
+  !> one rounding of mu, also for g -> +-1 near the forward and backward directions, where the
+  !> textbook formula in double precision loses many digits.
+  subroutine test_hg_precision(error)
+    type(error_t), allocatable, intent(out) :: error
+    real(wp), parameter :: gs(9) = [0.999999_wp, -0.999999_wp, 0.9999_wp, 0.9_wp, 1.0e-8_wp, &
+                                    -1.0e-5_wp, 1.0e-3_wp, 0.0_wp, 0.5_wp]
+    real(wp) :: us(9)
+    real(wp) :: mu, ref
+    integer :: i, k
+    character(len=60) :: label
+    us = [0.0_wp, 1.0e-12_wp, 1.0e-6_wp, 0.3_wp, 0.5_wp, 0.7_wp, 1.0_wp - 1.0e-9_wp, &
+          1.0_wp - 2.0_wp*epsilon(1.0_wp), 1.0_wp]
+    do k = 1, size(gs)
+      do i = 1, size(us)
+        mu = hg_sample_mu(gs(k), us(i))
+        ref = hg_inverse_qp(gs(k), us(i))
+        write (label, '(a, es10.3, a, es22.15)') 'mu, g = ', gs(k), ', u = ', us(i)
+        call check_close(error, mu, ref, abs_tol=2.0_wp*epsilon(1.0_wp), &
+                         rel_tol=4.0_wp*epsilon(1.0_wp), label=trim(label))
+        if (allocated(error)) return
+      end do
+    end do
+  end subroutine test_hg_precision
+
+  !> u = 0 and u = 1 give exactly -1 and +1; g = 0 gives 2u - 1; tiny g is continuous with it.
+  subroutine test_hg_edges(error)
+    type(error_t), allocatable, intent(out) :: error
+    integer :: i, k
+    real(wp) :: u
+    do k = 1, size(HG_GS)
+      call check_close(error, hg_sample_mu(HG_GS(k), 0.0_wp), -1.0_wp, abs_tol=0.0_wp, &
+                       rel_tol=0.0_wp, label='mu(u = 0)')
+      call check_close(error, hg_sample_mu(HG_GS(k), 1.0_wp), 1.0_wp, abs_tol=0.0_wp, &
+                       rel_tol=0.0_wp, label='mu(u = 1)')
+    end do
+    do i = 0, 100
+      u = i/100.0_wp
+      call check_close(error, hg_sample_mu(0.0_wp, u), 2.0_wp*u - 1.0_wp, &
+                       abs_tol=2.0_wp*epsilon(1.0_wp), label='g = 0')
+      call check_close(error, hg_sample_mu(1.0e-7_wp, u), 2.0_wp*u - 1.0_wp, &
+                       abs_tol=1.0e-6_wp, label='g = 1e-7')
+      call check_close(error, hg_sample_mu(-1.0e-7_wp, u), 2.0_wp*u - 1.0_wp, &
+                       abs_tol=1.0e-6_wp, label='g = -1e-7')
+    end do
+  end subroutine test_hg_edges
+
+  !> hg_eval at the peaks: P(1) = (1 + g)/(1 - g)^2, P(-1) = (1 - g)/(1 + g)^2.
+  subroutine test_hg_eval_peak(error)
+    type(error_t), allocatable, intent(out) :: error
+    real(wp), parameter :: gs(4) = [0.999999_wp, 0.85_wp, -0.5_wp, -0.9999_wp]
+    integer :: k
+    do k = 1, size(gs)
+      call check_close(error, hg_eval(gs(k), 1.0_wp), (1.0_wp + gs(k))/(1.0_wp - gs(k))**2, &
+                       rel_tol=1.0e-13_wp, label='P(1)')
+      call check_close(error, hg_eval(gs(k), -1.0_wp), (1.0_wp - gs(k))/(1.0_wp + gs(k))**2, &
+                       rel_tol=1.0e-13_wp, label='P(-1)')
+    end do
+    call check_close(error, rayleigh_eval(0.5_wp), 0.9375_wp, label='rayleigh P(0.5)')
+  end subroutine test_hg_eval_peak
+
+  !> Rayleigh: F(sample(u)) = u for F(mu) = (mu^3 + 3 mu + 4)/8, agreement with Cardano's
+  !> formula in quadruple precision, exact end points, symmetry mu(1 - u) = -mu(u).
+  subroutine test_rayleigh_inverse(error)
+    type(error_t), allocatable, intent(out) :: error
+    integer, parameter :: n = 2000
+    real(wp) :: u, mu, us(7)
+    real(qp) :: q, x
+    integer :: i
+    character(len=40) :: label
+    do i = 0, n
+      u = real(i, wp)/n
+      mu = rayleigh_sample_mu(u)
+      write (label, '(a, f0.4)') 'F(mu), u = ', u
+      call check_close(error, (mu**3 + 3.0_wp*mu + 4.0_wp)/8.0_wp, u, abs_tol=4.0e-16_wp, &
+                       label=trim(label))
+      call check_close(error, rayleigh_sample_mu(1.0_wp - u), -mu, abs_tol=0.0_wp, &
+                       rel_tol=0.0_wp, label='symmetry')
+      if (allocated(error)) return
+    end do
+    us = [1.0e-12_wp, 0.1_wp, 0.5_wp - 1.0e-9_wp, 0.5_wp, 0.5_wp + 1.0e-12_wp, 0.8_wp, &
+          1.0_wp - 1.0e-10_wp]
+    do i = 1, size(us)
+      q = 4.0_qp*real(us(i), qp) - 2.0_qp
+      x = (q + sqrt(q*q + 1.0_qp))**(1.0_qp/3.0_qp)
+      write (label, '(a, es22.15)') 'mu vs quad precision, u = ', us(i)
+      call check_close(error, rayleigh_sample_mu(us(i)), real(x - 1.0_qp/x, wp), &
+                       abs_tol=2.0_wp*epsilon(1.0_wp), rel_tol=4.0_wp*epsilon(1.0_wp), &
+                       label=trim(label))
+    end do
+    call check_close(error, rayleigh_sample_mu(0.0_wp), -1.0_wp, abs_tol=0.0_wp, &
+                     rel_tol=0.0_wp, label='mu(0)')
+    call check_close(error, rayleigh_sample_mu(1.0_wp), 1.0_wp, abs_tol=0.0_wp, &
+                     rel_tol=0.0_wp, label='mu(1)')
+  end subroutine test_rayleigh_inverse
+
+  subroutine test_hg_constructor(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(error_t), allocatable :: err
+    type(phase_t) :: ph
+    ph = new_phase_hg(0.85_wp, err)
+    call check(error, .not. allocated(err) .and. ph%kind == PHASE_HG, 'g = 0.85 rejected')
+    call check_close(error, ph%g, 0.85_wp, label='g')
+    ph = new_phase_hg(1.0_wp, err)
+    call expect_error(error, err, [character(len=16) :: 'g = 1.0', '|g| < 1'], 'g = 1')
+    ph = new_phase_hg(-1.5_wp, err)
+    call expect_error(error, err, [character(len=16) :: 'g = -1.5', '|g| < 1'], 'g = -1.5')
+    ph = new_phase_hg(ieee_value(1.0_wp, ieee_quiet_nan), err)
+    call expect_error(error, err, [character(len=16) :: 'NaN', '|g| < 1'], 'g = NaN')
+  end subroutine test_hg_constructor
+
+  !> A table of HG g = 0.85 on 0..180 deg by 0.1 deg reproduces g, the normalisation, the
+  !> values and the CDF of the analytic function.
+  subroutine test_table_from_hg(error)
+    type(error_t), allocatable, intent(out) :: error
+    real(wp), parameter :: g = 0.85_wp
+    integer, parameter :: n = 1801
+    type(error_t), allocatable :: err
+    type(phase_t) :: ph
+    real(wp) :: angle(n), value(n), u, mu, maxdiff
+    integer :: i
+    angle = [(0.1_wp*i, i = 0, n - 1)]
+    value = 3.0_wp*hg_eval(g, cos(angle*DEG2RAD))    ! deliberately not normalised
+    ph = phase_from_table(angle, value, error=err)
+    call check(error, .not. allocated(err), 'phase_from_table failed')
+    if (allocated(error)) return
+    call check(error, ph%kind == PHASE_TABLE, 'kind is not PHASE_TABLE')
+    call check(error, size(ph%mu_inv) == PHASE_N_INV_DEFAULT, 'n_inv is not the default')
+    call check_close(error, ph%g, g, abs_tol=1.0e-3_wp, label='g (tolerance 1e-3)')
+    call check_close(error, ph%g, g, abs_tol=1.0e-5_wp, label='g (tolerance 1e-5)')
+    call check_close(error, ph%norm_factor, 1.0_wp/3.0_wp, rel_tol=1.0e-5_wp, label='norm_factor')
+    call check_close(error, norm_integral(ph, 18000, 0), 1.0_wp, abs_tol=1.0e-10_wp, &
+                     label='normalisation of the table')
+    call check_close(error, ph%mu_inv(1), -1.0_wp, abs_tol=0.0_wp, label='mu_inv(1)')
+    call check_close(error, ph%mu_inv(size(ph%mu_inv)), 1.0_wp, abs_tol=0.0_wp, &
+                     label='mu_inv(n_inv)')
+    call check(error, all(ph%mu_inv(2:) >= ph%mu_inv(:size(ph%mu_inv) - 1)), &
+               'mu_inv is not non-decreasing')
+    ! values between the nodes (0.05 deg offsets)
+    maxdiff = 0.0_wp
+    do i = 0, 1799
+      mu = cos((0.1_wp*i + 0.05_wp)*DEG2RAD)
+      maxdiff = max(maxdiff, abs(phase_eval(ph, mu)/hg_eval(g, mu) - 1.0_wp))
+    end do
+    call check_close(error, maxdiff, 0.0_wp, abs_tol=1.0e-5_wp, label='max relative P error')
+    ! CDF: F_HG(sample(u)) = u
+    maxdiff = 0.0_wp
+    do i = 0, 100000
+      u = i/100000.0_wp
+      maxdiff = max(maxdiff, abs(hg_cdf(g, phase_sample_mu(ph, u)) - u))
+    end do
+    call check_close(error, maxdiff, 0.0_wp, abs_tol=1.0e-6_wp, label='max |F_HG(mu(u)) - u|')
+  end subroutine test_table_from_hg
+
+  !> The Deirmendjian C.1 cloud table: g = 0.848 (published first Legendre moment chi_1,
+  !> Garcia & Siewert 1985 Table 17: beta_1/3 = 2.544/3) within 2e-3; the input is normalised
+  !> to 1e-3, the normalised table integrates to 1 and sampling reproduces its first moment.
+  subroutine test_table_c1(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(error_t), allocatable :: err
+    character(len=:), allocatable :: path
+    real(wp), allocatable :: angle(:), value(:)
+    type(phase_t) :: ph
+    real(wp) :: mean
+    integer :: i, n
+    call c1_path(path, error)
+    if (allocated(error)) return
+    call read_table(path, angle, value, error)
+    if (allocated(error)) return
+    call check(error, size(angle) == 1801, 'C.1_PF does not have 1801 lines')
+    if (allocated(error)) return
+    ph = phase_from_table(angle, value, PHASE_N_INV_DEFAULT, err)
+    call check(error, .not. allocated(err), 'phase_from_table failed on C.1_PF')
+    if (allocated(error)) return
+    call check_close(error, ph%g, 0.848_wp, abs_tol=2.0e-3_wp, label='g of C.1')
+    call check_close(error, ph%norm_factor, 1.0_wp, abs_tol=1.0e-3_wp, label='norm_factor')
+    call check_close(error, norm_integral(ph, 18000, 0), 1.0_wp, abs_tol=1.0e-9_wp, &
+                     label='normalisation of the table')
+    call check_close(error, norm_integral(ph, 18000, 1), ph%g, abs_tol=1.0e-9_wp, &
+                     label='first moment by quadrature vs ph%g')
+    call check_close(error, phase_eval(ph, 1.0_wp), value(1)*ph%norm_factor, rel_tol=1.0e-14_wp, &
+                     label='P(0 deg)')
+    call check_close(error, phase_eval(ph, -1.0_wp), value(1801)*ph%norm_factor, &
+                     rel_tol=1.0e-14_wp, label='P(180 deg)')
+    n = 200000
+    mean = 0.0_wp
+    do i = 1, n
+      mean = mean + phase_sample_mu(ph, (i - 0.5_wp)/n)/n
+    end do
+    call check_close(error, mean, ph%g, abs_tol=1.0e-5_wp, label='stratified <mu> vs g')
+  end subroutine test_table_c1
+
+  !> A table that vanishes beyond 120 deg: no sample falls there, mu_inv(1) = cos(120 deg).
+  subroutine test_table_zeros(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(error_t), allocatable :: err
+    type(phase_t) :: ph
+    real(wp) :: mu
+    integer :: i
+    ph = phase_from_table([0.0_wp, 60.0_wp, 120.0_wp, 180.0_wp], [1.0_wp, 1.0_wp, 0.0_wp, 0.0_wp], &
+                          1000, err)
+    call check(error, .not. allocated(err), 'phase_from_table failed')
+    if (allocated(error)) return
+    call check_close(error, ph%mu_inv(1), -0.5_wp, abs_tol=1.0e-14_wp, label='mu_inv(1)')
+    do i = 0, 10000
+      mu = phase_sample_mu(ph, i/10000.0_wp)
+      call check(error, mu >= -0.5_wp - 1.0e-14_wp, 'sample in the zero range')
+      if (allocated(error)) return
+    end do
+    call check_close(error, phase_eval(ph, -0.8_wp), 0.0_wp, abs_tol=0.0_wp, label='P(-0.8)')
+    call check_close(error, norm_integral(ph, 18000, 0), 1.0_wp, abs_tol=1.0e-10_wp, &
+                     label='normalisation')
+  end subroutine test_table_zeros
+
+  !> Every invalid table gives a message naming the index, the value and the bound.
+  subroutine test_table_errors(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(error_t), allocatable :: err
+    type(phase_t) :: ph
+    real(wp) :: nan, inf
+    real(wp), parameter :: a3(3) = [0.0_wp, 90.0_wp, 180.0_wp], v3(3) = [2.0_wp, 1.0_wp, 1.0_wp]
+    nan = ieee_value(1.0_wp, ieee_quiet_nan)
+    inf = ieee_value(1.0_wp, ieee_positive_inf)
+
+    ph = phase_from_table(a3, v3(1:2), error=err)
+    call expect_error(error, err, [character(len=40) :: 'different sizes', '(3 and 2)'], 'sizes')
+    ph = phase_from_table([0.0_wp], [1.0_wp], error=err)
+    call expect_error(error, err, [character(len=40) :: '1 points', 'at least 2'], 'one point')
+    ph = phase_from_table(a3, v3, 1, err)
+    call expect_error(error, err, [character(len=40) :: 'n_inv = 1', '>= 2'], 'n_inv')
+    ph = phase_from_table([0.0_wp, nan, 180.0_wp], v3, error=err)
+    call expect_error(error, err, [character(len=40) :: 'angle_deg(2) = NaN', 'not finite'], &
+                      'NaN angle')
+    ph = phase_from_table([0.5_wp, 90.0_wp, 180.0_wp], v3, error=err)
+    call expect_error(error, err, [character(len=40) :: 'angle_deg(1) = 0.5', 'must be 0', &
+                                   '1e-6 deg'], 'first angle')
+    ph = phase_from_table([0.0_wp, 90.0_wp, 179.0_wp], v3, error=err)
+    call expect_error(error, err, [character(len=40) :: 'angle_deg(3) = 179.', 'must be 180', &
+                                   '1e-6 deg'], 'last angle')
+    ph = phase_from_table([0.0_wp, 90.0_wp, 90.0_wp, 180.0_wp], [v3, 1.0_wp], error=err)
+    call expect_error(error, err, [character(len=48) :: 'angle_deg(3) = 90.', &
+                                   'must be > angle_deg(2) = 90.', 'strictly increasing'], &
+                      'repeated angle')
+    ph = phase_from_table([-5.0e-7_wp, -1.0e-7_wp, 180.0_wp], v3, error=err)
+    call expect_error(error, err, [character(len=48) :: 'angle_deg(2) = -0.1', &
+                                   'strictly between 0 and 180'], 'interior angle')
+    ph = phase_from_table(a3, [2.0_wp, -1.0_wp, 1.0_wp], error=err)
+    call expect_error(error, err, [character(len=40) :: 'value(2) = -1.0', 'finite and >= 0'], &
+                      'negative value')
+    ph = phase_from_table(a3, [2.0_wp, 1.0_wp, nan], error=err)
+    call expect_error(error, err, [character(len=40) :: 'value(3) = NaN', 'finite and >= 0'], &
+                      'NaN value')
+    ph = phase_from_table(a3, [inf, 1.0_wp, 1.0_wp], error=err)
+    call expect_error(error, err, [character(len=40) :: 'value(1) = Inf', 'finite and >= 0'], &
+                      'infinite value')
+    ph = phase_from_table(a3, [0.0_wp, 0.0_wp, 0.0_wp], error=err)
+    call expect_error(error, err, [character(len=40) :: 'all 3 values are 0', &
+                                   'positive integral'], 'all zero')
+    ! tolerated end points: within 1e-6 deg
+    ph = phase_from_table([-5.0e-7_wp, 90.0_wp, 180.0_wp + 5.0e-7_wp], v3, 100, err)
+    call check(error, .not. allocated(err), 'end points within 1e-6 deg rejected')
+  end subroutine test_table_errors
+
+  !> Samples of every kind lie in [-1, 1] at the extreme deviates.
+  subroutine test_bounds(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(error_t), allocatable :: err
+    type(phase_t) :: phs(5)
+    real(wp) :: us(4), mu
+    integer :: i, k
+    us = [0.0_wp, epsilon(1.0_wp), 1.0_wp - epsilon(1.0_wp)/2.0_wp, 1.0_wp]
+    phs(1) = new_phase_isotropic()
+    phs(2) = new_phase_rayleigh()
+    phs(3) = new_phase_hg(0.999_wp, err)
+    phs(4) = new_phase_hg(-0.999_wp, err)
+    phs(5) = phase_from_table([0.0_wp, 1.0_wp, 180.0_wp], [1.0e4_wp, 1.0_wp, 0.5_wp], 50, err)
+    call check(error, .not. allocated(err), 'constructor failed')
+    do k = 1, size(phs)
+      do i = 1, size(us)
+        mu = phase_sample_mu(phs(k), us(i))
+        call check(error, mu >= -1.0_wp .and. mu <= 1.0_wp, 'sample outside [-1, 1]')
+      end do
+      call check_close(error, phase_sample_mu(phs(k), 0.0_wp), -1.0_wp, abs_tol=0.0_wp, &
+                       label='mu(u = 0)')
+      call check_close(error, phase_sample_mu(phs(k), 1.0_wp), 1.0_wp, abs_tol=0.0_wp, &
+                       label='mu(u = 1)')
+    end do
+  end subroutine test_bounds
+end module test_kumo_phase
+
+program test_phase
+  use test_kumo_phase, only: collect_phase
+  use kumo_testing, only: run_unittests
+  implicit none
+  integer :: n_failed
+  call run_unittests('kumo_phase', collect_phase(), n_failed)
+  if (n_failed > 0) error stop 1
+end program test_phase

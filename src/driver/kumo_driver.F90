@@ -406,6 +406,7 @@ contains
                      long_name='height of the layer centres of the 3-D region')
         call put('absorptance_voxel', 'power absorbed per voxel per unit column area'//NORM, &
                  [(lay%i_vox + i, i=1, atm%n3*ncol)], dims=['x  ', 'y  ', 'z3d'])
+        if (allocated(fac)) deallocate (fac)
         allocate (fac(atm%n3*ncol))
         do kr = 1, atm%n3
           fac((kr - 1)*ncol + 1:kr*ncol) = 1.0_dp/dz(atm%k3_lo + kr - 1)

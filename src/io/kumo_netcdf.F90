@@ -50,6 +50,9 @@ module kumo_netcdf
   character(len=*), parameter :: MAP_INDEX = '(xs,ys)'
   character(len=*), parameter :: MAP_CDL_DIMS = '(ys, xs)'
 
+  ! Assumed-size character dummies are how Fortran 2008 passes a C string (`char *`); assumed shape
+  ! is not interoperable before Fortran 2018.
+  ! allow(C071)
   interface
     !> C `rename` (stdio.h): atomic replacement of `newpath` on POSIX file systems.
     function c_rename(oldpath, newpath) bind(C, name='rename') result(status)
@@ -85,15 +88,15 @@ contains
     character(len=*), intent(in) :: path                !! output file
     type(result_set_t), intent(in) :: set               !! dimensions, variables, global attributes
     type(error_t), allocatable, intent(out) :: error
-    character(len=*), parameter :: R = 'write_results'
+    character(len=*), parameter :: PROC = 'write_results'
     integer :: ncid
 
-    call validate_result_set(R, trim(path), set, error)
+    call validate_result_set(PROC, trim(path), set, error)
     if (allocated(error)) return
-    call create_temp(R, trim(path), ncid, error)
+    call create_temp(PROC, trim(path), ncid, error)
     if (allocated(error)) return
-    call write_results_body(R, trim(path), ncid, set, error)
-    call commit_temp(R, trim(path), ncid, error)
+    call write_results_body(PROC, trim(path), ncid, set, error)
+    call commit_temp(PROC, trim(path), ncid, error)
   end subroutine write_results
 
   !> Check, before a run starts, that the output file can be created: a probe file `<path>.tmp`
@@ -101,31 +104,33 @@ contains
   subroutine check_writable(path, error)
     character(len=*), intent(in) :: path                !! output file the run will write
     type(error_t), allocatable, intent(out) :: error
-    character(len=*), parameter :: R = 'check_writable'
+    character(len=*), parameter :: PROC = 'check_writable'
     character(len=512) :: msg
-    character(len=:), allocatable :: p
+    character(len=:), allocatable :: fname, at
     integer :: unit, ios
     logical :: is_dir
 
-    p = trim(path)
-    if (len(p) == 0) then
-      call set_error(error, R//': output path is empty')
+    fname = trim(path)
+    at = where_text(PROC, fname, '')
+    if (len(fname) == 0) then
+      call set_error(error, at//': output path is empty')
       return
     end if
     ! A directory "exists" with "/." appended; a regular file does not.
-    inquire (file=p//'/.', exist=is_dir)
+    inquire (file=fname//'/.', exist=is_dir)
     if (is_dir) then
-      call set_error(error, R//'('//p//'): output path is a directory')
+      call set_error(error, at//': output path is a directory')
       return
     end if
-    open (newunit=unit, file=p//TMP_SUFFIX, status='replace', action='write', iostat=ios, iomsg=msg)
+    open (newunit=unit, file=fname//TMP_SUFFIX, status='replace', action='write', iostat=ios, &
+          iomsg=msg)
     if (ios /= 0) then
-      call set_error(error, R//'('//p//'): cannot create the output file: '//trim(msg))
+      call set_error(error, at//': cannot create the output file: '//trim(msg))
       return
     end if
     close (unit, status='delete', iostat=ios, iomsg=msg)
     if (ios /= 0) then
-      call set_error(error, R//'('//p//'): cannot delete the probe file '//p//TMP_SUFFIX//': '// &
+      call set_error(error, at//': cannot delete the probe file '//fname//TMP_SUFFIX//': '// &
                      trim(msg))
     end if
   end subroutine check_writable
@@ -142,48 +147,52 @@ contains
     integer, intent(in), optional :: phase_index(:, :, :, :) !! 1-based phase function index
     type(error_t), allocatable, intent(out) :: error
     character(len=*), intent(in), optional :: ext_units !! "m-1" (default) or "km-1"
-    character(len=*), parameter :: R = 'write_scene_3d'
-    character(len=:), allocatable :: p, units
+    character(len=*), parameter :: PROC = 'write_scene_3d'
+    real(wp), parameter :: FILL = real(NF90_FILL_DOUBLE, wp)
+    character(len=:), allocatable :: fname, units, at_ext, at_ssa, at_phase
     integer :: ncid
 
-    p = trim(path)
+    fname = trim(path)
+    at_ext = where_text(PROC, fname, 'extinction')
+    at_ssa = where_text(PROC, fname, 'ssa')
+    at_phase = where_text(PROC, fname, 'phase_index')
     units = 'm-1'
     if (present(ext_units)) units = trim(ext_units)
     if (units /= 'm-1' .and. units /= 'km-1') then
-      call set_error(error, R//'('//p//':extinction): ext_units = "'//units// &
+      call set_error(error, at_ext//': ext_units = "'//units// &
                      '" not allowed; allowed units are "m-1" and "km-1"')
       return
     end if
     if (any(shape(ssa) /= shape(ext))) then
-      call set_error(error, R//'('//p//':ssa): shape '//int_list(shape(ssa))// &
+      call set_error(error, at_ssa//': shape '//int_list(shape(ssa))// &
                      ' differs from the shape of extinction '//int_list(shape(ext)))
       return
     end if
     if (present(phase_index)) then
       if (any(shape(phase_index) /= shape(ext))) then
-        call set_error(error, R//'('//p//':phase_index): shape '//int_list(shape(phase_index))// &
+        call set_error(error, at_phase//': shape '//int_list(shape(phase_index))// &
                        ' differs from the shape of extinction '//int_list(shape(ext)))
         return
       end if
     end if
     if (size(ext) == 0) then
-      call set_error(error, R//'('//p//':extinction): every dimension must be >= 1, shape is '// &
+      call set_error(error, at_ext//': every dimension must be >= 1, shape is '// &
                      int_list(shape(ext)))
       return
     end if
-    call check_real_4d(R//'('//p//':extinction)', ext, real(NF90_FILL_DOUBLE, wp), .false., error)
+    call check_real_4d(at_ext, ext, FILL, .false., error)
     if (allocated(error)) return
-    call check_real_4d(R//'('//p//':ssa)', ssa, real(NF90_FILL_DOUBLE, wp), .true., error)
+    call check_real_4d(at_ssa, ssa, FILL, .true., error)
     if (allocated(error)) return
     if (present(phase_index)) then
-      call check_index_4d(R//'('//p//':phase_index)', phase_index, NF90_FILL_INT, error)
+      call check_index_4d(at_phase, phase_index, NF90_FILL_INT, error)
       if (allocated(error)) return
     end if
 
-    call create_temp(R, p, ncid, error)
+    call create_temp(PROC, fname, ncid, error)
     if (allocated(error)) return
-    call write_scene_body(R, p, ncid, ext, units, ssa, phase_index, error)
-    call commit_temp(R, p, ncid, error)
+    call write_scene_body(PROC, fname, ncid, ext, units, ssa, phase_index, error)
+    call commit_temp(PROC, fname, ncid, error)
   end subroutine write_scene_3d
 
   ! ------------------------------------------------------------------------------------------------
@@ -207,15 +216,15 @@ contains
     integer, allocatable, intent(out) :: phase_index(:, :, :, :) !! allocated if present in the file
     logical, intent(out) :: has_phase_index             !! whether the file has phase_index
     type(error_t), allocatable, intent(out) :: error
-    character(len=*), parameter :: R = 'read_scene_3d'
+    character(len=*), parameter :: PROC = 'read_scene_3d'
     integer :: ncid
 
     has_phase_index = .false.
-    call open_read(R, trim(path), ncid, error)
+    call open_read(PROC, trim(path), ncid, error)
     if (allocated(error)) return
-    call read_scene_body(R, trim(path), ncid, [nx, ny, nz3, ncomp], ext, ssa, phase_index, &
+    call read_scene_body(PROC, trim(path), ncid, [nx, ny, nz3, ncomp], ext, ssa, phase_index, &
                          has_phase_index, error)
-    call close_read(R, trim(path), ncid, error)
+    call close_read(PROC, trim(path), ncid, error)
     if (allocated(error)) then
       if (allocated(ext)) deallocate (ext)
       if (allocated(ssa)) deallocate (ssa)
@@ -234,7 +243,7 @@ contains
     integer, intent(out) :: nys                         !! size of dimension ys
     real(wp), allocatable, intent(out) :: albedo(:, :)  !! albedo (nxs, nys) [1]
     type(error_t), allocatable, intent(out) :: error
-    character(len=*), parameter :: R = 'read_albedo_map'
+    character(len=*), parameter :: PROC = 'read_albedo_map'
     character(len=:), allocatable :: name
     integer :: ncid
 
@@ -242,10 +251,10 @@ contains
     nys = 0
     name = trim(varname)
     if (len(name) == 0) name = DEFAULT_ALBEDO_NAME
-    call open_read(R, trim(path), ncid, error)
+    call open_read(PROC, trim(path), ncid, error)
     if (allocated(error)) return
-    call read_albedo_body(R, trim(path), ncid, name, nxs, nys, albedo, error)
-    call close_read(R, trim(path), ncid, error)
+    call read_albedo_body(PROC, trim(path), ncid, name, nxs, nys, albedo, error)
+    call close_read(PROC, trim(path), ncid, error)
     if (allocated(error)) then
       if (allocated(albedo)) deallocate (albedo)
       nxs = 0
@@ -259,13 +268,13 @@ contains
     character(len=*), intent(in) :: varname            !! variable name
     real(dp), allocatable, intent(out) :: values(:)    !! values, first file dimension fastest
     type(error_t), allocatable, intent(out) :: error
-    character(len=*), parameter :: R = 'read_var_1d'
+    character(len=*), parameter :: PROC = 'read_var_1d'
     integer :: ncid
 
-    call open_read(R, trim(path), ncid, error)
+    call open_read(PROC, trim(path), ncid, error)
     if (allocated(error)) return
-    call read_var_body(R, trim(path), ncid, trim(varname), values, error)
-    call close_read(R, trim(path), ncid, error)
+    call read_var_body(PROC, trim(path), ncid, trim(varname), values, error)
+    call close_read(PROC, trim(path), ncid, error)
     if (allocated(error) .and. allocated(values)) deallocate (values)
   end subroutine read_var_1d
 
@@ -275,18 +284,18 @@ contains
     character(len=*), intent(in) :: attname             !! global attribute name
     character(len=:), allocatable, intent(out) :: value !! attribute text
     type(error_t), allocatable, intent(out) :: error
-    character(len=*), parameter :: R = 'read_text_attr'
+    character(len=*), parameter :: PROC = 'read_text_attr'
     integer :: ncid
     logical :: found
 
-    call open_read(R, trim(path), ncid, error)
+    call open_read(PROC, trim(path), ncid, error)
     if (allocated(error)) return
-    call get_text_att(R, trim(path), ncid, NF90_GLOBAL, trim(attname), value, found, error)
+    call get_text_att(PROC, trim(path), ncid, NF90_GLOBAL, trim(attname), value, found, error)
     if (.not. allocated(error) .and. .not. found) then
-      call set_error(error, R//'('//trim(path)//':'//trim(attname)// &
-                     '): global attribute not found')
+      call set_error(error, where_text(PROC, trim(path), trim(attname))// &
+                     ': global attribute not found')
     end if
-    call close_read(R, trim(path), ncid, error)
+    call close_read(PROC, trim(path), ncid, error)
     if (allocated(error) .and. allocated(value)) deallocate (value)
   end subroutine read_text_attr
 
@@ -754,13 +763,13 @@ contains
     character(len=:), allocatable :: problem, place
 
     do k = 1, size(values)
-      problem = ''
-      if (.not. ieee_is_finite(values(k))) then
+      if (ieee_is_finite(values(k))) then  ! fast path first; no ordered comparison with NaN
+        if (.not. nonnegative) cycle
+        if (values(k) >= 0.0_dp) cycle
+        problem = 'must be >= 0'
+      else
         problem = 'is not finite'
-      else if (nonnegative) then
-        if (values(k) < 0.0_dp) problem = 'must be >= 0'
       end if
-      if (len(problem) == 0) cycle
       if (ndims == 0) then
         place = ''
       else

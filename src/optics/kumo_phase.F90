@@ -22,7 +22,7 @@
 !> then solved to rounding within each sub-interval. `phase_eval` uses the same interpolant,
 !> so sampling and evaluation describe the same function.
 module kumo_phase
-  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite, ieee_is_nan
   use kumo_kinds, only: wp
   use kumo_constants, only: PI, DEG2RAD
   use kumo_error, only: error_t, set_error
@@ -209,7 +209,11 @@ contains
     real(wp), intent(in) :: g                         !! asymmetry parameter, |g| < 1
     type(error_t), allocatable, intent(out) :: error  !! set if |g| >= 1 or g is NaN
     type(phase_t) :: ph  !! the phase function (the default, isotropic, on error)
-    if (.not. (abs(g) < 1.0_wp)) then
+    if (ieee_is_nan(g)) then   ! tested first: an ordered comparison with NaN may trap
+      call set_error(error, 'new_phase_hg: g = '//real_str(g)//' must satisfy |g| < 1')
+      return
+    end if
+    if (abs(g) >= 1.0_wp) then
       call set_error(error, 'new_phase_hg: g = '//real_str(g)//' must satisfy |g| < 1')
       return
     end if
@@ -233,10 +237,11 @@ contains
     type(phase_t) :: ph  !! the phase function (the default, isotropic, on error)
 
     character(len=*), parameter :: CTX = 'phase_from_table: '
-    real(wp), allocatable :: theta(:), th_f(:), cum(:)
+    real(wp), allocatable :: th_f(:), cum(:)
     integer, allocatable :: nsub(:), itab(:)
-    real(wp) :: total, moment1, target
+    real(wp) :: total, moment1, xi
     integer :: n, ninv, nfine, i, j, k, m
+    logical :: bad
 
     ! --- validation -------------------------------------------------------------------------
     n = size(angle_deg)
@@ -288,7 +293,9 @@ contains
       end if
     end do
     do i = 1, n
-      if (.not. (ieee_is_finite(value(i)) .and. value(i) >= 0.0_wp)) then
+      bad = .not. ieee_is_finite(value(i))   ! tested first: comparing NaN may trap
+      if (.not. bad) bad = value(i) < 0.0_wp
+      if (bad) then
         call set_error(error, CTX//'value('//int_str(i)//') = '//real_str(value(i))// &
                        ' must be finite and >= 0')
         return
@@ -301,11 +308,11 @@ contains
     end if
 
     ! --- evaluation table, ascending in mu ---------------------------------------------------
-    theta = angle_deg*DEG2RAD
-    theta(1) = 0.0_wp
-    theta(n) = PI
     ph%kind = PHASE_TABLE
-    ph%theta_tab = theta(n:1:-1)
+    allocate (ph%theta_tab(n), ph%mu_tab(n), ph%p_tab(n))
+    ph%theta_tab = angle_deg(n:1:-1)*DEG2RAD
+    ph%theta_tab(1) = PI
+    ph%theta_tab(n) = 0.0_wp
     ph%mu_tab = cos(ph%theta_tab)
     ph%mu_tab(1) = -1.0_wp
     ph%mu_tab(n) = 1.0_wp
@@ -341,9 +348,10 @@ contains
     ph%norm_factor = 1.0_wp/total
     ph%g = moment1/total
     ph%p_tab = ph%p_tab*ph%norm_factor
+    cum = cum*ph%norm_factor                 ! from here on everything is normalised
+    cum(nfine) = 1.0_wp
 
     ! --- inverse CDF on xi_j = (j-1)/(ninv-1) -----------------------------------------------
-    ! cum is in units of the input table; the target of xi_j is xi_j*total.
     allocate (ph%mu_inv(ninv))
     k = 1
     do while (cum(k) <= 0.0_wp)   ! F = 0 up to th_f(k-1): take the largest such mu
@@ -352,14 +360,14 @@ contains
     ph%mu_inv(1) = cos(th_f(k - 1))
     do j = 2, ninv
       if (j == ninv) then
-        target = total
+        xi = 1.0_wp
       else
-        target = total*(real(j - 1, wp)/real(ninv - 1, wp))
+        xi = real(j - 1, wp)/real(ninv - 1, wp)
       end if
-      do while (cum(k) < target .and. k < nfine)
+      do while (cum(k) < xi .and. k < nfine)
         k = k + 1
       end do
-      ph%mu_inv(j) = cos(table_invert(ph, itab(k), th_f(k), th_f(k - 1), target - cum(k - 1), &
+      ph%mu_inv(j) = cos(table_invert(ph, itab(k), th_f(k), th_f(k - 1), xi - cum(k - 1), &
                                       cum(k) - cum(k - 1)))
       ph%mu_inv(j) = max(ph%mu_inv(j), ph%mu_inv(j - 1))
     end do

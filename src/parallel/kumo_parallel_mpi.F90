@@ -84,9 +84,15 @@ contains
     t = MPI_Wtime()
   end function par_wtime
 
-  !> Stop every rank with exit code `code` (no rank is left waiting).
+  !> Stop every rank with a non-zero exit code (no rank is left waiting). A single-rank run
+  !> finalises MPI and stops quietly, without the launcher's abort banner.
   subroutine par_abort(code)
     integer, intent(in) :: code
+    if (par_size() == 1) then
+      call MPI_Finalize()
+      if (code == 2) stop 2
+      stop 1
+    end if
     call MPI_Abort(MPI_COMM_WORLD, code)
   end subroutine par_abort
 end module kumo_parallel

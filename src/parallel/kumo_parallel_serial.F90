@@ -64,7 +64,7 @@ contains
 
   subroutine par_abort(code)
     integer, intent(in) :: code
-    if (code /= 0) error stop 1
-    error stop 0
+    if (code == 2) stop 2
+    stop 1
   end subroutine par_abort
 end module kumo_parallel

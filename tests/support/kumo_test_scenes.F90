@@ -70,18 +70,24 @@ contains
   end subroutine set_phases
 
   !> Write a 3-D region (nx, ny, nz3, 1) to `path` and point the configuration at it.
-  subroutine attach_scene(cfg, path, k3d_bottom, ext, ssa, phase_index, error)
+  subroutine attach_scene(cfg, path, k3d_bottom, ext, ssa, phase_index, error, write_file)
     type(config_t), intent(inout) :: cfg
     character(len=*), intent(in) :: path
     integer, intent(in) :: k3d_bottom
     real(wp), intent(in) :: ext(:, :, :), ssa(:, :, :)
     integer, intent(in) :: phase_index
     type(error_t), allocatable, intent(out) :: error
+    logical, intent(in), optional :: write_file  !! .false.: only point at the file (other ranks)
     real(wp), allocatable :: e4(:, :, :, :), s4(:, :, :, :)
-    e4 = reshape(ext, [shape(ext), 1])
-    s4 = reshape(ssa, [shape(ssa), 1])
-    call write_scene_3d(path, e4, s4, error=error)
-    if (allocated(error)) return
+    logical :: do_write
+    do_write = .true.
+    if (present(write_file)) do_write = write_file
+    if (do_write) then
+      e4 = reshape(ext, [shape(ext), 1])
+      s4 = reshape(ssa, [shape(ssa), 1])
+      call write_scene_3d(path, e4, s4, error=error)
+      if (allocated(error)) return
+    end if
     cfg%atm%scene_file = path
     cfg%atm%k3d_bottom = k3d_bottom
     cfg%atm%nx = size(ext, 1)

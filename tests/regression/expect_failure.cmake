@@ -1,0 +1,26 @@
+# SPDX-License-Identifier: BSD-3-Clause
+# Run kumo on a namelist that must be rejected: the run has to end with a non-zero exit code,
+# print a message matching REGEX on standard error, and leave no output file behind.
+# Variables: KUMO (program), NML (namelist), REGEX, OUT (output file that must not exist),
+# optional CDL (a scene in CDL text, turned into scene_small.nc with ncgen before the run).
+file(REMOVE ${OUT} ${OUT}.tmp)
+if(CDL)
+  execute_process(COMMAND ncgen -o scene_small.nc ${CDL} RESULT_VARIABLE rc_gen)
+  if(NOT rc_gen EQUAL 0)
+    message(FATAL_ERROR "ncgen failed on ${CDL}")
+  endif()
+endif()
+# run a copy in the working directory, so that relative paths in the namelist point here
+get_filename_component(name ${NML} NAME)
+configure_file(${NML} ${name} COPYONLY)
+execute_process(COMMAND ${KUMO} ${name} RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+if(rc EQUAL 0)
+  message(FATAL_ERROR "kumo accepted ${NML} (exit 0); stdout:\n${out}")
+endif()
+if(NOT err MATCHES "${REGEX}")
+  message(FATAL_ERROR "message does not match '${REGEX}':\n${err}")
+endif()
+if(EXISTS ${OUT} OR EXISTS ${OUT}.tmp)
+  message(FATAL_ERROR "a (partial) output file was left behind: ${OUT}")
+endif()
+message(STATUS "rejected as expected: ${err}")

@@ -13,8 +13,14 @@ if (($# > 0)); then shift; fi
 case $build_type in
   Release) build_dir=build ;;
   Debug) build_dir=build-debug ;;
+  Serial)
+    # Release without MPI: kumo_parallel is the serial stub
+    build_type=Release
+    build_dir=build-serial
+    set -- -DKUMO_ENABLE_MPI=OFF "$@"
+    ;;
   *)
-    echo "usage: scripts/build.sh [Release|Debug] [cmake options...]" >&2
+    echo "usage: scripts/build.sh [Release|Debug|Serial] [cmake options...]" >&2
     exit 2
     ;;
 esac

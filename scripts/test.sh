@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # SPDX-License-Identifier: BSD-3-Clause
 # Install what is missing, then build and run the whole test suite twice:
-# Release (build/) and Debug (build-debug/, run-time checks and FP traps).
+# Release (build/), Debug (build-debug/, run-time checks and FP traps) and a
+# serial build without MPI (build-serial/), then compare the serial and MPI builds.
 # Both runs always happen; the script exits non-zero if either fails. The last
 # line is the total over both runs, "N passed, N failed". A configuration that
 # does not build counts as one failed test.
@@ -53,6 +54,29 @@ run_suite() {
 
 run_suite Release build
 run_suite Debug build-debug
+run_suite Serial build-serial
+
+# The serial build and the MPI build must give the same per-batch results for the same case.
+echo "=== serial vs MPI build ==="
+cmp_dir=$(mktemp -d)
+if [[ -x build/kumo && -x build-serial/kumo ]] &&
+  (cd "$cmp_dir" && cp "$OLDPWD/tests/regression/data/compare_builds.nml" . &&
+    "$OLDPWD/build/kumo" compare_builds.nml > /dev/null &&
+    mv compare_builds.nc mpi.nc &&
+    "$OLDPWD/build-serial/kumo" compare_builds.nml > /dev/null &&
+    ncdump -v batch_reflectance,batch_transmittance,batch_absorptance mpi.nc | sed 1d | grep -v -E 'wall_time|cpu_time|setup_time|history|:parallel' > a.txt &&
+    ncdump -v batch_reflectance,batch_transmittance,batch_absorptance compare_builds.nc | sed 1d | grep -v -E 'wall_time|cpu_time|setup_time|history|:parallel' > b.txt &&
+    diff a.txt b.txt > /dev/null); then
+  echo "serial and MPI builds agree batch by batch"
+  summaries+=("serial vs MPI: 1 passed, 0 failed")
+  total_passed=$((total_passed + 1))
+else
+  echo "serial and MPI builds DIFFER (or did not run)"
+  summaries+=("serial vs MPI: 0 passed, 1 failed")
+  total_failed=$((total_failed + 1))
+  status=1
+fi
+rm -rf "$cmp_dir"
 
 echo "=== summary ==="
 for s in "${summaries[@]}"; do

@@ -1,0 +1,185 @@
+! SPDX-License-Identifier: BSD-3-Clause
+!> Super-voxel majorant grid and layer classes: the majorant bounds every voxel of its block,
+!> uniform fields merge into one block, clear blocks have a zero majorant, and the merge stops
+!> where the MCARaTS rule says it must.
+module test_supervoxel_suite
+  use kumo_kinds, only: wp
+  use kumo_testing, only: error_t, unittest_t, new_unittest, check, check_close
+  use kumo_supervoxel, only: supervoxel_grid_t, supervoxel_options_t, build_supervoxels
+  use kumo_atmosphere, only: atmosphere_t, atmosphere_options_t, atmosphere_init, &
+                             LAYER_CLEAR, LAYER_ABSORBING, LAYER_SCATTERING, LAYER_3D
+  use kumo_phase, only: phase_t, new_phase_isotropic
+  implicit none
+  private
+  public :: collect_supervoxel
+
+contains
+
+  function collect_supervoxel() result(tests)
+    type(unittest_t), allocatable :: tests(:)
+    tests = [new_unittest('majorant_bounds_every_voxel', test_bounds), &
+             new_unittest('uniform_field_is_one_block', test_uniform), &
+             new_unittest('clear_blocks_have_zero_majorant', test_clear), &
+             new_unittest('thick_contrasted_field_stays_fine', test_thick), &
+             new_unittest('disabled_means_one_global_majorant', test_disabled), &
+             new_unittest('layer_classes', test_classes), &
+             new_unittest('component_mixing', test_mixing)]
+  end function collect_supervoxel
+
+  function field(nx, ny, nz) result(ext)
+    integer, intent(in) :: nx, ny, nz
+    real(wp) :: ext(nx, ny, nz)
+    integer :: i, j, k
+    do k = 1, nz
+      do j = 1, ny
+        do i = 1, nx
+          ext(i, j, k) = max(0.0_wp, 1.0e-3_wp*(sin(0.9_wp*i) + cos(1.7_wp*j) + 0.2_wp*k))
+        end do
+      end do
+    end do
+  end function field
+
+  subroutine test_bounds(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(supervoxel_grid_t) :: sv
+    type(supervoxel_options_t) :: opts
+    real(wp) :: ext(13, 7, 5)
+    integer :: s, i, j, k, jx, jy
+    ext = field(13, 7, 5)
+    call build_supervoxels(ext, 50.0_wp, 50.0_wp, [100.0_wp, 100.0_wp, 50.0_wp, 200.0_wp, &
+                           100.0_wp], opts, sv)
+    call check(error, sv%ns >= 1 .and. sv%kb(1) == 1 .and. sv%kt(sv%ns) == 5, &
+               'super-layers cover the region')
+    do k = 1, 5
+      s = sv%sl_of_layer(k)
+      call check(error, k >= sv%kb(s) .and. k <= sv%kt(s), 'layer inside its super-layer')
+      do j = 1, 7
+        do i = 1, 13
+          jx = (i - 1)/sv%bx(s) + 1
+          jy = (j - 1)/sv%by(s) + 1
+          call check(error, sv%maj(sv%off(s) + jx + (jy - 1)*sv%nbx(s)) >= ext(i, j, k), &
+                     'majorant below a voxel extinction')
+          if (allocated(error)) return
+        end do
+      end do
+    end do
+  end subroutine test_bounds
+
+  subroutine test_uniform(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(supervoxel_grid_t) :: sv
+    type(supervoxel_options_t) :: opts
+    real(wp) :: ext(16, 16, 4)
+    ext = 0.05_wp   ! optically thick voxels, but uniform: real/majorant = 1 everywhere
+    call build_supervoxels(ext, 100.0_wp, 100.0_wp, [100.0_wp, 100.0_wp, 100.0_wp, 100.0_wp], &
+                           opts, sv)
+    call check(error, sv%ns == 1, 'uniform layers merge into one super-layer')
+    call check(error, sv%nbx(1) == 1 .and. sv%nby(1) == 1, 'uniform field merges into one block')
+    call check_close(error, sv%maj(1), 0.05_wp, label='majorant of the uniform field')
+  end subroutine test_uniform
+
+  subroutine test_clear(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(supervoxel_grid_t) :: sv
+    type(supervoxel_options_t) :: opts
+    real(wp) :: ext(8, 8, 1)
+    ext = 0.0_wp
+    ext(1:2, 1:2, 1) = 5.0_wp    ! a tiny, very dense cloud in one corner
+    ext(2, 2, 1) = 0.5_wp
+    call build_supervoxels(ext, 10.0_wp, 10.0_wp, [10.0_wp], opts, sv)
+    call check(error, count(sv%maj == 0.0_wp) >= 1, 'a clear block keeps a zero majorant')
+    call check(error, maxval(sv%maj) == 5.0_wp, 'the dense block keeps its maximum')
+  end subroutine test_clear
+
+  subroutine test_thick(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(supervoxel_grid_t) :: sv
+    type(supervoxel_options_t) :: opts
+    real(wp) :: ext(8, 8, 1)
+    integer :: i
+    ! alternate thick and thin columns: merging would make optically thick blocks whose
+    ! real/majorant ratio is 0.5 -> both criteria fail, so voxels stay single
+    do i = 1, 8
+      ext(i, :, 1) = merge(1.0_wp, 0.0_wp, mod(i, 2) == 0)
+    end do
+    call build_supervoxels(ext, 10.0_wp, 10.0_wp, [10.0_wp], opts, sv)
+    call check(error, sv%bx(1) == 1, 'thick contrasted columns are not merged along x')
+  end subroutine test_thick
+
+  subroutine test_disabled(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(supervoxel_grid_t) :: sv
+    type(supervoxel_options_t) :: opts
+    real(wp) :: ext(13, 7, 5)
+    ext = field(13, 7, 5)
+    opts%enabled = .false.
+    call build_supervoxels(ext, 50.0_wp, 50.0_wp, [100.0_wp, 100.0_wp, 100.0_wp, 100.0_wp, 100.0_wp], &
+                           opts, sv)
+    call check(error, sv%ns == 1 .and. size(sv%maj) == 1, 'one block')
+    call check_close(error, sv%maj(1), maxval(ext), label='global majorant')
+  end subroutine test_disabled
+
+  subroutine test_classes(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(atmosphere_t) :: atm
+    type(atmosphere_options_t) :: opts
+    type(phase_t) :: ph(1)
+    real(wp) :: ext1(4, 1), ssa1(4, 1)
+    integer :: iph1(4, 1)
+    ph(1) = new_phase_isotropic()
+    ext1(:, 1) = [0.0_wp, 1.0e-3_wp, 1.0e-3_wp, 1.0e-3_wp]
+    ssa1(:, 1) = [1.0_wp, 0.0_wp, 0.5_wp, 1.0_wp]
+    iph1 = 1
+    call atmosphere_init(atm, [0.0_wp, 1.0_wp, 2.0_wp, 3.0_wp, 4.0_wp], 10.0_wp, 10.0_wp, ext1, &
+                         ssa1, iph1, ph, opts, error)
+    if (allocated(error)) return
+    call check(error, all(atm%layer_class == [LAYER_CLEAR, LAYER_ABSORBING, LAYER_SCATTERING, &
+                                             LAYER_SCATTERING]), 'classes of 1-D layers')
+    opts%use_absorbing_layers = .false.
+    call atmosphere_init(atm, [0.0_wp, 1.0_wp, 2.0_wp, 3.0_wp, 4.0_wp], 10.0_wp, 10.0_wp, ext1, &
+                         ssa1, iph1, ph, opts, error)
+    if (allocated(error)) return
+    call check(error, atm%layer_class(2) == LAYER_SCATTERING, 'absorbing fast path off')
+    opts%use_1d_layers = .false.
+    call atmosphere_init(atm, [0.0_wp, 1.0_wp, 2.0_wp, 3.0_wp, 4.0_wp], 10.0_wp, 10.0_wp, ext1, &
+                         ssa1, iph1, ph, opts, error)
+    if (allocated(error)) return
+    call check(error, all(atm%layer_class == LAYER_3D) .and. atm%n3 == 4, &
+               'without 1-D layers every layer is traced in 3-D')
+    call atmosphere_init(atm, [0.0_wp, 1.0_wp, 1.0_wp, 3.0_wp, 4.0_wp], 10.0_wp, 10.0_wp, ext1, &
+                         ssa1, iph1, ph, opts, error)
+    call check(error, allocated(error), 'levels that do not increase are rejected')
+    if (allocated(error)) then
+      if (index(error%message, 'increase strictly') > 0) deallocate (error)
+    end if
+  end subroutine test_classes
+
+  subroutine test_mixing(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(atmosphere_t) :: atm
+    type(atmosphere_options_t) :: opts
+    type(phase_t) :: ph(2)
+    real(wp) :: ext1(1, 2), ssa1(1, 2)
+    integer :: iph1(1, 2)
+    ph = new_phase_isotropic()
+    ext1(1, :) = [1.0e-3_wp, 3.0e-3_wp]
+    ssa1(1, :) = [1.0_wp, 0.5_wp]
+    iph1(1, :) = [1, 2]
+    call atmosphere_init(atm, [0.0_wp, 1.0_wp], 10.0_wp, 10.0_wp, ext1, ssa1, iph1, ph, opts, error)
+    if (allocated(error)) return
+    ! sigma_s = 1e-3 + 1.5e-3; omega = 2.5e-3 / 4e-3; scatterer 1 with probability 1/2.5
+    call check_close(error, atm%ext1(1), 4.0e-3_wp, label='total extinction')
+    call check_close(error, atm%omg1(1), 0.625_wp, label='mixture single-scattering albedo')
+    call check_close(error, atm%csca1(1, 1), 0.4_wp, label='scattering fraction of component 1')
+    call check_close(error, atm%csca1(2, 1), 1.0_wp, label='cumulative fraction ends at 1')
+  end subroutine test_mixing
+end module test_supervoxel_suite
+
+program test_supervoxel
+  use kumo_testing, only: run_unittests
+  use test_supervoxel_suite, only: collect_supervoxel
+  implicit none
+  integer :: n_failed
+  call run_unittests('supervoxel', collect_supervoxel(), n_failed)
+  if (n_failed > 0) error stop 1
+end program test_supervoxel

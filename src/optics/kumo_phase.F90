@@ -75,8 +75,8 @@ module kumo_phase
     !> 1/norm_factor = (1/2) Int P_input sin(Theta) dTheta of the interpolated input.
     real(wp) :: norm_factor = 1.0_wp
     !> Inverse CDF: mu_inv(j) = F^-1(xi_j), xi_j = (j-1)/(n_inv-1), F accumulated from mu = -1;
-    !> non-decreasing from mu_inv(1) (-1 unless P vanishes there) to mu_inv(n_inv) (+1 unless
-    !> P vanishes there).
+    !> non-decreasing from mu_inv(1) = -1 to mu_inv(n_inv) = 1 (if P vanishes on an end range
+    !> of angles, the inner end of that range).
     real(wp), allocatable :: mu_inv(:)
     real(wp), allocatable :: mu_tab(:)     !! input angles as cosines, ascending (-1 ... 1)
     real(wp), allocatable :: theta_tab(:)  !! the same angles [rad], descending (pi ... 0)
@@ -251,7 +251,7 @@ contains
       return
     end if
     if (n < 2) then
-      call set_error(error, CTX//'the table has '//int_str(n)//' points, at least 2 are needed')
+      call set_error(error, CTX//'the table has '//int_str(n)//' point(s); at least 2 are needed')
       return
     end if
     ninv = PHASE_N_INV_DEFAULT
@@ -354,7 +354,7 @@ contains
     ! --- inverse CDF on xi_j = (j-1)/(ninv-1) -----------------------------------------------
     allocate (ph%mu_inv(ninv))
     k = 1
-    do while (cum(k) <= 0.0_wp)   ! F = 0 up to th_f(k-1): take the largest such mu
+    do while (cum(k) <= 0.0_wp .and. k < nfine)   ! F = 0 up to th_f(k-1): largest such mu
       k = k + 1
     end do
     ph%mu_inv(1) = cos(th_f(k - 1))

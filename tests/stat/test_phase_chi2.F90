@@ -115,7 +115,7 @@ contains
     ph = phase_from_table(angle, value, error=err)
     call check(error, .not. allocated(err), 'phase_from_table failed on C.1_PF')
     if (allocated(error)) return
-    call check(error, all(abs(angle - [(0.1_wp*j, j = 0, size(angle) - 1)]) < 1.0e-9_wp), &
+    call check(error, all(abs(angle - [(0.1_wp*j, j=0, size(angle) - 1)]) < 1.0e-9_wp), &
                'C.1_PF is not on a 0.1 deg grid')
     if (allocated(error)) return
     call table_cdf(value, n_sub, cdf)
@@ -130,7 +130,7 @@ contains
     integer, intent(in) :: n_sub
     type(cdf_t), intent(out) :: cdf
     integer :: n, k, i
-    real(wp) :: h, t0, t1
+    real(wp) :: h, t0, t1, simpson
     n = (size(value) - 1)*n_sub
     h = 0.1_wp*DEG2RAD/n_sub
     cdf%kind = CDF_TABLE
@@ -141,8 +141,9 @@ contains
       i = k/n_sub + 1            ! table interval [value(i), value(i+1)]
       t0 = k*h
       t1 = (k + 1)*h
-      cdf%c(k) = cdf%c(k + 1) + (t1 - t0)/6.0_wp*(half_p_sin(value, i, t0) + &
-                 4.0_wp*half_p_sin(value, i, 0.5_wp*(t0 + t1)) + half_p_sin(value, i, t1))
+      simpson = half_p_sin(value, i, t0) + 4.0_wp*half_p_sin(value, i, 0.5_wp*(t0 + t1)) &
+                + half_p_sin(value, i, t1)
+      cdf%c(k) = cdf%c(k + 1) + (t1 - t0)/6.0_wp*simpson
     end do
     cdf%c = cdf%c/cdf%c(0)
   end subroutine table_cdf

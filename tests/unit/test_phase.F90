@@ -24,15 +24,15 @@ module test_kumo_phase
   real(wp), parameter :: HG_GS(6) = [0.0_wp, 0.3_wp, 0.85_wp, -0.5_wp, 0.99_wp, -0.95_wp]
 
   ! 5-point Gauss-Legendre nodes and weights on [-1, 1] (tabulated values).
-  real(wp), parameter :: GX(5) = [-0.906179845938663992797626878299_wp, &
-                                  -0.538469310105683091036314420700_wp, 0.0_wp, &
-                                  0.538469310105683091036314420700_wp, &
-                                  0.906179845938663992797626878299_wp]
-  real(wp), parameter :: GW(5) = [0.236926885056189087514264040720_wp, &
-                                  0.478628670499366468041291514836_wp, &
-                                  0.568888888888888888888888888889_wp, &
-                                  0.478628670499366468041291514836_wp, &
-                                  0.236926885056189087514264040720_wp]
+  real(wp), parameter :: GX(5) = [-0.90617984593866399_wp, &
+                                  -0.53846931010568309_wp, 0.0_wp, &
+                                  0.53846931010568309_wp, &
+                                  0.90617984593866399_wp]
+  real(wp), parameter :: GW(5) = [0.23692688505618909_wp, &
+                                  0.47862867049936647_wp, &
+                                  0.56888888888888889_wp, &
+                                  0.47862867049936647_wp, &
+                                  0.23692688505618909_wp]
 
 contains
 
@@ -444,7 +444,7 @@ contains
     type(phase_t) :: ph
     real(wp) :: angle(n), value(n), u, mu, maxdiff
     integer :: i
-    angle = [(0.1_wp*i, i = 0, n - 1)]
+    angle = [(0.1_wp*i, i=0, n - 1)]
     value = 3.0_wp*hg_eval(g, cos(angle*DEG2RAD))    ! deliberately not normalised
     ph = phase_from_table(angle, value, error=err)
     call check(error, .not. allocated(err), 'phase_from_table failed')
@@ -561,7 +561,8 @@ contains
     ph = phase_from_table(a3, v3(1:2), error=err)
     call expect_error(error, err, [character(len=40) :: 'different sizes', '(3 and 2)'], 'sizes')
     ph = phase_from_table([0.0_wp], [1.0_wp], error=err)
-    call expect_error(error, err, [character(len=40) :: '1 points', 'at least 2'], 'one point')
+    call expect_error(error, err, [character(len=40) :: 'has 1 point(s)', 'at least 2'], &
+                      'one point')
     ph = phase_from_table(a3, v3, 1, err)
     call expect_error(error, err, [character(len=40) :: 'n_inv = 1', '>= 2'], 'n_inv')
     ph = phase_from_table([0.0_wp, nan, 180.0_wp], v3, error=err)

@@ -9,6 +9,9 @@ module test_engine_suite
   use kumo_results, only: result_set_t
   use kumo_test_scenes, only: slab_config, set_phases, run_config, get_scalar, get_array, &
                               attach_scene
+  use kumo_results, only: add_dim, add_var
+  use kumo_netcdf, only: write_results
+  use kumo_driver, only: run_summary_t
   implicit none
   private
   public :: collect_engine
@@ -28,7 +31,9 @@ contains
              new_unittest('roulette_unbiased', test_roulette), &
              new_unittest('energy_closure_exact', test_closure), &
              new_unittest('voxel_absorption_sums_to_layers', test_voxel_sums), &
-             new_unittest('stress_scenes_stay_finite', test_stress)]
+             new_unittest('stress_scenes_stay_finite', test_stress), &
+             new_unittest('albedo_map_under_clear_sky', test_albedo_map), &
+             new_unittest('target_error_mode_stops_when_reached', test_target_error)]
   end function collect_engine
 
   !> Compare the budget outputs of two runs within k sigma of their combined error.
@@ -354,6 +359,73 @@ contains
     call get_scalar(res, 'transmittance', m, e, error)
     call check(error, m == 0.0_dp, 'transmittance through tau = 1e4 must be 0')
   end subroutine test_stress
+  !> Under a transparent atmosphere every photon reaches the surface once: the reflectance is
+  !> the map's mean albedo, and a uniform map gives bit for bit the uniform-albedo answer.
+  subroutine test_albedo_map(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(config_t) :: cfg, uni
+    type(result_set_t) :: map_file, res, r_map, r_uni
+    real(dp) :: alb(5, 3), m, e, m2, e2
+    integer :: i, j
+    do j = 1, 3
+      do i = 1, 5
+        alb(i, j) = 0.1_dp*(i - 1) + 0.05_dp*(j - 1)
+      end do
+    end do
+    call add_dim(map_file, 'xs', 5)
+    call add_dim(map_file, 'ys', 3)
+    call add_var(map_file, 'albedo', 'surface albedo', '1', ['xs', 'ys'], reshape(alb, [15]))
+    call write_results('engine_albedo.nc', map_file, error)
+    if (allocated(error)) return
+    cfg = slab_config(0.0_wp, 1.0_wp, 'iso', 0.0_wp, 30.0_wp, 0.0_wp, 20000_i8, 10)
+    cfg%surface%albedo_file = 'engine_albedo.nc'
+    call run_config(cfg, res, error)
+    if (allocated(error)) return
+    call get_scalar(res, 'reflectance', m, e, error)
+    call check_sigma(error, m, sum(alb)/15, e, K, 'reflectance over an albedo map')
+    call get_scalar(res, 'absorptance_surface', m, e, error)
+    call check_sigma(error, m, 1.0_dp - sum(alb)/15, e, K, 'surface absorptance over the map')
+    if (allocated(error)) return
+    map_file%vars(1)%mean = 0.3_dp
+    call write_results('engine_albedo_uniform.nc', map_file, error)
+    if (allocated(error)) return
+    cfg = slab_config(2.0_wp, 0.9_wp, 'hg', 0.7_wp, 30.0_wp, 0.3_wp, 5000_i8, 4)
+    uni = cfg
+    cfg%surface%albedo_file = 'engine_albedo_uniform.nc'
+    call run_config(cfg, r_map, error)
+    if (allocated(error)) return
+    call run_config(uni, r_uni, error)
+    if (allocated(error)) return
+    do i = 1, size(BUDGET)
+      call get_scalar(r_map, trim(BUDGET(i)), m, e, error)
+      call get_scalar(r_uni, trim(BUDGET(i)), m2, e2, error)
+      call check(error, m == m2 .and. e == e2, 'uniform map differs from uniform albedo: '// &
+                 trim(BUDGET(i)))
+    end do
+  end subroutine test_albedo_map
+
+  !> Batches are added in rounds until the target relative error is reached, or the photon cap.
+  subroutine test_target_error(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(config_t) :: cfg
+    type(result_set_t) :: res
+    type(run_summary_t) :: summary
+    real(dp) :: m, e
+    cfg = slab_config(1.0_wp, 0.9_wp, 'iso', 0.0_wp, 0.0_wp, 0.0_wp, 2000_i8, 4)
+    cfg%control%target_rel_error = 0.004_wp
+    cfg%control%target_output = 'reflectance'
+    call run_config(cfg, res, error, summary)
+    if (allocated(error)) return
+    call get_scalar(res, 'reflectance', m, e, error)
+    call check(error, e/m <= 0.004_dp, 'target relative error not reached')
+    call check(error, summary%n_batches > 4 .and. mod(summary%n_batches, 4_i8) == 0, &
+               'rounds of n_batches were added')
+    cfg%control%target_rel_error = 1.0e-6_wp
+    cfg%control%max_photons = 24000_i8
+    call run_config(cfg, res, error, summary)
+    if (allocated(error)) return
+    call check(error, summary%n_photons == 24000_i8, 'the photon cap stops the run')
+  end subroutine test_target_error
 end module test_engine_suite
 
 program test_engine

@@ -1,0 +1,105 @@
+! SPDX-License-Identifier: BSD-3-Clause
+!> Direction rotation and batch statistics.
+module test_math_tally_suite
+  use kumo_kinds, only: wp, dp, i8
+  use kumo_testing, only: error_t, unittest_t, new_unittest, check, check_close
+  use kumo_math, only: rotate_direction
+  use kumo_tally, only: tally_layout_t, tally_t, stats_t, layout_init, tally_reset, stats_init, &
+                        stats_add_batch, stats_mean, stats_stderr
+  implicit none
+  private
+  public :: collect_math_tally
+
+contains
+
+  function collect_math_tally() result(tests)
+    type(unittest_t), allocatable :: tests(:)
+    tests = [new_unittest('rotation_keeps_angle_and_length', test_rotation), &
+             new_unittest('rotation_of_vertical_directions', test_vertical), &
+             new_unittest('batch_mean_and_standard_error', test_stats), &
+             new_unittest('layout_is_contiguous', test_layout)]
+  end function collect_math_tally
+
+  subroutine test_rotation(error)
+    type(error_t), allocatable, intent(out) :: error
+    real(wp) :: ux, uy, uz, vx, vy, vz, mu, phi
+    integer :: i
+    do i = 1, 200
+      ux = 0.3_wp
+      uy = -0.4_wp
+      uz = sqrt(1.0_wp - 0.25_wp)
+      vx = ux
+      vy = uy
+      vz = uz
+      mu = -1.0_wp + 2.0_wp*(i - 0.5_wp)/200
+      phi = 0.37_wp*i
+      call rotate_direction(vx, vy, vz, mu, cos(phi), sin(phi))
+      call check_close(error, vx*vx + vy*vy + vz*vz, 1.0_wp, abs_tol=1.0e-14_wp, label='|v|^2')
+      call check_close(error, vx*ux + vy*uy + vz*uz, mu, abs_tol=1.0e-13_wp, &
+                       label='cosine between old and new direction')
+      if (allocated(error)) return
+    end do
+  end subroutine test_rotation
+
+  !> A photon travelling straight down (sun at zenith) or up: the new direction must make the
+  !> angle acos(mu) with the old one for backward as well as forward turns.
+  subroutine test_vertical(error)
+    type(error_t), allocatable, intent(out) :: error
+    real(wp) :: ux, uy, uz, s
+    integer :: i
+    real(wp), parameter :: mus(4) = [0.9_wp, 0.2_wp, -0.3_wp, -0.95_wp]
+    do i = 1, 4
+      s = merge(-1.0_wp, 1.0_wp, mod(i, 2) == 0)
+      ux = 0.0_wp
+      uy = 0.0_wp
+      uz = s
+      call rotate_direction(ux, uy, uz, mus(i), cos(1.0_wp), sin(1.0_wp))
+      call check_close(error, uz*s, mus(i), abs_tol=1.0e-14_wp, label='vertical turn, cosine')
+      call check_close(error, ux*ux + uy*uy + uz*uz, 1.0_wp, abs_tol=1.0e-14_wp, label='|v|^2')
+    end do
+  end subroutine test_vertical
+
+  subroutine test_stats(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(tally_layout_t) :: lay
+    type(tally_t) :: tal
+    type(stats_t) :: st
+    real(dp), parameter :: x(5) = [1.0_dp, 2.0_dp, 4.0_dp, 3.0_dp, 5.0_dp]
+    real(dp) :: m(1), e(1), mean, var
+    integer :: b
+    call layout_init(lay, 1, 1, 0, [integer ::], .false.)
+    call stats_init(st, lay)
+    do b = 1, 5
+      call tally_reset(tal, lay)
+      tal%buf(lay%i_up + 2) = x(b)*10.0_dp    ! 10 photons per batch, reflectance x(b)
+      call stats_add_batch(st, lay, tal, 10_i8)
+    end do
+    mean = sum(x)/5
+    var = sum((x - mean)**2)/4       ! sample variance of the batch values
+    m = stats_mean(st, lay%i_up + 2, lay%i_up + 2)
+    e = stats_stderr(st, lay%i_up + 2, lay%i_up + 2)
+    call check_close(error, m(1), mean, rel_tol=1.0e-14_dp, label='mean of batches')
+    call check_close(error, e(1), sqrt(var/5), rel_tol=1.0e-12_dp, label='standard error')
+    call check(error, st%n_photons == 50_i8 .and. st%n_batches == 5_i8, 'counters')
+  end subroutine test_stats
+
+  subroutine test_layout(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(tally_layout_t) :: lay
+    call layout_init(lay, 3, 4, 2, [0, 3], .true.)
+    call check(error, lay%i_dir == lay%i_up + 4 .and. lay%i_dif == lay%i_dir + 4, 'flux blocks')
+    call check(error, lay%map_slot(0) == 1 .and. lay%map_slot(3) == 2 .and. &
+               lay%map_slot(1) == 0, 'map slots')
+    call check(error, lay%n == lay%i_vox + 2*4, 'voxel block ends the buffer')
+    call check(error, lay%i_map_dif == lay%i_map_dir + 2*4, 'map blocks')
+  end subroutine test_layout
+end module test_math_tally_suite
+
+program test_math_tally
+  use kumo_testing, only: run_unittests
+  use test_math_tally_suite, only: collect_math_tally
+  implicit none
+  integer :: n_failed
+  call run_unittests('math and tally', collect_math_tally(), n_failed)
+  if (n_failed > 0) error stop 1
+end program test_math_tally

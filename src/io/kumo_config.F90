@@ -39,7 +39,7 @@ module kumo_config
     real(wp) :: target_rel_error = 0.0_wp          !! > 0: add rounds of n_batches until reached
     character(len=16) :: target_output = 'reflectance' !! one of TARGET_NAMES
     integer(i8) :: max_photons = 1000000000_i8     !! photon cap of the target-error mode
-    integer(i8) :: max_events = 1000000_i8         !! collisions + reflections per photon
+    integer(i8) :: max_events = 100000000_i8       !! collisions + reflections per photon
     integer :: verbose = 1                         !! 0 quiet, 1 summary, 2 per round
   end type control_cfg_t
 

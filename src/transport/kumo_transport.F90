@@ -40,7 +40,7 @@ module kumo_transport
   type :: tracer_options_t
     real(wp) :: rr_threshold = 0.25_wp  !! Russian roulette below this weight ...
     real(wp) :: rr_weight = 0.5_wp      !! ... survivors continue with this weight
-    integer(i8) :: max_events = 1000000_i8   !! collisions + reflections per photon
+    integer(i8) :: max_events = 100000000_i8 !! collisions + reflections per photon
     integer(i8) :: max_steps = 100000000_i8  !! flight steps per photon
   end type tracer_options_t
 

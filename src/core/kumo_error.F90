@@ -61,22 +61,45 @@ contains
     s = trim(buf)
   end function str_int64
 
-  !> Shortest general form with up to 10 significant digits.
+  !> Plain decimal form for moderate magnitudes, scientific form otherwise; 10 significant
+  !> digits at most, trailing zeros removed (0.01 -> '0.01', 2.5e-7 -> '2.5E-07').
   pure function str_real(x) result(s)
     real(real64), intent(in) :: x
     character(len=:), allocatable :: s
-    character(len=32) :: buf
+    character(len=40) :: buf
+    integer :: ie, nd
     if (ieee_is_nan(x)) then
       s = 'NaN'
       return
     end if
-    write (buf, '(g0.10)') x
-    s = trim(adjustl(buf))
-    if (index(s, 'E') == 0 .and. index(s, '.') > 0) then
-      do while (s(len(s):len(s)) == '0')
-        s = s(1:len(s) - 1)
-      end do
-      if (s(len(s):len(s)) == '.') s = s(1:len(s) - 1)
+    if (x == 0.0_real64) then
+      s = '0'
+      return
     end if
+    if (abs(x) >= 1.0e-4_real64 .and. abs(x) < 1.0e9_real64) then
+      nd = max(0, 9 - int(floor(log10(abs(x)))))
+      write (buf, '(f40.'//str_int(nd)//')') x
+      s = trim(adjustl(buf))
+      call strip_zeros(s)
+    else if (abs(x) > huge(x)) then
+      s = merge('+Inf', '-Inf', x > 0.0_real64)
+    else
+      write (buf, '(es18.9e3)') x
+      s = trim(adjustl(buf))
+      ie = index(s, 'E')
+      buf = s(ie:)
+      s = s(1:ie - 1)
+      call strip_zeros(s)
+      s = s//trim(buf)
+    end if
+  contains
+    pure subroutine strip_zeros(t)
+      character(len=:), allocatable, intent(inout) :: t
+      if (index(t, '.') == 0) return
+      do while (t(len(t):len(t)) == '0')
+        t = t(1:len(t) - 1)
+      end do
+      if (t(len(t):len(t)) == '.') t = t(1:len(t) - 1)
+    end subroutine strip_zeros
   end function str_real
 end module kumo_error

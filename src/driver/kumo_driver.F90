@@ -23,7 +23,7 @@ module kumo_driver
   use kumo_textio, only: read_two_columns, read_whole_file
   use kumo_netcdf, only: write_results, check_writable, read_scene_3d, read_albedo_map
   use kumo_parallel, only: par_rank, par_size, par_is_root, par_sum_to_root, &
-                           par_allreduce_sum, par_wtime, par_bcast_int, PAR_IS_MPI
+                           par_allreduce_sum, par_wtime, par_bcast_int, par_bcast_real, PAR_IS_MPI
   implicit none
   private
   public :: run_case, simulate, scene_t, setup_scene, run_summary_t
@@ -108,8 +108,7 @@ contains
     type(atmosphere_options_t) :: aopts
     real(wp), allocatable :: ang(:), val(:), ext3(:, :, :, :), ssa3(:, :, :, :), alb(:, :)
     integer, allocatable :: iph3(:, :, :, :)
-    logical :: has_iph
-    integer :: i, nxs, nys
+    integer :: i
     character(len=:), allocatable :: nml_path
 
     nml_path = ''
@@ -140,15 +139,8 @@ contains
     aopts%sv%fsupi = cfg%vr%sv_fsupi
     aopts%sv%max_layers = cfg%vr%sv_max_layers
     if (len_trim(cfg%atm%scene_file) > 0) then
-      call read_scene_3d(resolve(cfg%atm%scene_file, nml_path), cfg%atm%nx, cfg%atm%ny, &
-                         cfg%atm%nz3, cfg%atm%n_components_3d, ext3, ssa3, iph3, has_iph, error)
+      call read_scene_on_root(cfg, resolve(cfg%atm%scene_file, nml_path), ext3, ssa3, iph3, error)
       if (allocated(error)) return
-      if (.not. has_iph) then
-        allocate (iph3(cfg%atm%nx, cfg%atm%ny, cfg%atm%nz3, cfg%atm%n_components_3d))
-        do i = 1, cfg%atm%n_components_3d
-          iph3(:, :, :, i) = cfg%atm%phase3d(i)
-        end do
-      end if
       call atmosphere_init(scene%atm, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, cfg%atm%ext1d, &
                            cfg%atm%ssa1d, cfg%atm%phase1d, phases, aopts, error, &
                            cfg%atm%k3d_bottom, ext3, ssa3, iph3)
@@ -159,8 +151,8 @@ contains
     if (allocated(error)) return
 
     if (len_trim(cfg%surface%albedo_file) > 0) then
-      call read_albedo_map(resolve(cfg%surface%albedo_file, nml_path), &
-                           trim(cfg%surface%albedo_var), nxs, nys, alb, error)
+      call read_albedo_on_root(resolve(cfg%surface%albedo_file, nml_path), &
+                               trim(cfg%surface%albedo_var), alb, error)
       if (allocated(error)) return
     else
       allocate (alb(1, 1))
@@ -174,7 +166,81 @@ contains
     scene%tracer%rr_threshold = cfg%vr%rr_threshold
     scene%tracer%rr_weight = cfg%vr%rr_weight
     scene%tracer%max_events = cfg%control%max_events
+    ! flight steps (null collisions, face crossings) per event are many but bounded: the step cap
+    ! only catches a photon that no longer makes progress
+    scene%tracer%max_steps = max(1000000000_i8, min(huge(1_i8)/2000_i8, cfg%control%max_events)*1000_i8)
   end subroutine setup_scene
+
+  !> Rank 0 reads the 3-D optical properties and broadcasts them; every rank ends with the same
+  !> arrays, or the same error.
+  subroutine read_scene_on_root(cfg, path, ext3, ssa3, iph3, error)
+    type(config_t), intent(in) :: cfg
+    character(len=*), intent(in) :: path
+    real(wp), allocatable, intent(out) :: ext3(:, :, :, :), ssa3(:, :, :, :)
+    integer, allocatable, intent(out) :: iph3(:, :, :, :)
+    type(error_t), allocatable, intent(out) :: error
+    integer :: status(2), i, n(4)
+    logical :: has_iph
+    real(dp), allocatable :: buf(:)
+    n = [cfg%atm%nx, cfg%atm%ny, cfg%atm%nz3, cfg%atm%n_components_3d]
+    status = 0
+    if (par_is_root()) then
+      call read_scene_3d(path, n(1), n(2), n(3), n(4), ext3, ssa3, iph3, has_iph, error)
+      if (allocated(error)) status(1) = 1
+      if (has_iph) status(2) = 1
+    end if
+    call par_bcast_int(status)
+    if (status(1) /= 0) then
+      if (.not. allocated(error)) call set_error(error, 'reading '//path//' failed on rank 0')
+      return
+    end if
+    if (.not. par_is_root()) allocate (ext3(n(1), n(2), n(3), n(4)), ssa3(n(1), n(2), n(3), n(4)))
+    if (status(2) == 0) then
+      if (allocated(iph3)) deallocate (iph3)
+      allocate (iph3(n(1), n(2), n(3), n(4)))
+      do i = 1, n(4)
+        iph3(:, :, :, i) = cfg%atm%phase3d(i)
+      end do
+    else if (.not. par_is_root()) then
+      allocate (iph3(n(1), n(2), n(3), n(4)))
+    end if
+    if (par_size() == 1) return
+    buf = reshape(ext3, [size(ext3)])
+    call par_bcast_real(buf)
+    ext3 = reshape(buf, shape(ext3))
+    buf = reshape(ssa3, [size(ssa3)])
+    call par_bcast_real(buf)
+    ssa3 = reshape(buf, shape(ssa3))
+    if (status(2) /= 0) then
+      buf = real(reshape(iph3, [size(iph3)]), dp)
+      call par_bcast_real(buf)
+      iph3 = reshape(nint(buf), shape(iph3))
+    end if
+  end subroutine read_scene_on_root
+
+  !> Rank 0 reads the albedo map and broadcasts it.
+  subroutine read_albedo_on_root(path, varname, alb, error)
+    character(len=*), intent(in) :: path, varname
+    real(wp), allocatable, intent(out) :: alb(:, :)
+    type(error_t), allocatable, intent(out) :: error
+    integer :: status(3)
+    real(dp), allocatable :: buf(:)
+    status = 0
+    if (par_is_root()) then
+      call read_albedo_map(path, varname, status(2), status(3), alb, error)
+      if (allocated(error)) status(1) = 1
+    end if
+    call par_bcast_int(status)
+    if (status(1) /= 0) then
+      if (.not. allocated(error)) call set_error(error, 'reading '//path//' failed on rank 0')
+      return
+    end if
+    if (par_size() == 1) return
+    if (.not. par_is_root()) allocate (alb(status(2), status(3)))
+    buf = reshape(alb, [size(alb)])
+    call par_bcast_real(buf)
+    alb = reshape(buf, shape(alb))
+  end subroutine read_albedo_on_root
 
   !> Run the batches of a configuration on all ranks and gather the results on rank 0.
   subroutine simulate(cfg, set, summary, error, nml_text)
@@ -371,6 +437,8 @@ contains
                      stats_err1(lay%i_dn + lev + 1)*f_hor)
         call add_var(set, 'flux_down_direct_wm2', 'downward direct flux', 'W m-2', ['level'], &
                      stats_mean1(lay%i_dir + lev + 1)*f_hor, stats_err1(lay%i_dir + lev + 1)*f_hor)
+        call add_var(set, 'flux_down_diffuse_wm2', 'downward diffuse flux', 'W m-2', ['level'], &
+                     stats_mean1(lay%i_dif + lev + 1)*f_hor, stats_err1(lay%i_dif + lev + 1)*f_hor)
         call add_var(set, 'absorbed_power_density_layer', 'layer-mean absorbed power per volume', &
                      'W m-3', ['layer'], m, e)
         if (allocated(cfg%atm%air_density)) then

@@ -46,7 +46,7 @@ module kumo_config
   !> &kumo_atmosphere: levels, 1-D layers and the 3-D region.
   type :: atmosphere_cfg_t
     integer :: nz = 0                              !! number of layers
-    real(wp), allocatable :: z(:)                  !! levels z(0:nz) [m]
+    real(wp), allocatable :: z(:)                  !! levels 0..nz stored as z(1:nz+1) [m]
     real(wp) :: lx = 1000.0_wp, ly = 1000.0_wp     !! periodic domain size [m]
     integer :: n_components = 1                    !! components of the 1-D layers
     real(wp), allocatable :: ext1d(:, :)           !! (nz, n_components) extinction [m-1]
@@ -533,7 +533,7 @@ contains
     type(output_cfg_t), intent(inout) :: cfg
     type(error_t), allocatable, intent(out) :: error
     character(len=PATH_LEN) :: file
-    integer :: flux_levels(0:MAX_LAYERS), ios, n, i
+    integer :: flux_levels(MAX_LAYERS + 1), ios, n, i
     logical :: column_fluxes, voxel_absorption
     character(len=512) :: msg
     namelist /kumo_output/ file, flux_levels, column_fluxes, voxel_absorption
@@ -554,11 +554,11 @@ contains
     if (n == 0) then
       cfg%flux_levels = [(i, i=0, nz)]
     else
-      if (any(flux_levels(n:) /= IUNSET)) then
+      if (any(flux_levels(n + 1:) /= IUNSET)) then
         call set_error(error, '&kumo_output: flux_levels must be a list without gaps')
         return
       end if
-      cfg%flux_levels = flux_levels(0:n - 1)
+      cfg%flux_levels = flux_levels(1:n)
       do i = 1, n
         if (cfg%flux_levels(i) < 0 .or. cfg%flux_levels(i) > nz) then
           call set_error(error, '&kumo_output: flux_levels('//str(i)//') = '// &

@@ -9,7 +9,7 @@ module kumo_parallel
   implicit none
   private
   public :: par_init, par_finalize, par_rank, par_size, par_is_root, par_sum_to_root, &
-            par_allreduce_sum, par_abort, par_barrier, par_wtime, par_bcast_int, PAR_IS_MPI
+            par_allreduce_sum, par_abort, par_barrier, par_wtime, par_bcast_int, par_bcast_real, PAR_IS_MPI
 
   logical, parameter :: PAR_IS_MPI = .true.  !! this build distributes batches over MPI ranks
 
@@ -75,6 +75,20 @@ contains
     integer, intent(inout) :: buf(:)
     call MPI_Bcast(buf, size(buf), MPI_INTEGER, 0, MPI_COMM_WORLD)
   end subroutine par_bcast_int
+
+  !> Broadcast doubles from rank 0 (in chunks, so arrays of any size fit MPI's int counts).
+  subroutine par_bcast_real(buf)
+    real(dp), intent(inout) :: buf(:)
+    integer(i8) :: i0, n
+    integer, parameter :: CHUNK = 2**27
+    n = size(buf, kind=i8)
+    i0 = 1
+    do while (i0 <= n)
+      call MPI_Bcast(buf(i0:min(n, i0 + CHUNK - 1)), int(min(int(CHUNK, i8), n - i0 + 1)), &
+                     MPI_DOUBLE_PRECISION, 0, MPI_COMM_WORLD)
+      i0 = i0 + CHUNK
+    end do
+  end subroutine par_bcast_real
 
   subroutine par_barrier()
     call MPI_Barrier(MPI_COMM_WORLD)

@@ -5,7 +5,7 @@ module kumo_parallel
   implicit none
   private
   public :: par_init, par_finalize, par_rank, par_size, par_is_root, par_sum_to_root, &
-            par_allreduce_sum, par_abort, par_barrier, par_wtime, par_bcast_int, PAR_IS_MPI
+            par_allreduce_sum, par_abort, par_barrier, par_wtime, par_bcast_int, par_bcast_real, PAR_IS_MPI
 
   logical, parameter :: PAR_IS_MPI = .false.  !! this build runs on one process
 
@@ -52,6 +52,11 @@ contains
     integer, intent(inout) :: buf(:)
     if (size(buf) < 0) buf = 0
   end subroutine par_bcast_int
+
+  subroutine par_bcast_real(buf)
+    real(dp), intent(inout) :: buf(:)
+    if (size(buf) < 0) buf = 0.0_dp
+  end subroutine par_bcast_real
 
   subroutine par_barrier()
   end subroutine par_barrier

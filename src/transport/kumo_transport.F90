@@ -41,7 +41,7 @@ module kumo_transport
     real(wp) :: rr_threshold = 0.25_wp  !! Russian roulette below this weight ...
     real(wp) :: rr_weight = 0.5_wp      !! ... survivors continue with this weight
     integer(i8) :: max_events = 100000000_i8 !! collisions + reflections per photon
-    integer(i8) :: max_steps = 100000000_i8  !! flight steps per photon
+    integer(i8) :: max_steps = 100000000000_i8 !! flight steps per photon (1000 x max_events)
   end type tracer_options_t
 
   integer, parameter :: EV_COLLISION = 1, EV_ESCAPE = 2, EV_SURFACE = 3, EV_KILLED = 4

@@ -80,7 +80,7 @@ contains
     real(wp), intent(in), optional :: ext3d(:, :, :, :)  !! (nx, ny, n3, ncomp3) [m-1]
     real(wp), intent(in), optional :: ssa3d(:, :, :, :)
     integer, intent(in), optional :: iph3d(:, :, :, :)
-    integer :: nz, k, ic, nc1, nc3, ix, iy, kr, klo, khi, ncomp
+    integer :: nz, k, ic, nc1, nc3, ix, iy, kr, klo, khi, ncomp, kf_lo, kf_hi
     real(wp), allocatable :: e(:), s(:)
     integer, allocatable :: p(:)
     logical :: has3d
@@ -119,9 +119,13 @@ contains
     end do
 
     has3d = present(k3_lo) .and. present(ext3d) .and. present(ssa3d)
+    kf_lo = 1     ! layers whose voxels come from the scene file (none if kf_hi < kf_lo)
+    kf_hi = 0
     if (has3d) then
       klo = k3_lo
       khi = k3_lo + size(ext3d, 3) - 1
+      kf_lo = klo
+      kf_hi = khi
       atm%nx = size(ext3d, 1)
       atm%ny = size(ext3d, 2)
       nc3 = size(ext3d, 4)
@@ -181,12 +185,12 @@ contains
             e(1:nc1) = ext1d(k, :)
             s(1:nc1) = ssa1d(k, :)
             p(1:nc1) = iph1d(k, :)
-            if (has3d .and. k >= k3_lo .and. k < k3_lo + size(ext3d, 3)) then
+            if (k >= kf_lo .and. k <= kf_hi) then
               do ic = 1, nc3
-                e(nc1 + ic) = ext3d(ix, iy, k - k3_lo + 1, ic)
-                s(nc1 + ic) = ssa3d(ix, iy, k - k3_lo + 1, ic)
+                e(nc1 + ic) = ext3d(ix, iy, k - kf_lo + 1, ic)
+                s(nc1 + ic) = ssa3d(ix, iy, k - kf_lo + 1, ic)
                 if (present(iph3d)) then
-                  p(nc1 + ic) = iph3d(ix, iy, k - k3_lo + 1, ic)
+                  p(nc1 + ic) = iph3d(ix, iy, k - kf_lo + 1, ic)
                 else
                   p(nc1 + ic) = 1
                 end if

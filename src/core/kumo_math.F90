@@ -1,16 +1,26 @@
 ! SPDX-License-Identifier: BSD-3-Clause
 !> Small geometry helpers for photon directions.
 module kumo_math
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_nan
   use kumo_kinds, only: wp
   implicit none
   private
-  public :: rotate_direction, UZ_MIN
+  public :: rotate_direction, within, UZ_MIN
 
   !> Smallest |uz| a photon may travel with. Plane crossings divide by uz; directions closer to
   !> the horizontal are nudged to this value and the nudge is counted as an anomaly.
   real(wp), parameter :: UZ_MIN = 1.0e-10_wp
 
 contains
+
+  !> lo <= x <= hi, false for NaN. NaN is tested before any comparison, so input validation does
+  !> not raise the invalid-operation flag (which debug builds trap).
+  elemental logical function within(x, lo, hi) result(ok)
+    real(wp), intent(in) :: x, lo, hi
+    ok = .false.
+    if (ieee_is_nan(x)) return
+    ok = x >= lo .and. x <= hi
+  end function within
 
   !> Turn the unit vector (ux, uy, uz) by the polar angle whose cosine is `mu` and the azimuth
   !> given by (cos_phi, sin_phi) about the original direction (rotation formula of the seed text,

@@ -13,6 +13,7 @@ module kumo_config
   use kumo_kinds, only: wp, i8
   use kumo_error, only: error_t, set_error, str
   use kumo_phase, only: phase_kind_from_name
+  use kumo_math, only: within
   implicit none
   private
   public :: config_t, control_cfg_t, atmosphere_cfg_t, phase_cfg_t, surface_cfg_t, &
@@ -24,6 +25,8 @@ module kumo_config
   integer, parameter :: MAX_PHASE = 64      !! most phase functions
   integer, parameter :: PATH_LEN = 512
   real(wp), parameter :: UNSET = -huge(1.0_wp)
+  real(wp), parameter :: BIG = huge(1.0_wp)      !! largest finite value
+  real(wp), parameter :: SMALL = tiny(1.0_wp)    !! smallest positive value
   integer, parameter :: IUNSET = -huge(1)
   character(len=16), parameter :: TARGET_NAMES(3) = &
     [character(len=16) :: 'reflectance', 'transmittance', 'absorptance']
@@ -242,7 +245,7 @@ contains
                      ' must be >= 2 (batches give the standard error)')
     else if (seed < 0) then
       call set_error(error, '&kumo_control: seed = '//str(seed)//' must be >= 0')
-    else if (.not. (ieee_is_finite(target_rel_error) .and. target_rel_error >= 0.0_wp)) then
+    else if (.not. within(target_rel_error, 0.0_wp, BIG)) then
       call set_error(error, '&kumo_control: target_rel_error = '//str(target_rel_error)// &
                      ' must be >= 0 (0 = fixed photon budget)')
     else if (findloc(TARGET_NAMES, cfg%target_output, 1) == 0) then
@@ -329,7 +332,7 @@ contains
         end if
       end if
     end do
-    if (.not. (lx > 0.0_wp .and. ly > 0.0_wp .and. ieee_is_finite(lx) .and. ieee_is_finite(ly))) then
+    if (.not. (within(lx, SMALL, BIG) .and. within(ly, SMALL, BIG))) then
       call set_error(error, '&kumo_atmosphere: lx = '//str(lx)//' and ly = '//str(ly)// &
                      ' must be > 0 [m]')
       return
@@ -346,12 +349,12 @@ contains
         if (ext1d(k, ic) == UNSET) ext1d(k, ic) = 0.0_wp
         if (ssa1d(k, ic) == UNSET) ssa1d(k, ic) = 1.0_wp
         if (phase1d(k, ic) == IUNSET) phase1d(k, ic) = 1
-        if (.not. (ieee_is_finite(ext1d(k, ic)) .and. ext1d(k, ic) >= 0.0_wp)) then
+        if (.not. within(ext1d(k, ic), 0.0_wp, BIG)) then
           call set_error(error, '&kumo_atmosphere: ext1d('//str(k)//','//str(ic)//') = '// &
                          str(ext1d(k, ic))//' must be finite and >= 0 [m-1]')
           return
         end if
-        if (.not. (ssa1d(k, ic) >= 0.0_wp .and. ssa1d(k, ic) <= 1.0_wp)) then
+        if (.not. within(ssa1d(k, ic), 0.0_wp, 1.0_wp)) then
           call set_error(error, '&kumo_atmosphere: ssa1d('//str(k)//','//str(ic)//') = '// &
                          str(ssa1d(k, ic))//' must be within [0, 1]')
           return
@@ -379,7 +382,7 @@ contains
       call set_error(error, '&kumo_atmosphere: k3d_bottom/nz3 are set but scene_file is empty')
       return
     end if
-    if (.not. (cp_air > 0.0_wp)) then
+    if (.not. within(cp_air, SMALL, BIG)) then
       call set_error(error, '&kumo_atmosphere: cp_air = '//str(cp_air)//' must be > 0')
       return
     end if
@@ -389,7 +392,7 @@ contains
                        ' values [kg m-3]')
         return
       end if
-      if (.not. all(air_density(1:nz) > 0.0_wp .and. ieee_is_finite(air_density(1:nz)))) then
+      if (.not. all(within(air_density(1:nz), SMALL, BIG))) then
         call set_error(error, '&kumo_atmosphere: air_density values must be finite and > 0')
         return
       end if
@@ -450,7 +453,7 @@ contains
         error%message = '&kumo_phase: phase_kind('//str(i)//'): '//error%message
         return
       end if
-      if (.not. (abs(phase_g(i)) < 1.0_wp)) then
+      if (.not. within(phase_g(i), nearest(-1.0_wp, 1.0_wp), nearest(1.0_wp, -1.0_wp))) then
         call set_error(error, '&kumo_phase: phase_g('//str(i)//') = '//str(phase_g(i))// &
                        ' must satisfy |g| < 1')
         return
@@ -486,7 +489,7 @@ contains
     read (unit, nml=kumo_surface, iostat=ios, iomsg=msg)
     call check_read('kumo_surface', present, ios, msg, error)
     if (allocated(error)) return
-    if (.not. (albedo >= 0.0_wp .and. albedo <= 1.0_wp)) then
+    if (.not. within(albedo, 0.0_wp, 1.0_wp)) then
       call set_error(error, '&kumo_surface: albedo = '//str(albedo)//' must be within [0, 1]')
       return
     end if
@@ -512,12 +515,12 @@ contains
     read (unit, nml=kumo_source, iostat=ios, iomsg=msg)
     call check_read('kumo_source', present, ios, msg, error)
     if (allocated(error)) return
-    if (.not. (sza_deg >= 0.0_wp .and. sza_deg < 90.0_wp)) then
+    if (.not. within(sza_deg, 0.0_wp, nearest(90.0_wp, -1.0_wp))) then
       call set_error(error, '&kumo_source: sza_deg = '//str(sza_deg)// &
                      ' must satisfy 0 <= sza_deg < 90')
     else if (.not. ieee_is_finite(phi0_deg)) then
       call set_error(error, '&kumo_source: phi0_deg = '//str(phi0_deg)//' must be finite')
-    else if (.not. (solar_flux >= 0.0_wp .and. ieee_is_finite(solar_flux))) then
+    else if (.not. within(solar_flux, 0.0_wp, BIG)) then
       call set_error(error, '&kumo_source: solar_flux = '//str(solar_flux)// &
                      ' must be >= 0 [W m-2] (0 = normalised output only)')
     end if
@@ -602,12 +605,12 @@ contains
     read (unit, nml=kumo_vr, iostat=ios, iomsg=msg)
     call check_read('kumo_vr', present, ios, msg, error)
     if (allocated(error)) return
-    if (.not. (rr_threshold >= 0.0_wp .and. rr_threshold <= rr_weight)) then
+    if (.not. within(rr_weight, SMALL, BIG)) then
+      call set_error(error, '&kumo_vr: rr_weight = '//str(rr_weight)//' must be > 0')
+    else if (.not. within(rr_threshold, 0.0_wp, rr_weight)) then
       call set_error(error, '&kumo_vr: rr_threshold = '//str(rr_threshold)// &
                      ' must be within [0, rr_weight = '//str(rr_weight)//']')
-    else if (.not. (rr_weight > 0.0_wp .and. ieee_is_finite(rr_weight))) then
-      call set_error(error, '&kumo_vr: rr_weight = '//str(rr_weight)//' must be > 0')
-    else if (.not. (sv_fsupg > 0.0_wp .and. sv_fsupi > 0.0_wp)) then
+    else if (.not. (within(sv_fsupg, SMALL, BIG) .and. within(sv_fsupi, SMALL, BIG))) then
       call set_error(error, '&kumo_vr: sv_fsupg and sv_fsupi must be > 0')
     else if (sv_max_layers < 1) then
       call set_error(error, '&kumo_vr: sv_max_layers = '//str(sv_max_layers)//' must be >= 1')

@@ -3,6 +3,7 @@
 module kumo_surface
   use kumo_kinds, only: wp
   use kumo_error, only: error_t, set_error, str
+  use kumo_math, only: within
   implicit none
   private
   public :: surface_t, surface_init
@@ -34,7 +35,7 @@ contains
     integer :: i, j
     do j = 1, size(albedo, 2)
       do i = 1, size(albedo, 1)
-        if (.not. (albedo(i, j) >= 0.0_wp .and. albedo(i, j) <= 1.0_wp)) then
+        if (.not. within(albedo(i, j), 0.0_wp, 1.0_wp)) then
           call set_error(error, 'surface albedo at pixel ('//str(i)//','//str(j)// &
                          ') must be within [0, 1]')
           return

@@ -8,7 +8,7 @@ module kumo_error
   use, intrinsic :: ieee_arithmetic, only: ieee_is_nan
   implicit none
   private
-  public :: error_t, set_error, add_context, stop_on_error, str
+  public :: error_t, set_error, add_context, stop_on_error, str, to_lower
 
   !> Text of a number for messages: `str(3)` is '3', `str(0.25d0)` is '0.25'.
   interface str
@@ -82,14 +82,16 @@ contains
       s = trim(adjustl(buf))
       call strip_zeros(s)
     else if (abs(x) > huge(x)) then
-      s = merge('+Inf', '-Inf', x > 0.0_real64)
+      s = merge(' Inf', '-Inf', x > 0.0_real64)
+      s = trim(adjustl(s))
     else
       write (buf, '(es18.9e3)') x
       s = trim(adjustl(buf))
       ie = index(s, 'E')
-      buf = s(ie:)
+      read (s(ie + 1:), *) nd
       s = s(1:ie - 1)
       call strip_zeros(s)
+      write (buf, '(a,sp,i3.2)') 'E', nd
       s = s//trim(buf)
     end if
   contains
@@ -102,4 +104,16 @@ contains
       if (t(len(t):len(t)) == '.') t = t(1:len(t) - 1)
     end subroutine strip_zeros
   end function str_real
+
+  !> Lower-case copy of an ASCII string (namelist keywords are case-insensitive).
+  pure function to_lower(s) result(t)
+    character(len=*), intent(in) :: s
+    character(len=len(s)) :: t
+    integer :: i, c
+    t = s
+    do i = 1, len(s)
+      c = iachar(s(i:i))
+      if (c >= iachar('A') .and. c <= iachar('Z')) t(i:i) = achar(c + 32)
+    end do
+  end function to_lower
 end module kumo_error

@@ -11,7 +11,7 @@ module kumo_config
   use, intrinsic :: iso_fortran_env, only: iostat_end
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use kumo_kinds, only: wp, i8
-  use kumo_error, only: error_t, set_error, str
+  use kumo_error, only: error_t, set_error, str, to_lower
   use kumo_phase, only: phase_kind_from_name
   use kumo_math, only: within
   implicit none
@@ -166,7 +166,7 @@ contains
       if (line(1:1) /= '&') cycle
       j = scan(line(2:), ' ,/!')
       if (j == 0) j = len_trim(line)
-      name = lower(line(2:j))
+      name = to_lower(line(2:j))
       if (trim(name) == 'end' .or. len_trim(name) == 0) cycle
       known = .false.
       do i = 1, size(GROUP_NAMES)
@@ -233,7 +233,7 @@ contains
     cfg%n_batches = n_batches
     cfg%seed = seed
     cfg%target_rel_error = target_rel_error
-    cfg%target_output = lower(target_output)
+    cfg%target_output = to_lower(target_output)
     cfg%max_photons = max_photons
     cfg%max_events = max_events
     cfg%verbose = verbose
@@ -458,7 +458,7 @@ contains
                        ' must satisfy |g| < 1')
         return
       end if
-      if (trim(lower(phase_kind(i))) == 'table' .and. len_trim(phase_file(i)) == 0) then
+      if (trim(to_lower(phase_kind(i))) == 'table' .and. len_trim(phase_file(i)) == 0) then
         call set_error(error, '&kumo_phase: phase_file('//str(i)//') is needed for a table')
         return
       end if
@@ -704,16 +704,6 @@ contains
            'kumo_vr.use_absorbing_layers = '//merge('T', 'F', cfg%vr%use_absorbing_layers)//nl
   end function config_echo
 
-  pure function lower(s) result(t)
-    character(len=*), intent(in) :: s
-    character(len=len(s)) :: t
-    integer :: i, c
-    t = s
-    do i = 1, len(s)
-      c = iachar(s(i:i))
-      if (c >= iachar('A') .and. c <= iachar('Z')) t(i:i) = achar(c + 32)
-    end do
-  end function lower
 
   pure function join(names) result(s)
     character(len=*), intent(in) :: names(:)

@@ -25,7 +25,7 @@ module kumo_phase
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite, ieee_is_nan
   use kumo_kinds, only: wp
   use kumo_constants, only: PI, DEG2RAD
-  use kumo_error, only: error_t, set_error
+  use kumo_error, only: error_t, set_error, str, to_lower
   implicit none
   private
   public :: PHASE_ISOTROPIC, PHASE_RAYLEIGH, PHASE_HG, PHASE_TABLE, PHASE_NAMES
@@ -210,11 +210,11 @@ contains
     type(error_t), allocatable, intent(out) :: error  !! set if |g| >= 1 or g is NaN
     type(phase_t) :: ph  !! the phase function (the default, isotropic, on error)
     if (ieee_is_nan(g)) then   ! tested first: an ordered comparison with NaN may trap
-      call set_error(error, 'new_phase_hg: g = '//real_str(g)//' must satisfy |g| < 1')
+      call set_error(error, 'new_phase_hg: g = '//str(g)//' must satisfy |g| < 1')
       return
     end if
     if (abs(g) >= 1.0_wp) then
-      call set_error(error, 'new_phase_hg: g = '//real_str(g)//' must satisfy |g| < 1')
+      call set_error(error, 'new_phase_hg: g = '//str(g)//' must satisfy |g| < 1')
       return
     end if
     ph%kind = PHASE_HG
@@ -247,47 +247,47 @@ contains
     n = size(angle_deg)
     if (size(value) /= n) then
       call set_error(error, CTX//'angle_deg and value have different sizes ('// &
-                     int_str(n)//' and '//int_str(size(value))//')')
+                     str(n)//' and '//str(size(value))//')')
       return
     end if
     if (n < 2) then
-      call set_error(error, CTX//'the table has '//int_str(n)//' point(s); at least 2 are needed')
+      call set_error(error, CTX//'the table has '//str(n)//' point(s); at least 2 are needed')
       return
     end if
     ninv = PHASE_N_INV_DEFAULT
     if (present(n_inv)) ninv = n_inv
     if (ninv < 2) then
-      call set_error(error, CTX//'n_inv = '//int_str(ninv)//' must be >= 2')
+      call set_error(error, CTX//'n_inv = '//str(ninv)//' must be >= 2')
       return
     end if
     do i = 1, n
       if (.not. ieee_is_finite(angle_deg(i))) then
-        call set_error(error, CTX//'angle_deg('//int_str(i)//') = '//real_str(angle_deg(i))// &
+        call set_error(error, CTX//'angle_deg('//str(i)//') = '//str(angle_deg(i))// &
                        ' is not finite')
         return
       end if
     end do
     if (abs(angle_deg(1)) > ANGLE_TOL_DEG) then
-      call set_error(error, CTX//'angle_deg(1) = '//real_str(angle_deg(1))// &
+      call set_error(error, CTX//'angle_deg(1) = '//str(angle_deg(1))// &
                      ' must be 0 (within 1e-6 deg)')
       return
     end if
     if (abs(angle_deg(n) - 180.0_wp) > ANGLE_TOL_DEG) then
-      call set_error(error, CTX//'angle_deg('//int_str(n)//') = '//real_str(angle_deg(n))// &
+      call set_error(error, CTX//'angle_deg('//str(n)//') = '//str(angle_deg(n))// &
                      ' must be 180 (within 1e-6 deg)')
       return
     end if
     do i = 2, n
       if (.not. (angle_deg(i) > angle_deg(i - 1))) then
-        call set_error(error, CTX//'angle_deg('//int_str(i)//') = '//real_str(angle_deg(i))// &
-                       ' must be > angle_deg('//int_str(i - 1)//') = '// &
-                       real_str(angle_deg(i - 1))//' (angles strictly increasing)')
+        call set_error(error, CTX//'angle_deg('//str(i)//') = '//str(angle_deg(i))// &
+                       ' must be > angle_deg('//str(i - 1)//') = '// &
+                       str(angle_deg(i - 1))//' (angles strictly increasing)')
         return
       end if
     end do
     do i = 2, n - 1
       if (angle_deg(i) <= 0.0_wp .or. angle_deg(i) >= 180.0_wp) then
-        call set_error(error, CTX//'angle_deg('//int_str(i)//') = '//real_str(angle_deg(i))// &
+        call set_error(error, CTX//'angle_deg('//str(i)//') = '//str(angle_deg(i))// &
                        ' must lie strictly between 0 and 180')
         return
       end if
@@ -296,13 +296,13 @@ contains
       bad = .not. ieee_is_finite(value(i))   ! tested first: comparing NaN may trap
       if (.not. bad) bad = value(i) < 0.0_wp
       if (bad) then
-        call set_error(error, CTX//'value('//int_str(i)//') = '//real_str(value(i))// &
+        call set_error(error, CTX//'value('//str(i)//') = '//str(value(i))// &
                        ' must be finite and >= 0')
         return
       end if
     end do
     if (all(value <= 0.0_wp)) then
-      call set_error(error, CTX//'all '//int_str(n)//' values are 0; the phase function '// &
+      call set_error(error, CTX//'all '//str(n)//' values are 0; the phase function '// &
                      'must have a positive integral')
       return
     end if
@@ -526,33 +526,6 @@ contains
     end do
   end function table_invert
 
-  !> Lower-case copy of an ASCII string.
-  pure function to_lower(s) result(t)
-    character(len=*), intent(in) :: s
-    character(len=len(s)) :: t
-    integer :: i, c
-    t = s
-    do i = 1, len(s)
-      c = iachar(s(i:i))
-      if (c >= iachar('A') .and. c <= iachar('Z')) t(i:i) = achar(c + 32)
-    end do
-  end function to_lower
 
-  !> Integer as text.
-  function int_str(i) result(s)
-    integer, intent(in) :: i
-    character(len=:), allocatable :: s
-    character(len=12) :: buf
-    write (buf, '(i0)') i
-    s = trim(buf)
-  end function int_str
 
-  !> Real as text (7 significant digits).
-  function real_str(x) result(s)
-    real(wp), intent(in) :: x
-    character(len=:), allocatable :: s
-    character(len=32) :: buf
-    write (buf, '(g0.7)') x
-    s = trim(adjustl(buf))
-  end function real_str
 end module kumo_phase

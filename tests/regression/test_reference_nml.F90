@@ -12,6 +12,7 @@ module test_reference_nml_suite
   use kumo_kinds, only: wp, dp, i8
   use kumo_testing, only: error_t, unittest_t, new_unittest, check, check_close
   use kumo_config, only: config_t, read_config, config_echo
+  use kumo_error, only: str, to_lower
   use kumo_driver, only: scene_t, setup_scene
   implicit none
   private
@@ -201,7 +202,7 @@ contains
     ! group order
     groups_ref = ''
     do j = 1, size(lines)
-      s = trim(adjustl(lower(lines(j))))
+      s = trim(adjustl(to_lower(lines(j))))
       if (len(s) > 1 .and. s(1:1) == '&') groups_ref = groups_ref//' '//first_word(s(2:))
     end do
     call check(error, groups_ref == groups_code, 'groups of reference.nml are "'//groups_ref// &
@@ -213,7 +214,7 @@ contains
       found = .false.
       group = ''
       do j = 1, size(lines)
-        s = trim(adjustl(lower(lines(j))))
+        s = trim(adjustl(to_lower(lines(j))))
         if (len(s) == 0) cycle
         if (s(1:1) == '&') then
           group = first_word(s(2:))
@@ -463,7 +464,7 @@ contains
     j = 0
     do while (j < size(lines))
       j = j + 1
-      s = trim(adjustl(lower(lines(j))))
+      s = trim(adjustl(to_lower(lines(j))))
       if (index(s, 'namelist /') /= 1) cycle
       s = s(len('namelist /') + 1:)
       p = index(s, '/')
@@ -474,7 +475,7 @@ contains
         if (list(len(list):len(list)) /= '&') exit
         list = list(1:len(list) - 1)
         j = j + 1
-        list = list//trim(adjustl(lower(lines(j))))
+        list = list//trim(adjustl(to_lower(lines(j))))
       end do
       n_groups = n_groups + 1
       groups = groups//' '//group
@@ -488,8 +489,8 @@ contains
         list = list(p + 1:)
       end do
     end do
-    call check(error, n_groups == 7 .and. size(vars) >= 40, 'found only '//str_int(n_groups)// &
-               ' namelist statements and '//str_int(size(vars))//' variables in '//config_src_path)
+    call check(error, n_groups == 7 .and. size(vars) >= 40, 'found only '//str(n_groups)// &
+               ' namelist statements and '//str(size(vars))//' variables in '//config_src_path)
   contains
     subroutine add(name)
       character(len=*), intent(in) :: name
@@ -553,7 +554,7 @@ contains
     group = ''
     p = index(line, '&kumo_')
     if (p == 0) return
-    group = first_word(lower(line(p + 1:)))
+    group = first_word(to_lower(line(p + 1:)))
   end function doc_group
 
   !> Leading run of letters, digits and underscores.
@@ -568,24 +569,7 @@ contains
     end do
   end function first_word
 
-  pure function lower(s) result(t)
-    character(len=*), intent(in) :: s
-    character(len=len(s)) :: t
-    integer :: i, c
-    t = s
-    do i = 1, len(s)
-      c = iachar(s(i:i))
-      if (c >= iachar('A') .and. c <= iachar('Z')) t(i:i) = achar(c + 32)
-    end do
-  end function lower
 
-  pure function str_int(i) result(s)
-    integer, intent(in) :: i
-    character(len=:), allocatable :: s
-    character(len=24) :: buf
-    write (buf, '(i0)') i
-    s = trim(buf)
-  end function str_int
 
   !> The first line in which two multi-line texts differ, for messages.
   function first_difference(a, b) result(msg)

@@ -1,7 +1,8 @@
 ! SPDX-License-Identifier: BSD-3-Clause
 !> Unit tests of kumo_error: creating errors and adding context.
 module test_kumo_error
-  use kumo_error, only: error_t, set_error, add_context
+  use kumo_error, only: error_t, set_error, add_context, str, to_lower
+  use kumo_kinds, only: dp
   use kumo_testing, only: unittest_t, new_unittest, check
   implicit none
   private
@@ -17,7 +18,8 @@ contains
              new_unittest('set_error_empty_message', test_set_error_empty), &
              new_unittest('add_context_prefixes', test_add_context), &
              new_unittest('add_context_nests', test_add_context_nested), &
-             new_unittest('add_context_without_error', test_add_context_no_error)]
+             new_unittest('add_context_without_error', test_add_context_no_error), &
+             new_unittest('numbers_and_case_in_messages', test_str)]
   end function collect_error
 
   subroutine test_set_error(error)
@@ -76,6 +78,19 @@ contains
     call add_context(err, 'kumo_config')
     call check(error, .not. allocated(err), 'add_context created an error where there was none')
   end subroutine test_add_context_no_error
+
+  !> Numbers in messages print plainly, so users and tests can read them.
+  subroutine test_str(error)
+    type(error_t), allocatable, intent(out) :: error
+    call check(error, str(0.01_dp) == '0.01', 'str(0.01) = "'//str(0.01_dp)//'"')
+    call check(error, str(1000.0_dp) == '1000', 'str(1000.) = "'//str(1000.0_dp)//'"')
+    call check(error, str(-1.5_dp) == '-1.5', 'str(-1.5) = "'//str(-1.5_dp)//'"')
+    call check(error, str(2.5e-7_dp) == '2.5E-07', 'str(2.5e-7) = "'//str(2.5e-7_dp)//'"')
+    call check(error, str(0.0_dp) == '0', 'str(0.) = "'//str(0.0_dp)//'"')
+    call check(error, str(1.0_dp/3.0_dp) == '0.3333333333', 'str(1/3) = "'//str(1.0_dp/3.0_dp)//'"')
+    call check(error, str(-42) == '-42', 'str(-42)')
+    call check(error, to_lower('HG Table') == 'hg table', 'to_lower')
+  end subroutine test_str
 end module test_kumo_error
 
 program test_error

@@ -18,7 +18,7 @@
 !> No allocation, I/O or polymorphic dispatch happens in here.
 module kumo_transport
   use kumo_kinds, only: wp, dp, i8
-  use kumo_constants, only: TWO_PI, DEG2RAD
+  use kumo_constants, only: DEG2RAD
   use kumo_rng, only: rng_t, rng_uniform
   use kumo_math, only: rotate_direction, UZ_MIN
   use kumo_phase, only: phase_sample_mu
@@ -29,7 +29,7 @@ module kumo_transport
                         ANOM_STEP_CAP, ANOM_POSITION_REPAIR
   implicit none
   private
-  public :: source_t, tracer_options_t, source_init, trace_batch
+  public :: source_t, tracer_options_t, source_init, trace_batch, sample_azimuth
 
   !> The solar source: a parallel beam entering at the top of the domain.
   type :: source_t
@@ -71,10 +71,13 @@ contains
     integer(i8), intent(in) :: n_photons
     type(tally_t), intent(inout) :: tal
     integer(i8) :: ip, n_events, n_steps
-    real(wp) :: x, y, z, ux, uy, uz, w, tau, d, zb, e, wn, albedo, mu, phi
+    real(wp) :: x, y, z, ux, uy, uz, w, tau, d, zb, e, wn, albedo, mu, cphi, sphi
     integer :: iz, order, cls, ev, ix, iy, kr, ic, iph, nc
-    logical :: in3d
+    logical :: in3d, track_xy
 
+    ! Horizontal positions matter only for a 3-D region, an albedo map or per-column maps; a
+    ! plane-parallel scene skips their bookkeeping in the 1-D layers.
+    track_xy = atm%n3 > 0 .or. .not. sfc%uniform .or. lay%do_maps
     do ip = 1, n_photons
       x = rng_uniform(rng)*atm%lx
       y = rng_uniform(rng)*atm%ly
@@ -117,11 +120,13 @@ contains
               e = atm%ext1(iz)
               if (tau < e*d) then
                 d = tau/e
-                x = x + ux*d
-                y = y + uy*d
                 z = z + uz*d
-                call wrap(x, atm%lx)
-                call wrap(y, atm%ly)
+                if (track_xy) then
+                  x = x + ux*d
+                  y = y + uy*d
+                  call wrap(x, atm%lx)
+                  call wrap(y, atm%ly)
+                end if
                 ev = EV_COLLISION
               else
                 tau = tau - e*d
@@ -133,11 +138,13 @@ contains
             case default ! LAYER_CLEAR
             end select
             if (ev == 0) then
-              x = x + ux*d
-              y = y + uy*d
               z = zb
-              call wrap(x, atm%lx)
-              call wrap(y, atm%ly)
+              if (track_xy) then
+                x = x + ux*d
+                y = y + uy*d
+                call wrap(x, atm%lx)
+                call wrap(y, atm%ly)
+              end if
               call cross_level(atm, lay, tal, x, y, uz, w, order, iz, ev)
               if (cls == LAYER_ABSORBING .and. ev == 0) then
                 call roulette(opts, lay, tal, rng, w)
@@ -166,15 +173,15 @@ contains
             call roulette(opts, lay, tal, rng, w)
             if (w <= 0.0_wp) exit photon
             mu = sqrt(rng_uniform(rng))
-            phi = TWO_PI*rng_uniform(rng)
+            call sample_azimuth(rng, cphi, sphi)
             if (mu < UZ_MIN) then
               mu = UZ_MIN
               tal%anomalies(ANOM_UZ_NUDGED) = tal%anomalies(ANOM_UZ_NUDGED) + 1
             end if
             uz = mu
             mu = sqrt(max(0.0_wp, 1.0_wp - mu*mu))
-            ux = mu*cos(phi)
-            uy = mu*sin(phi)
+            ux = mu*cphi
+            uy = mu*sphi
             order = order + 1
             z = atm%z(0)
             iz = 1
@@ -230,8 +237,8 @@ contains
               end if
             end if
             mu = phase_sample_mu(atm%phases(iph), rng_uniform(rng))
-            phi = TWO_PI*rng_uniform(rng)
-            call rotate_direction(ux, uy, uz, mu, cos(phi), sin(phi))
+            call sample_azimuth(rng, cphi, sphi)
+            call rotate_direction(ux, uy, uz, mu, cphi, sphi)
             if (abs(uz) < UZ_MIN) then
               uz = sign(UZ_MIN, uz)
               tal%anomalies(ANOM_UZ_NUDGED) = tal%anomalies(ANOM_UZ_NUDGED) + 1
@@ -509,6 +516,23 @@ contains
     y = y + uy*d
     z = znew
   end subroutine move_inside
+
+  !> Cosine and sine of an azimuth uniform in [0, 2 pi), by the polar method (seed text App. A6):
+  !> a point uniform in the unit disc, accepted with probability pi/4, whose doubled angle is
+  !> again uniform. No trigonometric function is evaluated.
+  subroutine sample_azimuth(rng, c, s)
+    type(rng_t), intent(inout) :: rng
+    real(wp), intent(out) :: c, s
+    real(wp) :: a, b, r2
+    do
+      a = 2.0_wp*rng_uniform(rng) - 1.0_wp
+      b = 2.0_wp*rng_uniform(rng) - 1.0_wp
+      r2 = a*a + b*b
+      if (r2 <= 1.0_wp .and. r2 > 1.0e-12_wp) exit
+    end do
+    c = (a*a - b*b)/r2
+    s = 2.0_wp*a*b/r2
+  end subroutine sample_azimuth
 
   !> Russian roulette with a weight window (seed text section 3.4.4): below the threshold the
   !> photon survives with probability w/W and then carries W. The net weight it creates or

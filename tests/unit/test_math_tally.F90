@@ -4,6 +4,9 @@ module test_math_tally_suite
   use kumo_kinds, only: wp, dp, i8
   use kumo_testing, only: error_t, unittest_t, new_unittest, check, check_close
   use kumo_math, only: rotate_direction
+  use kumo_rng, only: rng_t, rng_init
+  use kumo_transport, only: sample_azimuth
+  use kumo_constants, only: PI
   use kumo_tally, only: tally_layout_t, tally_t, stats_t, layout_init, tally_reset, stats_init, &
                         stats_add_batch, stats_mean, stats_stderr
   implicit none
@@ -17,7 +20,8 @@ contains
     tests = [new_unittest('rotation_keeps_angle_and_length', test_rotation), &
              new_unittest('rotation_of_vertical_directions', test_vertical), &
              new_unittest('batch_mean_and_standard_error', test_stats), &
-             new_unittest('layout_is_contiguous', test_layout)]
+             new_unittest('layout_is_contiguous', test_layout), &
+             new_unittest('polar_azimuth_is_uniform', test_azimuth)]
   end function collect_math_tally
 
   subroutine test_rotation(error)
@@ -93,6 +97,30 @@ contains
     call check(error, lay%n == lay%i_vox + 2*4, 'voxel block ends the buffer')
     call check(error, lay%i_map_dif == lay%i_map_dir + 2*4, 'map blocks')
   end subroutine test_layout
+  !> The polar-method azimuth: unit vector, and the angle uniform on [0, 2 pi) by a chi-square
+  !> test over 36 bins (2e5 samples; 0.999 quantile of chi-square with 35 degrees of freedom is
+  !> 66.62, from the inverse regularized gamma function).
+  subroutine test_azimuth(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(rng_t) :: rng
+    integer, parameter :: n = 200000, nb = 36
+    integer :: counts(nb), i, ib
+    real(wp) :: c, s, phi, chi2, expected
+    call rng_init(rng, 5_i8, 1_i8)
+    counts = 0
+    do i = 1, n
+      call sample_azimuth(rng, c, s)
+      call check_close(error, c*c + s*s, 1.0_wp, abs_tol=1.0e-14_wp, label='cos^2 + sin^2')
+      if (allocated(error)) return
+      phi = atan2(s, c)
+      if (phi < 0.0_wp) phi = phi + 2.0_wp*PI
+      ib = min(nb, int(phi/(2.0_wp*PI)*nb) + 1)
+      counts(ib) = counts(ib) + 1
+    end do
+    expected = real(n, wp)/nb
+    chi2 = sum((counts - expected)**2/expected)
+    call check(error, chi2 < 66.62_wp, 'azimuth histogram fails chi-square')
+  end subroutine test_azimuth
 end module test_math_tally_suite
 
 program test_math_tally

@@ -46,6 +46,8 @@ module kumo_driver
     real(dp) :: cpu_time = 0.0_dp       !! summed over ranks [s]
     real(dp) :: setup_time = 0.0_dp     !! [s]
     integer(i8) :: anomalies(N_ANOMALIES) = 0_i8
+    integer(i8) :: flight_steps = 0_i8  !! flight steps of all photons (null collisions included)
+    integer(i8) :: events = 0_i8        !! collisions and reflections of all photons
   end type run_summary_t
 
 contains
@@ -256,7 +258,7 @@ contains
     type(rng_t) :: rng
     real(dp), allocatable :: rec(:, :), tmp(:, :)
     real(dp) :: t0, t1, c0, c1, cpu, buf2(3), rel
-    integer(i8) :: nphot, counts(2 + N_ANOMALIES)
+    integer(i8) :: nphot, counts(4 + N_ANOMALIES)
     integer :: ib, ib_next, nb_round, rank, nranks, itarget, nb_done
     integer, allocatable :: map_levels(:)
     logical :: maps, voxel
@@ -329,7 +331,8 @@ contains
 
     counts(1) = st%n_batches
     counts(2) = st%n_photons
-    counts(3:) = st%anomalies
+    counts(3:4) = st%work
+    counts(5:) = st%anomalies
     call par_sum_to_root(st%s1)
     call par_sum_to_root(st%s2)
     call par_sum_to_root(counts)
@@ -343,7 +346,8 @@ contains
     end block
     st%n_batches = counts(1)
     st%n_photons = counts(2)
-    st%anomalies = counts(3:)
+    st%work = counts(3:4)
+    st%anomalies = counts(5:)
     t1 = par_wtime()
 
     summary%n_photons = st%n_photons
@@ -352,6 +356,8 @@ contains
     summary%wall_time = t1 - t0
     summary%cpu_time = cpu
     summary%anomalies = st%anomalies
+    summary%flight_steps = st%work(1)
+    summary%events = st%work(2)
     if (.not. par_is_root()) return
     call build_results(cfg, scene, lay, st, rec(:, 1:nb_done), summary, set)
     if (present(nml_text)) call add_attr(set, 'namelist', nml_text)
@@ -525,6 +531,10 @@ contains
       call add_attr(set, 'normalisation', 'fluxes and absorptances are divided by the incident'// &
                     ' solar flux on a horizontal plane, mu0*F0; *_wm2 and power densities use F0 = '// &
                     str(cfg%source%solar_flux)//' W m-2')
+      call add_attr(set, 'flight_steps_per_photon', &
+                    str(real(summary%flight_steps, dp)/real(max(1_i8, summary%n_photons), dp)))
+      call add_attr(set, 'events_per_photon', &
+                    str(real(summary%events, dp)/real(max(1_i8, summary%n_photons), dp)))
       call add_attr(set, 'layer_classes', classes())
       call add_attr(set, 'supervoxels', sv_text())
       do i = 1, N_ANOMALIES

@@ -54,6 +54,7 @@ module kumo_tally
   type :: tally_t
     real(dp), allocatable :: buf(:)
     integer(i8) :: anomalies(N_ANOMALIES) = 0_i8
+    integer(i8) :: work(2) = 0_i8   !! flight steps (incl. null collisions, face crossings), events
   end type tally_t
 
   !> Running batch statistics, same layout as the tally buffer.
@@ -63,6 +64,7 @@ module kumo_tally
     integer(i8) :: n_batches = 0_i8
     integer(i8) :: n_photons = 0_i8
     integer(i8) :: anomalies(N_ANOMALIES) = 0_i8
+    integer(i8) :: work(2) = 0_i8
   end type stats_t
 
 contains
@@ -124,6 +126,7 @@ contains
     if (.not. allocated(tal%buf)) allocate (tal%buf(lay%n))
     tal%buf = 0.0_dp
     tal%anomalies = 0_i8
+    tal%work = 0_i8
   end subroutine tally_reset
 
   subroutine stats_init(st, lay)
@@ -164,6 +167,7 @@ contains
     st%n_batches = st%n_batches + 1_i8
     st%n_photons = st%n_photons + n_photons
     st%anomalies = st%anomalies + tal%anomalies
+    st%work = st%work + tal%work
   end subroutine stats_add_batch
 
   !> Mean over batches of entries lo..hi (1-based buffer positions).

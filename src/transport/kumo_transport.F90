@@ -247,6 +247,8 @@ contains
           end select
         end do flight
       end do photon
+      tal%work(1) = tal%work(1) + n_steps
+      tal%work(2) = tal%work(2) + n_events
     end do
   end subroutine trace_batch
 

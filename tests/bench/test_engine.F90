@@ -101,6 +101,7 @@ contains
     type(error_t), allocatable, intent(out) :: error
     type(config_t) :: on, off
     type(result_set_t) :: r_on, r_off
+    type(run_summary_t) :: s_on, s_off
     real(wp), allocatable :: ext(:, :, :), ssa(:, :, :)
     real(dp), allocatable :: m1(:), e1(:), m2(:), e2(:)
     integer :: i
@@ -121,11 +122,13 @@ contains
     off = on
     off%vr%use_supervoxels = .false.
     off%control%seed = 99_i8
-    call run_config(on, r_on, error)
+    call run_config(on, r_on, error, s_on)
     if (allocated(error)) return
-    call run_config(off, r_off, error)
+    call run_config(off, r_off, error, s_off)
     if (allocated(error)) return
     call compare_runs(r_on, r_off, 'super-voxels on vs off', error)
+    call check(error, s_on%flight_steps < s_off%flight_steps, &
+               'super-voxels must take fewer flight steps than one global majorant')
     if (allocated(error)) return
     call get_array(r_on, 'absorptance_layer', m1, e1, error)
     call get_array(r_off, 'absorptance_layer', m2, e2, error)
@@ -168,6 +171,8 @@ contains
     type(error_t), allocatable, intent(out) :: error
     type(config_t) :: base, no1d, noabs
     type(result_set_t) :: rb, r1, r2
+    type(run_summary_t) :: sb, s1, s2
+    real(dp) :: mt1, et1, mt2, et2
     real(dp), allocatable :: m1(:), e1(:), m2(:), e2(:)
     integer :: i
     base = layered_config()
@@ -177,15 +182,17 @@ contains
     noabs = base
     noabs%vr%use_absorbing_layers = .false.
     noabs%control%seed = 31_i8
-    call run_config(base, rb, error)
+    call run_config(base, rb, error, sb)
     if (allocated(error)) return
-    call run_config(no1d, r1, error)
+    call run_config(no1d, r1, error, s1)
     if (allocated(error)) return
-    call run_config(noabs, r2, error)
+    call run_config(noabs, r2, error, s2)
     if (allocated(error)) return
     call compare_runs(rb, r1, 'analytic 1-D layers vs 3-D tracer', error)
     call compare_runs(rb, r2, 'absorbing fast path vs collisions', error)
     if (allocated(error)) return
+    call check(error, sb%flight_steps < s1%flight_steps, &
+               'analytic 1-D layers must take fewer flight steps than the 3-D tracer')
     call get_array(rb, 'absorptance_layer', m1, e1, error)
     call get_array(r2, 'absorptance_layer', m2, e2, error)
     if (allocated(error)) return
@@ -193,6 +200,12 @@ contains
       call check_sigma(error, m1(i), m2(i), sqrt(e1(i)**2 + e2(i)**2), K, &
                        'absorptance_layer (absorbing fast path)', abs_floor=1.0e-12_dp)
     end do
+    ! attenuating the weight instead of ending photons in the absorbing layer: fewer collisions,
+    ! and a smaller error of what lies below it
+    call check(error, sb%events < s2%events, 'absorbing fast path must need fewer events')
+    call get_scalar(rb, 'transmittance', mt1, et1, error)
+    call get_scalar(r2, 'transmittance', mt2, et2, error)
+    call check(error, et1 < et2, 'absorbing fast path must reduce the error below the layer')
   end subroutine test_fast_paths
 
   subroutine test_clear_layers(error)

@@ -26,9 +26,10 @@
 !> build on one core). The shared data folder is the first command-line argument.
 module test_kumo_analytic
   use, intrinsic :: iso_fortran_env, only: output_unit, iostat_end
+  use kumo_test_text, only: split
   use kumo_kinds, only: dp, i8
   use kumo_constants, only: PI, RAD2DEG
-  use kumo_error, only: error_t, set_error
+  use kumo_error, only: error_t, set_error, str
   use kumo_config, only: config_t
   use kumo_phase, only: PHASE_ISOTROPIC, PHASE_HG, PHASE_TABLE
   use kumo_driver, only: simulate, run_summary_t
@@ -130,10 +131,10 @@ contains
         if (fast_absorber .and. omega <= 0.0_dp) then
           ! exact: every photon arrives with weight exp(-tau/mu0), so only round-off is
           ! allowed (the printed standard error, ~1e-9, is round-off of the variance formula)
-          call compare(error, 'tau '//ftoa(TAUS(it))//' sza '//ftoa(SZAS(is))//' T_direct', &
+          call compare(error, 'tau '//str(TAUS(it))//' sza '//str(SZAS(is))//' T_direct', &
                        x, s, p, 0.0_dp, ROUNDOFF, npb*NB)
         else
-          call compare(error, 'tau '//ftoa(TAUS(it))//' sza '//ftoa(SZAS(is))//' T_direct', &
+          call compare(error, 'tau '//str(TAUS(it))//' sza '//str(SZAS(is))//' T_direct', &
                        x, s, p, direct_sigma(s, p, npb*NB), tiny_floor(p), npb*NB)
         end if
         if (allocated(error)) return
@@ -169,11 +170,11 @@ contains
         if (allocated(error)) return
         call get(set, 'reflectance', 1, x, s)
         ! H is tabulated to 6 decimals: half a unit of the last digit times sqrt(1 - w0)
-        call compare(error, 'w0 '//ftoa(W0(iw))//' mu0 '//ftoa(MU0(im))//' R', x, s, ref, s, &
+        call compare(error, 'w0 '//str(W0(iw))//' mu0 '//str(MU0(im))//' R', x, s, ref, s, &
                      5.0e-7_dp*sqrt(1.0_dp - W0(iw)), npb*NB)
         if (allocated(error)) return
         call get(set, 'transmittance', 1, t, st)
-        call check(error, t < TINY_REF, 'tau = 200 should transmit nothing, T = '//ftoa(t))
+        call check(error, t < TINY_REF, 'tau = 200 should transmit nothing, T = '//str(t))
         if (allocated(error)) return
       end do
     end do
@@ -206,7 +207,7 @@ contains
       if (allocated(error)) return
       call get(set, 'transmittance', 1, t, st)
       ! H is tabulated to 6 decimals
-      call compare(error, 'tau 20 mu0 '//ftoa(MU0(im))//' T', t, st, &
+      call compare(error, 'tau 20 mu0 '//str(MU0(im))//' T', t, st, &
                    h/(sqrt(3.0_dp)*(TAU_T + 2.0_dp*Q0)), st, &
                    5.0e-7_dp/(sqrt(3.0_dp)*(TAU_T + 2.0_dp*Q0)), NPB_T*NB)
       if (allocated(error)) return
@@ -217,13 +218,13 @@ contains
       call get(set, 'reflectance', 1, r, sr)
       call get(set, 'transmittance', 1, t, st)
       call get(set, 'weight_lost', 1, lost, sl)
-      call compare(error, 'tau 1000 mu0 '//ftoa(MU0(im))//' R + T', r + t, sqrt(sr**2 + st**2), &
+      call compare(error, 'tau 1000 mu0 '//str(MU0(im))//' R + T', r + t, sqrt(sr**2 + st**2), &
                    1.0_dp, sqrt(sr**2 + st**2), ROUNDOFF, NPB_RT*NB)
       if (allocated(error)) return
-      call check(error, .not. (lost > 0.0_dp), 'weight lost at the event cap: '//ftoa(lost))
+      call check(error, .not. (lost > 0.0_dp), 'weight lost at the event cap: '//str(lost))
       if (allocated(error)) return
-      write (output_unit, '(a)') '  tau 1000 mu0 '//ftoa(MU0(im))//': T = '//ftoa(t)//' +- '// &
-        ftoa(st)//'; thick-slab asymptote '//ftoa(h/(sqrt(3.0_dp)*(TAU_RT + 2.0_dp*Q0)))
+      write (output_unit, '(a)') '  tau 1000 mu0 '//str(MU0(im))//': T = '//str(t)//' +- '// &
+        str(st)//'; thick-slab asymptote '//str(h/(sqrt(3.0_dp)*(TAU_RT + 2.0_dp*Q0)))
     end do
   end subroutine test_conservative
 
@@ -260,7 +261,7 @@ contains
       if (allocated(error)) return
       do iq = 1, 3
         call get(set, trim(VARS(iq)), 1, x, s)
-        call compare(error, 'tau '//ftoa(TAUS(it))//' '//SYM(iq), x, s, REF(iq, it), &
+        call compare(error, 'tau '//str(TAUS(it))//' '//SYM(iq), x, s, REF(iq, it), &
                      sqrt(s**2 + SREF(iq, it)**2), 0.0_dp, NPB*NB)
         if (allocated(error)) return
       end do
@@ -338,9 +339,9 @@ contains
     gg = 0.0_dp
     if (present(g)) gg = g
     nz = size(dtau)
-    tag = 'P'//itoa(prob)//cas
-    write (output_unit, '(a)') '# DISOTEST '//tag//': tau '//ftoa(sum(dtau))//', omega '// &
-      ftoa(omega)//', mu0 '//ftoa(cos(sza/RAD2DEG))
+    tag = 'P'//str(prob)//cas
+    write (output_unit, '(a)') '# DISOTEST '//tag//': tau '//str(sum(dtau))//', omega '// &
+      str(omega)//', mu0 '//str(cos(sza/RAD2DEG))
     call run_slab(dtau, omega, kind, gg, table, sza, 0.0_dp, npb, int(seed, i8), set, error)
     if (allocated(error)) return
     do iu = 1, size(utau)
@@ -353,7 +354,7 @@ contains
         if (abs(cum - utau(iu)) <= 1.0e-9_dp*max(1.0_dp, utau(iu))) lev = nz - l
       end do
       if (lev < 0) then
-        call set_error(error, tag//': output depth '//ftoa(utau(iu))//' is not a level')
+        call set_error(error, tag//': output depth '//str(utau(iu))//' is not a level')
         return
       end if
       fir = disotest_value(prob, cas, 'FIR', iu, error)
@@ -361,15 +362,15 @@ contains
       if (.not. allocated(error)) fup = disotest_value(prob, cas, 'FUP', iu, error)
       if (allocated(error)) return
       call get(set, 'flux_up', lev + 1, x, s)
-      call compare(error, tag//' FUP/pi at tau '//ftoa(utau(iu))//merge(' (R)', '    ', &
+      call compare(error, tag//' FUP/pi at tau '//str(utau(iu))//merge(' (R)', '    ', &
                    lev == nz), x, s, fup%value, s, fup%half_ulp + tiny_floor(fup%value), npb*NB)
       if (allocated(error)) return
       call get(set, 'flux_down_diffuse', lev + 1, x, s)
-      call compare(error, tag//' FDN/pi at tau '//ftoa(utau(iu)), x, s, fdn%value, s, &
+      call compare(error, tag//' FDN/pi at tau '//str(utau(iu)), x, s, fdn%value, s, &
                    fdn%half_ulp + tiny_floor(fdn%value), npb*NB)
       if (allocated(error)) return
       call get(set, 'flux_down_direct', lev + 1, xd, sd)
-      call compare(error, tag//' FIR/pi at tau '//ftoa(utau(iu)), xd, sd, fir%value, &
+      call compare(error, tag//' FIR/pi at tau '//str(utau(iu)), xd, sd, fir%value, &
                    direct_sigma(sd, fir%value, npb*NB), fir%half_ulp + tiny_floor(fir%value), &
                    npb*NB)
       if (allocated(error)) return
@@ -426,8 +427,8 @@ contains
       exit
     end do
     close (unit)
-    if (.not. v%found) call set_error(error, path//': no value for problem '//itoa(prob)// &
-                                      cas//' '//quantity//' at itau '//itoa(itau))
+    if (.not. v%found) call set_error(error, path//': no value for problem '//str(prob)// &
+                                      cas//' '//quantity//' at itau '//str(itau))
   end function disotest_value
 
   ! ------------------------------------------------------------------------------------------
@@ -514,8 +515,8 @@ contains
           &" sigma  N ",i0,1x,a)') label, x, sigma, ref, dev, n_photons, trim(merge('    ', &
           'FAIL', ok))
     if (allocated(error)) return
-    if (.not. ok) call set_error(error, label//': kumo '//ftoa(x)//' +- '//ftoa(sigma)// &
-                                 ', reference '//ftoa(ref)//', |diff| > '//ftoa(limit))
+    if (.not. ok) call set_error(error, label//': kumo '//str(x)//' +- '//str(sigma)// &
+                                 ', reference '//str(ref)//', |diff| > '//str(limit))
   end subroutine compare
 
   !> Standard error for a direct-beam count: max(batch estimate, binomial sqrt(p (1 - p)/N)).
@@ -562,49 +563,11 @@ contains
       end if
     end do
     close (unit)
-    if (h < 0.0_dp) call set_error(error, path//': no H for mu = '//ftoa(mu))
+    if (h < 0.0_dp) call set_error(error, path//': no H for mu = '//str(mu))
   end subroutine read_h_function
 
-  !> Split `s` at every `sep` into `f(1:n)` (empty fields kept).
-  subroutine split(s, sep, f, n)
-    character(len=*), intent(in) :: s
-    character(len=1), intent(in) :: sep
-    character(len=*), intent(out) :: f(:)
-    integer, intent(out) :: n
-    integer :: i0, i, ls
-    n = 0
-    i0 = 1
-    f = ''
-    ls = len_trim(s)
-    do i = 1, ls + 1
-      if (i <= ls) then
-        if (s(i:i) /= sep) cycle
-      end if
-      n = n + 1
-      if (n <= size(f)) f(n) = s(i0:i - 1)
-      i0 = i + 1
-    end do
-  end subroutine split
 
-  function itoa(i) result(s)
-    integer, intent(in) :: i
-    character(len=:), allocatable :: s
-    character(len=16) :: buf
-    write (buf, '(i0)') i
-    s = trim(buf)
-  end function itoa
 
-  function ftoa(x) result(s)
-    real(dp), intent(in) :: x
-    character(len=:), allocatable :: s
-    character(len=24) :: buf
-    if (abs(x) > 0.0_dp .and. (abs(x) < 1.0e-3_dp .or. abs(x) >= 1.0e4_dp)) then
-      write (buf, '(es12.5)') x
-    else
-      write (buf, '(g0.6)') x
-    end if
-    s = trim(adjustl(buf))
-  end function ftoa
 end module test_kumo_analytic
 
 program test_analytic

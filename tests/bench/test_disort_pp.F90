@@ -42,8 +42,9 @@
 !> `${KUMO_SHARED_DIR}`).
 module test_kumo_disort_pp
   use, intrinsic :: iso_fortran_env, only: output_unit, iostat_end, int64
+  use kumo_test_text, only: split
   use kumo_kinds, only: dp, i8
-  use kumo_error, only: error_t, set_error
+  use kumo_error, only: error_t, set_error, str
   use kumo_config, only: config_t
   use kumo_phase, only: PHASE_ISOTROPIC, PHASE_RAYLEIGH, PHASE_HG
   use kumo_driver, only: simulate, run_summary_t
@@ -155,7 +156,7 @@ contains
     if (allocated(error)) return
     n_fail = count(.not. cmp%passed)
     if (n_fail == 0) return
-    msg = itoa(n_fail)//' of '//itoa(size(cmp))//' comparisons beyond 4 sigma + floor:'
+    msg = str(n_fail)//' of '//str(size(cmp))//' comparisons beyond 4 sigma + floor:'
     do i = 1, size(cmp)
       if (.not. cmp(i)%passed) msg = msg//' ['//describe(cmp(i))//']'
     end do
@@ -185,7 +186,7 @@ contains
     if (allocated(error)) return
     do i = 1, size(cases)
       call check(error, closure_err(i) <= 1.0e-10_dp, trim(cases(i)%id)// &
-                 ': |energy_closure - 1| = '//rtoa(closure_err(i))//' > 1e-10')
+                 ': |energy_closure - 1| = '//str(closure_err(i))//' > 1e-10')
       if (allocated(error)) return
     end do
   end subroutine test_closure
@@ -197,10 +198,10 @@ contains
     call ensure_run(error)
     if (allocated(error)) return
     call deviation_stats(n, rms, f2)
-    call check(error, n >= 900, 'too few resolved comparisons: '//itoa(n))
+    call check(error, n >= 900, 'too few resolved comparisons: '//str(n))
     call check(error, rms >= 0.7_dp .and. rms <= 1.3_dp, 'RMS of (x - ref)/sigma = '// &
-               rtoa(rms)//' outside [0.7, 1.3]: the error bars are not honest')
-    call check(error, f2 < 0.10_dp, 'fraction beyond 2 sigma = '//rtoa(f2)//' >= 0.10')
+               str(rms)//' outside [0.7, 1.3]: the error bars are not honest')
+    call check(error, f2 < 0.10_dp, 'fraction beyond 2 sigma = '//str(f2)//' >= 0.10')
   end subroutine test_honest
 
   ! ------------------------------------------------------------------------------------------
@@ -265,13 +266,13 @@ contains
         if (abs(cmp(j)%x - cmp(j)%ref) > 3.0_dp*cmp(j)%sigma) n3 = n3 + 1
       end if
     end do
-    write (output_unit, '(a)') '# run time: cpu '//rtoa(ct1 - ct0)//' s, wall '// &
-      rtoa(real(t1 - t0, dp)/rate)//' s; '// &
-      itoa(size(cmp))//' comparisons, '//itoa(count(.not. cmp%passed))// &
-      ' beyond 4 sigma + floor; '//itoa(count(cmp%zero))//' physical zeros'
-    write (output_unit, '(a)') '# resolved comparisons (|ref| >= 1e-6, sigma > 1e-8): '//itoa(n)// &
-      '; RMS (x - ref)/sigma = '//rtoa(rms)//'; beyond 2 sigma: '//rtoa(100.0_dp*f2)// &
-      ' %; beyond 3 sigma: '//itoa(n3)//' ('//rtoa(100.0_dp*n3/max(1, n))//' %)'
+    write (output_unit, '(a)') '# run time: cpu '//str(ct1 - ct0)//' s, wall '// &
+      str(real(t1 - t0, dp)/rate)//' s; '// &
+      str(size(cmp))//' comparisons, '//str(count(.not. cmp%passed))// &
+      ' beyond 4 sigma + floor; '//str(count(cmp%zero))//' physical zeros'
+    write (output_unit, '(a)') '# resolved comparisons (|ref| >= 1e-6, sigma > 1e-8): '//str(n)// &
+      '; RMS (x - ref)/sigma = '//str(rms)//'; beyond 2 sigma: '//str(100.0_dp*f2)// &
+      ' %; beyond 3 sigma: '//str(n3)//' ('//str(100.0_dp*n3/max(1, n))//' %)'
     call group_summary('isotropic')
     call group_summary('hg')
     call group_summary('two_layer')
@@ -301,8 +302,8 @@ contains
       dmax = max(dmax, abs(d))
       ss = ss + d*d
     end do
-    write (output_unit, '(a)') '# group '//group//': '//itoa(n)//' comparisons, '//itoa(nr)// &
-      ' resolved; max |dev| '//rtoa(dmax)//' sigma; RMS dev '//rtoa(sqrt(ss/max(1, nr)))
+    write (output_unit, '(a)') '# group '//group//': '//str(n)//' comparisons, '//str(nr)// &
+      ' resolved; max |dev| '//str(dmax)//' sigma; RMS dev '//str(sqrt(ss/max(1, nr)))
   end subroutine group_summary
 
   !> Statistics of (x - ref)/sigma over the resolved comparisons.
@@ -517,14 +518,14 @@ contains
       if (ios == iostat_end) exit
       line_no = line_no + 1
       if (ios /= 0) then
-        call set_error(error, path//': read error at line '//itoa(line_no))
+        call set_error(error, path//': read error at line '//str(line_no))
         exit
       end if
       if (line_no == 1) cycle                     ! header
       if (len_trim(line) == 0) cycle
       call split(line, ',', f, nf)
       if (nf /= 12) then
-        call set_error(error, path//': line '//itoa(line_no)//' has '//itoa(nf)//' fields')
+        call set_error(error, path//': line '//str(line_no)//' has '//str(nf)//' fields')
         exit
       end if
       ! key on case_id: find it or add a new case
@@ -543,7 +544,7 @@ contains
         read (f(4), *, iostat=ios) new_case%sza
         if (ios == 0) read (f(7), *, iostat=ios) new_case%albedo
         if (ios /= 0) then
-          call set_error(error, path//': bad sza or albedo at line '//itoa(line_no))
+          call set_error(error, path//': bad sza or albedo at line '//str(line_no))
           exit
         end if
         call parse_layers(f(3), new_case, error)
@@ -558,7 +559,7 @@ contains
       row%level = f(9)
       read (f(12), *, iostat=ios) row%value
       if (ios /= 0) then
-        call set_error(error, path//': bad value at line '//itoa(line_no))
+        call set_error(error, path//': bad value at line '//str(line_no))
         exit
       end if
       cases(ic)%rows = [cases(ic)%rows, row]
@@ -577,7 +578,7 @@ contains
     real(dp) :: v
     call split(spec, '|', layers, nl)
     if (nl < 1 .or. nl > MAXL) then
-      call set_error(error, 'layer_spec "'//trim(spec)//'": 1..'//itoa(MAXL)//' layers expected')
+      call set_error(error, 'layer_spec "'//trim(spec)//'": 1..'//str(MAXL)//' layers expected')
       return
     end if
     cs%nl = nl
@@ -626,24 +627,6 @@ contains
     end do
   end subroutine parse_layers
 
-  !> Split `s` at every `sep` into `f(1:n)` (empty fields kept).
-  subroutine split(s, sep, f, n)
-    character(len=*), intent(in) :: s
-    character(len=1), intent(in) :: sep
-    character(len=*), intent(out) :: f(:)
-    integer, intent(out) :: n
-    integer :: i0, i
-    n = 0
-    i0 = 1
-    f = ''
-    do i = 1, len_trim(s) + 1
-      if (i > len_trim(s) .or. s(min(i, len(s)):min(i, len(s))) == sep) then
-        n = n + 1
-        if (n <= size(f)) f(n) = s(i0:i - 1)
-        i0 = i + 1
-      end if
-    end do
-  end subroutine split
 
   ! ------------------------------------------------------------------------------------------
   ! Text helpers
@@ -652,9 +635,9 @@ contains
   function describe(c) result(s)
     type(comparison_t), intent(in) :: c
     character(len=:), allocatable :: s
-    s = trim(cases(c%icase)%id)//' '//trim(c%label)//': kumo '//rtoa(c%x)//' +- '// &
-        rtoa(c%sigma)//', DISORT '//rtoa(c%ref)
-    if (c%sigma > 0.0_dp) s = s//', dev '//rtoa((c%x - c%ref)/c%sigma)//' sigma'
+    s = trim(cases(c%icase)%id)//' '//trim(c%label)//': kumo '//str(c%x)//' +- '// &
+        str(c%sigma)//', DISORT '//str(c%ref)
+    if (c%sigma > 0.0_dp) s = s//', dev '//str((c%x - c%ref)/c%sigma)//' sigma'
   end function describe
 
   !> x == v, written without == to keep -Wcompare-reals quiet.
@@ -663,25 +646,7 @@ contains
     is_exactly = .not. (x > v .or. x < v)
   end function is_exactly
 
-  function itoa(i) result(s)
-    integer, intent(in) :: i
-    character(len=:), allocatable :: s
-    character(len=16) :: buf
-    write (buf, '(i0)') i
-    s = trim(buf)
-  end function itoa
 
-  function rtoa(x) result(s)
-    real(dp), intent(in) :: x
-    character(len=:), allocatable :: s
-    character(len=24) :: buf
-    if (abs(x) > 0.0_dp .and. (abs(x) < 1.0e-3_dp .or. abs(x) >= 1.0e4_dp)) then
-      write (buf, '(es12.5)') x
-    else
-      write (buf, '(f0.6)') x
-    end if
-    s = trim(adjustl(buf))
-  end function rtoa
 end module test_kumo_disort_pp
 
 program test_disort_pp

@@ -18,10 +18,10 @@ module test_mpi_suite
   private
   public :: collect_mpi, prepare, set_results, get_cfg
 
-  type(config_t), save :: cfg
-  type(result_set_t), save :: res
-  type(run_summary_t), save :: summary
-  integer, save :: n_ranks_run = 0
+  type(config_t) :: cfg
+  type(result_set_t) :: res
+  type(run_summary_t) :: summary
+  integer :: n_ranks_run = 0
 
 contains
 

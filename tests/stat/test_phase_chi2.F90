@@ -10,6 +10,7 @@
 !> passes when chi^2 < 148.230, the 0.999 quantile of the chi-square distribution with 99
 !> degrees of freedom.
 module test_kumo_phase_chi2
+  use kumo_textio, only: read_two_columns
   use kumo_kinds, only: wp, i8
   use kumo_constants, only: DEG2RAD
   use kumo_rng, only: rng_t, rng_init, rng_uniform
@@ -219,31 +220,14 @@ contains
     call check(error, chi2 < CHI2_999_DF99, trim(msg))
   end subroutine chi2_test
 
-  !> Read a two-column table `angle value` (one pair per line).
+  !> Read the two-column table with kumo's own reader; a failure becomes the test's error.
   subroutine read_table(path, angle, value, error)
     character(len=*), intent(in) :: path
     real(wp), allocatable, intent(out) :: angle(:), value(:)
     type(error_t), allocatable, intent(inout) :: error
-    integer :: unit, ios, n, i
-    real(wp) :: a, v
-    character(len=256) :: msg
-    open (newunit=unit, file=path, status='old', action='read', iostat=ios, iomsg=msg)
-    if (ios /= 0) then
-      call check(error, .false., 'cannot open '//path//': '//trim(msg))
-      return
-    end if
-    n = 0
-    do
-      read (unit, *, iostat=ios) a, v
-      if (ios /= 0) exit
-      n = n + 1
-    end do
-    allocate (angle(n), value(n))
-    rewind (unit)
-    do i = 1, n
-      read (unit, *) angle(i), value(i)
-    end do
-    close (unit)
+    type(error_t), allocatable :: err
+    call read_two_columns(path, angle, value, err)
+    if (allocated(err)) call check(error, .false., err%message)
   end subroutine read_table
 end module test_kumo_phase_chi2
 

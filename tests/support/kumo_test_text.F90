@@ -1,0 +1,31 @@
+! SPDX-License-Identifier: BSD-3-Clause
+!> Text helpers shared by the tests that read reference tables.
+module kumo_test_text
+  implicit none
+  private
+  public :: split
+
+contains
+
+  !> Split `s` at every `sep` into `fields(1:n)` (empty fields kept; fields beyond the size of
+  !> `fields` are counted but not stored).
+  subroutine split(s, sep, fields, n)
+    character(len=*), intent(in) :: s
+    character(len=1), intent(in) :: sep
+    character(len=*), intent(inout) :: fields(:)
+    integer, intent(out) :: n
+    integer :: i0, i, ls
+    n = 0
+    i0 = 1
+    fields = ''
+    ls = len_trim(s)
+    do i = 1, ls + 1
+      if (i <= ls) then
+        if (s(i:i) /= sep) cycle
+      end if
+      n = n + 1
+      if (n <= size(fields)) fields(n) = s(i0:i - 1)
+      i0 = i + 1
+    end do
+  end subroutine split
+end module kumo_test_text

@@ -127,6 +127,8 @@ contains
       case (PHASE_TABLE)
         call read_two_columns(resolve(cfg%phase%file(i), nml_path), ang, val, error)
         if (.not. allocated(error)) phases(i) = phase_from_table(ang, val, cfg%phase%n_table, error)
+      case default
+        call set_error(error, 'unknown phase-function kind code '//str(cfg%phase%kind(i)))
       end select
       if (allocated(error)) then
         call add_context(error, '&kumo_phase: phase function '//str(i))

@@ -4,7 +4,9 @@
 !> The only module that uses MPI. A serial build compiles kumo_parallel_serial.F90 instead, which
 !> provides the same module with trivial bodies.
 module kumo_parallel
-  use mpi_f08
+  use mpi_f08, only: MPI_Init, MPI_Initialized, MPI_Finalize, MPI_Finalized, MPI_Comm_rank, &
+    MPI_Comm_size, MPI_Reduce, MPI_Allreduce, MPI_Bcast, MPI_Barrier, MPI_Wtime, MPI_Abort, &
+    MPI_COMM_WORLD, MPI_IN_PLACE, MPI_DOUBLE_PRECISION, MPI_INTEGER, MPI_INTEGER8, MPI_SUM
   use kumo_kinds, only: dp, i8
   implicit none
   private

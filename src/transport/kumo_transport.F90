@@ -244,6 +244,8 @@ contains
               tal%anomalies(ANOM_UZ_NUDGED) = tal%anomalies(ANOM_UZ_NUDGED) + 1
             end if
             exit flight
+          case default
+            exit photon   ! no other event exists
           end select
         end do flight
       end do photon

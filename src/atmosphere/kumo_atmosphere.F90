@@ -52,8 +52,11 @@ module kumo_atmosphere
     integer, allocatable :: iph1(:, :)       !! (ncomp1, nz) phase function per component
     real(wp), allocatable :: ext3(:, :, :)   !! (nx, ny, n3) total extinction [m-1]
     real(wp), allocatable :: omg3(:, :, :)   !! (nx, ny, n3) mixture single-scattering albedo
-    real(wp), allocatable :: csca3(:, :, :, :) !! (ncomp, nx, ny, n3) cumulative fractions
-    integer, allocatable :: iph3(:, :, :, :) !! (ncomp, nx, ny, n3) phase function index
+    real(wp), allocatable :: csca3(:, :, :, :) !! (ncomp, nx, ny, n3) cumulative fractions;
+                                               !! allocated only when ncomp > 1
+    integer, allocatable :: iph3(:, :, :, :) !! (ncomp, nx, ny, n3) phase function index;
+                                             !! allocated only when it varies between voxels
+    integer, allocatable :: iph3_const(:)    !! (ncomp) phase index when it is the same everywhere
     type(phase_t), allocatable :: phases(:)  !! phase functions referenced by index
     type(supervoxel_grid_t) :: sv            !! majorant grid of the 3-D region
   end type atmosphere_t
@@ -81,9 +84,9 @@ contains
     real(wp), intent(in), optional :: ssa3d(:, :, :, :)
     integer, intent(in), optional :: iph3d(:, :, :, :)
     integer :: nz, k, ic, nc1, nc3, ix, iy, kr, klo, khi, ncomp, kf_lo, kf_hi
-    real(wp), allocatable :: e(:), s(:)
+    real(wp), allocatable :: e(:), s(:), csca(:)
     integer, allocatable :: p(:)
-    logical :: has3d
+    logical :: has3d, phase_varies
 
     nz = size(z) - 1
     nc1 = size(ext1d, 2)
@@ -176,7 +179,19 @@ contains
       ncomp = nc1 + nc3
       atm%ncomp = ncomp
       allocate (atm%ext3(atm%nx, atm%ny, atm%n3), atm%omg3(atm%nx, atm%ny, atm%n3))
-      allocate (atm%csca3(ncomp, atm%nx, atm%ny, atm%n3), atm%iph3(ncomp, atm%nx, atm%ny, atm%n3))
+      ! Per-voxel scattering fractions and phase indices are kept only when the photon loop
+      ! needs them: one component needs no choice, and a phase index that is the same in every
+      ! voxel is stored once. This keeps the voxel data of large fields in the caches.
+      allocate (csca(ncomp))
+      if (ncomp > 1) allocate (atm%csca3(ncomp, atm%nx, atm%ny, atm%n3))
+      phase_varies = .false.
+      if (nc1 > 0) phase_varies = any(iph1d(klo:khi, :) /= spread(iph1d(klo, :), 1, khi - klo + 1))
+      if (present(iph3d) .and. nc3 > 0) then
+        do ic = 1, nc3
+          if (any(iph3d(:, :, :, ic) /= iph3d(1, 1, 1, ic))) phase_varies = .true.
+        end do
+      end if
+      if (phase_varies) allocate (atm%iph3(ncomp, atm%nx, atm%ny, atm%n3))
       allocate (e(ncomp), s(ncomp), p(ncomp))
       do kr = 1, atm%n3
         k = klo + kr - 1
@@ -200,8 +215,10 @@ contains
               s(nc1 + 1:) = 0.0_wp
               p(nc1 + 1:) = 1
             end if
-            call mix(e, s, atm%ext3(ix, iy, kr), atm%omg3(ix, iy, kr), atm%csca3(:, ix, iy, kr))
-            atm%iph3(:, ix, iy, kr) = p
+            call mix(e, s, atm%ext3(ix, iy, kr), atm%omg3(ix, iy, kr), csca)
+            if (ncomp > 1) atm%csca3(:, ix, iy, kr) = csca
+            if (phase_varies) atm%iph3(:, ix, iy, kr) = p
+            if (kr == 1 .and. ix == 1 .and. iy == 1) atm%iph3_const = p
           end do
         end do
       end do

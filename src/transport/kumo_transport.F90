@@ -217,13 +217,17 @@ contains
             end if
             if (in3d) then
               nc = atm%ncomp
-              iph = atm%iph3(1, ix, iy, kr)
+              ic = 1
               if (nc > 1) then
                 e = rng_uniform(rng)
-                do ic = 1, nc
+                do ic = 1, nc - 1
                   if (e < atm%csca3(ic, ix, iy, kr)) exit
                 end do
-                iph = atm%iph3(min(ic, nc), ix, iy, kr)
+              end if
+              if (allocated(atm%iph3)) then
+                iph = atm%iph3(ic, ix, iy, kr)
+              else
+                iph = atm%iph3_const(ic)
               end if
             else
               nc = atm%ncomp1

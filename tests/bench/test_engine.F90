@@ -160,8 +160,8 @@ contains
     cfg%atm%ssa1d(:, 1) = [1.0_wp, 0.0_wp, 1.0_wp, 1.0_wp, 1.0_wp]
     cfg%atm%ext1d(:, 2) = [0.0_wp, 0.0_wp, 0.0_wp, 3.0e-3_wp, 0.0_wp]
     cfg%atm%ssa1d(:, 2) = [1.0_wp, 1.0_wp, 1.0_wp, 0.999_wp, 1.0_wp]
-    cfg%atm%phase1d(:, 1) = 2
-    cfg%atm%phase1d(:, 2) = 1
+    cfg%atm%phase1d(:, 1) = [2, 2, 2, 1, 2]   ! varies between layers: per-voxel phase indices
+    cfg%atm%phase1d(:, 2) = 1                 ! when this column goes through the 3-D tracer
     deallocate (cfg%phase%kind, cfg%phase%kind_name, cfg%phase%g, cfg%phase%file)
     call set_phases(cfg, [character(len=8) :: 'hg', 'rayleigh'], [0.85_wp, 0.0_wp])
     cfg%output%flux_levels = [0, 1, 2, 3, 4, 5]

@@ -85,6 +85,15 @@ contains
     call check_close(error, m(1), mean, rel_tol=1.0e-14_dp, label='mean of batches')
     call check_close(error, e(1), sqrt(var/5), rel_tol=1.0e-12_dp, label='standard error')
     call check(error, st%n_photons == 50_i8 .and. st%n_batches == 5_i8, 'counters')
+    ! a quantity that is 1 in every batch up to round-off has no standard error
+    call stats_init(st, lay)
+    do b = 1, 5
+      call tally_reset(tal, lay)
+      tal%buf(lay%i_up + 2) = 10.0_dp*(1.0_dp + (b - 3)*epsilon(1.0_dp))
+      call stats_add_batch(st, lay, tal, 10_i8)
+    end do
+    e = stats_stderr(st, lay%i_up + 2, lay%i_up + 2)
+    call check(error, e(1) == 0.0_dp, 'round-off spread must give a zero standard error')
   end subroutine test_stats
 
   subroutine test_layout(error)

@@ -1,0 +1,146 @@
+#!/usr/bin/env python3
+# SPDX-License-Identifier: BSD-3-Clause
+"""Convert the I3RC Phase 1 Landsat cloud (case 3) into a kumo scene file.
+
+Input: the two I3RC files `scene43.tau.128x128` (column optical depth) and
+`scene43.dz.128x128` (geometric thickness in km), 128 lines (y) x 128 values (x), 30 m columns,
+cloud base flat at 0.2 km, uniform extinction inside each column, Henyey-Greenstein g = 0.85.
+
+Vertical grid: level 0 at the ground, level 1 at the cloud base (0.2 km), then `--layers` equal
+layers up to the highest cloud top (0.2 km + max dz = 2.58 km). Layer 1 (0 - 0.2 km) is clear
+and stays a 1-D layer; layers 2 .. 1 + `--layers` form the 3-D region (`k3d_bottom = 2`).
+Each column is filled from the base up to base + dz(column) with extinction tau/dz; a voxel the
+cloud top cuts gets the extinction times the covered fraction, so the column optical depth of
+every column is exact.
+
+`--refine 2` writes the same field on a grid twice as fine horizontally (256 x 256 columns of
+15 m): every column is split into 2 x 2 identical columns, so the optical statistics (and, with
+one majorant, every photon path) are those of the 128 x 128 field.
+
+Besides the scene file, `--atm-group FILE` writes the matching `&kumo_atmosphere` namelist group
+(levels, domain size, 3-D region) so that a case namelist can include it verbatim.
+
+Usage:
+  python3 bench/make_landsat_scene.py --data DIR --out scene.nc [--refine 2] [--layers 20]
+      [--ssa 0.99] [--atm-group atm.nml]
+DIR defaults to $KUMO_SHARED_DIR/data/i3rc/phase1_inputs (KUMO_SHARED_DIR defaults to the
+folder `shared` next to the repository).
+"""
+import argparse
+import os
+import sys
+
+import numpy as np
+
+BASE_KM = 0.2          # flat cloud base of the Landsat scene [km]
+DX_M = 30.0            # column size of the I3RC field [m]
+N_FIELD = 128          # columns per side of the I3RC field
+
+
+def default_data_dir():
+    shared = os.environ.get('KUMO_SHARED_DIR')
+    if not shared:
+        repo = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+        shared = os.path.join(os.path.dirname(repo), 'shared')
+    return os.path.join(shared, 'data', 'i3rc', 'phase1_inputs')
+
+
+def read_field(data_dir):
+    """Column optical depth and geometric thickness [km] as (ny, nx) arrays (row = y)."""
+    tau = np.loadtxt(os.path.join(data_dir, 'scene43.tau.128x128'))
+    dz = np.loadtxt(os.path.join(data_dir, 'scene43.dz.128x128'))
+    if tau.shape != (N_FIELD, N_FIELD) or dz.shape != (N_FIELD, N_FIELD):
+        sys.exit(f'make_landsat_scene: expected {N_FIELD} x {N_FIELD} values, got tau '
+                 f'{tau.shape} and dz {dz.shape}')
+    if np.any(tau < 0) or np.any(dz < 0) or np.any((tau > 0) & (dz <= 0)):
+        sys.exit('make_landsat_scene: negative values, or optical depth in a column of zero '
+                 'thickness')
+    return tau, dz
+
+
+def levels_km(dz, n_layers):
+    """Levels [km]: ground, cloud base, then n_layers equal layers up to the highest top."""
+    top = BASE_KM + float(dz.max())
+    return np.concatenate(([0.0], BASE_KM + (top - BASE_KM) * np.arange(n_layers + 1) / n_layers))
+
+
+def voxel_extinction(tau, dz, z_km):
+    """Extinction [m-1] of the 3-D layers (layers 2..), shape (nz3, ny, nx)."""
+    zb = z_km[1:-1] - BASE_KM            # bottoms of the 3-D layers above the base [km]
+    zt = z_km[2:] - BASE_KM              # tops
+    thick = (zt - zb)[:, None, None]
+    covered = np.clip(np.minimum(zt[:, None, None], dz[None]) - zb[:, None, None], 0.0, None)
+    ext_km = np.where(dz > 0, tau / np.where(dz > 0, dz, 1.0), 0.0)[None]  # [km-1]
+    ext = ext_km * covered / thick * 1.0e-3                                # layer mean [m-1]
+    # exact column optical depth (round-off only)
+    col = (ext * thick * 1.0e3).sum(axis=0)
+    err = np.max(np.abs(col - tau))
+    if err > 1.0e-9 * max(1.0, tau.max()):
+        sys.exit(f'make_landsat_scene: column optical depth off by {err}')
+    return ext
+
+
+def write_scene(path, ext, ssa):
+    from netCDF4 import Dataset
+    nz3, ny, nx = ext.shape
+    tmp = path + '.tmp'
+    with Dataset(tmp, 'w', format='NETCDF4_CLASSIC') as nc:
+        nc.title = 'I3RC Phase 1 Landsat cloud (case 3) as a kumo scene'
+        nc.source = 'bench/make_landsat_scene.py from scene43.tau.128x128, scene43.dz.128x128'
+        nc.createDimension('component', 1)
+        nc.createDimension('z', nz3)
+        nc.createDimension('y', ny)
+        nc.createDimension('x', nx)
+        v = nc.createVariable('extinction', 'f8', ('component', 'z', 'y', 'x'))
+        v.long_name = 'volume extinction coefficient'
+        v.units = 'm-1'
+        v[0] = ext
+        v = nc.createVariable('ssa', 'f8', ('component', 'z', 'y', 'x'))
+        v.long_name = 'single-scattering albedo'
+        v.units = '1'
+        v[0] = np.full(ext.shape, ssa)
+    os.replace(tmp, path)
+
+
+def atm_group(z_km, nx, ny, lx_m, ly_m):
+    """The &kumo_atmosphere group for the scene (layer 1 clear, layers 2.. the 3-D region)."""
+    nz = len(z_km) - 1
+    zl = ', '.join(f'{1000.0 * z:.6f}' for z in z_km)
+    return ('&kumo_atmosphere\n'
+            f'  nz = {nz}\n'
+            f'  z_levels = {zl}\n'
+            f'  lx = {lx_m:.1f}, ly = {ly_m:.1f}\n'
+            "  scene_file = 'SCENE'\n"
+            f'  k3d_bottom = 2, nx = {nx}, ny = {ny}, nz3 = {nz - 1}\n'
+            '  n_components_3d = 1, phase3d = 1\n'
+            '/\n')
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
+    ap.add_argument('--data', default=None, help='folder with the scene43.* files')
+    ap.add_argument('--out', required=True, help='scene file to write (netCDF)')
+    ap.add_argument('--refine', type=int, default=1, help='split each column into r x r (1, 2)')
+    ap.add_argument('--layers', type=int, default=20, help='layers of the 3-D region')
+    ap.add_argument('--ssa', type=float, default=0.99, help='single-scattering albedo')
+    ap.add_argument('--atm-group', default=None, help='also write the &kumo_atmosphere group')
+    a = ap.parse_args()
+    if a.refine < 1 or a.layers < 1 or not 0.0 <= a.ssa <= 1.0:
+        sys.exit('make_landsat_scene: need refine >= 1, layers >= 1, 0 <= ssa <= 1')
+    tau, dz = read_field(a.data or default_data_dir())
+    z_km = levels_km(dz, a.layers)
+    ext = voxel_extinction(tau, dz, z_km)
+    if a.refine > 1:
+        ext = np.repeat(np.repeat(ext, a.refine, axis=1), a.refine, axis=2)
+    write_scene(a.out, ext, a.ssa)
+    ny, nx = ext.shape[1:]
+    if a.atm_group:
+        with open(a.atm_group, 'w') as f:
+            f.write(atm_group(z_km, nx, ny, N_FIELD * DX_M, N_FIELD * DX_M)
+                    .replace('SCENE', os.path.basename(a.out)))
+    print(f'{a.out}: {nx} x {ny} x {ext.shape[0]} voxels, mean column optical depth '
+          f'{tau.mean():.4f}, max extinction {ext.max():.6g} m-1')
+
+
+if __name__ == '__main__':
+    main()

@@ -40,7 +40,8 @@ module kumo_atmosphere
     integer :: k3_lo = 1, k3_hi = 0          !! layers of the 3-D region (empty if k3_hi < k3_lo)
     integer :: n3 = 0                        !! number of 3-D layers
     integer :: ncomp1 = 0                    !! components per 1-D layer
-    integer :: ncomp = 0                     !! components per 3-D voxel (1-D ones first)
+    integer :: ncomp = 0                     !! components per 3-D voxel (the 1-D ones present
+                                             !! in the region first, then the scene file's)
     real(wp) :: lx = 1.0_wp, ly = 1.0_wp     !! domain size [m]
     real(wp) :: dx = 1.0_wp, dy = 1.0_wp     !! column size of the 3-D region [m]
     real(wp) :: inv_dx = 1.0_wp, inv_dy = 1.0_wp
@@ -83,7 +84,8 @@ contains
     real(wp), intent(in), optional :: ext3d(:, :, :, :)  !! (nx, ny, n3, ncomp3) [m-1]
     real(wp), intent(in), optional :: ssa3d(:, :, :, :)
     integer, intent(in), optional :: iph3d(:, :, :, :)
-    integer :: nz, k, ic, nc1, nc3, ix, iy, kr, klo, khi, ncomp, kf_lo, kf_hi
+    integer :: nz, k, ic, nc1, nc3, ix, iy, kr, klo, khi, ncomp, kf_lo, kf_hi, na1
+    integer, allocatable :: act1(:)
     real(wp), allocatable :: e(:), s(:), csca(:)
     integer, allocatable :: p(:)
     logical :: has3d, phase_varies
@@ -176,7 +178,11 @@ contains
     end do
 
     if (atm%n3 > 0) then
-      ncomp = nc1 + nc3
+      ! 1-D components that are empty throughout the region (e.g. no molecules given in cloud
+      ! layers) are left out of the voxels: no choice of scatterer, no storage for them.
+      act1 = pack([(ic, ic=1, nc1)], [(any(ext1d(klo:khi, ic) > 0.0_wp), ic=1, nc1)])
+      na1 = size(act1)
+      ncomp = na1 + nc3
       atm%ncomp = ncomp
       allocate (atm%ext3(atm%nx, atm%ny, atm%n3), atm%omg3(atm%nx, atm%ny, atm%n3))
       ! Per-voxel scattering fractions and phase indices are kept only when the photon loop
@@ -185,7 +191,9 @@ contains
       allocate (csca(ncomp))
       if (ncomp > 1) allocate (atm%csca3(ncomp, atm%nx, atm%ny, atm%n3))
       phase_varies = .false.
-      if (nc1 > 0) phase_varies = any(iph1d(klo:khi, :) /= spread(iph1d(klo, :), 1, khi - klo + 1))
+      do ic = 1, na1
+        if (any(iph1d(klo:khi, act1(ic)) /= iph1d(klo, act1(ic)))) phase_varies = .true.
+      end do
       if (present(iph3d) .and. nc3 > 0) then
         do ic = 1, nc3
           if (any(iph3d(:, :, :, ic) /= iph3d(1, 1, 1, ic))) phase_varies = .true.
@@ -197,23 +205,23 @@ contains
         k = klo + kr - 1
         do iy = 1, atm%ny
           do ix = 1, atm%nx
-            e(1:nc1) = ext1d(k, :)
-            s(1:nc1) = ssa1d(k, :)
-            p(1:nc1) = iph1d(k, :)
+            e(1:na1) = ext1d(k, act1)
+            s(1:na1) = ssa1d(k, act1)
+            p(1:na1) = iph1d(k, act1)
             if (k >= kf_lo .and. k <= kf_hi) then
               do ic = 1, nc3
-                e(nc1 + ic) = ext3d(ix, iy, k - kf_lo + 1, ic)
-                s(nc1 + ic) = ssa3d(ix, iy, k - kf_lo + 1, ic)
+                e(na1 + ic) = ext3d(ix, iy, k - kf_lo + 1, ic)
+                s(na1 + ic) = ssa3d(ix, iy, k - kf_lo + 1, ic)
                 if (present(iph3d)) then
-                  p(nc1 + ic) = iph3d(ix, iy, k - kf_lo + 1, ic)
+                  p(na1 + ic) = iph3d(ix, iy, k - kf_lo + 1, ic)
                 else
-                  p(nc1 + ic) = 1
+                  p(na1 + ic) = 1
                 end if
               end do
             else if (nc3 > 0) then
-              e(nc1 + 1:) = 0.0_wp
-              s(nc1 + 1:) = 0.0_wp
-              p(nc1 + 1:) = 1
+              e(na1 + 1:) = 0.0_wp
+              s(na1 + 1:) = 0.0_wp
+              p(na1 + 1:) = 1
             end if
             call mix(e, s, atm%ext3(ix, iy, kr), atm%omg3(ix, iy, kr), csca)
             if (ncomp > 1) atm%csca3(:, ix, iy, kr) = csca

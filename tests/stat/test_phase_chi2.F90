@@ -10,7 +10,7 @@
 !> passes when chi^2 < 148.230, the 0.999 quantile of the chi-square distribution with 99
 !> degrees of freedom.
 module test_kumo_phase_chi2
-  use kumo_textio, only: read_two_columns
+  use kumo_test_text, only: read_table
   use kumo_kinds, only: wp, i8
   use kumo_constants, only: DEG2RAD
   use kumo_rng, only: rng_t, rng_init, rng_uniform
@@ -220,15 +220,6 @@ contains
     call check(error, chi2 < CHI2_999_DF99, trim(msg))
   end subroutine chi2_test
 
-  !> Read the two-column table with kumo's own reader; a failure becomes the test's error.
-  subroutine read_table(path, angle, value, error)
-    character(len=*), intent(in) :: path
-    real(wp), allocatable, intent(out) :: angle(:), value(:)
-    type(error_t), allocatable, intent(inout) :: error
-    type(error_t), allocatable :: err
-    call read_two_columns(path, angle, value, err)
-    if (allocated(err)) call check(error, .false., err%message)
-  end subroutine read_table
 end module test_kumo_phase_chi2
 
 program test_phase_chi2

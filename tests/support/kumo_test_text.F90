@@ -1,9 +1,12 @@
 ! SPDX-License-Identifier: BSD-3-Clause
 !> Text helpers shared by the tests that read reference tables.
 module kumo_test_text
+  use kumo_kinds, only: wp
+  use kumo_textio, only: read_two_columns
+  use kumo_testing, only: error_t, check
   implicit none
   private
-  public :: split
+  public :: split, read_table
 
 contains
 
@@ -28,4 +31,14 @@ contains
       i0 = i + 1
     end do
   end subroutine split
+
+  !> Read a two-column table with kumo's own reader; a failure becomes the test's error.
+  subroutine read_table(path, angle, value, error)
+    character(len=*), intent(in) :: path
+    real(wp), allocatable, intent(out) :: angle(:), value(:)
+    type(error_t), allocatable, intent(inout) :: error
+    type(error_t), allocatable :: err
+    call read_two_columns(path, angle, value, err)
+    if (allocated(err)) call check(error, .false., err%message)
+  end subroutine read_table
 end module kumo_test_text

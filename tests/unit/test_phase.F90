@@ -8,7 +8,7 @@
 module test_kumo_phase
   use, intrinsic :: iso_fortran_env, only: real128
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_positive_inf
-  use kumo_textio, only: read_two_columns
+  use kumo_test_text, only: read_table
   use kumo_kinds, only: wp
   use kumo_constants, only: PI, DEG2RAD
   use kumo_phase, only: PHASE_ISOTROPIC, PHASE_RAYLEIGH, PHASE_HG, PHASE_TABLE, PHASE_NAMES, &
@@ -166,15 +166,6 @@ contains
     end if
   end function c1_path
 
-  !> Read the two-column table with kumo's own reader; a failure becomes the test's error.
-  subroutine read_table(path, angle, value, error)
-    character(len=*), intent(in) :: path
-    real(wp), allocatable, intent(out) :: angle(:), value(:)
-    type(error_t), allocatable, intent(inout) :: error
-    type(error_t), allocatable :: err
-    call read_two_columns(path, angle, value, err)
-    if (allocated(err)) call check(error, .false., err%message)
-  end subroutine read_table
 
   !> Fail unless `err` is allocated and its message contains every string in `parts`.
   subroutine expect_error(error, err, parts, what)

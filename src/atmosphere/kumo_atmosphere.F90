@@ -51,10 +51,8 @@ module kumo_atmosphere
     real(wp), allocatable :: omg1(:)         !! 1-D layers: mixture single-scattering albedo
     real(wp), allocatable :: csca1(:, :)     !! (ncomp1, nz) cumulative scattering fraction
     integer, allocatable :: iph1(:, :)       !! (ncomp1, nz) phase function per component
-    !> (2, nx, ny, n3): total extinction [m-1] and mixture single-scattering albedo of each
-    !> voxel side by side, so that a real collision finds its albedo in the cache line that the
-    !> null-collision test has just read
-    real(wp), allocatable :: eo3(:, :, :, :)
+    real(wp), allocatable :: ext3(:, :, :)   !! (nx, ny, n3) total extinction [m-1]
+    real(wp), allocatable :: omg3(:, :, :)   !! (nx, ny, n3) mixture single-scattering albedo
     real(wp), allocatable :: csca3(:, :, :, :) !! (ncomp, nx, ny, n3) cumulative fractions;
                                                !! allocated only when ncomp > 1
     integer, allocatable :: iph3(:, :, :, :) !! (ncomp, nx, ny, n3) phase function index;
@@ -186,7 +184,7 @@ contains
       na1 = size(act1)
       ncomp = na1 + nc3
       atm%ncomp = ncomp
-      allocate (atm%eo3(2, atm%nx, atm%ny, atm%n3))
+      allocate (atm%ext3(atm%nx, atm%ny, atm%n3), atm%omg3(atm%nx, atm%ny, atm%n3))
       ! Per-voxel scattering fractions and phase indices are kept only when the photon loop
       ! needs them: one component needs no choice, and a phase index that is the same in every
       ! voxel is stored once. This keeps the voxel data of large fields in the caches.
@@ -225,14 +223,14 @@ contains
               s(na1 + 1:) = 0.0_wp
               p(na1 + 1:) = 1
             end if
-            call mix(e, s, atm%eo3(1, ix, iy, kr), atm%eo3(2, ix, iy, kr), csca)
+            call mix(e, s, atm%ext3(ix, iy, kr), atm%omg3(ix, iy, kr), csca)
             if (ncomp > 1) atm%csca3(:, ix, iy, kr) = csca
             if (phase_varies) atm%iph3(:, ix, iy, kr) = p
             if (kr == 1 .and. ix == 1 .and. iy == 1) atm%iph3_const = p
           end do
         end do
       end do
-      call build_supervoxels(atm%eo3(1, :, :, :), atm%dx, atm%dy, z(klo:khi) - z(klo - 1:khi - 1), &
+      call build_supervoxels(atm%ext3, atm%dx, atm%dy, z(klo:khi) - z(klo - 1:khi - 1), &
                              opts%sv, atm%sv)
     end if
   end subroutine atmosphere_init

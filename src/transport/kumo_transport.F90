@@ -196,7 +196,7 @@ contains
             order = order + 1
             ! absorption and the scattering component (seed text section 3.4.3 b)
             if (in3d) then
-              wn = w*atm%eo3(2, ix, iy, kr)
+              wn = w*atm%omg3(ix, iy, kr)
               tal%buf(lay%i_abs + iz) = tal%buf(lay%i_abs + iz) + (w - wn)
               if (lay%do_voxel) then
                 ic = lay%i_vox + (kr - 1)*lay%ncol + ix + (iy - 1)*atm%nx
@@ -474,7 +474,7 @@ contains
           tal%anomalies(ANOM_POSITION_REPAIR) = tal%anomalies(ANOM_POSITION_REPAIR) + 1
         end if
         kr = iz - atm%k3_lo + 1
-        if (rng_uniform(rng)*smax < atm%eo3(1, ix, iy, kr)) then
+        if (rng_uniform(rng)*smax < atm%ext3(ix, iy, kr)) then
           call wrap(x, atm%lx)
           call wrap(y, atm%ly)
           ev = EV_COLLISION

@@ -17,10 +17,12 @@ module kumo_atmosphere
   use kumo_kinds, only: wp
   use kumo_error, only: error_t, set_error, str
   use kumo_phase, only: phase_t
+  use kumo_truncation, only: truncation_t
   use kumo_supervoxel, only: supervoxel_grid_t, supervoxel_options_t, build_supervoxels
   implicit none
   private
-  public :: atmosphere_t, atmosphere_options_t, atmosphere_init
+  public :: atmosphere_t, atmosphere_options_t, atmosphere_init, atmosphere_set_truncation
+  public :: column_of, sigma_trunc_3d
   public :: LAYER_CLEAR, LAYER_ABSORBING, LAYER_SCATTERING, LAYER_3D, LAYER_CLASS_NAMES
 
   integer, parameter :: LAYER_CLEAR = 0, LAYER_ABSORBING = 1, LAYER_SCATTERING = 2, LAYER_3D = 3
@@ -60,6 +62,11 @@ module kumo_atmosphere
     integer, allocatable :: iph3_const(:)    !! (ncomp) phase index when it is the same everywhere
     type(phase_t), allocatable :: phases(:)  !! phase functions referenced by index
     type(supervoxel_grid_t) :: sv            !! majorant grid of the 3-D region
+    logical, allocatable :: uniform3(:)      !! (n3) every voxel of the 3-D layer is the same
+    ! Truncation of forward peaks (set by atmosphere_set_truncation; off by default)
+    logical :: truncated = .false.           !! truncation levels > 1 exist
+    type(truncation_t) :: trunc              !! delta fractions per level and phase function
+    real(wp), allocatable :: ext1_lev(:, :)  !! (nz, n_levels) truncated extinction of 1-D layers
   end type atmosphere_t
 
 contains
@@ -232,8 +239,93 @@ contains
       end do
       call build_supervoxels(atm%ext3, atm%dx, atm%dy, z(klo:khi) - z(klo - 1:khi - 1), &
                              opts%sv, atm%sv)
+      allocate (atm%uniform3(atm%n3))
+      do kr = 1, atm%n3
+        atm%uniform3(kr) = all(atm%ext3(:, :, kr) == atm%ext3(1, 1, kr)) .and. &
+                           all(atm%omg3(:, :, kr) == atm%omg3(1, 1, kr))
+        if (allocated(atm%csca3)) then
+          do ic = 1, ncomp
+            atm%uniform3(kr) = atm%uniform3(kr) .and. &
+                               all(atm%csca3(ic, :, :, kr) == atm%csca3(ic, 1, 1, kr))
+          end do
+        end if
+        if (allocated(atm%iph3)) then
+          do ic = 1, ncomp
+            atm%uniform3(kr) = atm%uniform3(kr) .and. &
+                               all(atm%iph3(ic, :, :, kr) == atm%iph3(ic, 1, 1, kr))
+          end do
+        end if
+      end do
     end if
   end subroutine atmosphere_init
+
+  !> Switch truncation on: store the delta fractions and the truncated extinction of the 1-D
+  !> layers per level (sigma_a + sum_i (1 - f_i) sigma_s,i, seed text eq. 4.2.20 per component).
+  !> The photon loop keeps the original extinction and turns the delta part into forward
+  !> scatterings; local estimates use the truncated extinction (see kumo_transport).
+  subroutine atmosphere_set_truncation(atm, tr)
+    type(atmosphere_t), intent(inout) :: atm
+    type(truncation_t), intent(in) :: tr
+    integer :: k, l, ic, nc
+    real(wp) :: fbar, prev
+    atm%trunc = tr
+    atm%truncated = tr%n_levels > 1
+    allocate (atm%ext1_lev(atm%nz, tr%n_levels))
+    nc = atm%ncomp1
+    do l = 1, tr%n_levels
+      do k = 1, atm%nz
+        fbar = 0.0_wp
+        prev = 0.0_wp
+        do ic = 1, nc
+          fbar = fbar + (atm%csca1(ic, k) - prev)*tr%f(l, atm%iph1(ic, k))
+          prev = atm%csca1(ic, k)
+        end do
+        atm%ext1_lev(k, l) = atm%ext1(k)*(1.0_wp - atm%omg1(k)*fbar)
+      end do
+    end do
+  end subroutine atmosphere_set_truncation
+
+  !> Truncated extinction of voxel (ix, iy, kr) at truncation level `lev` [m-1].
+  pure function sigma_trunc_3d(atm, ix, iy, kr, lev) result(sig)
+    type(atmosphere_t), intent(in) :: atm
+    integer, intent(in) :: ix, iy, kr, lev
+    real(wp) :: sig
+    real(wp) :: fbar, prev
+    integer :: ic, iph
+    sig = atm%ext3(ix, iy, kr)
+    if (lev <= 1 .or. sig <= 0.0_wp) return
+    if (atm%ncomp == 1) then
+      if (allocated(atm%iph3)) then
+        iph = atm%iph3(1, ix, iy, kr)
+      else
+        iph = atm%iph3_const(1)
+      end if
+      fbar = atm%trunc%f(lev, iph)
+    else
+      fbar = 0.0_wp
+      prev = 0.0_wp
+      do ic = 1, atm%ncomp
+        if (allocated(atm%iph3)) then
+          iph = atm%iph3(ic, ix, iy, kr)
+        else
+          iph = atm%iph3_const(ic)
+        end if
+        fbar = fbar + (atm%csca3(ic, ix, iy, kr) - prev)*atm%trunc%f(lev, iph)
+        prev = atm%csca3(ic, ix, iy, kr)
+      end do
+    end if
+    sig = sig*(1.0_wp - atm%omg3(ix, iy, kr)*fbar)
+  end function sigma_trunc_3d
+
+  !> Column (1..nx*ny) of the 3-D grid under (x, y).
+  pure integer function column_of(atm, x, y) result(icol)
+    type(atmosphere_t), intent(in) :: atm
+    real(wp), intent(in) :: x, y
+    integer :: ix, iy
+    ix = min(atm%nx, max(1, int(x*atm%inv_dx) + 1))
+    iy = min(atm%ny, max(1, int(y*atm%inv_dy) + 1))
+    icol = ix + (iy - 1)*atm%nx
+  end function column_of
 
   !> Total extinction, mixture albedo and cumulative scattering fractions of one cell.
   pure subroutine mix(ext, ssa, ext_tot, omega, csca)

@@ -5,7 +5,7 @@ module kumo_math
   use kumo_kinds, only: wp
   implicit none
   private
-  public :: rotate_direction, within, UZ_MIN
+  public :: rotate_direction, within, wrap, UZ_MIN
 
   !> Smallest |uz| a photon may travel with. Plane crossings divide by uz; directions closer to
   !> the horizontal are nudged to this value and the nudge is counted as an anomaly.
@@ -46,4 +46,13 @@ contains
     uy = vy*norm
     uz = vz*norm
   end subroutine rotate_direction
+
+  !> Map a coordinate back into the periodic interval [0, l).
+  pure subroutine wrap(x, l)
+    real(wp), intent(inout) :: x
+    real(wp), intent(in) :: l
+    if (x >= 0.0_wp .and. x < l) return
+    x = modulo(x, l)
+    if (x >= l) x = 0.0_wp
+  end subroutine wrap
 end module kumo_math

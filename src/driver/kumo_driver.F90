@@ -5,15 +5,18 @@
 !> it directly. `run_case` is what the program does: read the namelist, check that the output
 !> can be written, simulate, log and write the netCDF file.
 module kumo_driver
-  use, intrinsic :: iso_fortran_env, only: output_unit
+  use, intrinsic :: iso_fortran_env, only: output_unit, error_unit
   use kumo_kinds, only: wp, dp, i8
-  use kumo_constants, only: KUMO_VERSION, DEG2RAD, SECONDS_PER_DAY
+  use kumo_constants, only: KUMO_VERSION, DEG2RAD, SECONDS_PER_DAY, PI
   use kumo_error, only: error_t, set_error, add_context, str
   use kumo_rng, only: rng_t, rng_init
   use kumo_phase, only: phase_t, new_phase_isotropic, new_phase_rayleigh, new_phase_hg, phase_from_table, &
-                        PHASE_ISOTROPIC, PHASE_RAYLEIGH, PHASE_HG, PHASE_TABLE
+                        PHASE_ISOTROPIC, PHASE_RAYLEIGH, PHASE_HG, PHASE_TABLE, phase_eval
   use kumo_atmosphere, only: atmosphere_t, atmosphere_options_t, atmosphere_init, &
-                             LAYER_CLASS_NAMES
+                             atmosphere_set_truncation, LAYER_CLASS_NAMES, LAYER_3D
+  use kumo_truncation, only: truncation_t, truncation_init
+  use kumo_camera, only: camera_t, camera_init, CAMERA_PINHOLE, CAMERA_ORTHOGRAPHIC
+  use kumo_local_estimate, only: detectors_t, detectors_init
   use kumo_surface, only: surface_t, surface_init
   use kumo_tally, only: tally_layout_t, tally_t, stats_t, layout_init, tally_reset, stats_init, &
                         stats_add_batch, stats_mean, stats_stderr, N_ANOMALIES, ANOMALY_NAMES
@@ -34,8 +37,13 @@ module kumo_driver
     type(surface_t) :: sfc
     type(source_t) :: src
     type(tracer_options_t) :: tracer
+    type(detectors_t) :: det                 !! radiance detectors and cameras
     real(wp) :: mu0 = 1.0_wp
+    character(len=:), allocatable :: warnings !! for the log and the output file
   end type scene_t
+
+  !> A phase function whose forward value exceeds this is "spiky" for local estimates.
+  real(wp), parameter :: SPIKY_PEAK = 50.0_wp
 
   !> Figures of a finished run, for the log and for tests.
   type :: run_summary_t
@@ -173,7 +181,87 @@ contains
     ! flight steps (null collisions, face crossings) per event are many but bounded: the step cap
     ! only catches a photon that no longer makes progress
     scene%tracer%max_steps = max(1000000000_i8, min(huge(1_i8)/2000_i8, cfg%control%max_events)*1000_i8)
+
+    call setup_estimators(cfg, phases, scene, error)
   end subroutine setup_scene
+
+  !> Radiance detectors, cameras and the variance reduction that serves them. Truncation and
+  !> collision forcing act on local estimates only, so they are set up only when radiances or
+  !> cameras are requested: a flux run pays for neither.
+  subroutine setup_estimators(cfg, phases, scene, error)
+    type(config_t), intent(in) :: cfg
+    type(phase_t), intent(in) :: phases(:)
+    type(scene_t), intent(inout) :: scene
+    type(error_t), allocatable, intent(out) :: error
+    type(camera_t), allocatable :: cams(:)
+    type(truncation_t) :: tr
+    real(wp) :: tau_col
+    integer :: i, k, kind
+    logical :: spiky
+
+    scene%warnings = ''
+    allocate (cams(cfg%cam%n))
+    do i = 1, cfg%cam%n
+      kind = CAMERA_PINHOLE
+      if (cfg%cam%kind(i) == 'orthographic') kind = CAMERA_ORTHOGRAPHIC
+      call camera_init(cams(i), kind, cfg%cam%pos(:, i), cfg%cam%look_zenith_deg(i), &
+                       cfg%cam%look_azimuth_deg(i), cfg%cam%roll_deg(i), cfg%cam%fov_deg(i), &
+                       cfg%cam%width(i), cfg%cam%npx(i), cfg%cam%npy(i), cfg%atm%lx, cfg%atm%ly, &
+                       scene%atm%z(scene%atm%nz), error)
+      if (allocated(error)) then
+        call add_context(error, '&kumo_camera: camera '//str(i))
+        return
+      end if
+    end do
+    if (allocated(cfg%rad%mu)) then
+      call detectors_init(scene%det, cfg%rad%mu, cfg%rad%phi_deg, cfg%rad%levels, cams, &
+                          cfg%vr%zeta_min, cfg%atm%lx, cfg%atm%ly)
+    else   ! a configuration built in code without radiances
+      call detectors_init(scene%det, [real(wp) ::], [real(wp) ::], [integer ::], cams, &
+                          cfg%vr%zeta_min, cfg%atm%lx, cfg%atm%ly)
+    end if
+    if (.not. scene%det%active) return
+
+    if (cfg%vr%trunc_levels > 1) then
+      call truncation_init(tr, phases, cfg%vr%trunc_theta_max_deg, cfg%vr%trunc_levels, &
+                           cfg%vr%trunc_peak, error)
+      if (allocated(error)) then
+        call add_context(error, '&kumo_vr: truncation')
+        return
+      end if
+      call atmosphere_set_truncation(scene%atm, tr)
+    end if
+
+    ! Collision forcing: the extinction is raised uniformly so that the domain-mean column
+    ! optical depth is at least cf_tau_min (the MCARaTS rule, digest section 19.4 a).
+    associate (atm => scene%atm)
+      tau_col = 0.0_wp
+      do k = 1, atm%nz
+        if (atm%layer_class(k) == LAYER_3D) then
+          tau_col = tau_col + sum(atm%ext3(:, :, k - atm%k3_lo + 1))/(atm%nx*atm%ny)* &
+                    (atm%z(k) - atm%z(k - 1))
+        else
+          tau_col = tau_col + atm%ext1(k)*(atm%z(k) - atm%z(k - 1))
+        end if
+      end do
+    end associate
+    if (tau_col > 0.0_wp .and. tau_col < cfg%vr%cf_tau_min) then
+      scene%tracer%cf_factor = cfg%vr%cf_tau_min/tau_col
+    end if
+
+    ! MYSTIC stops in this situation; kumo warns: local estimates with a forward peak and no
+    ! variance reduction converge very slowly (one rare near-forward scattering dominates).
+    spiky = .false.
+    do i = 1, size(phases)
+      if (phase_eval(phases(i), 1.0_wp) > SPIKY_PEAK) spiky = .true.
+    end do
+    if (spiky .and. cfg%vr%zeta_min <= 0.0_wp .and. .not. scene%atm%truncated) then
+      scene%warnings = 'radiances are requested for a phase function with a forward peak '// &
+                       '(P(0) > '//str(SPIKY_PEAK)//') with local-estimate roulette and '// &
+                       'truncation off: pixel radiances will be very noisy; vr_preset = '// &
+                       '"unbiased" (roulette) or "standard" (also truncation) is recommended'
+    end if
+  end subroutine setup_estimators
 
   !> Rank 0 reads the 3-D optical properties and broadcasts them; every rank ends with the same
   !> arrays, or the same error.
@@ -262,8 +350,8 @@ contains
     real(dp) :: t0, t1, c0, c1, cpu, buf2(3), rel
     integer(i8) :: nphot, counts(4 + N_ANOMALIES)
     integer :: ib, ib_next, nb_round, rank, nranks, itarget, nb_done
-    integer, allocatable :: map_levels(:)
-    logical :: maps, voxel
+    integer, allocatable :: map_levels(:), cam_npix(:)
+    logical :: maps, voxel, rad_maps
 
     t0 = par_wtime()
     rank = par_rank()
@@ -280,7 +368,13 @@ contains
     else
       allocate (map_levels(0))
     end if
-    call layout_init(lay, scene%atm%nz, scene%atm%nx*scene%atm%ny, scene%atm%n3, map_levels, voxel)
+    rad_maps = cfg%rad%maps .and. scene%atm%n3 > 0 .and. (scene%atm%nx > 1 .or. scene%atm%ny > 1)
+    allocate (cam_npix(cfg%cam%n))
+    if (cfg%cam%n > 0) cam_npix = cfg%cam%npx*cfg%cam%npy
+    call layout_init(lay, scene%atm%nz, scene%atm%nx*scene%atm%ny, scene%atm%n3, map_levels, &
+                     voxel, scene%det%n_dir, scene%det%levels, rad_maps, cam_npix)
+    if (par_is_root() .and. len(scene%warnings) > 0) write (error_unit, '(a)') &
+      'kumo: warning: '//scene%warnings
     call stats_init(st, lay)
     call tally_reset(tal, lay)
 
@@ -308,7 +402,8 @@ contains
         if (mod(ib - 1, nranks) /= rank) cycle
         call rng_init(rng, cfg%control%seed, int(ib, i8))
         call tally_reset(tal, lay)
-        call trace_batch(scene%atm, scene%sfc, scene%src, scene%tracer, lay, rng, nphot, tal)
+        call trace_batch(scene%atm, scene%sfc, scene%src, scene%tracer, lay, scene%det, rng, &
+                         nphot, tal)
         call stats_add_batch(st, lay, tal, nphot)
         rec(1, ib) = tal%buf(lay%i_up + lay%nz + 1)/real(nphot, dp)
         rec(2, ib) = (tal%buf(lay%i_dir + 1) + tal%buf(lay%i_dif + 1))/real(nphot, dp)
@@ -507,6 +602,8 @@ contains
         end if
       end if
 
+      call radiance_results()
+
       call add_var(set, 'batch_reflectance', 'reflectance of each batch', '1', ['batch'], rec(1, :))
       call add_var(set, 'batch_transmittance', 'transmittance of each batch', '1', ['batch'], &
                    rec(2, :))
@@ -538,6 +635,9 @@ contains
       call add_attr(set, 'events_per_photon', &
                     str(real(summary%events, dp)/real(max(1_i8, summary%n_photons), dp)))
       call add_attr(set, 'layer_classes', classes())
+      call add_attr(set, 'collision_forcing_factor', str(scene%tracer%cf_factor))
+      call add_attr(set, 'truncation_levels', str(atm%trunc%n_levels))
+      if (len(scene%warnings) > 0) call add_attr(set, 'warnings', scene%warnings)
       call add_attr(set, 'supervoxels', sv_text())
       do i = 1, N_ANOMALIES
         call add_attr(set, 'anomaly_'//trim(ANOMALY_NAMES(i)), str(summary%anomalies(i)))
@@ -545,6 +645,63 @@ contains
     end associate
 
   contains
+
+    !> Radiances at levels (domain means and maps) and camera images, as pi I/(mu0 F0), and
+    !> in W m-2 sr-1 when F0 is known.
+    subroutine radiance_results()
+      integer :: nd, nl, nn, c, np
+      real(dp), allocatable :: mr(:), er(:)
+      character(len=:), allocatable :: cn
+      character(len=*), parameter :: RNORM = 'pi times radiance divided by the incident solar'// &
+        ' flux on a horizontal plane (diffuse light only; the bidirectional reflectance factor'// &
+        ' for upward light at the top)'
+      nd = lay%n_rad_dir
+      nl = lay%n_rad_lev
+      if (nd > 0) then
+        call add_dim(set, 'direction', nd, coord=real(cfg%rad%mu, dp), units='1', &
+                     long_name='cosine of the propagation direction from the upward vertical'// &
+                     ' (> 0: upward light, seen by a downward-looking sensor)')
+        call add_var(set, 'direction_phi', 'azimuth of the propagation direction (same frame '// &
+                     'as phi0_deg: from +x towards +y)', 'degree', ['direction'], &
+                     real(cfg%rad%phi_deg, dp))
+        call add_dim(set, 'rad_level', nl, coord=z(cfg%rad%levels), units='m', &
+                     long_name='height of the radiance levels')
+        nn = nd*nl
+        call put('radiance', RNORM, [(lay%i_rad + i, i=1, nn)], &
+                 dims=['rad_level', 'direction'])
+        if (f_hor > 0.0_dp) then
+          mr = stats_mean1([(lay%i_rad + i, i=1, nn)])*f_hor/PI
+          er = stats_err1([(lay%i_rad + i, i=1, nn)])*f_hor/PI
+          call add_var(set, 'radiance_wm2sr', 'diffuse radiance', 'W m-2 sr-1', &
+                       ['rad_level', 'direction'], mr, er)
+        end if
+        if (lay%do_rad_maps) then
+          if (.not. (lay%do_maps .or. lay%do_voxel)) then
+            call add_dim(set, 'x', scene%atm%nx, units='m', long_name='x of the column centres', &
+                         coord=[((i - 0.5_dp)*scene%atm%dx, i=1, scene%atm%nx)])
+            call add_dim(set, 'y', scene%atm%ny, units='m', long_name='y of the column centres', &
+                         coord=[((i - 0.5_dp)*scene%atm%dy, i=1, scene%atm%ny)])
+          end if
+          call put('radiance_map', RNORM//', per column', &
+                   [(lay%i_rad_map + i, i=1, nn*ncol)], &
+                   dims=['x        ', 'y        ', 'rad_level', 'direction'])
+        end if
+      end if
+      do c = 1, size(lay%i_cam)
+        cn = 'camera'//str(c)
+        np = cfg%cam%npx(c)*cfg%cam%npy(c)
+        call add_dim(set, cn//'_x', cfg%cam%npx(c), long_name='pixel column of camera '//str(c))
+        call add_dim(set, cn//'_y', cfg%cam%npy(c), long_name='pixel row of camera '//str(c))
+        call put(cn//'_radiance', RNORM//', mean over each pixel of camera '//str(c), &
+                 [(lay%i_cam(c) + i, i=1, np)], dims=[cn//'_x', cn//'_y'])
+        if (f_hor > 0.0_dp) then
+          call add_var(set, cn//'_radiance_wm2sr', 'radiance, mean over each pixel', &
+                       'W m-2 sr-1', [cn//'_x', cn//'_y'], &
+                       stats_mean1([(lay%i_cam(c) + i, i=1, np)])*f_hor/PI, &
+                       stats_err1([(lay%i_cam(c) + i, i=1, np)])*f_hor/PI)
+        end if
+      end do
+    end subroutine radiance_results
 
     subroutine put(name, long_name, idx, dims)
       character(len=*), intent(in) :: name, long_name

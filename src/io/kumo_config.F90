@@ -17,12 +17,15 @@ module kumo_config
   implicit none
   private
   public :: config_t, control_cfg_t, atmosphere_cfg_t, phase_cfg_t, surface_cfg_t, &
-            source_cfg_t, output_cfg_t, vr_cfg_t, read_config, config_echo
-  public :: MAX_LAYERS, MAX_COMP, MAX_PHASE, TARGET_NAMES
+            source_cfg_t, output_cfg_t, vr_cfg_t, radiance_cfg_t, camera_cfg_t, read_config, &
+            config_echo
+  public :: MAX_LAYERS, MAX_COMP, MAX_PHASE, MAX_DIR, MAX_CAMERAS, TARGET_NAMES, PRESET_NAMES
 
   integer, parameter :: MAX_LAYERS = 2000   !! most layers a namelist can describe
   integer, parameter :: MAX_COMP = 8        !! most components per layer
   integer, parameter :: MAX_PHASE = 64      !! most phase functions
+  integer, parameter :: MAX_DIR = 64        !! most radiance directions
+  integer, parameter :: MAX_CAMERAS = 8     !! most cameras
   integer, parameter :: PATH_LEN = 512
   real(wp), parameter :: UNSET = -huge(1.0_wp)
   real(wp), parameter :: BIG = huge(1.0_wp)      !! largest finite value
@@ -30,9 +33,17 @@ module kumo_config
   integer, parameter :: IUNSET = -huge(1)
   character(len=16), parameter :: TARGET_NAMES(3) = &
     [character(len=16) :: 'reflectance', 'transmittance', 'absorptance']
-  character(len=16), parameter :: GROUP_NAMES(7) = &
+  character(len=16), parameter :: GROUP_NAMES(9) = &
     [character(len=16) :: 'kumo_control', 'kumo_atmosphere', 'kumo_phase', 'kumo_surface', &
-     'kumo_source', 'kumo_output', 'kumo_vr']
+     'kumo_source', 'kumo_output', 'kumo_vr', 'kumo_radiance', 'kumo_camera']
+  !> Variance-reduction presets, from none to the most aggressive (see read_vr).
+  character(len=16), parameter :: PRESET_NAMES(4) = &
+    [character(len=16) :: 'analog', 'unbiased', 'standard', 'quick']
+  ! Preset values, in the order of PRESET_NAMES (MCARaTS ladder, state-of-the-art C1, B2, B6).
+  real(wp), parameter :: PRESET_ZETA(4) = [0.0_wp, 0.3_wp, 0.3_wp, 0.3_wp]
+  real(wp), parameter :: PRESET_TRUNC_DEG(4) = [0.0_wp, 0.0_wp, 30.0_wp, 45.0_wp]
+  integer, parameter :: PRESET_TRUNC_LEVELS(4) = [1, 1, 4, 3]
+  real(wp), parameter :: PRESET_CF_TAU(4) = [0.0_wp, 1.0_wp, 2.0_wp, 3.0_wp]
 
   !> &kumo_control: photon budget, seeding and stopping rule.
   type :: control_cfg_t
@@ -106,7 +117,34 @@ module kumo_config
     integer :: sv_max_layers = 50                  !! most layers per super-layer
     logical :: use_1d_layers = .true.              !! analytic 1-D layers (else 3-D tracer)
     logical :: use_absorbing_layers = .true.       !! absorbing layers without collisions
+    character(len=16) :: preset = 'unbiased'       !! one of PRESET_NAMES
+    real(wp) :: zeta_min = 0.3_wp                  !! local-estimate roulette threshold (BRF)
+    real(wp) :: trunc_theta_max_deg = 0.0_wp       !! largest truncation angle (0 = off)
+    integer :: trunc_levels = 1                    !! truncation levels (1 = off)
+    real(wp) :: trunc_peak = 30.0_wp               !! P >= this is a scattering into the peak
+    real(wp) :: cf_tau_min = 1.0_wp                !! collision forcing: least column depth
   end type vr_cfg_t
+
+  !> &kumo_radiance: radiances by local estimation at levels, in chosen directions.
+  type :: radiance_cfg_t
+    real(wp), allocatable :: mu(:)                 !! cosine of the propagation direction
+    real(wp), allocatable :: phi_deg(:)            !! azimuth of the propagation direction [deg]
+    integer, allocatable :: levels(:)              !! levels (0..nz) with radiance detectors
+    logical :: maps = .true.                       !! per-column radiance maps (3-D scenes)
+  end type radiance_cfg_t
+
+  !> &kumo_camera: perspective (pinhole) and orthographic cameras.
+  type :: camera_cfg_t
+    integer :: n = 0                               !! number of cameras
+    character(len=16), allocatable :: kind(:)      !! 'pinhole' or 'orthographic'
+    real(wp), allocatable :: pos(:, :)             !! (3, n) position [m]
+    real(wp), allocatable :: look_zenith_deg(:)    !! zenith angle of the viewing direction
+    real(wp), allocatable :: look_azimuth_deg(:)   !! azimuth of the viewing direction
+    real(wp), allocatable :: roll_deg(:)           !! rotation of the image about the view axis
+    real(wp), allocatable :: fov_deg(:)            !! pinhole: full field of view along x
+    real(wp), allocatable :: width(:)              !! orthographic: image width [m]
+    integer, allocatable :: npx(:), npy(:)         !! pixels along the image x and y axes
+  end type camera_cfg_t
 
   type :: config_t
     character(len=:), allocatable :: path          !! namelist file
@@ -117,6 +155,8 @@ module kumo_config
     type(source_cfg_t) :: source
     type(output_cfg_t) :: output
     type(vr_cfg_t) :: vr
+    type(radiance_cfg_t) :: rad
+    type(camera_cfg_t) :: cam
   end type config_t
 
 contains
@@ -144,6 +184,10 @@ contains
     if (.not. allocated(error)) call read_output(unit, present_groups(6), cfg%atm%nz, &
                                                  cfg%output, error)
     if (.not. allocated(error)) call read_vr(unit, present_groups(7), cfg%vr, error)
+    if (.not. allocated(error)) call read_radiance(unit, present_groups(8), cfg%atm%nz, &
+                                                   cfg%rad, error)
+    if (.not. allocated(error)) call read_camera(unit, present_groups(9), cfg%atm, cfg%cam, &
+                                                 error)
     close (unit)
     if (.not. allocated(error)) call consolidate(cfg, error)
   end subroutine read_config
@@ -587,11 +631,15 @@ contains
     type(vr_cfg_t), intent(inout) :: cfg
     type(error_t), allocatable, intent(out) :: error
     real(wp) :: rr_threshold, rr_weight, sv_fsupg, sv_fsupi
-    integer :: sv_max_layers, ios
+    integer :: sv_max_layers, ios, ip
     logical :: use_supervoxels, use_1d_layers, use_absorbing_layers
+    character(len=16) :: vr_preset
+    real(wp) :: zeta_min, trunc_theta_max_deg, trunc_peak, cf_tau_min
+    integer :: trunc_levels
     character(len=512) :: msg
     namelist /kumo_vr/ rr_threshold, rr_weight, use_supervoxels, sv_fsupg, sv_fsupi, &
-      sv_max_layers, use_1d_layers, use_absorbing_layers
+      sv_max_layers, use_1d_layers, use_absorbing_layers, vr_preset, zeta_min, &
+      trunc_theta_max_deg, trunc_levels, trunc_peak, cf_tau_min
     rr_threshold = cfg%rr_threshold
     rr_weight = cfg%rr_weight
     use_supervoxels = cfg%use_supervoxels
@@ -600,11 +648,57 @@ contains
     sv_max_layers = cfg%sv_max_layers
     use_1d_layers = cfg%use_1d_layers
     use_absorbing_layers = cfg%use_absorbing_layers
+    vr_preset = cfg%preset
+    zeta_min = UNSET
+    trunc_theta_max_deg = UNSET
+    trunc_levels = IUNSET
+    trunc_peak = cfg%trunc_peak
+    cf_tau_min = UNSET
     rewind (unit)
     msg = ''
     read (unit, nml=kumo_vr, iostat=ios, iomsg=msg)
     call check_read('kumo_vr', present, ios, msg, error)
     if (allocated(error)) return
+    ! The preset gives every technique a value; a variable set in the namelist overrides it.
+    ip = findloc(PRESET_NAMES, to_lower(adjustl(vr_preset)), 1)
+    if (ip == 0) then
+      call set_error(error, '&kumo_vr: vr_preset = "'//trim(vr_preset)//'" must be one of '// &
+                     join(PRESET_NAMES))
+      return
+    end if
+    cfg%preset = PRESET_NAMES(ip)
+    if (zeta_min == UNSET) zeta_min = PRESET_ZETA(ip)
+    if (trunc_theta_max_deg == UNSET) trunc_theta_max_deg = PRESET_TRUNC_DEG(ip)
+    if (trunc_levels == IUNSET) trunc_levels = PRESET_TRUNC_LEVELS(ip)
+    if (cf_tau_min == UNSET) cf_tau_min = PRESET_CF_TAU(ip)
+    if (.not. within(zeta_min, 0.0_wp, BIG)) then
+      call set_error(error, '&kumo_vr: zeta_min = '//str(zeta_min)//' must be >= 0 (0 = off)')
+      return
+    else if (.not. within(trunc_theta_max_deg, 0.0_wp, 89.0_wp)) then
+      call set_error(error, '&kumo_vr: trunc_theta_max_deg = '//str(trunc_theta_max_deg)// &
+                     ' must be within [0, 89] (0 = no truncation)')
+      return
+    else if (trunc_levels < 1 .or. trunc_levels > 16) then
+      call set_error(error, '&kumo_vr: trunc_levels = '//str(trunc_levels)// &
+                     ' must be within 1..16 (1 = no truncation)')
+      return
+    else if (.not. within(trunc_peak, SMALL, BIG)) then
+      call set_error(error, '&kumo_vr: trunc_peak = '//str(trunc_peak)//' must be > 0')
+      return
+    else if (.not. within(cf_tau_min, 0.0_wp, 1.0e6_wp)) then
+      call set_error(error, '&kumo_vr: cf_tau_min = '//str(cf_tau_min)// &
+                     ' must be within [0, 1e6] (0 = no collision forcing)')
+      return
+    end if
+    if (trunc_levels == 1 .or. trunc_theta_max_deg == 0.0_wp) then
+      trunc_levels = 1
+      trunc_theta_max_deg = 0.0_wp
+    end if
+    cfg%zeta_min = zeta_min
+    cfg%trunc_theta_max_deg = trunc_theta_max_deg
+    cfg%trunc_levels = trunc_levels
+    cfg%trunc_peak = trunc_peak
+    cfg%cf_tau_min = cf_tau_min
     if (.not. within(rr_weight, SMALL, BIG)) then
       call set_error(error, '&kumo_vr: rr_weight = '//str(rr_weight)//' must be > 0')
     else if (.not. within(rr_threshold, 0.0_wp, rr_weight)) then
@@ -624,6 +718,146 @@ contains
     cfg%use_1d_layers = use_1d_layers
     cfg%use_absorbing_layers = use_absorbing_layers
   end subroutine read_vr
+
+  subroutine read_radiance(unit, present, nz, cfg, error)
+    integer, intent(in) :: unit
+    logical, intent(in) :: present
+    integer, intent(in) :: nz
+    type(radiance_cfg_t), intent(inout) :: cfg
+    type(error_t), allocatable, intent(out) :: error
+    real(wp) :: rad_mu(MAX_DIR), rad_phi_deg(MAX_DIR)
+    integer :: rad_levels(MAX_LAYERS + 1), ios, n, nl, i
+    logical :: radiance_maps
+    character(len=512) :: msg
+    namelist /kumo_radiance/ rad_mu, rad_phi_deg, rad_levels, radiance_maps
+    rad_mu = UNSET
+    rad_phi_deg = UNSET
+    rad_levels = IUNSET
+    radiance_maps = cfg%maps
+    rewind (unit)
+    msg = ''
+    read (unit, nml=kumo_radiance, iostat=ios, iomsg=msg)
+    call check_read('kumo_radiance', present, ios, msg, error)
+    if (allocated(error)) return
+    n = count(rad_mu /= UNSET)
+    if (any(rad_mu(n + 1:) /= UNSET)) then
+      call set_error(error, '&kumo_radiance: rad_mu must be a list without gaps')
+      return
+    end if
+    if (any(rad_phi_deg(n + 1:) /= UNSET)) then
+      call set_error(error, '&kumo_radiance: rad_phi_deg has more entries than rad_mu ('// &
+                     str(n)//')')
+      return
+    end if
+    do i = 1, n
+      if (.not. within(abs(rad_mu(i)), 1.0e-6_wp, 1.0_wp)) then
+        call set_error(error, '&kumo_radiance: rad_mu('//str(i)//') = '//str(rad_mu(i))// &
+                       ' must satisfy 1e-6 <= |rad_mu| <= 1 (> 0: upward, < 0: downward)')
+        return
+      end if
+      if (rad_phi_deg(i) == UNSET) rad_phi_deg(i) = 0.0_wp
+      if (.not. ieee_is_finite(rad_phi_deg(i))) then
+        call set_error(error, '&kumo_radiance: rad_phi_deg('//str(i)//') must be finite')
+        return
+      end if
+    end do
+    nl = count(rad_levels /= IUNSET)
+    if (any(rad_levels(nl + 1:) /= IUNSET)) then
+      call set_error(error, '&kumo_radiance: rad_levels must be a list without gaps')
+      return
+    end if
+    if (nl == 0) then
+      cfg%levels = [0, nz]
+    else
+      cfg%levels = rad_levels(1:nl)
+      do i = 1, nl
+        if (cfg%levels(i) < 0 .or. cfg%levels(i) > nz) then
+          call set_error(error, '&kumo_radiance: rad_levels('//str(i)//') = '// &
+                         str(cfg%levels(i))//' must be within 0..nz = '//str(nz))
+          return
+        end if
+        if (i > 1) then
+          if (cfg%levels(i) <= cfg%levels(i - 1)) then
+            call set_error(error, '&kumo_radiance: rad_levels must increase strictly')
+            return
+          end if
+        end if
+      end do
+    end if
+    cfg%mu = rad_mu(1:n)
+    cfg%phi_deg = rad_phi_deg(1:n)
+    cfg%maps = radiance_maps
+  end subroutine read_radiance
+
+  subroutine read_camera(unit, present, atm, cfg, error)
+    integer, intent(in) :: unit
+    logical, intent(in) :: present
+    type(atmosphere_cfg_t), intent(in) :: atm
+    type(camera_cfg_t), intent(inout) :: cfg
+    type(error_t), allocatable, intent(out) :: error
+    integer, parameter :: M = MAX_CAMERAS
+    integer :: n_cameras, cam_npx(M), cam_npy(M), ios, i, n
+    character(len=16) :: cam_kind(M)
+    real(wp) :: cam_x(M), cam_y(M), cam_z(M), cam_look_zenith_deg(M), cam_look_azimuth_deg(M)
+    real(wp) :: cam_roll_deg(M), cam_fov_deg(M), cam_width(M)
+    character(len=512) :: msg
+    namelist /kumo_camera/ n_cameras, cam_kind, cam_x, cam_y, cam_z, cam_look_zenith_deg, &
+      cam_look_azimuth_deg, cam_roll_deg, cam_fov_deg, cam_width, cam_npx, cam_npy
+    n_cameras = 0
+    cam_kind = 'pinhole'
+    cam_x = 0.5_wp*atm%lx
+    cam_y = 0.5_wp*atm%ly
+    cam_z = UNSET
+    cam_look_zenith_deg = 180.0_wp
+    cam_look_azimuth_deg = 0.0_wp
+    cam_roll_deg = 0.0_wp
+    cam_fov_deg = 30.0_wp
+    cam_width = atm%lx
+    cam_npx = 64
+    cam_npy = 64
+    rewind (unit)
+    msg = ''
+    read (unit, nml=kumo_camera, iostat=ios, iomsg=msg)
+    call check_read('kumo_camera', present, ios, msg, error)
+    if (allocated(error)) return
+    if (n_cameras < 0 .or. n_cameras > M) then
+      call set_error(error, '&kumo_camera: n_cameras = '//str(n_cameras)// &
+                     ' must be within 0..'//str(M))
+      return
+    end if
+    do i = 1, n_cameras
+      cam_kind(i) = to_lower(adjustl(cam_kind(i)))
+      if (cam_kind(i) /= 'pinhole' .and. cam_kind(i) /= 'orthographic') then
+        call set_error(error, '&kumo_camera: cam_kind('//str(i)//') = "'//trim(cam_kind(i))// &
+                       '" must be "pinhole" or "orthographic"')
+        return
+      end if
+      if (cam_z(i) == UNSET) then
+        call set_error(error, '&kumo_camera: cam_z('//str(i)//') must be given [m]')
+        return
+      end if
+      if (cam_npx(i) < 1 .or. cam_npy(i) < 1 .or. &
+          int(cam_npx(i), i8)*cam_npy(i) > 16777216_i8) then
+        call set_error(error, '&kumo_camera: cam_npx('//str(i)//') and cam_npy('//str(i)// &
+                       ') must be >= 1, with at most 16777216 pixels')
+        return
+      end if
+    end do
+    n = n_cameras
+    cfg%n = n
+    cfg%kind = cam_kind(1:n)
+    allocate (cfg%pos(3, n))
+    cfg%pos(1, :) = cam_x(1:n)
+    cfg%pos(2, :) = cam_y(1:n)
+    cfg%pos(3, :) = cam_z(1:n)
+    cfg%look_zenith_deg = cam_look_zenith_deg(1:n)
+    cfg%look_azimuth_deg = cam_look_azimuth_deg(1:n)
+    cfg%roll_deg = cam_roll_deg(1:n)
+    cfg%fov_deg = cam_fov_deg(1:n)
+    cfg%width = cam_width(1:n)
+    cfg%npx = cam_npx(1:n)
+    cfg%npy = cam_npy(1:n)
+  end subroutine read_camera
 
   !> Cross-group checks.
   subroutine consolidate(cfg, error)
@@ -701,7 +935,26 @@ contains
            'kumo_vr.sv_fsupi = '//str(cfg%vr%sv_fsupi)//nl// &
            'kumo_vr.sv_max_layers = '//str(cfg%vr%sv_max_layers)//nl// &
            'kumo_vr.use_1d_layers = '//merge('T', 'F', cfg%vr%use_1d_layers)//nl// &
-           'kumo_vr.use_absorbing_layers = '//merge('T', 'F', cfg%vr%use_absorbing_layers)//nl
+           'kumo_vr.use_absorbing_layers = '//merge('T', 'F', cfg%vr%use_absorbing_layers)//nl// &
+           'kumo_vr.vr_preset = '//trim(cfg%vr%preset)//nl// &
+           'kumo_vr.zeta_min = '//str(cfg%vr%zeta_min)//nl// &
+           'kumo_vr.trunc_theta_max_deg = '//str(cfg%vr%trunc_theta_max_deg)//nl// &
+           'kumo_vr.trunc_levels = '//str(cfg%vr%trunc_levels)//nl// &
+           'kumo_vr.trunc_peak = '//str(cfg%vr%trunc_peak)//nl// &
+           'kumo_vr.cf_tau_min = '//str(cfg%vr%cf_tau_min)//nl
+    if (allocated(cfg%rad%mu)) text = text// &
+      'kumo_radiance.rad_mu = '//join_real(cfg%rad%mu)//nl// &
+      'kumo_radiance.rad_phi_deg = '//join_real(cfg%rad%phi_deg)//nl// &
+      'kumo_radiance.rad_levels = '//join_int(cfg%rad%levels)//nl// &
+      'kumo_radiance.radiance_maps = '//merge('T', 'F', cfg%rad%maps)//nl
+    text = text//'kumo_camera.n_cameras = '//str(cfg%cam%n)//nl
+    do i = 1, cfg%cam%n
+      text = text//'kumo_camera('//str(i)//') = '//trim(cfg%cam%kind(i))//' at '// &
+             join_real(cfg%cam%pos(:, i))//' look '//str(cfg%cam%look_zenith_deg(i))//' '// &
+             str(cfg%cam%look_azimuth_deg(i))//' roll '//str(cfg%cam%roll_deg(i))//' fov '// &
+             str(cfg%cam%fov_deg(i))//' width '//str(cfg%cam%width(i))//' pixels '// &
+             str(cfg%cam%npx(i))//' x '//str(cfg%cam%npy(i))//nl
+    end do
   end function config_echo
 
 

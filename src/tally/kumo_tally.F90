@@ -47,6 +47,15 @@ module kumo_tally
     integer :: i_map_dir = 0
     integer :: i_map_dif = 0
     integer :: i_vox = 0       !! voxel absorption: buf(i_vox + (kr-1)*ncol + icol)
+    integer :: n_rad_dir = 0   !! radiance directions
+    integer :: n_rad_lev = 0   !! radiance levels
+    integer, allocatable :: rad_slot(:) !! (0:nz) slot of each level in the radiance list, 0 = none
+    integer :: i_rad = 0       !! domain-mean radiance: buf(i_rad + (idir-1)*n_rad_lev + slot)
+    logical :: do_rad_maps = .false.
+    integer :: i_rad_map = 0   !! radiance map: buf(i_rad_map + ((idir-1)*n_rad_lev + slot-1)*ncol
+                               !! + icol)
+    integer :: i_cam0 = 0      !! entries after this one are camera pixels (domain scaling)
+    integer, allocatable :: i_cam(:)  !! camera c, pixel p: buf(i_cam(c) + p)
     integer :: n = 0           !! buffer length
   end type tally_layout_t
 
@@ -70,11 +79,17 @@ module kumo_tally
 contains
 
   !> Lay out the buffer. `map_levels` lists the levels (0..nz) that get per-column maps.
-  subroutine layout_init(lay, nz, ncol, n3, map_levels, do_voxel)
+  !> Radiances (optional): `n_rad_dir` directions at the levels `rad_levels` (0..nz), with
+  !> per-column maps if `rad_maps`, and cameras with `cam_npix(c)` pixels.
+  subroutine layout_init(lay, nz, ncol, n3, map_levels, do_voxel, n_rad_dir, rad_levels, &
+                         rad_maps, cam_npix)
     type(tally_layout_t), intent(out) :: lay
     integer, intent(in) :: nz, ncol, n3
     integer, intent(in) :: map_levels(:)
     logical, intent(in) :: do_voxel
+    integer, intent(in), optional :: n_rad_dir, rad_levels(:)
+    logical, intent(in), optional :: rad_maps
+    integer, intent(in), optional :: cam_npix(:)
     integer :: i, pos
     lay%nz = nz
     lay%ncol = ncol
@@ -108,6 +123,19 @@ contains
     pos = pos + 1
     lay%i_closure = pos
     pos = pos + 1
+    allocate (lay%rad_slot(0:nz))
+    lay%rad_slot = 0
+    if (present(n_rad_dir) .and. present(rad_levels)) then
+      if (n_rad_dir > 0) then
+        lay%n_rad_dir = n_rad_dir
+        lay%n_rad_lev = size(rad_levels)
+        do i = 1, size(rad_levels)
+          lay%rad_slot(rad_levels(i)) = i
+        end do
+      end if
+    end if
+    lay%i_rad = pos
+    pos = pos + lay%n_rad_dir*lay%n_rad_lev
     lay%i_map_up = pos
     pos = pos + lay%n_map*ncol
     lay%i_map_dir = pos
@@ -116,6 +144,19 @@ contains
     pos = pos + lay%n_map*ncol
     lay%i_vox = pos
     if (lay%do_voxel) pos = pos + n3*ncol
+    lay%i_rad_map = pos
+    if (present(rad_maps)) lay%do_rad_maps = rad_maps .and. lay%n_rad_dir > 0
+    if (lay%do_rad_maps) pos = pos + lay%n_rad_dir*lay%n_rad_lev*ncol
+    lay%i_cam0 = pos
+    if (present(cam_npix)) then
+      allocate (lay%i_cam(size(cam_npix)))
+      do i = 1, size(cam_npix)
+        lay%i_cam(i) = pos
+        pos = pos + cam_npix(i)
+      end do
+    else
+      allocate (lay%i_cam(0))
+    end if
     lay%n = pos
   end subroutine layout_init
 
@@ -138,7 +179,8 @@ contains
   end subroutine stats_init
 
   !> Add one finished batch of `n_photons` photons. Per-column quantities are scaled by the number
-  !> of columns so that they are fluxes per unit column area normalised like the domain means.
+  !> of columns so that they are fluxes per unit column area normalised like the domain means;
+  !> camera pixels carry their own normalisation and are divided by the photons only.
   subroutine stats_add_batch(st, lay, tal, n_photons)
     type(stats_t), intent(inout) :: st
     type(tally_layout_t), intent(in) :: lay
@@ -159,8 +201,13 @@ contains
                             - xd(lay%i_rr + 1) + xd(lay%i_lost + 1)
     st%s1(1:lay%i_map_up) = st%s1(1:lay%i_map_up) + xd
     st%s2(1:lay%i_map_up) = st%s2(1:lay%i_map_up) + xd*xd
-    do i = lay%i_map_up + 1, lay%n
+    do i = lay%i_map_up + 1, lay%i_cam0
       x = tal%buf(i)*scale_col
+      st%s1(i) = st%s1(i) + x
+      st%s2(i) = st%s2(i) + x*x
+    end do
+    do i = lay%i_cam0 + 1, lay%n
+      x = tal%buf(i)*scale_dom
       st%s1(i) = st%s1(i) + x
       st%s2(i) = st%s2(i) + x*x
     end do

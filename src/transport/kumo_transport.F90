@@ -20,10 +20,12 @@ module kumo_transport
   use kumo_kinds, only: wp, dp, i8
   use kumo_constants, only: DEG2RAD
   use kumo_rng, only: rng_t, rng_uniform
-  use kumo_math, only: rotate_direction, UZ_MIN
+  use kumo_math, only: rotate_direction, wrap, UZ_MIN
   use kumo_phase, only: phase_sample_mu
-  use kumo_atmosphere, only: atmosphere_t, LAYER_CLEAR, LAYER_ABSORBING, LAYER_SCATTERING, &
-                             LAYER_3D
+  use kumo_truncation, only: trunc_sample_mu
+  use kumo_local_estimate, only: detectors_t, le_particle, le_surface
+  use kumo_atmosphere, only: atmosphere_t, column_of, LAYER_CLEAR, LAYER_ABSORBING, &
+                             LAYER_SCATTERING, LAYER_3D
   use kumo_surface, only: surface_t
   use kumo_tally, only: tally_layout_t, tally_t, ANOM_UZ_NUDGED, ANOM_EVENT_CAP, &
                         ANOM_STEP_CAP, ANOM_POSITION_REPAIR
@@ -42,6 +44,7 @@ module kumo_transport
     real(wp) :: rr_weight = 0.5_wp      !! ... survivors continue with this weight
     integer(i8) :: max_events = 100000000_i8 !! collisions + reflections per photon
     integer(i8) :: max_steps = 100000000000_i8 !! flight steps per photon (1000 x max_events)
+    real(wp) :: cf_factor = 1.0_wp      !! collision forcing: extinction multiplied by this (>= 1)
   end type tracer_options_t
 
   integer, parameter :: EV_COLLISION = 1, EV_ESCAPE = 2, EV_SURFACE = 3, EV_KILLED = 4
@@ -61,23 +64,30 @@ contains
   end function source_init
 
   !> Trace `n_photons` photons, adding into `tal` (which the caller has reset).
-  subroutine trace_batch(atm, sfc, src, opts, lay, rng, n_photons, tal)
+  subroutine trace_batch(atm, sfc, src, opts, lay, det, rng, n_photons, tal)
     type(atmosphere_t), intent(in) :: atm
     type(surface_t), intent(in) :: sfc
     type(source_t), intent(in) :: src
     type(tracer_options_t), intent(in) :: opts
     type(tally_layout_t), intent(in) :: lay
+    type(detectors_t), intent(in) :: det
     type(rng_t), intent(inout) :: rng
     integer(i8), intent(in) :: n_photons
     type(tally_t), intent(inout) :: tal
     integer(i8) :: ip, n_events, n_steps
-    real(wp) :: x, y, z, ux, uy, uz, w, tau, d, zb, e, wn, albedo, mu, cphi, sphi
-    integer :: iz, order, cls, ev, ix, iy, kr, ic, iph, nc
-    logical :: in3d, track_xy
+    real(wp) :: x, y, z, ux, uy, uz, w, tau, d, zb, e, wn, albedo, mu, cphi, sphi, omega, ps
+    real(wp) :: inv_cf
+    integer :: iz, order, cls, ev, ix, iy, kr, ic, iph, nc, lev
+    logical :: in3d, track_xy, forced
 
-    ! Horizontal positions matter only for a 3-D region, an albedo map or per-column maps; a
-    ! plane-parallel scene skips their bookkeeping in the 1-D layers.
-    track_xy = atm%n3 > 0 .or. .not. sfc%uniform .or. lay%do_maps
+    ! Horizontal positions matter only for a 3-D region, an albedo map, per-column maps or
+    ! cameras; a plane-parallel scene skips their bookkeeping in the 1-D layers.
+    track_xy = atm%n3 > 0 .or. .not. sfc%uniform .or. lay%do_maps .or. lay%do_rad_maps .or. &
+               size(det%cams) > 0
+    ! Collision forcing (seed text section 4.2.4 a): free paths are sampled in the extinction
+    ! cf_factor * sigma; see the collision below.
+    forced = opts%cf_factor > 1.0_wp
+    inv_cf = 1.0_wp/opts%cf_factor
     do ip = 1, n_photons
       x = rng_uniform(rng)*atm%lx
       y = rng_uniform(rng)*atm%ly
@@ -87,6 +97,7 @@ contains
       uz = src%uz
       w = 1.0_wp
       order = 0
+      lev = 1
       iz = atm%nz
       n_events = 0
       n_steps = 0
@@ -94,6 +105,7 @@ contains
 
       photon: do
         tau = -log(1.0_wp - rng_uniform(rng))
+        if (forced) tau = tau*inv_cf
         flight: do
           n_steps = n_steps + 1
           if (n_steps > opts%max_steps) then
@@ -104,7 +116,7 @@ contains
           cls = atm%layer_class(iz)
           if (cls == LAYER_3D) then
             call fly_3d(atm, lay, tal, rng, x, y, z, ux, uy, uz, w, order, iz, tau, n_steps, &
-                        opts%max_steps, ev, ix, iy, kr)
+                        opts%max_steps, inv_cf, ev, ix, iy, kr)
             in3d = .true.
           else
             in3d = .false.
@@ -170,6 +182,7 @@ contains
             tal%buf(lay%i_sfc + 1) = tal%buf(lay%i_sfc + 1) + w*(1.0_wp - albedo)
             w = w*albedo
             if (w <= 0.0_wp) exit photon
+            if (det%active) call le_surface(det, atm, lay, tal, rng, x, y, w, lev)
             call roulette(opts, lay, tal, rng, w)
             if (w <= 0.0_wp) exit photon
             mu = sqrt(rng_uniform(rng))
@@ -193,21 +206,29 @@ contains
             exit flight
           case (EV_COLLISION)
             n_events = n_events + 1
-            order = order + 1
-            ! absorption and the scattering component (seed text section 3.4.3 b)
+            ! Absorption (seed text section 3.4.3 b). With collision forcing the medium has the
+            ! extinction F sigma and the albedo omega' = 1 - (1 - omega)/F, so absorption is
+            ! unchanged; a collision is a real scattering with probability ps = omega/(F omega'),
+            ! otherwise the photon goes on undeflected (eq. 4.2.42-45).
             if (in3d) then
-              wn = w*atm%omg3(ix, iy, kr)
-              tal%buf(lay%i_abs + iz) = tal%buf(lay%i_abs + iz) + (w - wn)
-              if (lay%do_voxel) then
-                ic = lay%i_vox + (kr - 1)*lay%ncol + ix + (iy - 1)*atm%nx
-                tal%buf(ic) = tal%buf(ic) + (w - wn)
-              end if
-              w = wn
+              omega = atm%omg3(ix, iy, kr)
             else
-              wn = w*atm%omg1(iz)
-              tal%buf(lay%i_abs + iz) = tal%buf(lay%i_abs + iz) + (w - wn)
-              w = wn
+              omega = atm%omg1(iz)
             end if
+            ps = 1.0_wp
+            if (forced) then
+              wn = 1.0_wp - (1.0_wp - omega)*inv_cf
+              if (wn > 0.0_wp) ps = omega*inv_cf/wn
+              wn = w*wn
+            else
+              wn = w*omega
+            end if
+            tal%buf(lay%i_abs + iz) = tal%buf(lay%i_abs + iz) + (w - wn)
+            if (in3d .and. lay%do_voxel) then
+              ic = lay%i_vox + (kr - 1)*lay%ncol + ix + (iy - 1)*atm%nx
+              tal%buf(ic) = tal%buf(ic) + (w - wn)
+            end if
+            w = wn
             if (w <= 0.0_wp) exit photon
             call roulette(opts, lay, tal, rng, w)
             if (w <= 0.0_wp) exit photon
@@ -240,7 +261,26 @@ contains
                 iph = atm%iph1(min(ic, nc), iz)
               end if
             end if
-            mu = phase_sample_mu(atm%phases(iph), rng_uniform(rng))
+            ! Truncation (seed text eq. 4.2.19): with probability f the scattering belongs to
+            ! the delta peak and the photon keeps its direction; it is still a scattering.
+            if (atm%truncated) then
+              if (rng_uniform(rng) < atm%trunc%f(lev, iph)) then
+                order = order + 1
+                exit flight
+              end if
+            end if
+            if (det%active) call le_particle(det, atm, lay, tal, rng, x, y, z, iz, ux, uy, uz, &
+                                             w*ps, iph, lev)
+            if (forced) then
+              if (rng_uniform(rng) >= ps) exit flight
+            end if
+            order = order + 1
+            if (atm%truncated) then
+              mu = trunc_sample_mu(atm%trunc, atm%phases(iph), iph, lev, rng_uniform(rng))
+              if (lev < atm%trunc%n_levels .and. mu <= atm%trunc%mu_peak(iph)) lev = lev + 1
+            else
+              mu = phase_sample_mu(atm%phases(iph), rng_uniform(rng))
+            end if
             call sample_azimuth(rng, cphi, sphi)
             call rotate_direction(ux, uy, uz, mu, cphi, sphi)
             if (abs(uz) < UZ_MIN) then
@@ -318,21 +358,11 @@ contains
     tal%buf(i) = tal%buf(i) + w
   end subroutine tally_level
 
-  !> Column (1..nx*ny) of the 3-D grid under (x, y).
-  pure integer function column_of(atm, x, y) result(icol)
-    type(atmosphere_t), intent(in) :: atm
-    real(wp), intent(in) :: x, y
-    integer :: ix, iy
-    ix = min(atm%nx, max(1, int(x*atm%inv_dx) + 1))
-    iy = min(atm%ny, max(1, int(y*atm%inv_dy) + 1))
-    icol = ix + (iy - 1)*atm%nx
-  end function column_of
-
   !> Null-collision flight inside the 3-D region until a real collision (ev = EV_COLLISION, with
   !> the voxel ix, iy, kr), or until the photon leaves the region through its top or bottom
   !> (ev from cross_level: 0, EV_ESCAPE or EV_SURFACE). `tau` is the optical path left to fly.
   subroutine fly_3d(atm, lay, tal, rng, x, y, z, ux, uy, uz, w, order, iz, tau, n_steps, &
-                    max_steps, ev, ix, iy, kr)
+                    max_steps, inv_cf, ev, ix, iy, kr)
     type(atmosphere_t), intent(in) :: atm
     type(tally_layout_t), intent(in) :: lay
     type(tally_t), intent(inout) :: tal
@@ -343,6 +373,7 @@ contains
     integer, intent(inout) :: iz
     integer(i8), intent(inout) :: n_steps
     integer(i8), intent(in) :: max_steps
+    real(wp), intent(in) :: inv_cf  !! 1/(collision-forcing factor)
     integer, intent(out) :: ev, ix, iy, kr
     integer :: s, jx, jy, bx, by, nbx, nby, face, klo, khi
     real(wp) :: xlo, xhi, ylo, yhi, zlo, zhi, dxf, dyf, dzf, d, smax, bdx, bdy
@@ -480,7 +511,7 @@ contains
           ev = EV_COLLISION
           return
         end if
-        tau = -log(1.0_wp - rng_uniform(rng))
+        tau = -log(1.0_wp - rng_uniform(rng))*inv_cf
       end if
     end do
   end subroutine fly_3d
@@ -572,12 +603,4 @@ contains
     w = 0.0_wp
   end subroutine lose_photon
 
-  !> Map a coordinate back into the periodic interval [0, l).
-  pure subroutine wrap(x, l)
-    real(wp), intent(inout) :: x
-    real(wp), intent(in) :: l
-    if (x >= 0.0_wp .and. x < l) return
-    x = modulo(x, l)
-    if (x >= l) x = 0.0_wp
-  end subroutine wrap
 end module kumo_transport

@@ -1,0 +1,446 @@
+! SPDX-License-Identifier: BSD-3-Clause
+!> Radiances by local estimation (seed text section 3.9; digest sections 15 and 19.2).
+!>
+!> At every scattering and surface reflection the photon adds, to every detector, the
+!> probability that the light it scatters reaches the detector without a further collision:
+!> psi = w p(Omega_d) T, with p the angular density of the scattered light per steradian
+!> (P/(4 pi) for particles, mu_d/pi for a Lambert surface) and T = exp(-tau) along the line of
+!> sight. Two kinds of detectors:
+!>
+!> * level detectors: the radiance crossing a level in a direction Omega_d, averaged over the
+!>   domain and per column (pixel maps). A horizontal area A receives psi/(A |mu_d|) per unit
+!>   solid angle, so the tally is pi psi/|mu_d|, which after division by the photons is
+!>   pi I/(mu0 F0) (the bidirectional reflectance factor at the top for mu_d > 0).
+!> * cameras (module kumo_camera): each periodic image of the event that projects into the
+!>   image adds psi times the camera's factor (1/(d^2 solid angle) for a pinhole,
+!>   1/area for an orthographic pixel), times pi lx ly so that pixels are pi I/(mu0 F0) too.
+!>
+!> Contributions are Russian-rouletted with Iwabuchi's rule (digest 19.2 a, the zeta_min rule of
+!> MCARaTS and the I3RC model): with a = w p and a_min = zeta_min/pi, a contribution a < a_min
+!> survives with probability a/a_min as a_min; otherwise the line of sight is traced only until
+!> its optical depth exceeds tau_lim + tau_free, tau_lim = ln(a/a_min), tau_free ~ Exp(1), and
+!> the contribution is a exp(-min(tau, tau_lim)). Its expectation is a exp(-tau): unbiased, and
+!> weak contributions through thick cloud cost no tracing.
+!>
+!> Optical depths along lines of sight are integrated exactly: layer by layer through the 1-D
+!> layers and voxel by voxel through the 3-D region. With truncation the extinction is the
+!> truncated one of the truncation level the light has after scattering into Omega_d (the delta
+!> part of the phase function keeps light on the line of sight).
+module kumo_local_estimate
+  use kumo_kinds, only: wp
+  use kumo_constants, only: PI
+  use kumo_rng, only: rng_t, rng_uniform
+  use kumo_math, only: wrap
+  use kumo_phase, only: phase_eval
+  use kumo_truncation, only: trunc_eval
+  use kumo_atmosphere, only: atmosphere_t, column_of, sigma_trunc_3d, LAYER_CLEAR, LAYER_3D
+  use kumo_camera, only: camera_t, camera_project
+  use kumo_tally, only: tally_layout_t, tally_t
+  implicit none
+  private
+  public :: detectors_t, detectors_init, le_particle, le_surface
+
+  real(wp), parameter :: INV_4PI = 0.25_wp/PI
+
+  !> What local estimates are tallied into.
+  type :: detectors_t
+    logical :: active = .false.            !! any level direction or camera
+    integer :: n_dir = 0                   !! level-detector directions
+    real(wp), allocatable :: ux(:), uy(:), uz(:) !! (n_dir) propagation directions
+    integer, allocatable :: levels(:)      !! radiance levels, ascending
+    real(wp) :: a_min = 0.0_wp             !! zeta_min/pi; 0: no roulette of contributions
+    type(camera_t), allocatable :: cams(:) !! cameras
+    real(wp) :: cam_scale = 1.0_wp         !! pi lx ly
+  end type detectors_t
+
+contains
+
+  !> Detectors for directions (mu, phi_deg) at `levels`, cameras `cams`, roulette `zeta_min`.
+  subroutine detectors_init(det, mu, phi_deg, levels, cams, zeta_min, lx, ly)
+    type(detectors_t), intent(out) :: det
+    real(wp), intent(in) :: mu(:), phi_deg(:)
+    integer, intent(in) :: levels(:)
+    type(camera_t), intent(in) :: cams(:)
+    real(wp), intent(in) :: zeta_min, lx, ly
+    real(wp) :: s
+    integer :: i
+    det%n_dir = size(mu)
+    allocate (det%ux(det%n_dir), det%uy(det%n_dir), det%uz(det%n_dir))
+    do i = 1, det%n_dir
+      s = sqrt(max(0.0_wp, 1.0_wp - mu(i)**2))
+      det%ux(i) = s*cos(phi_deg(i)*PI/180.0_wp)
+      det%uy(i) = s*sin(phi_deg(i)*PI/180.0_wp)
+      det%uz(i) = mu(i)
+    end do
+    det%levels = levels
+    if (det%n_dir == 0) det%levels = [integer ::]
+    det%cams = cams
+    det%a_min = zeta_min/PI
+    det%cam_scale = PI*lx*ly
+    det%active = det%n_dir > 0 .or. size(cams) > 0
+  end subroutine detectors_init
+
+  !> Local estimates of a particle scattering at (x, y, z) in layer iz, for a photon arriving in
+  !> direction (ux, uy, uz) with weight `w` (the expected scattered weight: after absorption,
+  !> times the probability that the collision is a real, non-delta scattering), phase function
+  !> `iph` at truncation level `lev`.
+  subroutine le_particle(det, atm, lay, tal, rng, x, y, z, iz, ux, uy, uz, w, iph, lev)
+    type(detectors_t), intent(in) :: det
+    type(atmosphere_t), intent(in) :: atm
+    type(tally_layout_t), intent(in) :: lay
+    type(tally_t), intent(inout) :: tal
+    type(rng_t), intent(inout) :: rng
+    real(wp), intent(in) :: x, y, z, ux, uy, uz, w
+    integer, intent(in) :: iz, iph, lev
+    integer :: d, c, mx, my, ipix, lev_t
+    real(wp) :: mu, a, vx, vy, vz, dist, factor
+    logical :: hit
+    do d = 1, det%n_dir
+      mu = ux*det%ux(d) + uy*det%uy(d) + uz*det%uz(d)
+      call particle_density(atm, iph, lev, mu, w, a, lev_t)
+      call level_estimate(det, atm, lay, tal, rng, x, y, z, iz, iz, d, a, lev_t)
+    end do
+    do c = 1, size(det%cams)
+      do my = det%cams(c)%my_lo, det%cams(c)%my_hi
+        do mx = det%cams(c)%mx_lo, det%cams(c)%mx_hi
+          call camera_project(det%cams(c), x + mx*atm%lx, y + my*atm%ly, z, ipix, dist, &
+                              vx, vy, vz, factor, hit)
+          if (.not. hit) cycle
+          mu = ux*vx + uy*vy + uz*vz
+          call particle_density(atm, iph, lev, mu, w, a, lev_t)
+          call camera_estimate(det, atm, tal, rng, x, y, z, iz, vx, vy, vz, dist, &
+                               factor, a, lev_t, lay%i_cam(c) + ipix)
+        end do
+      end do
+    end do
+  end subroutine le_particle
+
+  !> Local estimates of a Lambert reflection at (x, y) on the surface; `w` is the reflected
+  !> weight (after multiplication by the albedo).
+  subroutine le_surface(det, atm, lay, tal, rng, x, y, w, lev)
+    type(detectors_t), intent(in) :: det
+    type(atmosphere_t), intent(in) :: atm
+    type(tally_layout_t), intent(in) :: lay
+    type(tally_t), intent(inout) :: tal
+    type(rng_t), intent(inout) :: rng
+    real(wp), intent(in) :: x, y, w
+    integer, intent(in) :: lev
+    integer :: d, c, mx, my, ipix
+    real(wp) :: a, vx, vy, vz, dist, factor, z0
+    logical :: hit
+    z0 = atm%z(0)
+    do d = 1, det%n_dir
+      if (det%uz(d) <= 0.0_wp) cycle
+      a = w*det%uz(d)/PI
+      call level_estimate(det, atm, lay, tal, rng, x, y, z0, 1, 0, d, a, lev)
+    end do
+    do c = 1, size(det%cams)
+      do my = det%cams(c)%my_lo, det%cams(c)%my_hi
+        do mx = det%cams(c)%mx_lo, det%cams(c)%mx_hi
+          call camera_project(det%cams(c), x + mx*atm%lx, y + my*atm%ly, z0, ipix, dist, &
+                              vx, vy, vz, factor, hit)
+          if (.not. hit .or. vz <= 0.0_wp) cycle
+          a = w*vz/PI
+          call camera_estimate(det, atm, tal, rng, x, y, z0, 1, vx, vy, vz, dist, &
+                               factor, a, lev, lay%i_cam(c) + ipix)
+        end do
+      end do
+    end do
+  end subroutine le_surface
+
+  !> Angular density times weight, a = w P^(mu)/(4 pi), of a particle scattering by the cosine
+  !> `mu` of the scattering angle, and the truncation level the light has afterwards.
+  subroutine particle_density(atm, iph, lev, mu, w, a, lev_t)
+    type(atmosphere_t), intent(in) :: atm
+    integer, intent(in) :: iph, lev
+    real(wp), intent(in) :: mu, w
+    real(wp), intent(out) :: a
+    integer, intent(out) :: lev_t
+    real(wp) :: m
+    m = min(1.0_wp, max(-1.0_wp, mu))
+    if (atm%truncated) then
+      a = w*INV_4PI*trunc_eval(atm%trunc, atm%phases(iph), iph, lev, m)/ &
+          (1.0_wp - atm%trunc%f(lev, iph))
+      lev_t = lev
+      if (lev < atm%trunc%n_levels .and. m <= atm%trunc%mu_peak(iph)) lev_t = lev + 1
+    else
+      a = w*INV_4PI*phase_eval(atm%phases(iph), m)
+      lev_t = 1
+    end if
+  end subroutine particle_density
+
+  !> Roulette of a contribution (see the module text): returns false if it is dropped;
+  !> otherwise `a` (possibly raised to a_min), tau_lim and the optical depth at which the trace
+  !> may stop.
+  logical function roulette_contribution(det, rng, a, tau_lim, tau_stop) result(keep)
+    type(detectors_t), intent(in) :: det
+    type(rng_t), intent(inout) :: rng
+    real(wp), intent(inout) :: a
+    real(wp), intent(out) :: tau_lim, tau_stop
+    keep = a > 0.0_wp
+    tau_lim = huge(1.0_wp)
+    tau_stop = huge(1.0_wp)
+    if (.not. keep .or. det%a_min <= 0.0_wp) return
+    if (a < det%a_min) then
+      if (rng_uniform(rng)*det%a_min >= a) then
+        keep = .false.
+        return
+      end if
+      a = det%a_min
+      tau_lim = 0.0_wp
+    else
+      tau_lim = log(a/det%a_min)
+    end if
+    tau_stop = tau_lim - log(1.0_wp - rng_uniform(rng))
+  end function roulette_contribution
+
+  !> Contributions of one event to the level detectors of direction d. The event lies in layer
+  !> iz (a particle) or on the surface (iz = 1, k_up = 0); upward light reaches the levels
+  !> k >= k_up, downward light the levels k <= iz - 1.
+  subroutine level_estimate(det, atm, lay, tal, rng, x, y, z, iz, k_up, d, a_in, lev_t)
+    type(detectors_t), intent(in) :: det
+    type(atmosphere_t), intent(in) :: atm
+    type(tally_layout_t), intent(in) :: lay
+    type(tally_t), intent(inout) :: tal
+    type(rng_t), intent(inout) :: rng
+    real(wp), intent(in) :: x, y, z, a_in
+    integer, intent(in) :: iz, k_up, d, lev_t
+    real(wp) :: a, tau_lim, tau_stop, tau, psi0, xc, yc, zc, vx, vy, vz
+    integer :: i, j, kd, izc, slot, n_lev, ib
+    if (size(det%levels) == 0) return
+    a = a_in
+    if (.not. roulette_contribution(det, rng, a, tau_lim, tau_stop)) return
+    vx = det%ux(d)
+    vy = det%uy(d)
+    vz = det%uz(d)
+    psi0 = PI*a/abs(vz)
+    xc = x
+    yc = y
+    zc = z
+    izc = iz
+    tau = 0.0_wp
+    n_lev = size(det%levels)
+    ib = lay%i_rad + (d - 1)*lay%n_rad_lev
+    do j = 1, n_lev
+      if (vz > 0.0_wp) then
+        i = j
+        kd = det%levels(i)
+        if (kd < k_up) cycle
+      else
+        i = n_lev + 1 - j
+        kd = det%levels(i)
+        if (kd > iz - 1) cycle
+      end if
+      call trace_to_level(atm, xc, yc, zc, izc, vx, vy, vz, kd, lev_t, tau, tau_stop)
+      if (tau > tau_stop) return
+      slot = lay%rad_slot(kd)
+      tal%buf(ib + slot) = tal%buf(ib + slot) + psi0*exp(-min(tau, tau_lim))
+      if (lay%do_rad_maps) then
+        associate (k => lay%i_rad_map + ((d - 1)*lay%n_rad_lev + slot - 1)*lay%ncol + &
+                   column_of(atm, xc, yc))
+          tal%buf(k) = tal%buf(k) + psi0*exp(-min(tau, tau_lim))
+        end associate
+      end if
+    end do
+  end subroutine level_estimate
+
+  !> Contribution of one event to camera pixel buf(ibuf) through the line of sight (vx, vy, vz)
+  !> of length dist.
+  subroutine camera_estimate(det, atm, tal, rng, x, y, z, iz, vx, vy, vz, dist, factor, &
+                             a_in, lev_t, ibuf)
+    type(detectors_t), intent(in) :: det
+    type(atmosphere_t), intent(in) :: atm
+    type(tally_t), intent(inout) :: tal
+    type(rng_t), intent(inout) :: rng
+    real(wp), intent(in) :: x, y, z, vx, vy, vz, dist, factor, a_in
+    integer, intent(in) :: iz, lev_t, ibuf
+    real(wp) :: a, tau_lim, tau_stop, tau
+    a = a_in
+    if (.not. roulette_contribution(det, rng, a, tau_lim, tau_stop)) return
+    call trace_distance(atm, x, y, z, iz, vx, vy, vz, dist, lev_t, tau, tau_stop)
+    if (tau > tau_stop) return
+    tal%buf(ibuf) = tal%buf(ibuf) + det%cam_scale*a*factor*exp(-min(tau, tau_lim))
+  end subroutine camera_estimate
+
+  !> Add the optical depth from (x, y, z) in layer iz along (vx, vy, vz) up or down to level kd;
+  !> on return the position is on level kd and iz is the layer beyond it. Stops early once
+  !> tau > tau_stop.
+  subroutine trace_to_level(atm, x, y, z, iz, vx, vy, vz, kd, lev_t, tau, tau_stop)
+    type(atmosphere_t), intent(in) :: atm
+    real(wp), intent(inout) :: x, y, z, tau
+    integer, intent(inout) :: iz
+    real(wp), intent(in) :: vx, vy, vz, tau_stop
+    integer, intent(in) :: kd, lev_t
+    real(wp) :: zb, s
+    if (vz > 0.0_wp) then
+      do while (iz <= kd)
+        zb = atm%z(iz)
+        s = (zb - z)/vz
+        call layer_segment(atm, iz, x, y, vx, vy, s, lev_t, tau, tau_stop)
+        z = zb
+        iz = iz + 1
+        if (tau > tau_stop) return
+      end do
+    else
+      do while (iz > kd)
+        zb = atm%z(iz - 1)
+        s = (zb - z)/vz
+        call layer_segment(atm, iz, x, y, vx, vy, s, lev_t, tau, tau_stop)
+        z = zb
+        iz = iz - 1
+        if (tau > tau_stop) return
+      end do
+    end if
+  end subroutine trace_to_level
+
+  !> Add the optical depth along (vx, vy, vz) over the distance `dist` from (x, y, z) in layer
+  !> iz, or until the path leaves the atmosphere at the top (nothing scatters above).
+  subroutine trace_distance(atm, x, y, z, iz, vx, vy, vz, dist, lev_t, tau, tau_stop)
+    type(atmosphere_t), intent(in) :: atm
+    real(wp), intent(in) :: x, y, z, vx, vy, vz, dist, tau_stop
+    integer, intent(in) :: iz, lev_t
+    real(wp), intent(out) :: tau
+    real(wp) :: xc, yc, zc, left, s, zb
+    integer :: k
+    xc = x
+    yc = y
+    zc = z
+    k = iz
+    left = dist
+    tau = 0.0_wp
+    do while (left > 0.0_wp)
+      if (vz > 0.0_wp) then
+        zb = atm%z(k)
+      else
+        zb = atm%z(k - 1)
+      end if
+      if (vz /= 0.0_wp) then
+        s = (zb - zc)/vz
+      else
+        s = huge(1.0_wp)
+      end if
+      s = max(0.0_wp, s)
+      if (s >= left) then
+        call layer_segment(atm, k, xc, yc, vx, vy, left, lev_t, tau, tau_stop)
+        return
+      end if
+      call layer_segment(atm, k, xc, yc, vx, vy, s, lev_t, tau, tau_stop)
+      if (tau > tau_stop) return
+      left = left - s
+      zc = zb
+      if (vz > 0.0_wp) then
+        if (k == atm%nz) return
+        k = k + 1
+      else
+        if (k == 1) return
+        k = k - 1
+      end if
+    end do
+  end subroutine trace_distance
+
+  !> Optical depth of a straight segment of length s inside layer iz, starting at (x, y) with
+  !> horizontal direction (vx, vy); (x, y) move to the end of the segment (wrapped) when the
+  !> horizontal position matters.
+  subroutine layer_segment(atm, iz, x, y, vx, vy, s, lev_t, tau, tau_stop)
+    type(atmosphere_t), intent(in) :: atm
+    integer, intent(in) :: iz, lev_t
+    real(wp), intent(inout) :: x, y, tau
+    real(wp), intent(in) :: vx, vy, s, tau_stop
+    integer :: kr, ix, iy
+    real(wp) :: tx, ty, step, rem, sig
+    select case (atm%layer_class(iz))
+    case (LAYER_CLEAR)
+    case (LAYER_3D)
+      kr = iz - atm%k3_lo + 1
+      if (atm%uniform3(kr)) then
+        tau = tau + sigma_trunc_3d(atm, 1, 1, kr, lev_t)*s
+      else
+        ix = min(atm%nx, max(1, int(x*atm%inv_dx) + 1))
+        iy = min(atm%ny, max(1, int(y*atm%inv_dy) + 1))
+        rem = s
+        do
+          if (vx > 0.0_wp) then
+            tx = (ix*atm%dx - x)/vx
+          else if (vx < 0.0_wp) then
+            tx = ((ix - 1)*atm%dx - x)/vx
+          else
+            tx = huge(1.0_wp)
+          end if
+          if (vy > 0.0_wp) then
+            ty = (iy*atm%dy - y)/vy
+          else if (vy < 0.0_wp) then
+            ty = ((iy - 1)*atm%dy - y)/vy
+          else
+            ty = huge(1.0_wp)
+          end if
+          tx = max(0.0_wp, tx)
+          ty = max(0.0_wp, ty)
+          step = min(tx, ty, rem)
+          if (lev_t > 1) then
+            sig = sigma_trunc_3d(atm, ix, iy, kr, lev_t)
+          else
+            sig = atm%ext3(ix, iy, kr)
+          end if
+          tau = tau + sig*step
+          if (step >= rem) exit
+          if (tau > tau_stop) return
+          rem = rem - step
+          if (tx <= ty) then
+            y = y + vy*step
+            if (vx > 0.0_wp) then
+              ix = ix + 1
+              x = (ix - 1)*atm%dx
+              if (ix > atm%nx) then
+                ix = 1
+                x = 0.0_wp
+              end if
+            else
+              ix = ix - 1
+              x = ix*atm%dx
+              if (ix < 1) then
+                ix = atm%nx
+                x = atm%lx
+              end if
+            end if
+            call wrap(y, atm%ly)
+            iy = min(atm%ny, max(1, int(y*atm%inv_dy) + 1))
+          else
+            x = x + vx*step
+            if (vy > 0.0_wp) then
+              iy = iy + 1
+              y = (iy - 1)*atm%dy
+              if (iy > atm%ny) then
+                iy = 1
+                y = 0.0_wp
+              end if
+            else
+              iy = iy - 1
+              y = iy*atm%dy
+              if (iy < 1) then
+                iy = atm%ny
+                y = atm%ly
+              end if
+            end if
+            call wrap(x, atm%lx)
+            ix = min(atm%nx, max(1, int(x*atm%inv_dx) + 1))
+          end if
+        end do
+        x = x + vx*rem
+        y = y + vy*rem
+        call wrap(x, atm%lx)
+        call wrap(y, atm%ly)
+        return
+      end if
+    case default
+      if (lev_t > 1) then
+        tau = tau + atm%ext1_lev(iz, lev_t)*s
+      else
+        tau = tau + atm%ext1(iz)*s
+      end if
+    end select
+    x = x + vx*s
+    y = y + vy*s
+    call wrap(x, atm%lx)
+    call wrap(y, atm%ly)
+  end subroutine layer_segment
+end module kumo_local_estimate

@@ -214,8 +214,14 @@ contains
       end if
     end do
     if (allocated(cfg%rad%mu)) then
+      ! numerical diffusion: the spread is `diffusion` x half the mean spacing of the photons
+      ! of the run at the top, sqrt(lx ly / N)/2, x sqrt(pi a) (MCARaTS, state-of-the-art B5);
+      ! it shrinks as the photon count grows
       call detectors_init(scene%det, cfg%rad%mu, cfg%rad%phi_deg, cfg%rad%levels, cams, &
-                          cfg%vr%zeta_min, cfg%atm%lx, cfg%atm%ly)
+                          cfg%vr%zeta_min, cfg%atm%lx, cfg%atm%ly, &
+                          cfg%vr%diffusion*0.5_wp*sqrt(cfg%atm%lx*cfg%atm%ly/ &
+                          (real(cfg%control%n_photons_per_batch, wp)*cfg%control%n_batches)), &
+                          cfg%vr%diffusion_max)
     else   ! a configuration built in code without radiances
       call detectors_init(scene%det, [real(wp) ::], [real(wp) ::], [integer ::], cams, &
                           cfg%vr%zeta_min, cfg%atm%lx, cfg%atm%ly)
@@ -637,6 +643,7 @@ contains
       call add_attr(set, 'layer_classes', classes())
       call add_attr(set, 'collision_forcing_factor', str(scene%tracer%cf_factor))
       call add_attr(set, 'truncation_levels', str(atm%trunc%n_levels))
+      call add_attr(set, 'vr_preset', trim(cfg%vr%preset))
       if (len(scene%warnings) > 0) call add_attr(set, 'warnings', scene%warnings)
       call add_attr(set, 'supervoxels', sv_text())
       do i = 1, N_ANOMALIES

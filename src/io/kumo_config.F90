@@ -44,6 +44,7 @@ module kumo_config
   real(wp), parameter :: PRESET_TRUNC_DEG(4) = [0.0_wp, 0.0_wp, 30.0_wp, 45.0_wp]
   integer, parameter :: PRESET_TRUNC_LEVELS(4) = [1, 1, 4, 3]
   real(wp), parameter :: PRESET_CF_TAU(4) = [0.0_wp, 1.0_wp, 2.0_wp, 3.0_wp]
+  real(wp), parameter :: PRESET_DIFF(4) = [0.0_wp, 0.0_wp, 60.0_wp, 150.0_wp]
 
   !> &kumo_control: photon budget, seeding and stopping rule.
   type :: control_cfg_t
@@ -123,6 +124,8 @@ module kumo_config
     integer :: trunc_levels = 1                    !! truncation levels (1 = off)
     real(wp) :: trunc_peak = 30.0_wp               !! P >= this is a scattering into the peak
     real(wp) :: cf_tau_min = 1.0_wp                !! collision forcing: least column depth
+    real(wp) :: diffusion = 0.0_wp                 !! numerical diffusion of radiance maps
+    integer :: diffusion_max = 30                  !! largest spread half-width [columns]
   end type vr_cfg_t
 
   !> &kumo_radiance: radiances by local estimation at levels, in chosen directions.
@@ -634,12 +637,12 @@ contains
     integer :: sv_max_layers, ios, ip
     logical :: use_supervoxels, use_1d_layers, use_absorbing_layers
     character(len=16) :: vr_preset
-    real(wp) :: zeta_min, trunc_theta_max_deg, trunc_peak, cf_tau_min
-    integer :: trunc_levels
+    real(wp) :: zeta_min, trunc_theta_max_deg, trunc_peak, cf_tau_min, diffusion
+    integer :: trunc_levels, diffusion_max
     character(len=512) :: msg
     namelist /kumo_vr/ rr_threshold, rr_weight, use_supervoxels, sv_fsupg, sv_fsupi, &
       sv_max_layers, use_1d_layers, use_absorbing_layers, vr_preset, zeta_min, &
-      trunc_theta_max_deg, trunc_levels, trunc_peak, cf_tau_min
+      trunc_theta_max_deg, trunc_levels, trunc_peak, cf_tau_min, diffusion, diffusion_max
     rr_threshold = cfg%rr_threshold
     rr_weight = cfg%rr_weight
     use_supervoxels = cfg%use_supervoxels
@@ -654,6 +657,8 @@ contains
     trunc_levels = IUNSET
     trunc_peak = cfg%trunc_peak
     cf_tau_min = UNSET
+    diffusion = UNSET
+    diffusion_max = cfg%diffusion_max
     rewind (unit)
     msg = ''
     read (unit, nml=kumo_vr, iostat=ios, iomsg=msg)
@@ -671,6 +676,7 @@ contains
     if (trunc_theta_max_deg == UNSET) trunc_theta_max_deg = PRESET_TRUNC_DEG(ip)
     if (trunc_levels == IUNSET) trunc_levels = PRESET_TRUNC_LEVELS(ip)
     if (cf_tau_min == UNSET) cf_tau_min = PRESET_CF_TAU(ip)
+    if (diffusion == UNSET) diffusion = PRESET_DIFF(ip)
     if (.not. within(zeta_min, 0.0_wp, BIG)) then
       call set_error(error, '&kumo_vr: zeta_min = '//str(zeta_min)//' must be >= 0 (0 = off)')
       return
@@ -689,6 +695,14 @@ contains
       call set_error(error, '&kumo_vr: cf_tau_min = '//str(cf_tau_min)// &
                      ' must be within [0, 1e6] (0 = no collision forcing)')
       return
+    else if (.not. within(diffusion, 0.0_wp, 1.0e6_wp)) then
+      call set_error(error, '&kumo_vr: diffusion = '//str(diffusion)// &
+                     ' must be within [0, 1e6] (0 = no numerical diffusion)')
+      return
+    else if (diffusion_max < 0 .or. diffusion_max > 1000) then
+      call set_error(error, '&kumo_vr: diffusion_max = '//str(diffusion_max)// &
+                     ' must be within 0..1000 [columns]')
+      return
     end if
     if (trunc_levels == 1 .or. trunc_theta_max_deg == 0.0_wp) then
       trunc_levels = 1
@@ -699,6 +713,8 @@ contains
     cfg%trunc_levels = trunc_levels
     cfg%trunc_peak = trunc_peak
     cfg%cf_tau_min = cf_tau_min
+    cfg%diffusion = diffusion
+    cfg%diffusion_max = diffusion_max
     if (.not. within(rr_weight, SMALL, BIG)) then
       call set_error(error, '&kumo_vr: rr_weight = '//str(rr_weight)//' must be > 0')
     else if (.not. within(rr_threshold, 0.0_wp, rr_weight)) then
@@ -941,7 +957,9 @@ contains
            'kumo_vr.trunc_theta_max_deg = '//str(cfg%vr%trunc_theta_max_deg)//nl// &
            'kumo_vr.trunc_levels = '//str(cfg%vr%trunc_levels)//nl// &
            'kumo_vr.trunc_peak = '//str(cfg%vr%trunc_peak)//nl// &
-           'kumo_vr.cf_tau_min = '//str(cfg%vr%cf_tau_min)//nl
+           'kumo_vr.cf_tau_min = '//str(cfg%vr%cf_tau_min)//nl// &
+           'kumo_vr.diffusion = '//str(cfg%vr%diffusion)//nl// &
+           'kumo_vr.diffusion_max = '//str(cfg%vr%diffusion_max)//nl
     if (allocated(cfg%rad%mu)) text = text// &
       'kumo_radiance.rad_mu = '//join_real(cfg%rad%mu)//nl// &
       'kumo_radiance.rad_phi_deg = '//join_real(cfg%rad%phi_deg)//nl// &

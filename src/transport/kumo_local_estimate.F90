@@ -51,17 +51,25 @@ module kumo_local_estimate
     real(wp) :: a_min = 0.0_wp             !! zeta_min/pi; 0: no roulette of contributions
     type(camera_t), allocatable :: cams(:) !! cameras
     real(wp) :: cam_scale = 1.0_wp         !! pi lx ly
+    ! Numerical diffusion of radiance-map samples (seed text section 4.2.5; biased per pixel)
+    real(wp) :: diff_scale = 0.0_wp        !! spread half-width [m] per sqrt(pi a); 0 = off
+    integer :: diff_max = 0                !! largest half-width [columns]
   end type detectors_t
 
 contains
 
   !> Detectors for directions (mu, phi_deg) at `levels`, cameras `cams`, roulette `zeta_min`.
-  subroutine detectors_init(det, mu, phi_deg, levels, cams, zeta_min, lx, ly)
+  !> With `diff_scale` > 0, each radiance-map sample a is spread evenly over the columns within
+  !> diff_scale sqrt(pi a) metres (at most `diff_max` columns) of where it crosses the level.
+  subroutine detectors_init(det, mu, phi_deg, levels, cams, zeta_min, lx, ly, diff_scale, &
+                            diff_max)
     type(detectors_t), intent(out) :: det
     real(wp), intent(in) :: mu(:), phi_deg(:)
     integer, intent(in) :: levels(:)
     type(camera_t), intent(in) :: cams(:)
     real(wp), intent(in) :: zeta_min, lx, ly
+    real(wp), intent(in), optional :: diff_scale
+    integer, intent(in), optional :: diff_max
     real(wp) :: s
     integer :: i
     det%n_dir = size(mu)
@@ -78,6 +86,10 @@ contains
     det%a_min = zeta_min/PI
     det%cam_scale = PI*lx*ly
     det%active = det%n_dir > 0 .or. size(cams) > 0
+    if (present(diff_scale) .and. present(diff_max)) then
+      det%diff_scale = diff_scale
+      det%diff_max = diff_max
+    end if
   end subroutine detectors_init
 
   !> Local estimates of a particle scattering at (x, y, z) in layer iz, for a photon arriving in
@@ -206,7 +218,7 @@ contains
     real(wp), intent(in) :: x, y, z, a_in
     integer, intent(in) :: iz, k_up, d, lev_t
     real(wp) :: a, tau_lim, tau_stop, tau, psi0, xc, yc, zc, vx, vy, vz
-    integer :: i, j, kd, izc, slot, n_lev, ib
+    integer :: i, j, kd, izc, slot, n_lev, ib, ib_map, k
     if (size(det%levels) == 0) return
     a = a_in
     if (.not. roulette_contribution(det, rng, a, tau_lim, tau_stop)) return
@@ -236,13 +248,42 @@ contains
       slot = lay%rad_slot(kd)
       tal%buf(ib + slot) = tal%buf(ib + slot) + psi0*exp(-min(tau, tau_lim))
       if (lay%do_rad_maps) then
-        associate (k => lay%i_rad_map + ((d - 1)*lay%n_rad_lev + slot - 1)*lay%ncol + &
-                   column_of(atm, xc, yc))
+        ib_map = lay%i_rad_map + ((d - 1)*lay%n_rad_lev + slot - 1)*lay%ncol
+        if (det%diff_scale > 0.0_wp) then
+          call spread_sample(det, atm, tal, ib_map, xc, yc, a, psi0*exp(-min(tau, tau_lim)))
+        else
+          k = ib_map + column_of(atm, xc, yc)
           tal%buf(k) = tal%buf(k) + psi0*exp(-min(tau, tau_lim))
-        end associate
+        end if
       end if
     end do
   end subroutine level_estimate
+
+  !> Numerical diffusion (seed text section 4.2.5, Iwabuchi 2006): add the map sample `v` evenly
+  !> over the block of columns within r = diff_scale sqrt(pi a) of (x, y), periodic. Larger
+  !> samples spread further; the sum over the map, and so the domain mean, is unchanged.
+  subroutine spread_sample(det, atm, tal, ib_map, x, y, a, v)
+    type(detectors_t), intent(in) :: det
+    type(atmosphere_t), intent(in) :: atm
+    type(tally_t), intent(inout) :: tal
+    integer, intent(in) :: ib_map
+    real(wp), intent(in) :: x, y, a, v
+    real(wp) :: r, share
+    integer :: nrx, nry, ix0, iy0, i, j, ix, iy
+    r = det%diff_scale*sqrt(PI*a)
+    nrx = min(det%diff_max, int(r*atm%inv_dx), (atm%nx - 1)/2)
+    nry = min(det%diff_max, int(r*atm%inv_dy), (atm%ny - 1)/2)
+    ix0 = min(atm%nx, max(1, int(x*atm%inv_dx) + 1))
+    iy0 = min(atm%ny, max(1, int(y*atm%inv_dy) + 1))
+    share = v/real((2*nrx + 1)*(2*nry + 1), wp)
+    do j = -nry, nry
+      iy = modulo(iy0 - 1 + j, atm%ny) + 1
+      do i = -nrx, nrx
+        ix = modulo(ix0 - 1 + i, atm%nx) + 1
+        tal%buf(ib_map + ix + (iy - 1)*atm%nx) = tal%buf(ib_map + ix + (iy - 1)*atm%nx) + share
+      end do
+    end do
+  end subroutine spread_sample
 
   !> Contribution of one event to camera pixel buf(ibuf) through the line of sight (vx, vy, vz)
   !> of length dist.

@@ -221,7 +221,7 @@ contains
                           cfg%vr%zeta_min, cfg%atm%lx, cfg%atm%ly, &
                           cfg%vr%diffusion*0.5_wp*sqrt(cfg%atm%lx*cfg%atm%ly/ &
                           (real(cfg%control%n_photons_per_batch, wp)*cfg%control%n_batches)), &
-                          cfg%vr%diffusion_max)
+                          cfg%vr%diffusion_max, cfg%vr%ddis_eps)
     else   ! a configuration built in code without radiances
       call detectors_init(scene%det, [real(wp) ::], [real(wp) ::], [integer ::], cams, &
                           cfg%vr%zeta_min, cfg%atm%lx, cfg%atm%ly)
@@ -528,7 +528,8 @@ contains
       call put('absorptance_surface', 'power absorbed by the surface'//NORM, [lay%i_sfc + 1])
       call put('absorptance_layer', 'power absorbed in each layer'//NORM, &
                [(lay%i_abs + k, k=1, nz)], dims=['layer'])
-      call put('roulette_weight_balance', 'net weight created by Russian roulette'//NORM// &
+      call put('roulette_weight_balance', 'net weight created by Russian roulette and DDIS'// &
+               ' splitting'//NORM// &
                ' (zero in expectation)', [lay%i_rr + 1])
       call put('weight_lost', 'weight of photons stopped at a loop cap'//NORM, [lay%i_lost + 1])
       call put('energy_closure', 'reflectance + absorptance_atmosphere + absorptance_surface'// &

@@ -45,6 +45,7 @@ module kumo_config
   integer, parameter :: PRESET_TRUNC_LEVELS(4) = [1, 1, 4, 3]
   real(wp), parameter :: PRESET_CF_TAU(4) = [0.0_wp, 1.0_wp, 2.0_wp, 3.0_wp]
   real(wp), parameter :: PRESET_DIFF(4) = [0.0_wp, 0.0_wp, 60.0_wp, 150.0_wp]
+  real(wp), parameter :: PRESET_DDIS(4) = [0.0_wp, 0.1_wp, 0.1_wp, 0.1_wp]
 
   !> &kumo_control: photon budget, seeding and stopping rule.
   type :: control_cfg_t
@@ -126,6 +127,7 @@ module kumo_config
     real(wp) :: cf_tau_min = 1.0_wp                !! collision forcing: least column depth
     real(wp) :: diffusion = 0.0_wp                 !! numerical diffusion of radiance maps
     integer :: diffusion_max = 30                  !! largest spread half-width [columns]
+    real(wp) :: ddis_eps = 0.1_wp                  !! detector directional importance sampling
   end type vr_cfg_t
 
   !> &kumo_radiance: radiances by local estimation at levels, in chosen directions.
@@ -637,12 +639,13 @@ contains
     integer :: sv_max_layers, ios, ip
     logical :: use_supervoxels, use_1d_layers, use_absorbing_layers
     character(len=16) :: vr_preset
-    real(wp) :: zeta_min, trunc_theta_max_deg, trunc_peak, cf_tau_min, diffusion
+    real(wp) :: zeta_min, trunc_theta_max_deg, trunc_peak, cf_tau_min, diffusion, ddis_eps
     integer :: trunc_levels, diffusion_max
     character(len=512) :: msg
     namelist /kumo_vr/ rr_threshold, rr_weight, use_supervoxels, sv_fsupg, sv_fsupi, &
       sv_max_layers, use_1d_layers, use_absorbing_layers, vr_preset, zeta_min, &
-      trunc_theta_max_deg, trunc_levels, trunc_peak, cf_tau_min, diffusion, diffusion_max
+      trunc_theta_max_deg, trunc_levels, trunc_peak, cf_tau_min, diffusion, diffusion_max, &
+      ddis_eps
     rr_threshold = cfg%rr_threshold
     rr_weight = cfg%rr_weight
     use_supervoxels = cfg%use_supervoxels
@@ -659,6 +662,7 @@ contains
     cf_tau_min = UNSET
     diffusion = UNSET
     diffusion_max = cfg%diffusion_max
+    ddis_eps = UNSET
     rewind (unit)
     msg = ''
     read (unit, nml=kumo_vr, iostat=ios, iomsg=msg)
@@ -677,6 +681,7 @@ contains
     if (trunc_levels == IUNSET) trunc_levels = PRESET_TRUNC_LEVELS(ip)
     if (cf_tau_min == UNSET) cf_tau_min = PRESET_CF_TAU(ip)
     if (diffusion == UNSET) diffusion = PRESET_DIFF(ip)
+    if (ddis_eps == UNSET) ddis_eps = PRESET_DDIS(ip)
     if (.not. within(zeta_min, 0.0_wp, BIG)) then
       call set_error(error, '&kumo_vr: zeta_min = '//str(zeta_min)//' must be >= 0 (0 = off)')
       return
@@ -699,6 +704,10 @@ contains
       call set_error(error, '&kumo_vr: diffusion = '//str(diffusion)// &
                      ' must be within [0, 1e6] (0 = no numerical diffusion)')
       return
+    else if (.not. within(ddis_eps, 0.0_wp, 0.9_wp)) then
+      call set_error(error, '&kumo_vr: ddis_eps = '//str(ddis_eps)// &
+                     ' must be within [0, 0.9] (0 = no directional importance sampling)')
+      return
     else if (diffusion_max < 0 .or. diffusion_max > 1000) then
       call set_error(error, '&kumo_vr: diffusion_max = '//str(diffusion_max)// &
                      ' must be within 0..1000 [columns]')
@@ -715,6 +724,7 @@ contains
     cfg%cf_tau_min = cf_tau_min
     cfg%diffusion = diffusion
     cfg%diffusion_max = diffusion_max
+    cfg%ddis_eps = ddis_eps
     if (.not. within(rr_weight, SMALL, BIG)) then
       call set_error(error, '&kumo_vr: rr_weight = '//str(rr_weight)//' must be > 0')
     else if (.not. within(rr_threshold, 0.0_wp, rr_weight)) then
@@ -959,7 +969,8 @@ contains
            'kumo_vr.trunc_peak = '//str(cfg%vr%trunc_peak)//nl// &
            'kumo_vr.cf_tau_min = '//str(cfg%vr%cf_tau_min)//nl// &
            'kumo_vr.diffusion = '//str(cfg%vr%diffusion)//nl// &
-           'kumo_vr.diffusion_max = '//str(cfg%vr%diffusion_max)//nl
+           'kumo_vr.diffusion_max = '//str(cfg%vr%diffusion_max)//nl// &
+           'kumo_vr.ddis_eps = '//str(cfg%vr%ddis_eps)//nl
     if (allocated(cfg%rad%mu)) text = text// &
       'kumo_radiance.rad_mu = '//join_real(cfg%rad%mu)//nl// &
       'kumo_radiance.rad_phi_deg = '//join_real(cfg%rad%phi_deg)//nl// &

@@ -30,15 +30,15 @@ module kumo_local_estimate
   use kumo_kinds, only: wp
   use kumo_constants, only: PI
   use kumo_rng, only: rng_t, rng_uniform
-  use kumo_math, only: wrap
-  use kumo_phase, only: phase_eval
-  use kumo_truncation, only: trunc_eval
+  use kumo_math, only: wrap, rotate_direction
+  use kumo_phase, only: phase_eval, phase_sample_mu
+  use kumo_truncation, only: trunc_eval, trunc_sample_mu
   use kumo_atmosphere, only: atmosphere_t, column_of, sigma_trunc_3d, LAYER_CLEAR, LAYER_3D
   use kumo_camera, only: camera_t, camera_project
   use kumo_tally, only: tally_layout_t, tally_t
   implicit none
   private
-  public :: detectors_t, detectors_init, le_particle, le_surface
+  public :: detectors_t, detectors_init, le_particle, le_surface, ddis_factor, ddis_direction
 
   real(wp), parameter :: INV_4PI = 0.25_wp/PI
 
@@ -54,6 +54,8 @@ module kumo_local_estimate
     ! Numerical diffusion of radiance-map samples (seed text section 4.2.5; biased per pixel)
     real(wp) :: diff_scale = 0.0_wp        !! spread half-width [m] per sqrt(pi a); 0 = off
     integer :: diff_max = 0                !! largest half-width [columns]
+    ! Detector directional importance sampling (Buras and Mayer 2011)
+    real(wp) :: ddis_eps = 0.0_wp          !! chance of a DDIS secondary per scattering; 0 = off
   end type detectors_t
 
 contains
@@ -62,7 +64,7 @@ contains
   !> With `diff_scale` > 0, each radiance-map sample a is spread evenly over the columns within
   !> diff_scale sqrt(pi a) metres (at most `diff_max` columns) of where it crosses the level.
   subroutine detectors_init(det, mu, phi_deg, levels, cams, zeta_min, lx, ly, diff_scale, &
-                            diff_max)
+                            diff_max, ddis_eps)
     type(detectors_t), intent(out) :: det
     real(wp), intent(in) :: mu(:), phi_deg(:)
     integer, intent(in) :: levels(:)
@@ -70,6 +72,7 @@ contains
     real(wp), intent(in) :: zeta_min, lx, ly
     real(wp), intent(in), optional :: diff_scale
     integer, intent(in), optional :: diff_max
+    real(wp), intent(in), optional :: ddis_eps   !! DDIS share (needs level directions)
     real(wp) :: s
     integer :: i
     det%n_dir = size(mu)
@@ -90,6 +93,7 @@ contains
       det%diff_scale = diff_scale
       det%diff_max = diff_max
     end if
+    if (present(ddis_eps) .and. det%n_dir > 0) det%ddis_eps = ddis_eps
   end subroutine detectors_init
 
   !> Local estimates of a particle scattering at (x, y, z) in layer iz, for a photon arriving in
@@ -126,6 +130,78 @@ contains
       end do
     end do
   end subroutine le_particle
+
+  !> Detector directional importance sampling (DDIS; Buras and Mayer 2011, JQSRT 112, 434),
+  !> here as a split: at a scattering the photon continues in a direction drawn from its phase
+  !> function, and with probability eps a secondary photon is started in a direction drawn from
+  !> the same phase function about a level-detector direction Omega_d. With the balance
+  !> heuristic of multiple importance sampling (Veach 1997) each of the two carries
+  !> w P(Omega_in . Omega) / (P(Omega_in . Omega) + eps mean_d P(Omega_d . Omega)), which keeps
+  !> the sum unbiased. Secondaries travel along the detector directions with small weights, so
+  !> the rare huge local estimates of a forward peak become frequent small ones, while the
+  !> primary photon keeps (nearly) its weight. This function returns that weight factor for a
+  !> photon arriving along u_in and leaving along v.
+  real(wp) function ddis_factor(det, atm, iph, lev, uxi, uyi, uzi, vx, vy, vz) result(fac)
+    type(detectors_t), intent(in) :: det
+    type(atmosphere_t), intent(in) :: atm
+    integer, intent(in) :: iph, lev
+    real(wp), intent(in) :: uxi, uyi, uzi, vx, vy, vz
+    real(wp) :: p_in, p_d
+    integer :: d
+    p_in = phase_value(atm, iph, lev, uxi*vx + uyi*vy + uzi*vz)
+    p_d = 0.0_wp
+    do d = 1, det%n_dir
+      p_d = p_d + phase_value(atm, iph, lev, det%ux(d)*vx + det%uy(d)*vy + det%uz(d)*vz)
+    end do
+    p_d = p_d/det%n_dir
+    fac = p_in/(p_in + det%ddis_eps*p_d)
+  end function ddis_factor
+
+  !> Direction of a DDIS secondary: the phase function iph about a level-detector direction
+  !> chosen at random; (cphi, sphi) is a uniform azimuth.
+  subroutine ddis_direction(det, atm, rng, iph, lev, cphi, sphi, vx, vy, vz)
+    type(detectors_t), intent(in) :: det
+    type(atmosphere_t), intent(in) :: atm
+    type(rng_t), intent(inout) :: rng
+    integer, intent(in) :: iph, lev
+    real(wp), intent(in) :: cphi, sphi
+    real(wp), intent(out) :: vx, vy, vz
+    integer :: d
+    real(wp) :: m
+    d = min(det%n_dir, int(rng_uniform(rng)*det%n_dir) + 1)
+    vx = det%ux(d)
+    vy = det%uy(d)
+    vz = det%uz(d)
+    m = sample_cos(atm, iph, lev, rng_uniform(rng))
+    call rotate_direction(vx, vy, vz, m, cphi, sphi)
+  end subroutine ddis_direction
+
+  !> Cosine of a scattering angle drawn from phase function iph at truncation level lev.
+  real(wp) function sample_cos(atm, iph, lev, u) result(m)
+    type(atmosphere_t), intent(in) :: atm
+    integer, intent(in) :: iph, lev
+    real(wp), intent(in) :: u
+    if (atm%truncated) then
+      m = trunc_sample_mu(atm%trunc, atm%phases(iph), iph, lev, u)
+    else
+      m = phase_sample_mu(atm%phases(iph), u)
+    end if
+  end function sample_cos
+
+  !> Phase function iph (truncated at level lev) at the scattering-angle cosine mu, up to a
+  !> factor that is the same for every angle.
+  real(wp) function phase_value(atm, iph, lev, mu) result(p)
+    type(atmosphere_t), intent(in) :: atm
+    integer, intent(in) :: iph, lev
+    real(wp), intent(in) :: mu
+    real(wp) :: m
+    m = min(1.0_wp, max(-1.0_wp, mu))
+    if (atm%truncated) then
+      p = trunc_eval(atm%trunc, atm%phases(iph), iph, lev, m)
+    else
+      p = phase_eval(atm%phases(iph), m)
+    end if
+  end function phase_value
 
   !> Local estimates of a Lambert reflection at (x, y) on the surface; `w` is the reflected
   !> weight (after multiplication by the albedo).

@@ -23,7 +23,8 @@ module kumo_transport
   use kumo_math, only: rotate_direction, wrap, UZ_MIN
   use kumo_phase, only: phase_sample_mu
   use kumo_truncation, only: trunc_sample_mu
-  use kumo_local_estimate, only: detectors_t, le_particle, le_surface
+  use kumo_local_estimate, only: detectors_t, le_particle, le_surface, ddis_factor, &
+                                 ddis_direction
   use kumo_atmosphere, only: atmosphere_t, column_of, LAYER_CLEAR, LAYER_ABSORBING, &
                              LAYER_SCATTERING, LAYER_3D
   use kumo_surface, only: surface_t
@@ -48,6 +49,8 @@ module kumo_transport
   end type tracer_options_t
 
   integer, parameter :: EV_COLLISION = 1, EV_ESCAPE = 2, EV_SURFACE = 3, EV_KILLED = 4
+  !> Most DDIS secondaries queued per photon (secondaries do not split again).
+  integer, parameter :: MAX_PENDING = 64
 
 contains
 
@@ -76,9 +79,12 @@ contains
     type(tally_t), intent(inout) :: tal
     integer(i8) :: ip, n_events, n_steps
     real(wp) :: x, y, z, ux, uy, uz, w, tau, d, zb, e, wn, albedo, mu, cphi, sphi, omega, ps
-    real(wp) :: inv_cf
-    integer :: iz, order, cls, ev, ix, iy, kr, ic, iph, nc, lev
-    logical :: in3d, track_xy, forced
+    real(wp) :: inv_cf, uxi, uyi, uzi, vx, vy, vz, wb, c2, s2, fa
+    integer :: iz, order, cls, ev, ix, iy, kr, ic, iph, nc, lev, levb, n_pending
+    logical :: in3d, track_xy, forced, secondary
+    ! DDIS secondaries waiting to be traced: position, direction, weight; layer, order, level
+    real(wp) :: pend_r(7, MAX_PENDING)
+    integer :: pend_i(3, MAX_PENDING)
 
     ! Horizontal positions matter only for a 3-D region, an albedo map, per-column maps or
     ! cameras; a plane-parallel scene skips their bookkeeping in the 1-D layers.
@@ -102,7 +108,10 @@ contains
       n_events = 0
       n_steps = 0
       call tally_level(atm, lay, tal, atm%nz, .false., 0, w, x, y)
+      n_pending = 0
+      secondary = .false.
 
+      history: do
       photon: do
         tau = -log(1.0_wp - rng_uniform(rng))
         if (forced) tau = tau*inv_cf
@@ -230,8 +239,6 @@ contains
             end if
             w = wn
             if (w <= 0.0_wp) exit photon
-            call roulette(opts, lay, tal, rng, w)
-            if (w <= 0.0_wp) exit photon
             if (n_events > opts%max_events) then
               call lose_photon(lay, tal, ANOM_EVENT_CAP, w)
               exit photon
@@ -266,23 +273,58 @@ contains
             if (atm%truncated) then
               if (rng_uniform(rng) < atm%trunc%f(lev, iph)) then
                 order = order + 1
+                call roulette(opts, lay, tal, rng, w)
+                if (w <= 0.0_wp) exit photon
                 exit flight
               end if
             end if
+            ! local estimates before the roulette, so that a light photon (a DDIS secondary)
+            ! still contributes with its own weight
             if (det%active) call le_particle(det, atm, lay, tal, rng, x, y, z, iz, ux, uy, uz, &
                                              w*ps, iph, lev)
+            call roulette(opts, lay, tal, rng, w)
+            if (w <= 0.0_wp) exit photon
             if (forced) then
               if (rng_uniform(rng) >= ps) exit flight
             end if
             order = order + 1
+            call sample_azimuth(rng, cphi, sphi)
+            uxi = ux
+            uyi = uy
+            uzi = uz
             if (atm%truncated) then
               mu = trunc_sample_mu(atm%trunc, atm%phases(iph), iph, lev, rng_uniform(rng))
-              if (lev < atm%trunc%n_levels .and. mu <= atm%trunc%mu_peak(iph)) lev = lev + 1
             else
               mu = phase_sample_mu(atm%phases(iph), rng_uniform(rng))
             end if
-            call sample_azimuth(rng, cphi, sphi)
             call rotate_direction(ux, uy, uz, mu, cphi, sphi)
+            if (det%ddis_eps > 0.0_wp .and. .not. secondary .and. n_pending < MAX_PENDING) then
+              ! DDIS split (kumo_local_estimate, ddis_factor): the photon keeps its direction
+              ! with a weight factor, and with probability eps a secondary is queued
+              fa = ddis_factor(det, atm, iph, lev, uxi, uyi, uzi, ux, uy, uz)
+              wn = w*fa
+              if (rng_uniform(rng) < det%ddis_eps) then
+                call sample_azimuth(rng, c2, s2)
+                call ddis_direction(det, atm, rng, iph, lev, c2, s2, vx, vy, vz)
+                wb = w*ddis_factor(det, atm, iph, lev, uxi, uyi, uzi, vx, vy, vz)
+                levb = lev
+                if (atm%truncated) then
+                  if (lev < atm%trunc%n_levels .and. uxi*vx + uyi*vy + uzi*vz <= &
+                      atm%trunc%mu_peak(iph)) levb = lev + 1
+                end if
+                if (abs(vz) < UZ_MIN) vz = sign(UZ_MIN, vz)
+                n_pending = n_pending + 1
+                pend_r(:, n_pending) = [x, y, z, vx, vy, vz, wb]
+                pend_i(:, n_pending) = [iz, order, levb]
+                wn = wn + wb
+              end if
+              ! the split creates or removes weight, zero in expectation: booked like roulette
+              tal%buf(lay%i_rr + 1) = tal%buf(lay%i_rr + 1) + (wn - w)
+              w = w*fa
+            end if
+            if (atm%truncated) then
+              if (lev < atm%trunc%n_levels .and. mu <= atm%trunc%mu_peak(iph)) lev = lev + 1
+            end if
             if (abs(uz) < UZ_MIN) then
               uz = sign(UZ_MIN, uz)
               tal%anomalies(ANOM_UZ_NUDGED) = tal%anomalies(ANOM_UZ_NUDGED) + 1
@@ -293,6 +335,21 @@ contains
           end select
         end do flight
       end do photon
+      ! DDIS secondaries of this photon, last in first out
+      if (n_pending == 0) exit history
+      x = pend_r(1, n_pending)
+      y = pend_r(2, n_pending)
+      z = pend_r(3, n_pending)
+      ux = pend_r(4, n_pending)
+      uy = pend_r(5, n_pending)
+      uz = pend_r(6, n_pending)
+      w = pend_r(7, n_pending)
+      iz = pend_i(1, n_pending)
+      order = pend_i(2, n_pending)
+      lev = pend_i(3, n_pending)
+      n_pending = n_pending - 1
+      secondary = .true.
+      end do history
       tal%work(1) = tal%work(1) + n_steps
       tal%work(2) = tal%work(2) + n_events
     end do

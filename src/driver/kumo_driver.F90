@@ -15,7 +15,8 @@ module kumo_driver
   use kumo_atmosphere, only: atmosphere_t, atmosphere_options_t, atmosphere_init, &
                              atmosphere_set_truncation, LAYER_CLASS_NAMES, LAYER_3D
   use kumo_truncation, only: truncation_t, truncation_init
-  use kumo_camera, only: camera_t, camera_init, CAMERA_PINHOLE, CAMERA_ORTHOGRAPHIC
+  use kumo_camera, only: camera_t, camera_init, CAMERA_PINHOLE, CAMERA_ORTHOGRAPHIC, &
+                         MAX_IMAGE_SHIFTS
   use kumo_local_estimate, only: detectors_t, detectors_init
   use kumo_surface, only: surface_t, surface_init
   use kumo_tally, only: tally_layout_t, tally_t, stats_t, layout_init, tally_reset, stats_init, &
@@ -239,7 +240,8 @@ contains
     end if
 
     ! Collision forcing: the extinction is raised uniformly so that the domain-mean column
-    ! optical depth is at least cf_tau_min (the MCARaTS rule, digest section 19.4 a).
+    ! optical depth along the sun's path (tau/mu0) is at least cf_tau_min (the MCARaTS rule,
+    ! digest section 19.4 a, on the slant column so that a low sun is not forced needlessly).
     associate (atm => scene%atm)
       tau_col = 0.0_wp
       do k = 1, atm%nz
@@ -251,9 +253,15 @@ contains
         end if
       end do
     end associate
+    tau_col = tau_col/scene%mu0
     if (tau_col > 0.0_wp .and. tau_col < cfg%vr%cf_tau_min) then
       scene%tracer%cf_factor = cfg%vr%cf_tau_min/tau_col
     end if
+    do i = 1, size(cams)
+      if (cams(i)%capped) scene%warnings = scene%warnings//'camera '//str(i)// &
+        ' sees the periodic scene up to the horizon; copies beyond '// &
+        str(MAX_IMAGE_SHIFTS)//' domain lengths are left out (pixels near the horizon are low). '
+    end do
 
     ! MYSTIC stops in this situation; kumo warns: local estimates with a forward peak and no
     ! variance reduction converge very slowly (one rare near-forward scattering dominates).
@@ -262,7 +270,7 @@ contains
       if (phase_eval(phases(i), 1.0_wp) > SPIKY_PEAK) spiky = .true.
     end do
     if (spiky .and. cfg%vr%zeta_min <= 0.0_wp .and. .not. scene%atm%truncated) then
-      scene%warnings = 'radiances are requested for a phase function with a forward peak '// &
+      scene%warnings = scene%warnings//'radiances are requested for a phase function with a forward peak '// &
                        '(P(0) > '//str(SPIKY_PEAK)//') with local-estimate roulette and '// &
                        'truncation off: pixel radiances will be very noisy; vr_preset = '// &
                        '"unbiased" (roulette) or "standard" (also truncation) is recommended'

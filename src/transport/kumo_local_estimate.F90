@@ -100,7 +100,7 @@ contains
   !> direction (ux, uy, uz) with weight `w` (the expected scattered weight: after absorption,
   !> times the probability that the collision is a real, non-delta scattering), phase function
   !> `iph` at truncation level `lev`.
-  subroutine le_particle(det, atm, lay, tal, rng, x, y, z, iz, ux, uy, uz, w, iph, lev)
+  subroutine le_particle(det, atm, lay, tal, rng, x, y, z, iz, ux, uy, uz, w, iph, lev, ps)
     type(detectors_t), intent(in) :: det
     type(atmosphere_t), intent(in) :: atm
     type(tally_layout_t), intent(in) :: lay
@@ -108,13 +108,16 @@ contains
     type(rng_t), intent(inout) :: rng
     real(wp), intent(in) :: x, y, z, ux, uy, uz, w
     integer, intent(in) :: iz, iph, lev
+    !> probability that the collision is a real scattering (collision forcing); the roulette
+    !> threshold is scaled by it so that forced collisions are rouletted like real ones
+    real(wp), intent(in) :: ps
     integer :: d, c, mx, my, ipix, lev_t
     real(wp) :: mu, a, vx, vy, vz, dist, factor
     logical :: hit
     do d = 1, det%n_dir
       mu = ux*det%ux(d) + uy*det%uy(d) + uz*det%uz(d)
       call particle_density(atm, iph, lev, mu, w, a, lev_t)
-      call level_estimate(det, atm, lay, tal, rng, x, y, z, iz, iz, d, a, lev_t)
+      call level_estimate(det, atm, lay, tal, rng, x, y, z, iz, iz, d, a, ps, lev_t)
     end do
     do c = 1, size(det%cams)
       do my = det%cams(c)%my_lo, det%cams(c)%my_hi
@@ -125,7 +128,7 @@ contains
           mu = ux*vx + uy*vy + uz*vz
           call particle_density(atm, iph, lev, mu, w, a, lev_t)
           call camera_estimate(det, atm, tal, rng, x, y, z, iz, vx, vy, vz, dist, &
-                               factor, a, lev_t, lay%i_cam(c) + ipix)
+                               factor, a, ps, lev_t, lay%i_cam(c) + ipix)
         end do
       end do
     end do
@@ -220,7 +223,7 @@ contains
     do d = 1, det%n_dir
       if (det%uz(d) <= 0.0_wp) cycle
       a = w*det%uz(d)/PI
-      call level_estimate(det, atm, lay, tal, rng, x, y, z0, 1, 0, d, a, lev)
+      call level_estimate(det, atm, lay, tal, rng, x, y, z0, 1, 0, d, a, 1.0_wp, lev)
     end do
     do c = 1, size(det%cams)
       do my = det%cams(c)%my_lo, det%cams(c)%my_hi
@@ -230,7 +233,7 @@ contains
           if (.not. hit .or. vz <= 0.0_wp) cycle
           a = w*vz/PI
           call camera_estimate(det, atm, tal, rng, x, y, z0, 1, vx, vy, vz, dist, &
-                               factor, a, lev, lay%i_cam(c) + ipix)
+                               factor, a, 1.0_wp, lev, lay%i_cam(c) + ipix)
         end do
       end do
     end do
@@ -257,27 +260,27 @@ contains
     end if
   end subroutine particle_density
 
-  !> Roulette of a contribution (see the module text): returns false if it is dropped;
-  !> otherwise `a` (possibly raised to a_min), tau_lim and the optical depth at which the trace
-  !> may stop.
-  logical function roulette_contribution(det, rng, a, tau_lim, tau_stop) result(keep)
-    type(detectors_t), intent(in) :: det
+  !> Roulette of a contribution (see the module text) against the threshold a_min: returns false
+  !> if it is dropped; otherwise `a` (possibly raised to a_min), tau_lim and the optical depth
+  !> at which the trace may stop. Any a_min > 0 is unbiased; it sets only the efficiency.
+  logical function roulette_contribution(rng, a, a_min, tau_lim, tau_stop) result(keep)
     type(rng_t), intent(inout) :: rng
     real(wp), intent(inout) :: a
+    real(wp), intent(in) :: a_min
     real(wp), intent(out) :: tau_lim, tau_stop
     keep = a > 0.0_wp
     tau_lim = huge(1.0_wp)
     tau_stop = huge(1.0_wp)
-    if (.not. keep .or. det%a_min <= 0.0_wp) return
-    if (a < det%a_min) then
-      if (rng_uniform(rng)*det%a_min >= a) then
+    if (.not. keep .or. a_min <= 0.0_wp) return
+    if (a < a_min) then
+      if (rng_uniform(rng)*a_min >= a) then
         keep = .false.
         return
       end if
-      a = det%a_min
+      a = a_min
       tau_lim = 0.0_wp
     else
-      tau_lim = log(a/det%a_min)
+      tau_lim = log(a/a_min)
     end if
     tau_stop = tau_lim - log(1.0_wp - rng_uniform(rng))
   end function roulette_contribution
@@ -285,19 +288,22 @@ contains
   !> Contributions of one event to the level detectors of direction d. The event lies in layer
   !> iz (a particle) or on the surface (iz = 1, k_up = 0); upward light reaches the levels
   !> k >= k_up, downward light the levels k <= iz - 1.
-  subroutine level_estimate(det, atm, lay, tal, rng, x, y, z, iz, k_up, d, a_in, lev_t)
+  !> The roulette compares the contribution in reflectance units, pi a/|mu_d|, with zeta_min
+  !> (times `ps` for forced collisions).
+  subroutine level_estimate(det, atm, lay, tal, rng, x, y, z, iz, k_up, d, a_in, ps, lev_t)
     type(detectors_t), intent(in) :: det
     type(atmosphere_t), intent(in) :: atm
     type(tally_layout_t), intent(in) :: lay
     type(tally_t), intent(inout) :: tal
     type(rng_t), intent(inout) :: rng
-    real(wp), intent(in) :: x, y, z, a_in
+    real(wp), intent(in) :: x, y, z, a_in, ps
     integer, intent(in) :: iz, k_up, d, lev_t
     real(wp) :: a, tau_lim, tau_stop, tau, psi0, xc, yc, zc, vx, vy, vz
     integer :: i, j, kd, izc, slot, n_lev, ib, ib_map, k
     if (size(det%levels) == 0) return
     a = a_in
-    if (.not. roulette_contribution(det, rng, a, tau_lim, tau_stop)) return
+    if (.not. roulette_contribution(rng, a, det%a_min*abs(det%uz(d))*ps, tau_lim, tau_stop)) &
+      return
     vx = det%ux(d)
     vy = det%uy(d)
     vz = det%uz(d)
@@ -364,16 +370,16 @@ contains
   !> Contribution of one event to camera pixel buf(ibuf) through the line of sight (vx, vy, vz)
   !> of length dist.
   subroutine camera_estimate(det, atm, tal, rng, x, y, z, iz, vx, vy, vz, dist, factor, &
-                             a_in, lev_t, ibuf)
+                             a_in, ps, lev_t, ibuf)
     type(detectors_t), intent(in) :: det
     type(atmosphere_t), intent(in) :: atm
     type(tally_t), intent(inout) :: tal
     type(rng_t), intent(inout) :: rng
-    real(wp), intent(in) :: x, y, z, vx, vy, vz, dist, factor, a_in
+    real(wp), intent(in) :: x, y, z, vx, vy, vz, dist, factor, a_in, ps
     integer, intent(in) :: iz, lev_t, ibuf
     real(wp) :: a, tau_lim, tau_stop, tau
     a = a_in
-    if (.not. roulette_contribution(det, rng, a, tau_lim, tau_stop)) return
+    if (.not. roulette_contribution(rng, a, det%a_min*ps, tau_lim, tau_stop)) return
     call trace_distance(atm, x, y, z, iz, vx, vy, vz, dist, lev_t, tau, tau_stop)
     if (tau > tau_stop) return
     tal%buf(ibuf) = tal%buf(ibuf) + det%cam_scale*a*factor*exp(-min(tau, tau_lim))

@@ -281,7 +281,7 @@ contains
             ! local estimates before the roulette, so that a light photon (a DDIS secondary)
             ! still contributes with its own weight
             if (det%active) call le_particle(det, atm, lay, tal, rng, x, y, z, iz, ux, uy, uz, &
-                                             w*ps, iph, lev)
+                                             w*ps, iph, lev, ps)
             call roulette(opts, lay, tal, rng, w)
             if (w <= 0.0_wp) exit photon
             if (forced) then

@@ -45,6 +45,10 @@ module kumo_driver
 
   !> A phase function whose forward value exceeds this is "spiky" for local estimates.
   real(wp), parameter :: SPIKY_PEAK = 50.0_wp
+  !> Directional importance sampling is used for scatterings by phase functions whose forward
+  !> value exceeds this (Mie clouds: 10^3 - 10^4); below it (e.g. HG 0.85, P(0) = 82) its
+  !> secondaries cost more than they save (measured on the HG slab).
+  real(wp), parameter :: DDIS_PEAK = 300.0_wp
 
   !> Figures of a finished run, for the log and for tests.
   type :: run_summary_t
@@ -261,6 +265,12 @@ contains
       if (cams(i)%capped) scene%warnings = scene%warnings//'camera '//str(i)// &
         ' sees the periodic scene up to the horizon; copies beyond '// &
         str(MAX_IMAGE_SHIFTS)//' domain lengths are left out (pixels near the horizon are low). '
+    end do
+
+    deallocate (scene%det%ddis_phase)
+    allocate (scene%det%ddis_phase(size(phases)))
+    do i = 1, size(phases)
+      scene%det%ddis_phase(i) = phase_eval(phases(i), 1.0_wp) > DDIS_PEAK
     end do
 
     ! MYSTIC stops in this situation; kumo warns: local estimates with a forward peak and no

@@ -41,7 +41,7 @@ module kumo_config
     [character(len=16) :: 'analog', 'unbiased', 'standard', 'quick']
   ! Preset values, in the order of PRESET_NAMES (MCARaTS ladder, state-of-the-art C1, B2, B6).
   real(wp), parameter :: PRESET_ZETA(4) = [0.0_wp, 0.3_wp, 0.3_wp, 0.3_wp]
-  real(wp), parameter :: PRESET_TRUNC_DEG(4) = [0.0_wp, 0.0_wp, 30.0_wp, 45.0_wp]
+  real(wp), parameter :: PRESET_TRUNC_DEG(4) = [0.0_wp, 0.0_wp, 30.0_wp, 40.0_wp]
   integer, parameter :: PRESET_TRUNC_LEVELS(4) = [1, 1, 4, 3]
   real(wp), parameter :: PRESET_CF_TAU(4) = [0.0_wp, 1.0_wp, 2.0_wp, 3.0_wp]
   real(wp), parameter :: PRESET_DIFF(4) = [0.0_wp, 0.0_wp, 60.0_wp, 150.0_wp]

@@ -56,6 +56,8 @@ module kumo_local_estimate
     integer :: diff_max = 0                !! largest half-width [columns]
     ! Detector directional importance sampling (Buras and Mayer 2011)
     real(wp) :: ddis_eps = 0.0_wp          !! chance of a DDIS secondary per scattering; 0 = off
+    logical, allocatable :: ddis_phase(:)  !! (n_phases) DDIS for scatterings by this phase
+                                           !! function (those with a strong forward peak)
   end type detectors_t
 
 contains
@@ -94,6 +96,7 @@ contains
       det%diff_max = diff_max
     end if
     if (present(ddis_eps) .and. det%n_dir > 0) det%ddis_eps = ddis_eps
+    allocate (det%ddis_phase(0))
   end subroutine detectors_init
 
   !> Local estimates of a particle scattering at (x, y, z) in layer iz, for a photon arriving in

@@ -81,7 +81,7 @@ contains
     real(wp) :: x, y, z, ux, uy, uz, w, tau, d, zb, e, wn, albedo, mu, cphi, sphi, omega, ps
     real(wp) :: inv_cf, uxi, uyi, uzi, vx, vy, vz, wb, c2, s2, fa
     integer :: iz, order, cls, ev, ix, iy, kr, ic, iph, nc, lev, levb, n_pending
-    logical :: in3d, track_xy, forced, secondary
+    logical :: in3d, track_xy, forced, secondary, split
     ! DDIS secondaries waiting to be traced: position, direction, weight; layer, order, level
     real(wp) :: pend_r(7, MAX_PENDING)
     integer :: pend_i(3, MAX_PENDING)
@@ -292,13 +292,16 @@ contains
             uxi = ux
             uyi = uy
             uzi = uz
+            split = .false.
             if (atm%truncated) then
               mu = trunc_sample_mu(atm%trunc, atm%phases(iph), iph, lev, rng_uniform(rng))
             else
               mu = phase_sample_mu(atm%phases(iph), rng_uniform(rng))
             end if
             call rotate_direction(ux, uy, uz, mu, cphi, sphi)
-            if (det%ddis_eps > 0.0_wp .and. .not. secondary .and. n_pending < MAX_PENDING) then
+            if (det%ddis_eps > 0.0_wp .and. .not. secondary .and. n_pending < MAX_PENDING) &
+              split = det%ddis_phase(iph)
+            if (split) then
               ! DDIS split (kumo_local_estimate, ddis_factor): the photon keeps its direction
               ! with a weight factor, and with probability eps a secondary is queued
               fa = ddis_factor(det, atm, iph, lev, uxi, uyi, uzi, ux, uy, uz)

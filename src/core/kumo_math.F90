@@ -5,11 +5,22 @@ module kumo_math
   use kumo_kinds, only: wp
   implicit none
   private
-  public :: rotate_direction, within, wrap, UZ_MIN
+  public :: rotate_direction, within, wrap, UZ_MIN, GL5_X, GL5_W
 
   !> Smallest |uz| a photon may travel with. Plane crossings divide by uz; directions closer to
   !> the horizontal are nudged to this value and the nudge is counted as an anomaly.
   real(wp), parameter :: UZ_MIN = 1.0e-10_wp
+
+  !> 5-point Gauss-Legendre nodes and weights on [-1, 1] (exact for polynomials of degree 9).
+  real(wp), parameter :: GL5_X(5) = [-sqrt(5.0_wp + 2.0_wp*sqrt(10.0_wp/7.0_wp))/3.0_wp, &
+                                     -sqrt(5.0_wp - 2.0_wp*sqrt(10.0_wp/7.0_wp))/3.0_wp, 0.0_wp, &
+                                     sqrt(5.0_wp - 2.0_wp*sqrt(10.0_wp/7.0_wp))/3.0_wp, &
+                                     sqrt(5.0_wp + 2.0_wp*sqrt(10.0_wp/7.0_wp))/3.0_wp]
+  real(wp), parameter :: GL5_W(5) = [(322.0_wp - 13.0_wp*sqrt(70.0_wp))/900.0_wp, &
+                                     (322.0_wp + 13.0_wp*sqrt(70.0_wp))/900.0_wp, &
+                                     128.0_wp/225.0_wp, &
+                                     (322.0_wp + 13.0_wp*sqrt(70.0_wp))/900.0_wp, &
+                                     (322.0_wp - 13.0_wp*sqrt(70.0_wp))/900.0_wp]
 
 contains
 

@@ -24,6 +24,7 @@
 module kumo_phase
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite, ieee_is_nan
   use kumo_kinds, only: wp
+  use kumo_math, only: GL_X => GL5_X, GL_W => GL5_W
   use kumo_constants, only: PI, DEG2RAD
   use kumo_error, only: error_t, set_error, str, to_lower
   implicit none
@@ -52,16 +53,6 @@ module kumo_phase
   !> Largest quadrature sub-interval for tabulated phase functions [deg].
   real(wp), parameter :: SUB_STEP_DEG = 0.01_wp
 
-  ! 5-point Gauss-Legendre nodes and weights on [-1, 1].
-  real(wp), parameter :: GL_X(5) = [-sqrt(5.0_wp + 2.0_wp*sqrt(10.0_wp/7.0_wp))/3.0_wp, &
-                                    -sqrt(5.0_wp - 2.0_wp*sqrt(10.0_wp/7.0_wp))/3.0_wp, 0.0_wp, &
-                                    sqrt(5.0_wp - 2.0_wp*sqrt(10.0_wp/7.0_wp))/3.0_wp, &
-                                    sqrt(5.0_wp + 2.0_wp*sqrt(10.0_wp/7.0_wp))/3.0_wp]
-  real(wp), parameter :: GL_W(5) = [(322.0_wp - 13.0_wp*sqrt(70.0_wp))/900.0_wp, &
-                                    (322.0_wp + 13.0_wp*sqrt(70.0_wp))/900.0_wp, &
-                                    128.0_wp/225.0_wp, &
-                                    (322.0_wp + 13.0_wp*sqrt(70.0_wp))/900.0_wp, &
-                                    (322.0_wp - 13.0_wp*sqrt(70.0_wp))/900.0_wp]
 
   !> A phase function ready for evaluation and sampling. Build it with a constructor
   !> (`new_phase_isotropic`, `new_phase_rayleigh`, `new_phase_hg`, `phase_from_table`); the

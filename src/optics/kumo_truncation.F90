@@ -42,6 +42,7 @@
 module kumo_truncation
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite, ieee_is_nan
   use kumo_kinds, only: wp
+  use kumo_math, only: GL_X => GL5_X, GL_W => GL5_W
   use kumo_constants, only: PI, DEG2RAD
   use kumo_error, only: error_t, set_error, str
   use kumo_phase, only: phase_t, phase_sample_mu, phase_eval, PHASE_HG, PHASE_TABLE
@@ -56,16 +57,6 @@ module kumo_truncation
   !> Value of mu_peak when P(1) < pf_peak (no scattering counts as "into the peak").
   real(wp), parameter :: NO_PEAK = 2.0_wp
 
-  ! 5-point Gauss-Legendre nodes and weights on [-1, 1].
-  real(wp), parameter :: GL_X(5) = [-sqrt(5.0_wp + 2.0_wp*sqrt(10.0_wp/7.0_wp))/3.0_wp, &
-                                    -sqrt(5.0_wp - 2.0_wp*sqrt(10.0_wp/7.0_wp))/3.0_wp, 0.0_wp, &
-                                    sqrt(5.0_wp - 2.0_wp*sqrt(10.0_wp/7.0_wp))/3.0_wp, &
-                                    sqrt(5.0_wp + 2.0_wp*sqrt(10.0_wp/7.0_wp))/3.0_wp]
-  real(wp), parameter :: GL_W(5) = [(322.0_wp - 13.0_wp*sqrt(70.0_wp))/900.0_wp, &
-                                    (322.0_wp + 13.0_wp*sqrt(70.0_wp))/900.0_wp, &
-                                    128.0_wp/225.0_wp, &
-                                    (322.0_wp + 13.0_wp*sqrt(70.0_wp))/900.0_wp, &
-                                    (322.0_wp - 13.0_wp*sqrt(70.0_wp))/900.0_wp]
 
   !> Delta-flat truncation of a set of phase functions at every truncation level. Arrays are
   !> indexed (level, phase); untruncated entries hold f = 0, u_t = 1, body = 1, p_flat = 0.

@@ -512,43 +512,11 @@ contains
           if (tau > tau_stop) return
           rem = rem - step
           if (tx <= ty) then
-            y = y + vy*step
-            if (vx > 0.0_wp) then
-              ix = ix + 1
-              x = (ix - 1)*atm%dx
-              if (ix > atm%nx) then
-                ix = 1
-                x = 0.0_wp
-              end if
-            else
-              ix = ix - 1
-              x = ix*atm%dx
-              if (ix < 1) then
-                ix = atm%nx
-                x = atm%lx
-              end if
-            end if
-            call wrap(y, atm%ly)
-            iy = min(atm%ny, max(1, int(y*atm%inv_dy) + 1))
+            call cross_face(ix, x, vx, atm%nx, atm%dx, atm%lx)
+            call advance(iy, y, vy*step, atm%ny, atm%ly, atm%inv_dy)
           else
-            x = x + vx*step
-            if (vy > 0.0_wp) then
-              iy = iy + 1
-              y = (iy - 1)*atm%dy
-              if (iy > atm%ny) then
-                iy = 1
-                y = 0.0_wp
-              end if
-            else
-              iy = iy - 1
-              y = iy*atm%dy
-              if (iy < 1) then
-                iy = atm%ny
-                y = atm%ly
-              end if
-            end if
-            call wrap(x, atm%lx)
-            ix = min(atm%nx, max(1, int(x*atm%inv_dx) + 1))
+            call cross_face(iy, y, vy, atm%ny, atm%dy, atm%ly)
+            call advance(ix, x, vx*step, atm%nx, atm%lx, atm%inv_dx)
           end if
         end do
         x = x + vx*rem
@@ -569,4 +537,38 @@ contains
     call wrap(x, atm%lx)
     call wrap(y, atm%ly)
   end subroutine layer_segment
+  !> Step into the next cell along one axis (direction cosine v /= 0), periodically: the
+  !> coordinate is set exactly onto the face that was crossed.
+  pure subroutine cross_face(i, x, v, n, d, l)
+    integer, intent(inout) :: i
+    real(wp), intent(inout) :: x
+    real(wp), intent(in) :: v, d, l
+    integer, intent(in) :: n
+    if (v > 0.0_wp) then
+      i = i + 1
+      x = (i - 1)*d
+      if (i > n) then
+        i = 1
+        x = 0.0_wp
+      end if
+    else
+      i = i - 1
+      x = i*d
+      if (i < 1) then
+        i = n
+        x = l
+      end if
+    end if
+  end subroutine cross_face
+
+  !> Move along the other axis by dx and find its cell again (periodic).
+  pure subroutine advance(i, x, dx, n, l, inv_d)
+    integer, intent(out) :: i
+    real(wp), intent(inout) :: x
+    real(wp), intent(in) :: dx, l, inv_d
+    integer, intent(in) :: n
+    x = x + dx
+    call wrap(x, l)
+    i = min(n, max(1, int(x*inv_d) + 1))
+  end subroutine advance
 end module kumo_local_estimate

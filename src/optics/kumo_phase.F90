@@ -72,6 +72,8 @@ module kumo_phase
     real(wp), allocatable :: mu_tab(:)     !! input angles as cosines, ascending (-1 ... 1)
     real(wp), allocatable :: theta_tab(:)  !! the same angles [rad], descending (pi ... 0)
     real(wp), allocatable :: p_tab(:)      !! normalised P at mu_tab
+    real(wp), allocatable :: lp_tab(:)     !! log(p_tab) where p_tab > 0 (for interpolation)
+    real(wp), allocatable :: inv_dth(:)    !! 1/(theta_tab(i+1) - theta_tab(i)) per interval
   end type phase_t
 
 contains
@@ -308,6 +310,8 @@ contains
     ph%mu_tab(1) = -1.0_wp
     ph%mu_tab(n) = 1.0_wp
     ph%p_tab = value(n:1:-1)
+    ph%lp_tab = log(max(ph%p_tab, tiny(1.0_wp)))
+    ph%inv_dth = 1.0_wp/(ph%theta_tab(2:n) - ph%theta_tab(1:n - 1))
 
     ! --- CDF from mu = -1 on sub-intervals in Theta -----------------------------------------
     ! Sub-interval k runs from th_f(k-1) down to th_f(k) (mu ascending) inside the evaluation
@@ -339,6 +343,7 @@ contains
     ph%norm_factor = 1.0_wp/total
     ph%g = moment1/total
     ph%p_tab = ph%p_tab*ph%norm_factor
+    ph%lp_tab = ph%lp_tab + log(ph%norm_factor)
     cum = cum*ph%norm_factor                 ! from here on everything is normalised
     cum(nfine) = 1.0_wp
 
@@ -435,12 +440,13 @@ contains
     real(wp), intent(in) :: theta  !! scattering angle [rad]
     real(wp) :: p
     real(wp) :: f, pa, pb
-    f = (theta - ph%theta_tab(i))/(ph%theta_tab(i + 1) - ph%theta_tab(i))
+    f = (theta - ph%theta_tab(i))*ph%inv_dth(i)
     f = min(1.0_wp, max(0.0_wp, f))
     pa = ph%p_tab(i)
     pb = ph%p_tab(i + 1)
     if (pa > 0.0_wp .and. pb > 0.0_wp) then
-      p = pa*(pb/pa)**f
+      ! pa (pb/pa)^f, as one exponential of the stored logarithms
+      p = exp(ph%lp_tab(i) + f*(ph%lp_tab(i + 1) - ph%lp_tab(i)))
     else
       p = pa + f*(pb - pa)
     end if

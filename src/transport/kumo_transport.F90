@@ -436,7 +436,7 @@ contains
     real(wp), intent(in) :: inv_cf  !! 1/(collision-forcing factor)
     integer, intent(out) :: ev, ix, iy, kr
     integer :: s, jx, jy, bx, by, nbx, nby, face, klo, khi
-    real(wp) :: xlo, xhi, ylo, yhi, zlo, zhi, dxf, dyf, dzf, d, smax, bdx, bdy
+    real(wp) :: xlo, xhi, ylo, yhi, zlo, zhi, dxf, dyf, dzf, d, smax, bdx, bdy, znew
 
     ev = 0
     ix = 0
@@ -503,7 +503,15 @@ contains
       if (smax*d <= tau) then
         ! leave the super-voxel through `face`
         tau = tau - smax*d
-        call move_inside(atm, lay, tal, x, y, z, ux, uy, uz, w, order, iz, klo, khi, d)
+        znew = z + uz*d
+        if (uz > 0.0_wp .and. znew < atm%z(iz) .or. uz <= 0.0_wp .and. znew >= atm%z(iz - 1)) then
+          ! the common case: the segment stays inside the photon's layer, no level is crossed
+          x = x + ux*d
+          y = y + uy*d
+          z = znew
+        else
+          call move_inside(atm, lay, tal, x, y, z, ux, uy, uz, w, order, iz, klo, khi, d)
+        end if
         select case (face)
         case (1)
           if (ux > 0.0_wp) then
@@ -555,7 +563,15 @@ contains
       else
         ! tentative collision inside the super-voxel
         d = tau/smax
-        call move_inside(atm, lay, tal, x, y, z, ux, uy, uz, w, order, iz, klo, khi, d)
+        znew = z + uz*d
+        if (uz > 0.0_wp .and. znew < atm%z(iz) .or. uz <= 0.0_wp .and. znew >= atm%z(iz - 1)) then
+          ! the common case: the segment stays inside the photon's layer, no level is crossed
+          x = x + ux*d
+          y = y + uy*d
+          z = znew
+        else
+          call move_inside(atm, lay, tal, x, y, z, ux, uy, uz, w, order, iz, klo, khi, d)
+        end if
         ix = int(x*atm%inv_dx) + 1
         iy = int(y*atm%inv_dy) + 1
         if (ix < (jx - 1)*bx + 1 .or. ix > min(atm%nx, jx*bx) .or. &

@@ -22,7 +22,7 @@ module kumo_driver
   use kumo_tally, only: tally_layout_t, tally_t, stats_t, layout_init, tally_reset, stats_init, &
                         stats_add_batch, stats_mean, stats_stderr, N_ANOMALIES, ANOMALY_NAMES
   use kumo_transport, only: source_t, tracer_options_t, source_init, trace_batch
-  use kumo_results, only: result_set_t, add_dim, add_var, add_attr
+  use kumo_results, only: result_set_t, add_dim, add_var, add_attr, find_var
   use kumo_config, only: config_t, read_config, config_echo
   use kumo_textio, only: read_two_columns, read_whole_file
   use kumo_netcdf, only: write_results, check_writable, read_scene_3d, read_albedo_map
@@ -804,10 +804,49 @@ contains
         end if
       end do
     end do
+    call log_radiances(set)
     do i = 1, N_ANOMALIES
       if (summary%anomalies(i) > 0) write (output_unit, '(a)') '  anomaly '// &
         trim(ANOMALY_NAMES(i))//': '//str(summary%anomalies(i))
     end do
     write (output_unit, '(a)') 'wrote '//path
   end subroutine log_summary
+
+  !> The domain-mean radiances, one line per direction and level, leaving out exact zeros (no
+  !> light enters at the top; a black surface reflects none); at most MAX_LINES lines.
+  subroutine log_radiances(set)
+    type(result_set_t), intent(in) :: set
+    integer, parameter :: MAX_LINES = 12
+    integer :: iv, iphi, idir, ilev, nd, nl, j, k, lines
+    real(dp) :: mu, phi, z
+    iv = find_var(set, 'radiance')
+    iphi = find_var(set, 'direction_phi')
+    idir = 0
+    ilev = 0
+    do j = 1, size(set%dims)
+      if (trim(set%dims(j)%name) == 'direction') idir = j
+      if (trim(set%dims(j)%name) == 'rad_level') ilev = j
+    end do
+    if (iv == 0 .or. iphi == 0 .or. idir == 0 .or. ilev == 0) return
+    nd = set%dims(idir)%size
+    nl = set%dims(ilev)%size
+    lines = 0
+    do j = 1, nd
+      mu = set%dims(idir)%coord(j)
+      phi = set%vars(iphi)%mean(j)
+      do k = 1, nl
+        z = set%dims(ilev)%coord(k)
+        if (set%vars(iv)%mean(k + (j - 1)*nl) == 0.0_dp .and. &
+            set%vars(iv)%stderr(k + (j - 1)*nl) == 0.0_dp) cycle
+        lines = lines + 1
+        if (lines > MAX_LINES) then
+          write (output_unit, '(a)') '  radiance: ... (all in the file)'
+          return
+        end if
+        write (output_unit, '(2x,a,f7.4,a,f7.1,a,f9.1,a,f12.6,a,f10.6)') 'radiance mu', mu, &
+          ' phi', phi, ' z', z, ' m', set%vars(iv)%mean(k + (j - 1)*nl), ' +- ', &
+          set%vars(iv)%stderr(k + (j - 1)*nl)
+      end do
+    end do
+  end subroutine log_radiances
 end module kumo_driver

@@ -109,11 +109,11 @@ contains
     type(tally_layout_t), intent(in) :: lay
     type(tally_t), intent(inout) :: tal
     type(rng_t), intent(inout) :: rng
-    real(wp), intent(in) :: x, y, z, ux, uy, uz, w
-    integer, intent(in) :: iz, iph, lev
+    real(wp), value :: x, y, z, ux, uy, uz, w
+    integer, value :: iz, iph, lev
     !> probability that the collision is a real scattering (collision forcing); the roulette
     !> threshold is scaled by it so that forced collisions are rouletted like real ones
-    real(wp), intent(in) :: ps
+    real(wp), value :: ps
     integer :: d, c, mx, my, ipix, lev_t
     real(wp) :: mu, a, vx, vy, vz, dist, factor
     logical :: hit
@@ -217,8 +217,8 @@ contains
     type(tally_layout_t), intent(in) :: lay
     type(tally_t), intent(inout) :: tal
     type(rng_t), intent(inout) :: rng
-    real(wp), intent(in) :: x, y, w
-    integer, intent(in) :: lev
+    real(wp), value :: x, y, w
+    integer, value :: lev
     integer :: d, c, mx, my, ipix
     real(wp) :: a, vx, vy, vz, dist, factor, z0
     logical :: hit

@@ -79,9 +79,9 @@ contains
     type(tally_t), intent(inout) :: tal
     integer(i8) :: ip, n_events, n_steps
     real(wp) :: x, y, z, ux, uy, uz, w, tau, d, zb, e, wn, albedo, mu, cphi, sphi, omega, ps
-    real(wp) :: inv_cf, uxi, uyi, uzi, vx, vy, vz, wb, c2, s2, fa
-    integer :: iz, order, cls, ev, ix, iy, kr, ic, iph, nc, lev, levb, n_pending
-    logical :: in3d, track_xy, forced, secondary, split
+    real(wp) :: inv_cf, uxi, uyi, uzi
+    integer :: iz, order, cls, ev, ix, iy, kr, ic, iph, nc, lev, n_pending
+    logical :: in3d, track_xy, forced, secondary, split, plain
     ! DDIS secondaries waiting to be traced: position, direction, weight; layer, order, level
     real(wp) :: pend_r(7, MAX_PENDING)
     integer :: pend_i(3, MAX_PENDING)
@@ -94,6 +94,7 @@ contains
     ! cf_factor * sigma; see the collision below.
     forced = opts%cf_factor > 1.0_wp
     inv_cf = 1.0_wp/opts%cf_factor
+    plain = .not. (det%active .or. forced .or. atm%truncated)
     do ip = 1, n_photons
       x = rng_uniform(rng)*atm%lx
       y = rng_uniform(rng)*atm%ly
@@ -268,65 +269,53 @@ contains
                 iph = atm%iph1(min(ic, nc), iz)
               end if
             end if
-            ! Truncation (seed text eq. 4.2.19): with probability f the scattering belongs to
-            ! the delta peak and the photon keeps its direction; it is still a scattering.
-            if (atm%truncated) then
-              if (rng_uniform(rng) < atm%trunc%f(lev, iph)) then
-                order = order + 1
-                call roulette(opts, lay, tal, rng, w)
-                if (w <= 0.0_wp) exit photon
-                exit flight
-              end if
-            end if
-            ! local estimates before the roulette, so that a light photon (a DDIS secondary)
-            ! still contributes with its own weight
-            if (det%active) call le_particle(det, atm, lay, tal, rng, x, y, z, iz, ux, uy, uz, &
-                                             w*ps, iph, lev, ps)
-            call roulette(opts, lay, tal, rng, w)
-            if (w <= 0.0_wp) exit photon
-            if (forced) then
-              if (rng_uniform(rng) >= ps) exit flight
-            end if
-            order = order + 1
-            call sample_azimuth(rng, cphi, sphi)
-            uxi = ux
-            uyi = uy
-            uzi = uz
-            split = .false.
-            if (atm%truncated) then
-              mu = trunc_sample_mu(atm%trunc, atm%phases(iph), iph, lev, rng_uniform(rng))
-            else
+            if (plain) then
+              ! a flux run without variance reduction: the scattering as it always was
+              call roulette(opts, lay, tal, rng, w)
+              if (w <= 0.0_wp) exit photon
+              order = order + 1
               mu = phase_sample_mu(atm%phases(iph), rng_uniform(rng))
-            end if
-            call rotate_direction(ux, uy, uz, mu, cphi, sphi)
-            if (det%ddis_eps > 0.0_wp .and. .not. secondary .and. n_pending < MAX_PENDING) &
-              split = det%ddis_phase(iph)
-            if (split) then
-              ! DDIS split (kumo_local_estimate, ddis_factor): the photon keeps its direction
-              ! with a weight factor, and with probability eps a secondary is queued
-              fa = ddis_factor(det, atm, iph, lev, uxi, uyi, uzi, ux, uy, uz)
-              wn = w*fa
-              if (rng_uniform(rng) < det%ddis_eps) then
-                call sample_azimuth(rng, c2, s2)
-                call ddis_direction(det, atm, rng, iph, lev, c2, s2, vx, vy, vz)
-                wb = w*ddis_factor(det, atm, iph, lev, uxi, uyi, uzi, vx, vy, vz)
-                levb = lev
-                if (atm%truncated) then
-                  if (lev < atm%trunc%n_levels .and. uxi*vx + uyi*vy + uzi*vz <= &
-                      atm%trunc%mu_peak(iph)) levb = lev + 1
+              call sample_azimuth(rng, cphi, sphi)
+              call rotate_direction(ux, uy, uz, mu, cphi, sphi)
+            else
+              ! Truncation (seed text eq. 4.2.19): with probability f the scattering belongs to
+              ! the delta peak and the photon keeps its direction; it is still a scattering.
+              if (atm%truncated) then
+                if (rng_uniform(rng) < atm%trunc%f(lev, iph)) then
+                  order = order + 1
+                  call roulette(opts, lay, tal, rng, w)
+                  if (w <= 0.0_wp) exit photon
+                  exit flight
                 end if
-                if (abs(vz) < UZ_MIN) vz = sign(UZ_MIN, vz)
-                n_pending = n_pending + 1
-                pend_r(:, n_pending) = [x, y, z, vx, vy, vz, wb]
-                pend_i(:, n_pending) = [iz, order, levb]
-                wn = wn + wb
               end if
-              ! the split creates or removes weight, zero in expectation: booked like roulette
-              tal%buf(lay%i_rr + 1) = tal%buf(lay%i_rr + 1) + (wn - w)
-              w = w*fa
-            end if
-            if (atm%truncated) then
-              if (lev < atm%trunc%n_levels .and. mu <= atm%trunc%mu_peak(iph)) lev = lev + 1
+              ! local estimates before the roulette, so that a light photon (a DDIS secondary)
+              ! still contributes with its own weight
+              if (det%active) call le_particle(det, atm, lay, tal, rng, x, y, z, iz, ux, uy, uz, &
+                                               w*ps, iph, lev, ps)
+              call roulette(opts, lay, tal, rng, w)
+              if (w <= 0.0_wp) exit photon
+              if (forced) then
+                if (rng_uniform(rng) >= ps) exit flight
+              end if
+              order = order + 1
+              call sample_azimuth(rng, cphi, sphi)
+              uxi = ux
+              uyi = uy
+              uzi = uz
+              split = .false.
+              if (atm%truncated) then
+                mu = trunc_sample_mu(atm%trunc, atm%phases(iph), iph, lev, rng_uniform(rng))
+              else
+                mu = phase_sample_mu(atm%phases(iph), rng_uniform(rng))
+              end if
+              call rotate_direction(ux, uy, uz, mu, cphi, sphi)
+              if (det%ddis_eps > 0.0_wp .and. .not. secondary .and. n_pending < MAX_PENDING) &
+                split = det%ddis_phase(iph)
+              if (split) call ddis_split(atm, lay, det, tal, rng, iph, lev, order, iz, x, y, z, &
+                                         uxi, uyi, uzi, ux, uy, uz, w, n_pending, pend_r, pend_i)
+              if (atm%truncated) then
+                if (lev < atm%trunc%n_levels .and. mu <= atm%trunc%mu_peak(iph)) lev = lev + 1
+              end if
             end if
             if (abs(uz) < UZ_MIN) then
               uz = sign(UZ_MIN, uz)
@@ -357,6 +346,47 @@ contains
       tal%work(2) = tal%work(2) + n_events
     end do
   end subroutine trace_batch
+
+  !> DDIS split at a scattering (kumo_local_estimate, ddis_factor): the photon, now leaving along
+  !> (ux, uy, uz) after arriving along (uxi, uyi, uzi), keeps its direction with a weight factor,
+  !> and with probability eps a secondary is queued. Kept out of trace_batch so that the photon
+  !> loop of runs without it stays small enough for the compiler to inline its hot calls.
+  subroutine ddis_split(atm, lay, det, tal, rng, iph, lev, order, iz, x, y, z, uxi, uyi, uzi, &
+                        ux, uy, uz, w, n_pending, pend_r, pend_i)
+    type(atmosphere_t), intent(in) :: atm
+    type(tally_layout_t), intent(in) :: lay
+    type(detectors_t), intent(in) :: det
+    type(tally_t), intent(inout) :: tal
+    type(rng_t), intent(inout) :: rng
+    integer, value :: iph, lev, order, iz
+    real(wp), value :: x, y, z, uxi, uyi, uzi, ux, uy, uz
+    real(wp), intent(inout) :: w
+    integer, intent(inout) :: n_pending
+    real(wp), intent(inout) :: pend_r(:, :)
+    integer, intent(inout) :: pend_i(:, :)
+    real(wp) :: fa, wn, wb, c2, s2, vx, vy, vz
+    integer :: levb
+    fa = ddis_factor(det, atm, iph, lev, uxi, uyi, uzi, ux, uy, uz)
+    wn = w*fa
+    if (rng_uniform(rng) < det%ddis_eps) then
+      call sample_azimuth(rng, c2, s2)
+      call ddis_direction(det, atm, rng, iph, lev, c2, s2, vx, vy, vz)
+      wb = w*ddis_factor(det, atm, iph, lev, uxi, uyi, uzi, vx, vy, vz)
+      levb = lev
+      if (atm%truncated) then
+        if (lev < atm%trunc%n_levels .and. uxi*vx + uyi*vy + uzi*vz <= &
+            atm%trunc%mu_peak(iph)) levb = lev + 1
+      end if
+      if (abs(vz) < UZ_MIN) vz = sign(UZ_MIN, vz)
+      n_pending = n_pending + 1
+      pend_r(:, n_pending) = [x, y, z, vx, vy, vz, wb]
+      pend_i(:, n_pending) = [iz, order, levb]
+      wn = wn + wb
+    end if
+    ! the split creates or removes weight, zero in expectation: booked like roulette
+    tal%buf(lay%i_rr + 1) = tal%buf(lay%i_rr + 1) + (wn - w)
+    w = w*fa
+  end subroutine ddis_split
 
   !> Photon crosses the level at the end of its layer: tally it and move it to the next layer.
   !> Sets `ev` to EV_ESCAPE at the top, EV_SURFACE at the bottom, 0 otherwise.

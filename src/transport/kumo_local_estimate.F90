@@ -305,8 +305,9 @@ contains
     integer :: i, j, kd, izc, slot, n_lev, ib, ib_map, k
     if (size(det%levels) == 0) return
     a = a_in
-    if (.not. roulette_contribution(rng, a, det%a_min*abs(det%uz(d))*ps, tau_lim, tau_stop)) &
+    if (.not. roulette_contribution(rng, a, det%a_min*abs(det%uz(d))*ps, tau_lim, tau_stop)) then
       return
+    end if
     vx = det%ux(d)
     vy = det%uy(d)
     vz = det%uz(d)

@@ -309,8 +309,9 @@ contains
                 mu = phase_sample_mu(atm%phases(iph), rng_uniform(rng))
               end if
               call rotate_direction(ux, uy, uz, mu, cphi, sphi)
-              if (det%ddis_eps > 0.0_wp .and. .not. secondary .and. n_pending < MAX_PENDING) &
+              if (det%ddis_eps > 0.0_wp .and. .not. secondary .and. n_pending < MAX_PENDING) then
                 split = det%ddis_phase(iph)
+              end if
               if (split) call ddis_split(atm, lay, det, tal, rng, iph, lev, order, iz, x, y, z, &
                                          uxi, uyi, uzi, ux, uy, uz, w, n_pending, pend_r, pend_i)
               if (atm%truncated) then

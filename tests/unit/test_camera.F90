@@ -355,6 +355,9 @@ contains
       case (5)  ! pinhole at the surface looking up
         call make_camera(cam, error, pos=[10.0_wp, 20.0_wp, 0.0_wp], zen=20.0_wp, &
                          fov=90.0_wp, npx=4, npy=3, lx=lx, ly=ly, ztop=zt)
+      case default
+        call check(error, .false., 'no camera defined for this case')
+        return
       end select
       if (allocated(error)) return
       call check(error, .not. cam%capped, 'bounded view is not capped')
@@ -446,6 +449,9 @@ contains
         call make_camera(cam, error, kind=CAMERA_ORTHOGRAPHIC, pos=[200.0_wp, 0.0_wp, 1200.0_wp], &
                          zen=150.0_wp, azi=40.0_wp, width=1500.0_wp, npx=3, npy=2, lx=lx, &
                          ly=ly, ztop=1000.0_wp)
+      case default
+        call check(error, .false., 'no camera defined for this case')
+        return
       end select
       if (allocated(error)) return
       allocate (s1(cam%npx*cam%npy), s2(cam%npx*cam%npy), xs(cam%npx*cam%npy))

@@ -26,7 +26,7 @@
 !> build on one core). The shared data folder is the first command-line argument.
 module test_kumo_analytic
   use, intrinsic :: iso_fortran_env, only: output_unit, iostat_end
-  use kumo_test_text, only: split
+  use kumo_test_text, only: split, shared_dir
   use kumo_kinds, only: dp, i8
   use kumo_constants, only: PI, RAD2DEG
   use kumo_error, only: error_t, set_error, str
@@ -37,7 +37,7 @@ module test_kumo_analytic
   use kumo_testing, only: unittest_t, new_unittest, check
   implicit none
   private
-  public :: collect_analytic, set_shared_dir
+  public :: collect_analytic
 
   real(dp), parameter :: K_SIGMA = 4.0_dp        !! allowed deviation in standard errors
   real(dp), parameter :: TINY_REF = 1.0e-6_dp    !! references below this get the floor
@@ -47,7 +47,6 @@ module test_kumo_analytic
   real(dp), parameter :: DZ = 1000.0_dp          !! geometric thickness of every layer [m]
   integer, parameter :: LINE_LEN = 256
 
-  character(len=:), allocatable :: shared_dir
 
   !> Published DISOTEST flux: value and half a unit of its last printed digit (both / pi).
   type :: disotest_value_t
@@ -58,11 +57,6 @@ module test_kumo_analytic
 
 contains
 
-  !> Set the shared data folder (from the command line).
-  subroutine set_shared_dir(path)
-    character(len=*), intent(in) :: path
-    shared_dir = path
-  end subroutine set_shared_dir
 
   !> All tests of this suite.
   function collect_analytic() result(tests)
@@ -571,7 +565,8 @@ contains
 end module test_kumo_analytic
 
 program test_analytic
-  use test_kumo_analytic, only: collect_analytic, set_shared_dir
+  use test_kumo_analytic, only: collect_analytic
+  use kumo_test_text, only: set_shared_dir
   use kumo_testing, only: run_unittests
   use kumo_parallel, only: par_init, par_finalize
   implicit none

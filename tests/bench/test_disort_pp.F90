@@ -42,7 +42,7 @@
 !> `${KUMO_SHARED_DIR}`).
 module test_kumo_disort_pp
   use, intrinsic :: iso_fortran_env, only: output_unit, iostat_end, int64
-  use kumo_test_text, only: split
+  use kumo_test_text, only: split, shared_dir
   use kumo_kinds, only: dp, i8
   use kumo_error, only: error_t, set_error, str
   use kumo_config, only: config_t
@@ -52,7 +52,7 @@ module test_kumo_disort_pp
   use kumo_testing, only: unittest_t, new_unittest, check
   implicit none
   private
-  public :: collect_disort_pp, set_shared_dir
+  public :: collect_disort_pp
 
   real(dp), parameter :: K_SIGMA = 4.0_dp        !! allowed deviation in standard errors
   real(dp), parameter :: TINY_REF = 1.0e-6_dp    !! references below this get the floor
@@ -98,7 +98,6 @@ module test_kumo_disort_pp
     logical :: passed = .false.
   end type comparison_t
 
-  character(len=:), allocatable :: shared_dir
   type(case_t), allocatable :: cases(:)
   type(comparison_t), allocatable :: cmp(:)
   real(dp), allocatable :: closure_err(:)
@@ -107,11 +106,6 @@ module test_kumo_disort_pp
 
 contains
 
-  !> Set the shared data folder (from the command line).
-  subroutine set_shared_dir(path)
-    character(len=*), intent(in) :: path
-    shared_dir = path
-  end subroutine set_shared_dir
 
   !> All tests of this suite.
   function collect_disort_pp() result(tests)
@@ -650,7 +644,8 @@ contains
 end module test_kumo_disort_pp
 
 program test_disort_pp
-  use test_kumo_disort_pp, only: collect_disort_pp, set_shared_dir
+  use test_kumo_disort_pp, only: collect_disort_pp
+  use kumo_test_text, only: set_shared_dir
   use kumo_testing, only: run_unittests
   use kumo_parallel, only: par_init, par_finalize
   implicit none

@@ -84,12 +84,12 @@ module test_kumo_disort_radiance
   use kumo_config, only: config_t
   use kumo_phase, only: PHASE_TABLE
   use kumo_results, only: result_set_t
-  use kumo_test_text, only: split
+  use kumo_test_text, only: split, shared_dir
   use kumo_test_scenes, only: set_phases, run_config, get_array
   use kumo_testing, only: unittest_t, new_unittest, check
   implicit none
   private
-  public :: collect_disort_radiance, set_shared_dir
+  public :: collect_disort_radiance
 
   real(dp), parameter :: K_SIGMA = 5.0_dp        !! allowed deviation in standard errors
   real(dp), parameter :: TINY_REF = 1.0e-6_dp    !! references below this get the floor
@@ -144,7 +144,6 @@ module test_kumo_disort_radiance
     logical :: passed = .false.
   end type comparison_t
 
-  character(len=:), allocatable :: shared_dir
   type(column_t), allocatable :: cols(:)
   type(comparison_t), allocatable :: cmp(:)
   logical :: have_run = .false.
@@ -152,11 +151,6 @@ module test_kumo_disort_radiance
 
 contains
 
-  !> Set the shared data folder (from the command line).
-  subroutine set_shared_dir(path)
-    character(len=*), intent(in) :: path
-    shared_dir = path
-  end subroutine set_shared_dir
 
   !> All tests of this suite.
   function collect_disort_radiance() result(tests)
@@ -774,7 +768,8 @@ contains
 end module test_kumo_disort_radiance
 
 program test_disort_radiance
-  use test_kumo_disort_radiance, only: collect_disort_radiance, set_shared_dir
+  use test_kumo_disort_radiance, only: collect_disort_radiance
+  use kumo_test_text, only: set_shared_dir
   use kumo_testing, only: run_unittests
   use kumo_parallel, only: par_init, par_finalize
   implicit none

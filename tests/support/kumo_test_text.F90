@@ -1,14 +1,24 @@
 ! SPDX-License-Identifier: BSD-3-Clause
-!> Text helpers shared by the tests that read reference tables.
+!> Text helpers shared by the tests that read reference tables, and the path of the shared
+!> reference-data folder (CTest passes it as the first command-line argument).
 module kumo_test_text
   use kumo_kinds, only: wp
   use kumo_textio, only: read_two_columns
   use kumo_testing, only: error_t, check
   implicit none
   private
-  public :: split, read_table
+  public :: split, read_table, shared_dir, set_shared_dir
+
+  !> The shared data folder (data/, reference/), set from the command line.
+  character(len=:), allocatable :: shared_dir
 
 contains
+
+  !> Set the shared data folder.
+  subroutine set_shared_dir(path)
+    character(len=*), intent(in) :: path
+    shared_dir = path
+  end subroutine set_shared_dir
 
   !> Split `s` at every `sep` into `fields(1:n)` (empty fields kept; fields beyond the size of
   !> `fields` are counted but not stored).

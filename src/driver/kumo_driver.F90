@@ -49,6 +49,10 @@ module kumo_driver
   !> value exceeds this (Mie clouds: 10^3 - 10^4); below it (e.g. HG 0.85, P(0) = 82) its
   !> secondaries cost more than they save (measured on the HG slab).
   real(wp), parameter :: DDIS_PEAK = 300.0_wp
+  !> DDIS secondaries are kept only within this angle of their detector direction, where the
+  !> forward peak is; outside it they are ordinary photons that cost time (LES at 2.13 um:
+  !> 12 % less CPU time, the same radiance error, in a 2e7-photon run).
+  real(wp), parameter :: DDIS_CONE_DEG = 15.0_wp
 
   !> Figures of a finished run, for the log and for tests.
   type :: run_summary_t
@@ -267,6 +271,7 @@ contains
         str(MAX_IMAGE_SHIFTS)//' domain lengths are left out (pixels near the horizon are low). '
     end do
 
+    scene%det%ddis_mu_cone = cos(DDIS_CONE_DEG*DEG2RAD)
     deallocate (scene%det%ddis_phase)
     allocate (scene%det%ddis_phase(size(phases)))
     do i = 1, size(phases)

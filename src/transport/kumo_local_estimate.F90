@@ -56,6 +56,7 @@ module kumo_local_estimate
     integer :: diff_max = 0                !! largest half-width [columns]
     ! Detector directional importance sampling (Buras and Mayer 2011)
     real(wp) :: ddis_eps = 0.0_wp          !! chance of a DDIS secondary per scattering; 0 = off
+    real(wp) :: ddis_mu_cone = -2.0_wp     !! secondaries only within this cosine of Omega_d
     logical, allocatable :: ddis_phase(:)  !! (n_phases) DDIS for scatterings by this phase
                                            !! function (those with a strong forward peak)
   end type detectors_t
@@ -140,10 +141,12 @@ contains
   !> Detector directional importance sampling (DDIS; Buras and Mayer 2011, JQSRT 112, 434),
   !> here as a split: at a scattering the photon continues in a direction drawn from its phase
   !> function, and with probability eps a secondary photon is started in a direction drawn from
-  !> the same phase function about a level-detector direction Omega_d. With the balance
-  !> heuristic of multiple importance sampling (Veach 1997) each of the two carries
-  !> w P(Omega_in . Omega) / (P(Omega_in . Omega) + eps mean_d P(Omega_d . Omega)), which keeps
-  !> the sum unbiased. Secondaries travel along the detector directions with small weights, so
+  !> the same phase function about a level-detector direction Omega_d, kept only if it lies in
+  !> the cone Omega_d . Omega >= ddis_mu_cone. The secondaries then have the density
+  !> eps mean_d P(Omega_d . Omega) 1[cone_d], and with the balance heuristic of multiple
+  !> importance sampling (Veach 1997) each of the two photons carries
+  !> w P(Omega_in . Omega) / (P(Omega_in . Omega) + eps mean_d P(Omega_d . Omega) 1[cone_d]),
+  !> which keeps the sum unbiased. Secondaries travel along the detector directions with small weights, so
   !> the rare huge local estimates of a forward peak become frequent small ones, while the
   !> primary photon keeps (nearly) its weight. This function returns that weight factor for a
   !> photon arriving along u_in and leaving along v.
@@ -152,12 +155,13 @@ contains
     type(atmosphere_t), intent(in) :: atm
     integer, intent(in) :: iph, lev
     real(wp), intent(in) :: uxi, uyi, uzi, vx, vy, vz
-    real(wp) :: p_in, p_d
+    real(wp) :: p_in, p_d, c
     integer :: d
     p_in = phase_value(atm, iph, lev, uxi*vx + uyi*vy + uzi*vz)
     p_d = 0.0_wp
     do d = 1, det%n_dir
-      p_d = p_d + phase_value(atm, iph, lev, det%ux(d)*vx + det%uy(d)*vy + det%uz(d)*vz)
+      c = det%ux(d)*vx + det%uy(d)*vy + det%uz(d)*vz
+      if (c >= det%ddis_mu_cone) p_d = p_d + phase_value(atm, iph, lev, c)
     end do
     p_d = p_d/det%n_dir
     fac = p_in/(p_in + det%ddis_eps*p_d)
@@ -165,13 +169,14 @@ contains
 
   !> Direction of a DDIS secondary: the phase function iph about a level-detector direction
   !> chosen at random; (cphi, sphi) is a uniform azimuth.
-  subroutine ddis_direction(det, atm, rng, iph, lev, cphi, sphi, vx, vy, vz)
+  subroutine ddis_direction(det, atm, rng, iph, lev, cphi, sphi, vx, vy, vz, inside)
     type(detectors_t), intent(in) :: det
     type(atmosphere_t), intent(in) :: atm
     type(rng_t), intent(inout) :: rng
     integer, intent(in) :: iph, lev
     real(wp), intent(in) :: cphi, sphi
     real(wp), intent(out) :: vx, vy, vz
+    logical, intent(out) :: inside   !! within the cone about the detector direction
     integer :: d
     real(wp) :: m
     d = min(det%n_dir, int(rng_uniform(rng)*det%n_dir) + 1)
@@ -179,6 +184,7 @@ contains
     vy = det%uy(d)
     vz = det%uz(d)
     m = sample_cos(atm, iph, lev, rng_uniform(rng))
+    inside = m >= det%ddis_mu_cone
     call rotate_direction(vx, vy, vz, m, cphi, sphi)
   end subroutine ddis_direction
 

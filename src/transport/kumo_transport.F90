@@ -367,11 +367,15 @@ contains
     integer, intent(inout) :: pend_i(:, :)
     real(wp) :: fa, wn, wb, c2, s2, vx, vy, vz
     integer :: levb
+    logical :: inside
     fa = ddis_factor(det, atm, iph, lev, uxi, uyi, uzi, ux, uy, uz)
     wn = w*fa
+    inside = .false.
     if (rng_uniform(rng) < det%ddis_eps) then
       call sample_azimuth(rng, c2, s2)
-      call ddis_direction(det, atm, rng, iph, lev, c2, s2, vx, vy, vz)
+      call ddis_direction(det, atm, rng, iph, lev, c2, s2, vx, vy, vz, inside)
+    end if
+    if (inside) then
       wb = w*ddis_factor(det, atm, iph, lev, uxi, uyi, uzi, vx, vy, vz)
       levb = lev
       if (atm%truncated) then

@@ -492,22 +492,8 @@ contains
         iy = min(atm%ny, max(1, int(y*atm%inv_dy) + 1))
         rem = s
         do
-          if (vx > 0.0_wp) then
-            tx = (ix*atm%dx - x)/vx
-          else if (vx < 0.0_wp) then
-            tx = ((ix - 1)*atm%dx - x)/vx
-          else
-            tx = huge(1.0_wp)
-          end if
-          if (vy > 0.0_wp) then
-            ty = (iy*atm%dy - y)/vy
-          else if (vy < 0.0_wp) then
-            ty = ((iy - 1)*atm%dy - y)/vy
-          else
-            ty = huge(1.0_wp)
-          end if
-          tx = max(0.0_wp, tx)
-          ty = max(0.0_wp, ty)
+          tx = face_distance(ix, x, vx, atm%dx)
+          ty = face_distance(iy, y, vy, atm%dy)
           step = min(tx, ty, rem)
           if (lev_t > 1) then
             sig = sigma_trunc_3d(atm, ix, iy, kr, lev_t)
@@ -544,6 +530,20 @@ contains
     call wrap(x, atm%lx)
     call wrap(y, atm%ly)
   end subroutine layer_segment
+  !> Distance along the path to the face of cell i (width d) ahead of coordinate x, for the
+  !> direction cosine v along that axis; huge for v = 0.
+  pure real(wp) function face_distance(i, x, v, d) result(t)
+    integer, intent(in) :: i
+    real(wp), intent(in) :: x, v, d
+    if (v > 0.0_wp) then
+      t = max(0.0_wp, (i*d - x)/v)
+    else if (v < 0.0_wp) then
+      t = max(0.0_wp, ((i - 1)*d - x)/v)
+    else
+      t = huge(1.0_wp)
+    end if
+  end function face_distance
+
   !> Step into the next cell along one axis (direction cosine v /= 0), periodically: the
   !> coordinate is set exactly onto the face that was crossed.
   pure subroutine cross_face(i, x, v, n, d, l)

@@ -471,7 +471,7 @@ contains
     real(wp), intent(in) :: inv_cf  !! 1/(collision-forcing factor)
     integer, intent(out) :: ev, ix, iy, kr
     integer :: s, jx, jy, bx, by, nbx, nby, face, klo, khi
-    real(wp) :: xlo, xhi, ylo, yhi, zlo, zhi, dxf, dyf, dzf, d, smax, bdx, bdy, znew
+    real(wp) :: xlo, xhi, ylo, yhi, zlo, zhi, dxf, dyf, dzf, d, smax, bdx, bdy
 
     ev = 0
     ix = 0
@@ -538,15 +538,7 @@ contains
       if (smax*d <= tau) then
         ! leave the super-voxel through `face`
         tau = tau - smax*d
-        znew = z + uz*d
-        if (uz > 0.0_wp .and. znew < atm%z(iz) .or. uz <= 0.0_wp .and. znew >= atm%z(iz - 1)) then
-          ! the common case: the segment stays inside the photon's layer, no level is crossed
-          x = x + ux*d
-          y = y + uy*d
-          z = znew
-        else
-          call move_inside(atm, lay, tal, x, y, z, ux, uy, uz, w, order, iz, klo, khi, d)
-        end if
+        call move_segment(atm, lay, tal, x, y, z, ux, uy, uz, w, order, iz, klo, khi, d)
         select case (face)
         case (1)
           if (ux > 0.0_wp) then
@@ -598,15 +590,7 @@ contains
       else
         ! tentative collision inside the super-voxel
         d = tau/smax
-        znew = z + uz*d
-        if (uz > 0.0_wp .and. znew < atm%z(iz) .or. uz <= 0.0_wp .and. znew >= atm%z(iz - 1)) then
-          ! the common case: the segment stays inside the photon's layer, no level is crossed
-          x = x + ux*d
-          y = y + uy*d
-          z = znew
-        else
-          call move_inside(atm, lay, tal, x, y, z, ux, uy, uz, w, order, iz, klo, khi, d)
-        end if
+        call move_segment(atm, lay, tal, x, y, z, ux, uy, uz, w, order, iz, klo, khi, d)
         ix = int(x*atm%inv_dx) + 1
         iy = int(y*atm%inv_dy) + 1
         if (ix < (jx - 1)*bx + 1 .or. ix > min(atm%nx, jx*bx) .or. &
@@ -626,6 +610,27 @@ contains
       end if
     end do
   end subroutine fly_3d
+
+  !> Move by distance d inside a super-layer. The common case, a segment that stays in the
+  !> photon's layer, is handled here without the level search of move_inside.
+  subroutine move_segment(atm, lay, tal, x, y, z, ux, uy, uz, w, order, iz, klo, khi, d)
+    type(atmosphere_t), intent(in) :: atm
+    type(tally_layout_t), intent(in) :: lay
+    type(tally_t), intent(inout) :: tal
+    real(wp), intent(inout) :: x, y, z
+    real(wp), intent(in) :: ux, uy, uz, w, d
+    integer, intent(in) :: order, klo, khi
+    integer, intent(inout) :: iz
+    real(wp) :: znew
+    znew = z + uz*d
+    if (uz > 0.0_wp .and. znew < atm%z(iz) .or. uz <= 0.0_wp .and. znew >= atm%z(iz - 1)) then
+      x = x + ux*d
+      y = y + uy*d
+      z = znew
+    else
+      call move_inside(atm, lay, tal, x, y, z, ux, uy, uz, w, order, iz, klo, khi, d)
+    end if
+  end subroutine move_segment
 
   !> Move by distance d inside a super-layer, tallying the internal levels that are crossed.
   !> The horizontal position is not wrapped here (the caller keeps it inside its super-voxel).

@@ -187,6 +187,14 @@ contains
     scene%tracer%rr_threshold = cfg%vr%rr_threshold
     scene%tracer%rr_weight = cfg%vr%rr_weight
     scene%tracer%max_events = cfg%control%max_events
+    select case (cfg%control%mode_3d)
+    case ('ica')
+      scene%tracer%n_3d = 0
+    case ('p3d')
+      scene%tracer%n_3d = cfg%control%p3d_orders
+    case default
+      scene%tracer%n_3d = huge(1)
+    end select
     ! flight steps (null collisions, face crossings) per event are many but bounded: the step cap
     ! only catches a photon that no longer makes progress
     scene%tracer%max_steps = max(1000000000_i8, min(huge(1_i8)/2000_i8, cfg%control%max_events)*1000_i8)
@@ -401,7 +409,8 @@ contains
     allocate (cam_npix(cfg%cam%n))
     if (cfg%cam%n > 0) cam_npix = cfg%cam%npx*cfg%cam%npy
     call layout_init(lay, scene%atm%nz, scene%atm%nx*scene%atm%ny, scene%atm%n3, map_levels, &
-                     voxel, scene%det%n_dir, scene%det%levels, rad_maps, cam_npix)
+                     voxel, scene%det%n_dir, scene%det%levels, rad_maps, cam_npix, &
+                     [scene%atm%k3_lo - 1, scene%atm%k3_hi])
     if (par_is_root() .and. len(scene%warnings) > 0) write (error_unit, '(a)') &
       'kumo: warning: '//scene%warnings
     call stats_init(st, lay)
@@ -632,6 +641,15 @@ contains
         end if
       end if
 
+      if (lay%do_budget) then
+        call put('absorptance_column', 'power absorbed in the 3-D region of each column per'// &
+                 ' unit column area'//NORM, [(lay%i_col_abs + i, i=1, ncol)], dims=['x', 'y'])
+        call put('horizontal_transport_map', 'net power leaving the 3-D region of each'// &
+                 ' column through its sides, per unit column area'//NORM// &
+                 ' (net flux in at the top - net flux out at the bottom - absorptance_column)', &
+                 [(lay%i_htr + i, i=1, ncol)], dims=['x', 'y'])
+      end if
+
       call radiance_results()
 
       call add_var(set, 'batch_reflectance', 'reflectance of each batch', '1', ['batch'], rec(1, :))
@@ -668,6 +686,8 @@ contains
       call add_attr(set, 'collision_forcing_factor', str(scene%tracer%cf_factor))
       call add_attr(set, 'truncation_levels', str(atm%trunc%n_levels))
       call add_attr(set, 'vr_preset', trim(cfg%vr%preset))
+      call add_attr(set, 'mode_3d', trim(cfg%control%mode_3d))
+      if (cfg%control%mode_3d == 'p3d') call add_attr(set, 'p3d_orders', str(cfg%control%p3d_orders))
       if (len(scene%warnings) > 0) call add_attr(set, 'warnings', scene%warnings)
       call add_attr(set, 'supervoxels', sv_text())
       do i = 1, N_ANOMALIES

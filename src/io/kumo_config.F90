@@ -19,7 +19,8 @@ module kumo_config
   public :: config_t, control_cfg_t, atmosphere_cfg_t, phase_cfg_t, surface_cfg_t, &
             source_cfg_t, output_cfg_t, vr_cfg_t, radiance_cfg_t, camera_cfg_t, read_config, &
             config_echo
-  public :: MAX_LAYERS, MAX_COMP, MAX_PHASE, MAX_DIR, MAX_CAMERAS, TARGET_NAMES, PRESET_NAMES
+  public :: MAX_LAYERS, MAX_COMP, MAX_PHASE, MAX_DIR, MAX_CAMERAS, TARGET_NAMES, PRESET_NAMES, &
+            MODE_NAMES
 
   integer, parameter :: MAX_LAYERS = 2000   !! most layers a namelist can describe
   integer, parameter :: MAX_COMP = 8        !! most components per layer
@@ -33,6 +34,8 @@ module kumo_config
   integer, parameter :: IUNSET = -huge(1)
   character(len=16), parameter :: TARGET_NAMES(3) = &
     [character(len=16) :: 'reflectance', 'transmittance', 'absorptance']
+  !> Transport modes: full 3-D, independent columns, 3-D for the first scattering orders.
+  character(len=8), parameter :: MODE_NAMES(3) = [character(len=8) :: 'f3d', 'ica', 'p3d']
   character(len=16), parameter :: GROUP_NAMES(9) = &
     [character(len=16) :: 'kumo_control', 'kumo_atmosphere', 'kumo_phase', 'kumo_surface', &
      'kumo_source', 'kumo_output', 'kumo_vr', 'kumo_radiance', 'kumo_camera']
@@ -57,6 +60,8 @@ module kumo_config
     integer(i8) :: max_photons = 1000000000_i8     !! photon cap of the target-error mode
     integer(i8) :: max_events = 100000000_i8       !! collisions + reflections per photon
     integer :: verbose = 1                         !! 0 quiet, 1 summary, 2 per round
+    character(len=8) :: mode_3d = 'f3d'            !! one of MODE_NAMES: f3d, ica, p3d
+    integer :: p3d_orders = 1                      !! p3d: scatterings placed by 3-D transport
   end type control_cfg_t
 
   !> &kumo_atmosphere: levels, 1-D layers and the 3-D region.
@@ -259,12 +264,13 @@ contains
     type(control_cfg_t), intent(inout) :: cfg
     type(error_t), allocatable, intent(out) :: error
     integer(i8) :: n_photons_per_batch, seed, max_photons, max_events
-    integer :: n_batches, verbose, ios
+    integer :: n_batches, verbose, ios, p3d_orders
     real(wp) :: target_rel_error
     character(len=16) :: target_output
+    character(len=8) :: mode_3d
     character(len=512) :: msg
     namelist /kumo_control/ n_photons_per_batch, n_batches, seed, target_rel_error, &
-      target_output, max_photons, max_events, verbose
+      target_output, max_photons, max_events, verbose, mode_3d, p3d_orders
     n_photons_per_batch = cfg%n_photons_per_batch
     n_batches = cfg%n_batches
     seed = cfg%seed
@@ -273,6 +279,8 @@ contains
     max_photons = cfg%max_photons
     max_events = cfg%max_events
     verbose = cfg%verbose
+    mode_3d = cfg%mode_3d
+    p3d_orders = cfg%p3d_orders
     rewind (unit)
     msg = ''
     read (unit, nml=kumo_control, iostat=ios, iomsg=msg)
@@ -286,6 +294,8 @@ contains
     cfg%max_photons = max_photons
     cfg%max_events = max_events
     cfg%verbose = verbose
+    cfg%mode_3d = to_lower(mode_3d)
+    cfg%p3d_orders = p3d_orders
     if (n_photons_per_batch < 1) then
       call set_error(error, '&kumo_control: n_photons_per_batch = '//str(n_photons_per_batch)// &
                      ' must be >= 1')
@@ -304,6 +314,11 @@ contains
       call set_error(error, '&kumo_control: max_photons = '//str(max_photons)//' must be >= 1')
     else if (max_events < 1) then
       call set_error(error, '&kumo_control: max_events = '//str(max_events)//' must be >= 1')
+    else if (findloc(MODE_NAMES, cfg%mode_3d, 1) == 0) then
+      call set_error(error, '&kumo_control: mode_3d = "'//trim(mode_3d)// &
+                     '" must be one of '//join(MODE_NAMES))
+    else if (p3d_orders < 0) then
+      call set_error(error, '&kumo_control: p3d_orders = '//str(p3d_orders)//' must be >= 0')
     end if
   end subroutine read_control
 
@@ -916,6 +931,8 @@ contains
            'kumo_control.target_output = '//trim(cfg%control%target_output)//nl// &
            'kumo_control.max_photons = '//str(cfg%control%max_photons)//nl// &
            'kumo_control.max_events = '//str(cfg%control%max_events)//nl// &
+           'kumo_control.mode_3d = '//trim(cfg%control%mode_3d)//nl// &
+           'kumo_control.p3d_orders = '//str(cfg%control%p3d_orders)//nl// &
            'kumo_atmosphere.nz = '//str(cfg%atm%nz)//nl// &
            'kumo_atmosphere.z_levels = '//join_real(cfg%atm%z)//nl// &
            'kumo_atmosphere.lx = '//str(cfg%atm%lx)//nl// &

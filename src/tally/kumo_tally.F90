@@ -56,6 +56,12 @@ module kumo_tally
                                !! + icol)
     integer :: i_cam0 = 0      !! entries after this one are camera pixels (domain scaling)
     integer, allocatable :: i_cam(:)  !! camera c, pixel p: buf(i_cam(c) + p)
+    ! Column budget of the 3-D region, derived per batch from the maps and voxels: needs maps at
+    ! the region's bottom and top levels and voxel absorption.
+    logical :: do_budget = .false.
+    integer :: budget_slot(2) = 0  !! map slots of the region's bottom and top levels
+    integer :: i_col_abs = 0   !! absorbed in the column's 3-D region: buf(i_col_abs + icol)
+    integer :: i_htr = 0       !! net power leaving the column's 3-D region sideways
     integer :: n = 0           !! buffer length
   end type tally_layout_t
 
@@ -80,9 +86,11 @@ contains
 
   !> Lay out the buffer. `map_levels` lists the levels (0..nz) that get per-column maps.
   !> Radiances (optional): `n_rad_dir` directions at the levels `rad_levels` (0..nz), with
-  !> per-column maps if `rad_maps`, and cameras with `cam_npix(c)` pixels.
+  !> per-column maps if `rad_maps`, and cameras with `cam_npix(c)` pixels. `region_levels`
+  !> (the levels below and above the 3-D region) give the column budget when both have maps
+  !> and voxel absorption is on.
   subroutine layout_init(lay, nz, ncol, n3, map_levels, do_voxel, n_rad_dir, rad_levels, &
-                         rad_maps, cam_npix)
+                         rad_maps, cam_npix, region_levels)
     type(tally_layout_t), intent(out) :: lay
     integer, intent(in) :: nz, ncol, n3
     integer, intent(in) :: map_levels(:)
@@ -90,6 +98,7 @@ contains
     integer, intent(in), optional :: n_rad_dir, rad_levels(:)
     logical, intent(in), optional :: rad_maps
     integer, intent(in), optional :: cam_npix(:)
+    integer, intent(in), optional :: region_levels(2)
     integer :: i, pos
     lay%nz = nz
     lay%ncol = ncol
@@ -157,6 +166,16 @@ contains
     else
       allocate (lay%i_cam(0))
     end if
+    lay%i_col_abs = pos
+    lay%i_htr = pos
+    if (present(region_levels) .and. lay%do_maps .and. lay%do_voxel) then
+      lay%budget_slot = lay%map_slot(region_levels)
+      lay%do_budget = all(lay%budget_slot > 0)
+    end if
+    if (lay%do_budget) then
+      lay%i_htr = pos + ncol
+      pos = pos + 2*ncol
+    end if
     lay%n = pos
   end subroutine layout_init
 
@@ -186,9 +205,9 @@ contains
     type(tally_layout_t), intent(in) :: lay
     type(tally_t), intent(in) :: tal
     integer(i8), intent(in) :: n_photons
-    real(dp) :: scale_dom, scale_col, x
+    real(dp) :: scale_dom, scale_col, x, a, h
     real(dp), allocatable :: xd(:)
-    integer :: i, nz
+    integer :: i, nz, c, kr, ib, it
     nz = lay%nz
     scale_dom = 1.0_dp/real(n_photons, dp)
     scale_col = real(lay%ncol, dp)/real(n_photons, dp)
@@ -206,11 +225,33 @@ contains
       st%s1(i) = st%s1(i) + x
       st%s2(i) = st%s2(i) + x*x
     end do
-    do i = lay%i_cam0 + 1, lay%n
+    do i = lay%i_cam0 + 1, lay%i_col_abs
       x = tal%buf(i)*scale_dom
       st%s1(i) = st%s1(i) + x
       st%s2(i) = st%s2(i) + x*x
     end do
+    if (lay%do_budget) then
+      ! per column: A = sum of its voxels; H = net flux in at the top - net flux out at the
+      ! bottom - A (zero in every column when nothing moves sideways and no roulette acts)
+      ib = (lay%budget_slot(1) - 1)*lay%ncol
+      it = (lay%budget_slot(2) - 1)*lay%ncol
+      do c = 1, lay%ncol
+        a = 0.0_dp
+        do kr = 1, lay%n3
+          a = a + tal%buf(lay%i_vox + (kr - 1)*lay%ncol + c)
+        end do
+        h = tal%buf(lay%i_map_dir + it + c) + tal%buf(lay%i_map_dif + it + c) &
+            - tal%buf(lay%i_map_up + it + c) &
+            - (tal%buf(lay%i_map_dir + ib + c) + tal%buf(lay%i_map_dif + ib + c) &
+               - tal%buf(lay%i_map_up + ib + c)) - a
+        a = a*scale_col
+        h = h*scale_col
+        st%s1(lay%i_col_abs + c) = st%s1(lay%i_col_abs + c) + a
+        st%s2(lay%i_col_abs + c) = st%s2(lay%i_col_abs + c) + a*a
+        st%s1(lay%i_htr + c) = st%s1(lay%i_htr + c) + h
+        st%s2(lay%i_htr + c) = st%s2(lay%i_htr + c) + h*h
+      end do
+    end if
     st%n_batches = st%n_batches + 1_i8
     st%n_photons = st%n_photons + n_photons
     st%anomalies = st%anomalies + tal%anomalies

@@ -104,7 +104,8 @@ contains
   !> direction (ux, uy, uz) with weight `w` (the expected scattered weight: after absorption,
   !> times the probability that the collision is a real, non-delta scattering), phase function
   !> `iph` at truncation level `lev`.
-  subroutine le_particle(det, atm, lay, tal, rng, x, y, z, iz, ux, uy, uz, w, iph, lev, ps)
+  subroutine le_particle(det, atm, lay, tal, rng, x, y, z, iz, ux, uy, uz, w, iph, lev, ps, &
+                         column)
     type(detectors_t), intent(in) :: det
     type(atmosphere_t), intent(in) :: atm
     type(tally_layout_t), intent(in) :: lay
@@ -115,13 +116,16 @@ contains
     !> probability that the collision is a real scattering (collision forcing); the roulette
     !> threshold is scaled by it so that forced collisions are rouletted like real ones
     real(wp), value :: ps
+    !> the light stays in the column of the event (ICA, P3D beyond its 3-D orders): lines of
+    !> sight run vertically through that column, with their true slant path lengths
+    logical, value :: column
     integer :: d, c, mx, my, ipix, lev_t
     real(wp) :: mu, a, vx, vy, vz, dist, factor
     logical :: hit
     do d = 1, det%n_dir
       mu = ux*det%ux(d) + uy*det%uy(d) + uz*det%uz(d)
       call particle_density(atm, iph, lev, mu, w, a, lev_t)
-      call level_estimate(det, atm, lay, tal, rng, x, y, z, iz, iz, d, a, ps, lev_t)
+      call level_estimate(det, atm, lay, tal, rng, x, y, z, iz, iz, d, a, ps, lev_t, column)
     end do
     do c = 1, size(det%cams)
       do my = det%cams(c)%my_lo, det%cams(c)%my_hi
@@ -132,7 +136,7 @@ contains
           mu = ux*vx + uy*vy + uz*vz
           call particle_density(atm, iph, lev, mu, w, a, lev_t)
           call camera_estimate(det, atm, tal, rng, x, y, z, iz, vx, vy, vz, dist, &
-                               factor, a, ps, lev_t, lay%i_cam(c) + ipix)
+                               factor, a, ps, lev_t, lay%i_cam(c) + ipix, column)
         end do
       end do
     end do
@@ -217,7 +221,7 @@ contains
 
   !> Local estimates of a Lambert reflection at (x, y) on the surface; `w` is the reflected
   !> weight (after multiplication by the albedo).
-  subroutine le_surface(det, atm, lay, tal, rng, x, y, w, lev)
+  subroutine le_surface(det, atm, lay, tal, rng, x, y, w, lev, column)
     type(detectors_t), intent(in) :: det
     type(atmosphere_t), intent(in) :: atm
     type(tally_layout_t), intent(in) :: lay
@@ -225,6 +229,7 @@ contains
     type(rng_t), intent(inout) :: rng
     real(wp), value :: x, y, w
     integer, value :: lev
+    logical, value :: column   !! as in le_particle
     integer :: d, c, mx, my, ipix
     real(wp) :: a, vx, vy, vz, dist, factor, z0
     logical :: hit
@@ -232,7 +237,7 @@ contains
     do d = 1, det%n_dir
       if (det%uz(d) <= 0.0_wp) cycle
       a = w*det%uz(d)/PI
-      call level_estimate(det, atm, lay, tal, rng, x, y, z0, 1, 0, d, a, 1.0_wp, lev)
+      call level_estimate(det, atm, lay, tal, rng, x, y, z0, 1, 0, d, a, 1.0_wp, lev, column)
     end do
     do c = 1, size(det%cams)
       do my = det%cams(c)%my_lo, det%cams(c)%my_hi
@@ -242,7 +247,7 @@ contains
           if (.not. hit .or. vz <= 0.0_wp) cycle
           a = w*vz/PI
           call camera_estimate(det, atm, tal, rng, x, y, z0, 1, vx, vy, vz, dist, &
-                               factor, a, 1.0_wp, lev, lay%i_cam(c) + ipix)
+                               factor, a, 1.0_wp, lev, lay%i_cam(c) + ipix, column)
         end do
       end do
     end do
@@ -299,7 +304,8 @@ contains
   !> k >= k_up, downward light the levels k <= iz - 1.
   !> The roulette compares the contribution in reflectance units, pi a/|mu_d|, with zeta_min
   !> (times `ps` for forced collisions).
-  subroutine level_estimate(det, atm, lay, tal, rng, x, y, z, iz, k_up, d, a_in, ps, lev_t)
+  subroutine level_estimate(det, atm, lay, tal, rng, x, y, z, iz, k_up, d, a_in, ps, lev_t, &
+                            column)
     type(detectors_t), intent(in) :: det
     type(atmosphere_t), intent(in) :: atm
     type(tally_layout_t), intent(in) :: lay
@@ -307,6 +313,7 @@ contains
     type(rng_t), intent(inout) :: rng
     real(wp), intent(in) :: x, y, z, a_in, ps
     integer, intent(in) :: iz, k_up, d, lev_t
+    logical, intent(in) :: column   !! the line of sight stays in the column of the event
     real(wp) :: a, tau_lim, tau_stop, tau, psi0, xc, yc, zc, vx, vy, vz
     integer :: i, j, kd, izc, slot, n_lev, ib, ib_map, k
     if (size(det%levels) == 0) return
@@ -317,6 +324,10 @@ contains
     vx = det%ux(d)
     vy = det%uy(d)
     vz = det%uz(d)
+    if (column) then
+      vx = 0.0_wp
+      vy = 0.0_wp
+    end if
     psi0 = PI*a/abs(vz)
     xc = x
     yc = y
@@ -380,17 +391,22 @@ contains
   !> Contribution of one event to camera pixel buf(ibuf) through the line of sight (vx, vy, vz)
   !> of length dist.
   subroutine camera_estimate(det, atm, tal, rng, x, y, z, iz, vx, vy, vz, dist, factor, &
-                             a_in, ps, lev_t, ibuf)
+                             a_in, ps, lev_t, ibuf, column)
     type(detectors_t), intent(in) :: det
     type(atmosphere_t), intent(in) :: atm
     type(tally_t), intent(inout) :: tal
     type(rng_t), intent(inout) :: rng
     real(wp), intent(in) :: x, y, z, vx, vy, vz, dist, factor, a_in, ps
     integer, intent(in) :: iz, lev_t, ibuf
+    logical, intent(in) :: column   !! the line of sight stays in the column of the event
     real(wp) :: a, tau_lim, tau_stop, tau
     a = a_in
     if (.not. roulette_contribution(rng, a, det%a_min*ps, tau_lim, tau_stop)) return
-    call trace_distance(atm, x, y, z, iz, vx, vy, vz, dist, lev_t, tau, tau_stop)
+    if (column) then
+      call trace_distance(atm, x, y, z, iz, 0.0_wp, 0.0_wp, vz, dist, lev_t, tau, tau_stop)
+    else
+      call trace_distance(atm, x, y, z, iz, vx, vy, vz, dist, lev_t, tau, tau_stop)
+    end if
     if (tau > tau_stop) return
     tal%buf(ibuf) = tal%buf(ibuf) + det%cam_scale*a*factor*exp(-min(tau, tau_lim))
   end subroutine camera_estimate

@@ -46,6 +46,10 @@ module kumo_transport
     integer(i8) :: max_events = 100000000_i8 !! collisions + reflections per photon
     integer(i8) :: max_steps = 100000000000_i8 !! flight steps per photon (1000 x max_events)
     real(wp) :: cf_factor = 1.0_wp      !! collision forcing: extinction multiplied by this (>= 1)
+    !> Transport mode: photons move horizontally only while their scattering order (scatterings
+    !> and reflections so far) is below n_3d; afterwards they stay in their column. huge: F3D;
+    !> 0: ICA (every column a plane-parallel atmosphere); N: P3D.
+    integer :: n_3d = huge(1)
   end type tracer_options_t
 
   integer, parameter :: EV_COLLISION = 1, EV_ESCAPE = 2, EV_SURFACE = 3, EV_KILLED = 4
@@ -81,7 +85,7 @@ contains
     real(wp) :: x, y, z, ux, uy, uz, w, tau, d, zb, e, wn, albedo, mu, cphi, sphi, omega, ps
     real(wp) :: inv_cf, uxi, uyi, uzi
     integer :: iz, order, cls, ev, ix, iy, kr, ic, iph, nc, lev, n_pending
-    logical :: in3d, track_xy, forced, secondary, split, plain
+    logical :: in3d, track_xy, move_xy, column, forced, secondary, split, plain
     ! DDIS secondaries waiting to be traced: position, direction, weight; layer, order, level
     real(wp) :: pend_r(7, MAX_PENDING)
     integer :: pend_i(3, MAX_PENDING)
@@ -113,7 +117,14 @@ contains
       secondary = .false.
 
       history: do
+      ! ICA and P3D: beyond its 3-D orders the photon keeps its column (x, y fixed)
+      column = order >= opts%n_3d
+      move_xy = track_xy .and. .not. column
       photon: do
+        if (order >= opts%n_3d .and. .not. column) then
+          column = .true.
+          move_xy = .false.
+        end if
         tau = -log(1.0_wp - rng_uniform(rng))
         if (forced) tau = tau*inv_cf
         flight: do
@@ -125,8 +136,13 @@ contains
           end if
           cls = atm%layer_class(iz)
           if (cls == LAYER_3D) then
-            call fly_3d(atm, lay, tal, rng, x, y, z, ux, uy, uz, w, order, iz, tau, n_steps, &
-                        opts%max_steps, inv_cf, ev, ix, iy, kr)
+            if (column) then
+              call fly_column(atm, lay, tal, x, y, z, uz, w, order, iz, tau, n_steps, &
+                              opts%max_steps, ev, ix, iy, kr)
+            else
+              call fly_3d(atm, lay, tal, rng, x, y, z, ux, uy, uz, w, order, iz, tau, n_steps, &
+                          opts%max_steps, inv_cf, ev, ix, iy, kr)
+            end if
             in3d = .true.
           else
             in3d = .false.
@@ -143,7 +159,7 @@ contains
               if (tau < e*d) then
                 d = tau/e
                 z = z + uz*d
-                if (track_xy) then
+                if (move_xy) then
                   x = x + ux*d
                   y = y + uy*d
                   call wrap(x, atm%lx)
@@ -161,7 +177,7 @@ contains
             end select
             if (ev == 0) then
               z = zb
-              if (track_xy) then
+              if (move_xy) then
                 x = x + ux*d
                 y = y + uy*d
                 call wrap(x, atm%lx)
@@ -192,7 +208,7 @@ contains
             tal%buf(lay%i_sfc + 1) = tal%buf(lay%i_sfc + 1) + w*(1.0_wp - albedo)
             w = w*albedo
             if (w <= 0.0_wp) exit photon
-            if (det%active) call le_surface(det, atm, lay, tal, rng, x, y, w, lev)
+            if (det%active) call le_surface(det, atm, lay, tal, rng, x, y, w, lev, column)
             call roulette(opts, lay, tal, rng, w)
             if (w <= 0.0_wp) exit photon
             mu = sqrt(rng_uniform(rng))
@@ -291,7 +307,7 @@ contains
               ! local estimates before the roulette, so that a light photon (a DDIS secondary)
               ! still contributes with its own weight
               if (det%active) call le_particle(det, atm, lay, tal, rng, x, y, z, iz, ux, uy, uz, &
-                                               w*ps, iph, lev, ps)
+                                               w*ps, iph, lev, ps, column)
               call roulette(opts, lay, tal, rng, w)
               if (w <= 0.0_wp) exit photon
               if (forced) then
@@ -610,6 +626,49 @@ contains
       end if
     end do
   end subroutine fly_3d
+
+  !> Flight inside the 3-D region for a photon that keeps its column (ICA, and P3D beyond its
+  !> 3-D orders): the column is a stack of uniform voxels, crossed layer by layer like the 1-D
+  !> layers, without null collisions. Ends like fly_3d: a collision in voxel (ix, iy, kr)
+  !> (ev = EV_COLLISION), or the photon leaves the region (ev from cross_level).
+  subroutine fly_column(atm, lay, tal, x, y, z, uz, w, order, iz, tau, n_steps, max_steps, ev, &
+                        ix, iy, kr)
+    type(atmosphere_t), intent(in) :: atm
+    type(tally_layout_t), intent(in) :: lay
+    type(tally_t), intent(inout) :: tal
+    real(wp), intent(in) :: x, y, uz, w
+    real(wp), intent(inout) :: z, tau
+    integer, intent(in) :: order
+    integer, intent(inout) :: iz
+    integer(i8), intent(inout) :: n_steps
+    integer(i8), intent(in) :: max_steps
+    integer, intent(out) :: ev, ix, iy, kr
+    real(wp) :: zb, d, e
+    ev = 0
+    ix = min(atm%nx, max(1, int(x*atm%inv_dx) + 1))
+    iy = min(atm%ny, max(1, int(y*atm%inv_dy) + 1))
+    do
+      n_steps = n_steps + 1
+      kr = iz - atm%k3_lo + 1
+      if (n_steps > max_steps) return   ! the caller's step check stops the photon
+      if (uz > 0.0_wp) then
+        zb = atm%z(iz)
+      else
+        zb = atm%z(iz - 1)
+      end if
+      d = (zb - z)/uz
+      e = atm%ext3(ix, iy, kr)
+      if (tau < e*d) then
+        z = min(atm%z(iz), max(atm%z(iz - 1), z + uz*(tau/e)))
+        ev = EV_COLLISION
+        return
+      end if
+      tau = tau - e*d
+      z = zb
+      call cross_level(atm, lay, tal, x, y, uz, w, order, iz, ev)
+      if (ev /= 0 .or. iz < atm%k3_lo .or. iz > atm%k3_hi) return
+    end do
+  end subroutine fly_column
 
   !> Move by distance d inside a super-layer. The common case, a segment that stays in the
   !> photon's layer, is handled here without the level search of move_inside.

@@ -2,12 +2,12 @@
 !> Text helpers shared by the tests that read reference tables, and the path of the shared
 !> reference-data folder (CTest passes it as the first command-line argument).
 module kumo_test_text
-  use kumo_kinds, only: wp
+  use kumo_kinds, only: wp, dp
   use kumo_textio, only: read_two_columns
   use kumo_testing, only: error_t, check
   implicit none
   private
-  public :: split, read_table, shared_dir, set_shared_dir
+  public :: split, read_table, shared_dir, set_shared_dir, disort_value
 
   !> The shared data folder (data/, reference/), set from the command line.
   character(len=:), allocatable :: shared_dir
@@ -51,4 +51,44 @@ contains
     call read_two_columns(path, angle, value, err)
     if (allocated(err)) call check(error, .false., err%message)
   end subroutine read_table
+
+  !> One value of the plane-parallel DISORT table (reference/disort_pp.csv) keyed on case_id,
+  !> quantity, level, mu and phi_rel_deg, the last three as written in the file ('' when empty).
+  !> A missing row or file becomes the test's error.
+  function disort_value(case_id, quantity, level, mu, phi, error) result(v)
+    character(len=*), intent(in) :: case_id, quantity, level, mu, phi
+    type(error_t), allocatable, intent(inout) :: error
+    real(dp) :: v
+    character(len=512) :: line
+    character(len=64) :: f(12)
+    integer :: unit, ios, nf
+    v = 0.0_dp
+    if (allocated(error)) return
+    if (.not. allocated(shared_dir)) then
+      call check(error, .false., 'the shared data folder was not given on the command line')
+      return
+    end if
+    open (newunit=unit, file=shared_dir//'/reference/disort_pp.csv', status='old', &
+          action='read', iostat=ios)
+    if (ios /= 0) then
+      call check(error, .false., 'cannot open '//shared_dir//'/reference/disort_pp.csv')
+      return
+    end if
+    do
+      read (unit, '(a)', iostat=ios) line
+      if (ios /= 0) exit
+      call split(line, ',', f, nf)
+      if (nf /= 12) cycle
+      if (f(1) == case_id .and. f(8) == quantity .and. f(9) == level .and. f(10) == mu .and. &
+          f(11) == phi) then
+        read (f(12), *, iostat=ios) v
+        close (unit)
+        if (ios /= 0) call check(error, .false., 'bad value in disort_pp.csv: '//trim(line))
+        return
+      end if
+    end do
+    close (unit)
+    call check(error, .false., 'disort_pp.csv has no row '//case_id//','//quantity//','// &
+               level//','//mu//','//phi)
+  end function disort_value
 end module kumo_test_text

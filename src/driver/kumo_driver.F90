@@ -610,6 +610,8 @@ contains
                  [(lay%i_map_dir + i, i=1, n_out*ncol)], dims=['x    ', 'y    ', 'level'])
         call put('flux_down_diffuse_map', 'downward diffuse flux per column'//NORM, &
                  [(lay%i_map_dif + i, i=1, n_out*ncol)], dims=['x    ', 'y    ', 'level'])
+        call put('flux_down_map', 'total (direct + diffuse) downward flux per column'//NORM, &
+                 [(lay%i_map_dn + i, i=1, n_out*ncol)], dims=['x    ', 'y    ', 'level'])
       end if
       if (lay%do_voxel) then
         call add_dim(set, 'z3d', atm%n3, coord=zmid(atm%k3_lo:atm%k3_hi), units='m', &

@@ -62,6 +62,7 @@ module kumo_tally
     integer :: budget_slot(2) = 0  !! map slots of the region's bottom and top levels
     integer :: i_col_abs = 0   !! absorbed in the column's 3-D region: buf(i_col_abs + icol)
     integer :: i_htr = 0       !! net power leaving the column's 3-D region sideways
+    integer :: i_map_dn = 0    !! total downward flux maps (direct + diffuse, formed per batch)
     integer :: n = 0           !! buffer length
   end type tally_layout_t
 
@@ -176,6 +177,8 @@ contains
       lay%i_htr = pos + ncol
       pos = pos + 2*ncol
     end if
+    lay%i_map_dn = pos
+    if (lay%do_maps) pos = pos + lay%n_map*ncol
     lay%n = pos
   end subroutine layout_init
 
@@ -250,6 +253,14 @@ contains
         st%s2(lay%i_col_abs + c) = st%s2(lay%i_col_abs + c) + a*a
         st%s1(lay%i_htr + c) = st%s1(lay%i_htr + c) + h
         st%s2(lay%i_htr + c) = st%s2(lay%i_htr + c) + h*h
+      end do
+    end if
+    if (lay%do_maps) then
+      ! total downward flux per column, per batch, so that its standard error is exact
+      do c = 1, lay%n_map*lay%ncol
+        x = (tal%buf(lay%i_map_dir + c) + tal%buf(lay%i_map_dif + c))*scale_col
+        st%s1(lay%i_map_dn + c) = st%s1(lay%i_map_dn + c) + x
+        st%s2(lay%i_map_dn + c) = st%s2(lay%i_map_dn + c) + x*x
       end do
     end if
     st%n_batches = st%n_batches + 1_i8

@@ -73,19 +73,23 @@ contains
     character(len=*), intent(in) :: label
     type(error_t), allocatable, intent(inout) :: error
     real(dp), allocatable :: up(:), eup(:), dr(:), edr(:), df(:), edf(:), rm(:), er(:)
+    real(dp), allocatable :: dn(:), edn(:)
     real(dp) :: t, et
     integer :: ic, h, j
     call get_array(res, 'flux_up_map', up, eup, error)
     call get_array(res, 'flux_down_direct_map', dr, edr, error)
     call get_array(res, 'flux_down_diffuse_map', df, edf, error)
+    call get_array(res, 'flux_down_map', dn, edn, error)
     call get_array(res, 'radiance_map', rm, er, error)
     if (allocated(error)) return
     do ic = 1, NCOL
       h = merge(1, 2, ic <= NCOL/2)
       call check_sigma(error, at(up, ic, 2), r_ref(h), sqrt(at(eup, ic, 2)**2 + r_sig(h)**2), &
                        K, label//': R of column '//str(ic))
-      t = at(dr, ic, 1) + at(df, ic, 1)
-      et = sqrt(at(edr, ic, 1)**2 + at(edf, ic, 1)**2)
+      t = at(dn, ic, 1)
+      et = at(edn, ic, 1)
+      call check(error, abs(t - (at(dr, ic, 1) + at(df, ic, 1))) < 1.0e-12_dp, &
+                 label//': total downward map = direct + diffuse, column '//str(ic))
       call check_sigma(error, t, t_ref(h), sqrt(et**2 + t_sig(h)**2), K, &
                        label//': T of column '//str(ic))
       do j = 1, size(rad_ref, 1)

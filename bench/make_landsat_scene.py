@@ -17,6 +17,9 @@ every column is exact.
 15 m): every column is split into 2 x 2 identical columns, so the optical statistics (and, with
 one majorant, every photon path) are those of the 128 x 128 field.
 
+The field reader and the grid and extinction functions are those of
+examples/i3rc/i3rc_cases.py (imported from there).
+
 Besides the scene file, `--atm-group FILE` writes the matching `&kumo_atmosphere` namelist group
 (levels, domain size, 3-D region) so that a case namelist can include it verbatim.
 
@@ -32,74 +35,12 @@ import sys
 
 import numpy as np
 
-BASE_KM = 0.2          # flat cloud base of the Landsat scene [km]
-DX_M = 30.0            # column size of the I3RC field [m]
-N_FIELD = 128          # columns per side of the I3RC field
-
-
-def default_data_dir():
-    shared = os.environ.get('KUMO_SHARED_DIR')
-    if not shared:
-        repo = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-        shared = os.path.join(os.path.dirname(repo), 'shared')
-    return os.path.join(shared, 'data', 'i3rc', 'phase1_inputs')
-
-
-def read_field(data_dir):
-    """Column optical depth and geometric thickness [km] as (ny, nx) arrays (row = y)."""
-    tau = np.loadtxt(os.path.join(data_dir, 'scene43.tau.128x128'))
-    dz = np.loadtxt(os.path.join(data_dir, 'scene43.dz.128x128'))
-    if tau.shape != (N_FIELD, N_FIELD) or dz.shape != (N_FIELD, N_FIELD):
-        sys.exit(f'make_landsat_scene: expected {N_FIELD} x {N_FIELD} values, got tau '
-                 f'{tau.shape} and dz {dz.shape}')
-    if np.any(tau < 0) or np.any(dz < 0) or np.any((tau > 0) & (dz <= 0)):
-        sys.exit('make_landsat_scene: negative values, or optical depth in a column of zero '
-                 'thickness')
-    return tau, dz
-
-
-def levels_km(dz, n_layers):
-    """Levels [km]: ground, cloud base, then n_layers equal layers up to the highest top."""
-    top = BASE_KM + float(dz.max())
-    return np.concatenate(([0.0], BASE_KM + (top - BASE_KM) * np.arange(n_layers + 1) / n_layers))
-
-
-def voxel_extinction(tau, dz, z_km):
-    """Extinction [m-1] of the 3-D layers (layers 2..), shape (nz3, ny, nx)."""
-    zb = z_km[1:-1] - BASE_KM            # bottoms of the 3-D layers above the base [km]
-    zt = z_km[2:] - BASE_KM              # tops
-    thick = (zt - zb)[:, None, None]
-    covered = np.clip(np.minimum(zt[:, None, None], dz[None]) - zb[:, None, None], 0.0, None)
-    ext_km = np.where(dz > 0, tau / np.where(dz > 0, dz, 1.0), 0.0)[None]  # [km-1]
-    ext = ext_km * covered / thick * 1.0e-3                                # layer mean [m-1]
-    # exact column optical depth (round-off only)
-    col = (ext * thick * 1.0e3).sum(axis=0)
-    err = np.max(np.abs(col - tau))
-    if err > 1.0e-9 * max(1.0, tau.max()):
-        sys.exit(f'make_landsat_scene: column optical depth off by {err}')
-    return ext
-
-
-def write_scene(path, ext, ssa):
-    from netCDF4 import Dataset
-    nz3, ny, nx = ext.shape
-    tmp = path + '.tmp'
-    with Dataset(tmp, 'w', format='NETCDF4_CLASSIC') as nc:
-        nc.title = 'I3RC Phase 1 Landsat cloud (case 3) as a kumo scene'
-        nc.source = 'bench/make_landsat_scene.py from scene43.tau.128x128, scene43.dz.128x128'
-        nc.createDimension('component', 1)
-        nc.createDimension('z', nz3)
-        nc.createDimension('y', ny)
-        nc.createDimension('x', nx)
-        v = nc.createVariable('extinction', 'f8', ('component', 'z', 'y', 'x'))
-        v.long_name = 'volume extinction coefficient'
-        v.units = 'm-1'
-        v[0] = ext
-        v = nc.createVariable('ssa', 'f8', ('component', 'z', 'y', 'x'))
-        v.long_name = 'single-scattering albedo'
-        v.units = '1'
-        v[0] = np.full(ext.shape, ssa)
-    os.replace(tmp, path)
+# The Landsat field reader, vertical grid, extinction and scene writer are shared with the I3RC
+# examples: examples/i3rc/i3rc_cases.py.
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
+                                'examples', 'i3rc'))
+from i3rc_cases import (DX_M, N_FIELD, default_data_dir, levels_km,
+                        read_landsat_field, voxel_extinction, write_scene)
 
 
 def atm_group(z_km, nx, ny, lx_m, ly_m):
@@ -127,12 +68,16 @@ def main():
     a = ap.parse_args()
     if a.refine < 1 or a.layers < 1 or not 0.0 <= a.ssa <= 1.0:
         sys.exit('make_landsat_scene: need refine >= 1, layers >= 1, 0 <= ssa <= 1')
-    tau, dz = read_field(a.data or default_data_dir())
-    z_km = levels_km(dz, a.layers)
-    ext = voxel_extinction(tau, dz, z_km)
+    try:
+        tau, dz = read_landsat_field(a.data or default_data_dir())
+        z_km = levels_km(dz, a.layers)
+        ext = voxel_extinction(tau, dz, z_km)
+    except (ValueError, OSError) as err:
+        sys.exit(f'make_landsat_scene: {err}')
     if a.refine > 1:
         ext = np.repeat(np.repeat(ext, a.refine, axis=1), a.refine, axis=2)
-    write_scene(a.out, ext, a.ssa)
+    write_scene(a.out, ext, a.ssa, 'I3RC Phase 1 Landsat cloud (case 3) as a kumo scene',
+                'bench/make_landsat_scene.py from scene43.tau.128x128, scene43.dz.128x128')
     ny, nx = ext.shape[1:]
     if a.atm_group:
         with open(a.atm_group, 'w') as f:

@@ -44,12 +44,7 @@ while [[ $# -gt 0 ]]; do
 done
 
 # Python packages of the scripts (scene writer, output reader, plots).
-if ! python3 -c 'import numpy, netCDF4, matplotlib' 2>/dev/null; then
-  echo "run_bench.sh: installing numpy, netCDF4, matplotlib (pip, user site if not root)"
-  pip_args=(--quiet)
-  [[ $(id -u) -ne 0 ]] && pip_args+=(--user)
-  python3 -m pip install "${pip_args[@]}" numpy netCDF4 matplotlib
-fi
+bash "$here/../scripts/install-deps.sh" --python
 
 if [[ $analyse_only -eq 0 ]]; then
   if [[ -n ${KUMO_BIN:-} ]]; then

@@ -3,7 +3,33 @@
 # Install the tools kumo needs to build and test (Debian/Ubuntu packages):
 # gfortran, OpenMPI, netCDF-Fortran, CMake, pkg-config, make.
 # Does nothing when every tool is already on PATH, so it is safe to run often.
+#
+#   bash scripts/install-deps.sh            build tools
+#   bash scripts/install-deps.sh --python   only the Python modules of the example and benchmark
+#                                           scripts (numpy, netCDF4, matplotlib) for the Python
+#                                           in $PYTHON (default python3), with pip (user site
+#                                           when not root)
 set -euo pipefail
+
+if [[ ${1:-} == --python ]]; then
+  python="${PYTHON:-python3}"
+  if "$python" -c 'import numpy, netCDF4, matplotlib' 2>/dev/null; then
+    echo "install-deps: Python modules present"
+    exit 0
+  fi
+  echo "install-deps: installing numpy, netCDF4, matplotlib for $python (pip)"
+  pip_args=(--quiet)
+  [[ $(id -u) -ne 0 ]] && pip_args+=(--user)
+  if ! "$python" -m pip install "${pip_args[@]}" numpy netCDF4 matplotlib; then
+    echo "install-deps: pip failed; on Debian/Ubuntu install python3-numpy python3-netcdf4" \
+      "python3-matplotlib and use PYTHON=/usr/bin/python3" >&2
+    exit 1
+  fi
+  exit 0
+elif [[ $# -gt 0 ]]; then
+  echo "install-deps: unknown argument $1 (only --python)" >&2
+  exit 2
+fi
 
 tools=(gfortran mpif90 mpirun nf-config ncdump cmake pkg-config make)
 packages=(gfortran libopenmpi-dev openmpi-bin libnetcdff-dev netcdf-bin cmake pkg-config make)

@@ -103,7 +103,8 @@ contains
     call check(error, lay%i_dir == lay%i_up + 4 .and. lay%i_dif == lay%i_dir + 4, 'flux blocks')
     call check(error, lay%map_slot(0) == 1 .and. lay%map_slot(3) == 2 .and. &
                lay%map_slot(1) == 0, 'map slots')
-    call check(error, lay%n == lay%i_vox + 2*4, 'voxel block ends the buffer')
+    call check(error, lay%i_map_dn == lay%i_vox + 2*4, 'voxel block before the derived maps')
+    call check(error, lay%n == lay%i_map_dn + 2*4, 'total downward maps end the buffer')
     call check(error, lay%i_map_dif == lay%i_map_dir + 2*4, 'map blocks')
   end subroutine test_layout
   !> The polar-method azimuth: unit vector, and the angle uniform on [0, 2 pi) by a chi-square

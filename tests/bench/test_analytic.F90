@@ -566,21 +566,9 @@ end module test_kumo_analytic
 
 program test_analytic
   use test_kumo_analytic, only: collect_analytic
-  use kumo_test_text, only: set_shared_dir
-  use kumo_testing, only: run_unittests
-  use kumo_parallel, only: par_init, par_finalize
+  use kumo_test_text, only: run_shared_suite
   implicit none
-  integer :: n_failed
-  character(len=4096) :: arg
-  call par_init()
-  if (command_argument_count() < 1) then
-    write (*, '(a)') 'usage: test_analytic SHARED_DIR (folder holding data/analytic, data/disort)'
-    error stop 2
-  end if
-  call get_command_argument(1, arg)
-  call set_shared_dir(trim(arg))
-  call run_unittests('kumo vs analytic and published plane-parallel answers', &
-                     collect_analytic(), n_failed)
-  call par_finalize()
-  if (n_failed > 0) error stop 1
+  call run_shared_suite('test_analytic', 'data/analytic, data/disort', &
+                        'kumo vs analytic and published plane-parallel answers', &
+                        collect_analytic())
 end program test_analytic

@@ -645,21 +645,9 @@ end module test_kumo_disort_pp
 
 program test_disort_pp
   use test_kumo_disort_pp, only: collect_disort_pp
-  use kumo_test_text, only: set_shared_dir
-  use kumo_testing, only: run_unittests
-  use kumo_parallel, only: par_init, par_finalize
+  use kumo_test_text, only: run_shared_suite
   implicit none
-  integer :: n_failed, n
-  character(len=4096) :: arg
-  call par_init()
-  if (command_argument_count() < 1) then
-    write (*, '(a)') 'usage: test_disort_pp SHARED_DIR (folder holding reference/disort_pp.csv)'
-    error stop 2
-  end if
-  call get_command_argument(1, arg, n)
-  call set_shared_dir(trim(arg))
-  call run_unittests('kumo vs DISORT plane-parallel (reference/disort_pp.csv)', &
-                     collect_disort_pp(), n_failed)
-  call par_finalize()
-  if (n_failed > 0) error stop 1
+  call run_shared_suite('test_disort_pp', 'reference/disort_pp.csv', &
+                        'kumo vs DISORT plane-parallel (reference/disort_pp.csv)', &
+                        collect_disort_pp())
 end program test_disort_pp

@@ -769,22 +769,9 @@ end module test_kumo_disort_radiance
 
 program test_disort_radiance
   use test_kumo_disort_radiance, only: collect_disort_radiance
-  use kumo_test_text, only: set_shared_dir
-  use kumo_testing, only: run_unittests
-  use kumo_parallel, only: par_init, par_finalize
+  use kumo_test_text, only: run_shared_suite
   implicit none
-  integer :: n_failed
-  character(len=4096) :: arg
-  call par_init()
-  if (command_argument_count() < 1) then
-    write (*, '(a)') 'usage: test_disort_radiance SHARED_DIR (holding reference/disort_pp.csv '// &
-      'and data/disort)'
-    error stop 2
-  end if
-  call get_command_argument(1, arg)
-  call set_shared_dir(trim(arg))
-  call run_unittests('kumo radiances vs DISORT (reference/disort_pp.csv, DISOTEST 5)', &
-                     collect_disort_radiance(), n_failed)
-  call par_finalize()
-  if (n_failed > 0) error stop 1
+  call run_shared_suite('test_disort_radiance', 'reference/disort_pp.csv and data/disort', &
+                        'kumo radiances vs DISORT (reference/disort_pp.csv, DISOTEST 5)', &
+                        collect_disort_radiance())
 end program test_disort_radiance

@@ -4,15 +4,37 @@
 module kumo_test_text
   use kumo_kinds, only: wp, dp
   use kumo_textio, only: read_two_columns
-  use kumo_testing, only: error_t, check
+  use kumo_testing, only: error_t, check, unittest_t, run_unittests
+  use kumo_parallel, only: par_init, par_finalize
   implicit none
   private
-  public :: split, read_table, shared_dir, set_shared_dir, disort_value
+  public :: split, read_table, shared_dir, set_shared_dir, disort_value, run_shared_suite
 
   !> The shared data folder (data/, reference/), set from the command line.
   character(len=:), allocatable :: shared_dir
 
 contains
+
+  !> The main program of a suite that reads the shared data folder: starts MPI (or its stub),
+  !> takes the folder from the first command-line argument and runs the tests. Stops with code 2
+  !> (and a usage line naming `program_name` and what it reads, `needs`) without the argument,
+  !> with code 1 when a test failed.
+  subroutine run_shared_suite(program_name, needs, suite_name, tests)
+    character(len=*), intent(in) :: program_name, needs, suite_name
+    type(unittest_t), intent(in) :: tests(:)
+    integer :: n_failed
+    character(len=4096) :: arg
+    call par_init()
+    if (command_argument_count() < 1) then
+      write (*, '(a)') 'usage: '//program_name//' SHARED_DIR (folder holding '//needs//')'
+      error stop 2
+    end if
+    call get_command_argument(1, arg)
+    call set_shared_dir(trim(arg))
+    call run_unittests(suite_name, tests, n_failed)
+    call par_finalize()
+    if (n_failed > 0) error stop 1
+  end subroutine run_shared_suite
 
   !> Set the shared data folder.
   subroutine set_shared_dir(path)

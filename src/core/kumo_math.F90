@@ -1,11 +1,12 @@
 ! SPDX-License-Identifier: BSD-3-Clause
-!> Small geometry helpers for photon directions.
+!> Small geometry helpers for photon directions, and Gauss-Legendre quadrature.
 module kumo_math
   use, intrinsic :: ieee_arithmetic, only: ieee_is_nan
   use kumo_kinds, only: wp
+  use kumo_constants, only: PI
   implicit none
   private
-  public :: rotate_direction, within, wrap, UZ_MIN, GL5_X, GL5_W
+  public :: rotate_direction, within, wrap, gauss_legendre01, UZ_MIN, GL5_X, GL5_W
 
   !> Smallest |uz| a photon may travel with. Plane crossings divide by uz; directions closer to
   !> the horizontal are nudged to this value and the nudge is counted as an anomaly.
@@ -66,4 +67,43 @@ contains
     x = modulo(x, l)
     if (x >= l) x = 0.0_wp
   end subroutine wrap
+
+  !> Gauss-Legendre nodes x and weights w on [0, 1] (Newton iteration on the Legendre
+  !> recurrence from the Tricomi initial guesses; weights sum to 1).
+  pure subroutine gauss_legendre01(n, x, w)
+    integer, intent(in) :: n
+    real(wp), intent(out) :: x(n), w(n)
+    real(wp) :: z, p0, p1, p2, dp, dz
+    integer :: i, k, it
+    do i = 1, (n + 1)/2
+      z = cos(PI*(i - 0.25_wp)/(n + 0.5_wp))
+      do it = 1, 100
+        p0 = 1.0_wp
+        p1 = z
+        do k = 2, n
+          p2 = ((2*k - 1)*z*p1 - (k - 1)*p0)/k
+          p0 = p1
+          p1 = p2
+        end do
+        if (n == 1) p0 = 1.0_wp
+        dp = n*(z*p1 - p0)/(z*z - 1.0_wp)
+        dz = p1/dp
+        z = z - dz
+        if (abs(dz) < 1.0e-15_wp) exit
+      end do
+      p0 = 1.0_wp
+      p1 = z
+      do k = 2, n
+        p2 = ((2*k - 1)*z*p1 - (k - 1)*p0)/k
+        p0 = p1
+        p1 = p2
+      end do
+      dp = n*(z*p1 - p0)/(z*z - 1.0_wp)
+      x(i) = 0.5_wp*(1.0_wp - z)
+      x(n + 1 - i) = 0.5_wp*(1.0_wp + z)
+      w(i) = 1.0_wp/((1.0_wp - z*z)*dp*dp)
+      w(n + 1 - i) = w(i)
+    end do
+  end subroutine gauss_legendre01
+
 end module kumo_math

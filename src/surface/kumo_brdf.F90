@@ -51,7 +51,7 @@ module kumo_brdf
   use kumo_kinds, only: wp, i8
   use kumo_constants, only: PI, TWO_PI
   use kumo_error, only: error_t, set_error, str, to_lower
-  use kumo_math, only: within
+  use kumo_math, only: within, gauss_legendre01
   use kumo_rng, only: rng_t, rng_next_uniform
   implicit none
   private
@@ -857,7 +857,7 @@ contains
     sigma = sqrt(p%c(5))
     s0 = sin_of(mu0)
     lam0 = dsm_shadowing(mu0, sigma)
-    call gauss_legendre(N_W, xw, ww)
+    call gauss_legendre01(N_W, xw, ww)
     alpha_s = 0.0_wp
     do i = 1, N_PSI
       psi = (i - 0.5_wp)*PI/N_PSI
@@ -1363,47 +1363,9 @@ contains
     integer, intent(in) :: n
     real(wp), intent(out) :: x(n), w(n)
     real(wp) :: u(n)
-    call gauss_legendre(n, u, w)
+    call gauss_legendre01(n, u, w)
     x = u*u*(3.0_wp - 2.0_wp*u)
     w = w*6.0_wp*u*(1.0_wp - u)
   end subroutine panel_nodes
-
-  !> Gauss-Legendre nodes x and weights w on [0, 1] (Newton iteration on the Legendre
-  !> recurrence from the Tricomi initial guesses; weights sum to 1).
-  pure subroutine gauss_legendre(n, x, w)
-    integer, intent(in) :: n
-    real(wp), intent(out) :: x(n), w(n)
-    real(wp) :: z, p0, p1, p2, dp, dz
-    integer :: i, k, it
-    do i = 1, (n + 1)/2
-      z = cos(PI*(i - 0.25_wp)/(n + 0.5_wp))
-      do it = 1, 100
-        p0 = 1.0_wp
-        p1 = z
-        do k = 2, n
-          p2 = ((2*k - 1)*z*p1 - (k - 1)*p0)/k
-          p0 = p1
-          p1 = p2
-        end do
-        if (n == 1) p0 = 1.0_wp
-        dp = n*(z*p1 - p0)/(z*z - 1.0_wp)
-        dz = p1/dp
-        z = z - dz
-        if (abs(dz) < 1.0e-15_wp) exit
-      end do
-      p0 = 1.0_wp
-      p1 = z
-      do k = 2, n
-        p2 = ((2*k - 1)*z*p1 - (k - 1)*p0)/k
-        p0 = p1
-        p1 = p2
-      end do
-      dp = n*(z*p1 - p0)/(z*z - 1.0_wp)
-      x(i) = 0.5_wp*(1.0_wp - z)
-      x(n + 1 - i) = 0.5_wp*(1.0_wp + z)
-      w(i) = 1.0_wp/((1.0_wp - z*z)*dp*dp)
-      w(n + 1 - i) = w(i)
-    end do
-  end subroutine gauss_legendre
 
 end module kumo_brdf

@@ -15,6 +15,7 @@ module test_kumo_brdf_sampling
   use, intrinsic :: iso_fortran_env, only: output_unit
   use kumo_kinds, only: wp, i8
   use kumo_constants, only: PI, DEG2RAD
+  use kumo_math, only: gauss_legendre01
   use kumo_rng, only: rng_t, rng_init
   use kumo_brdf, only: BRDF_LAMBERT, BRDF_DSM, BRDF_RPV, BRDF_LSRT, brdf_params_t, brdf_table_t, &
                        brdf_params, brdf_table_init, brdf_sample, brdf_eval, &
@@ -172,7 +173,7 @@ contains
     real(wp), intent(out) :: prob(N_MU, N_PHI)
     real(wp) :: x(N_GAUSS), w(N_GAUSS), cphi(N_GAUSS, N_PHI), mu, s
     integer :: im, ip, a, b
-    call gauss01(N_GAUSS, x, w)
+    call gauss_legendre01(N_GAUSS, x, w)
     do ip = 1, N_PHI
       do b = 1, N_GAUSS
         cphi(b, ip) = cos((ip - 1 + x(b))*2.0_wp*PI/N_PHI)
@@ -192,30 +193,6 @@ contains
     end do
     prob = prob/sum(prob)
   end subroutine bin_probabilities
-
-  !> Gauss-Legendre nodes and weights on [0, 1].
-  subroutine gauss01(n, x, w)
-    integer, intent(in) :: n
-    real(wp), intent(out) :: x(n), w(n)
-    real(wp) :: z, p0, p1, p2, dp
-    integer :: i, k, it
-    do i = 1, n
-      z = cos(PI*(i - 0.25_wp)/(n + 0.5_wp))
-      do it = 1, 50
-        p0 = 1.0_wp
-        p1 = z
-        do k = 2, n
-          p2 = ((2*k - 1)*z*p1 - (k - 1)*p0)/k
-          p0 = p1
-          p1 = p2
-        end do
-        dp = n*(z*p1 - p0)/(z*z - 1.0_wp)
-        z = z - p1/dp
-      end do
-      x(i) = 0.5_wp*(1.0_wp - z)
-      w(i) = 1.0_wp/((1.0_wp - z*z)*dp*dp)
-    end do
-  end subroutine gauss01
 
   !> Regularised upper incomplete gamma function Q(a, x) = Gamma(a, x)/Gamma(a): the power
   !> series of P for x < a + 1, otherwise the continued fraction of Q (modified Lentz).

@@ -9,6 +9,7 @@ module test_kumo_brdf
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use kumo_kinds, only: wp, i8
   use kumo_constants, only: PI, DEG2RAD
+  use kumo_math, only: gauss_legendre01
   use kumo_rng, only: rng_t, rng_init, rng_uniform
   use kumo_brdf, only: BRDF_BLACK, BRDF_LAMBERT, BRDF_DSM, BRDF_RPV, BRDF_LSRT, BRDF_NAMES, &
                        BRDF_NPAR, brdf_params_t, brdf_table_t, brdf_params, &
@@ -188,31 +189,6 @@ contains
     end do
     s = s*2.0_wp*PI/(real(n, wp)*n)
   end function brute_albedo
-
-  !> Gauss-Legendre nodes and weights on [0, 1] (own implementation for the outer integral of
-  !> the white-sky test).
-  subroutine gauss01(n, x, w)
-    integer, intent(in) :: n
-    real(wp), intent(out) :: x(n), w(n)
-    real(wp) :: z, p0, p1, p2, dp
-    integer :: i, k, it
-    do i = 1, n
-      z = cos(PI*(i - 0.25_wp)/(n + 0.5_wp))
-      do it = 1, 50
-        p0 = 1.0_wp
-        p1 = z
-        do k = 2, n
-          p2 = ((2*k - 1)*z*p1 - (k - 1)*p0)/k
-          p0 = p1
-          p1 = p2
-        end do
-        dp = n*(z*p1 - p0)/(z*z - 1.0_wp)
-        z = z - p1/dp
-      end do
-      x(i) = 0.5_wp*(1.0_wp - z)
-      w(i) = 1.0_wp/((1.0_wp - z*z)*dp*dp)
-    end do
-  end subroutine gauss01
 
   !> Fail unless `err` is allocated and its message contains `part`.
   subroutine expect_error(error, err, part, what)
@@ -541,7 +517,7 @@ contains
       call check_close(error, av, av_ref(i), abs_tol=2.0e-5_wp, label='A_vol '//trim(label))
       call check_close(error, ag, ag_ref(i), abs_tol=2.0e-5_wp, label='A_geo '//trim(label))
     end do
-    call gauss01(48, x, w)
+    call gauss_legendre01(48, x, w)
     wv = 0.0_wp
     wg = 0.0_wp
     do i = 1, 48

@@ -1,9 +1,9 @@
 ! SPDX-License-Identifier: BSD-3-Clause
-!> Direction rotation and batch statistics.
+!> Direction rotation, Gauss-Legendre quadrature and batch statistics.
 module test_math_tally_suite
   use kumo_kinds, only: wp, dp, i8
   use kumo_testing, only: error_t, unittest_t, new_unittest, check, check_close
-  use kumo_math, only: rotate_direction
+  use kumo_math, only: rotate_direction, gauss_legendre01
   use kumo_rng, only: rng_t, rng_init
   use kumo_transport, only: sample_azimuth
   use kumo_constants, only: PI
@@ -21,7 +21,8 @@ contains
              new_unittest('rotation_of_vertical_directions', test_vertical), &
              new_unittest('batch_mean_and_standard_error', test_stats), &
              new_unittest('layout_is_contiguous', test_layout), &
-             new_unittest('polar_azimuth_is_uniform', test_azimuth)]
+             new_unittest('polar_azimuth_is_uniform', test_azimuth), &
+             new_unittest('gauss_legendre_is_exact_for_polynomials', test_gauss)]
   end function collect_math_tally
 
   subroutine test_rotation(error)
@@ -107,6 +108,31 @@ contains
     call check(error, lay%n == lay%i_map_dn + 2*4, 'total downward maps end the buffer')
     call check(error, lay%i_map_dif == lay%i_map_dir + 2*4, 'map blocks')
   end subroutine test_layout
+  !> n-point Gauss-Legendre on [0, 1] integrates x^k exactly for k <= 2n - 1 (to 1/(k + 1)),
+  !> and underestimates x^(2n) by the remainder term (positive for a positive 2n-th derivative).
+  subroutine test_gauss(error)
+    type(error_t), allocatable, intent(out) :: error
+    integer, parameter :: NS(4) = [1, 2, 7, 24]
+    real(wp), allocatable :: x(:), w(:)
+    integer :: i, n, k
+    do i = 1, size(NS)
+      n = NS(i)
+      allocate (x(n), w(n))
+      call gauss_legendre01(n, x, w)
+      call check(error, all(x > 0.0_wp .and. x < 1.0_wp) .and. all(w > 0.0_wp), &
+                 'nodes inside (0, 1), positive weights, n = '//achar(48 + mod(n, 10)))
+      do k = 0, 2*n - 1
+        call check_close(error, sum(w*x**k), 1.0_wp/(k + 1), abs_tol=1.0e-14_wp, &
+                         label='integral of x^k')
+      end do
+      ! the remainder (n!)^4/((2n + 1)((2n)!)^2) is above round-off up to n = 7 (6e-9 there)
+      if (n <= 7) call check(error, sum(w*x**(2*n)) < 1.0_wp/(2*n + 1) - 1.0e-10_wp, &
+                             'x^(2n) must be underestimated by the remainder')
+      deallocate (x, w)
+      if (allocated(error)) return
+    end do
+  end subroutine test_gauss
+
   !> The polar-method azimuth: unit vector, and the angle uniform on [0, 2 pi) by a chi-square
   !> test over 36 bins (2e5 samples; 0.999 quantile of chi-square with 35 degrees of freedom is
   !> 66.62, from the inverse regularized gamma function).

@@ -91,14 +91,7 @@ contains
         z = z - dz
         if (abs(dz) < 1.0e-15_wp) exit
       end do
-      p0 = 1.0_wp
-      p1 = z
-      do k = 2, n
-        p2 = ((2*k - 1)*z*p1 - (k - 1)*p0)/k
-        p0 = p1
-        p1 = p2
-      end do
-      dp = n*(z*p1 - p0)/(z*z - 1.0_wp)
+      ! dp of the last step, at a node that moved by less than 1e-15 since
       x(i) = 0.5_wp*(1.0_wp - z)
       x(n + 1 - i) = 0.5_wp*(1.0_wp + z)
       w(i) = 1.0_wp/((1.0_wp - z*z)*dp*dp)

@@ -20,6 +20,7 @@ module kumo_rng
   implicit none
   private
   public :: rng_t, rng_init, rng_uniform, rng_next_uniform, rng_next_u64, splitmix64_next
+  public :: sample_azimuth
 
   !> State of one xoshiro256** stream. Initialise it with `rng_init`; the default state
   !> (1, 2, 3, 4) is only the published reference state, never all zero.
@@ -115,4 +116,23 @@ contains
     call rng_next_u64(rng, x)
     u = real(shiftr(x, 11), wp)*TWO_POW_M53
   end subroutine rng_next_uniform
+
+  !> Cosine and sine of an azimuth uniform in [0, 2 pi), by the polar method (seed text App. A6):
+  !> a point uniform in the unit disc, accepted with probability pi/4, whose doubled angle is
+  !> again uniform. No trigonometric function is evaluated.
+  pure subroutine sample_azimuth(rng, c, s)
+    type(rng_t), intent(inout) :: rng
+    real(wp), intent(out) :: c, s
+    real(wp) :: a, b, r2
+    do
+      call rng_next_uniform(rng, a)
+      call rng_next_uniform(rng, b)
+      a = 2.0_wp*a - 1.0_wp
+      b = 2.0_wp*b - 1.0_wp
+      r2 = a*a + b*b
+      if (r2 <= 1.0_wp .and. r2 > 1.0e-12_wp) exit
+    end do
+    c = (a*a - b*b)/r2
+    s = 2.0_wp*a*b/r2
+  end subroutine sample_azimuth
 end module kumo_rng

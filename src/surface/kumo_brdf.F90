@@ -52,7 +52,7 @@ module kumo_brdf
   use kumo_constants, only: PI, TWO_PI
   use kumo_error, only: error_t, set_error, str, to_lower
   use kumo_math, only: within, gauss_legendre01
-  use kumo_rng, only: rng_t, rng_next_uniform
+  use kumo_rng, only: rng_t, rng_next_uniform, sample_azimuth
   implicit none
   private
   public :: BRDF_BLACK, BRDF_LAMBERT, BRDF_DSM, BRDF_RPV, BRDF_LSRT, BRDF_NAMES, BRDF_NPAR
@@ -344,11 +344,15 @@ contains
     real(wp), intent(in) :: mu_in, mu_out  !! cosines of the incident and reflected zenith
     real(wp), intent(in) :: cos_dphi       !! cosine of the relative azimuth (see module)
     real(wp) :: f
-    real(wp) :: s0, s1
-    s0 = sin_of(mu_in)
-    s1 = sin_of(mu_out)
-    f = ross_thick_core(mu_in, mu_out, mu_in*mu_out - s0*s1*cos_dphi)
+    f = ross_thick_core(mu_in, mu_out, cos_phase(mu_in, mu_out, cos_dphi))
   end function ross_thick_kernel
+
+  !> Cosine of the phase angle between the reversed incident and the reflected direction.
+  elemental function cos_phase(mu_in, mu_out, cos_dphi) result(cg)
+    real(wp), intent(in) :: mu_in, mu_out, cos_dphi
+    real(wp) :: cg
+    cg = mu_in*mu_out - sin_of(mu_in)*sin_of(mu_out)*cos_dphi
+  end function cos_phase
 
   pure function ross_thick_core(mu0, mu1, cg) result(f)
     real(wp), intent(in) :: mu0, mu1, cg
@@ -369,10 +373,7 @@ contains
     real(wp), intent(in) :: mu_in, mu_out  !! cosines of the incident and reflected zenith
     real(wp), intent(in) :: cos_dphi       !! cosine of the relative azimuth (see module)
     real(wp) :: f
-    real(wp) :: s0, s1
-    s0 = sin_of(mu_in)
-    s1 = sin_of(mu_out)
-    f = li_sparse_core(mu_in, mu_out, mu_in*mu_out - s0*s1*cos_dphi)
+    f = li_sparse_core(mu_in, mu_out, cos_phase(mu_in, mu_out, cos_dphi))
   end function li_sparse_r_kernel
 
   pure function li_sparse_core(mu0, mu1, cg) result(f)
@@ -1244,23 +1245,6 @@ contains
     s = sin_of(mu)
     u_out = [s*cp, s*sp, mu]
   end subroutine sample_cosine
-
-  !> Cosine and sine of a uniform azimuth by the polar method (seed text App. A6).
-  pure subroutine sample_azimuth(rng, c, s)
-    type(rng_t), intent(inout) :: rng
-    real(wp), intent(out) :: c, s
-    real(wp) :: a, b, r2
-    do
-      call rng_next_uniform(rng, a)
-      call rng_next_uniform(rng, b)
-      a = 2.0_wp*a - 1.0_wp
-      b = 2.0_wp*b - 1.0_wp
-      r2 = a*a + b*b
-      if (r2 <= 1.0_wp .and. r2 > 1.0e-12_wp) exit
-    end do
-    c = (a*a - b*b)/r2
-    s = 2.0_wp*a*b/r2
-  end subroutine sample_azimuth
 
   !> RPV and LSRT: rejection from the linear-in-mu density of the interval's envelope.
   pure subroutine sample_linear(tab, u_in, mu0, rng, u_out, n_violations)

@@ -19,7 +19,7 @@
 module kumo_transport
   use kumo_kinds, only: wp, dp, i8
   use kumo_constants, only: DEG2RAD
-  use kumo_rng, only: rng_t, rng_uniform
+  use kumo_rng, only: rng_t, rng_uniform, sample_azimuth
   use kumo_math, only: rotate_direction, wrap, UZ_MIN
   use kumo_phase, only: phase_sample_mu
   use kumo_truncation, only: trunc_sample_mu
@@ -32,7 +32,7 @@ module kumo_transport
                         ANOM_STEP_CAP, ANOM_POSITION_REPAIR
   implicit none
   private
-  public :: source_t, tracer_options_t, source_init, trace_batch, sample_azimuth
+  public :: source_t, tracer_options_t, source_init, trace_batch
 
   !> The solar source: a parallel beam entering at the top of the domain.
   type :: source_t
@@ -730,23 +730,6 @@ contains
     y = y + uy*d
     z = znew
   end subroutine move_inside
-
-  !> Cosine and sine of an azimuth uniform in [0, 2 pi), by the polar method (seed text App. A6):
-  !> a point uniform in the unit disc, accepted with probability pi/4, whose doubled angle is
-  !> again uniform. No trigonometric function is evaluated.
-  subroutine sample_azimuth(rng, c, s)
-    type(rng_t), intent(inout) :: rng
-    real(wp), intent(out) :: c, s
-    real(wp) :: a, b, r2
-    do
-      a = 2.0_wp*rng_uniform(rng) - 1.0_wp
-      b = 2.0_wp*rng_uniform(rng) - 1.0_wp
-      r2 = a*a + b*b
-      if (r2 <= 1.0_wp .and. r2 > 1.0e-12_wp) exit
-    end do
-    c = (a*a - b*b)/r2
-    s = 2.0_wp*a*b/r2
-  end subroutine sample_azimuth
 
   !> Russian roulette with a weight window (seed text section 3.4.4): below the threshold the
   !> photon survives with probability w/W and then carries W. The net weight it creates or

@@ -4,8 +4,7 @@ module test_math_tally_suite
   use kumo_kinds, only: wp, dp, i8
   use kumo_testing, only: error_t, unittest_t, new_unittest, check, check_close
   use kumo_math, only: rotate_direction, gauss_legendre01
-  use kumo_rng, only: rng_t, rng_init
-  use kumo_transport, only: sample_azimuth
+  use kumo_rng, only: rng_t, rng_init, sample_azimuth
   use kumo_constants, only: PI
   use kumo_tally, only: tally_layout_t, tally_t, stats_t, layout_init, tally_reset, stats_init, &
                         stats_add_batch, stats_mean, stats_stderr

@@ -18,7 +18,7 @@ module kumo_driver
   use kumo_camera, only: camera_t, camera_init, CAMERA_PINHOLE, CAMERA_ORTHOGRAPHIC, &
                          MAX_IMAGE_SHIFTS
   use kumo_local_estimate, only: detectors_t, detectors_init
-  use kumo_surface, only: surface_t, surface_init
+  use kumo_surface, only: surface_t, surface_init, surface_init_brdf
   use kumo_tally, only: tally_layout_t, tally_t, stats_t, layout_init, tally_reset, stats_init, &
                         stats_add_batch, stats_mean, stats_stderr, N_ANOMALIES, ANOMALY_NAMES
   use kumo_transport, only: source_t, tracer_options_t, source_init, trace_batch
@@ -179,7 +179,11 @@ contains
       allocate (alb(1, 1))
       alb = cfg%surface%albedo
     end if
-    call surface_init(scene%sfc, alb, cfg%atm%lx, cfg%atm%ly, error)
+    if (cfg%surface%brdf == 'lambert') then
+      call surface_init(scene%sfc, alb, cfg%atm%lx, cfg%atm%ly, error)
+    else
+      call surface_init_brdf(scene%sfc, cfg%surface%model, cfg%atm%lx, cfg%atm%ly, error)
+    end if
     if (allocated(error)) return
 
     scene%src = source_init(cfg%source%sza_deg, cfg%source%phi0_deg)

@@ -11,9 +11,11 @@ module kumo_config
   use, intrinsic :: iso_fortran_env, only: iostat_end
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use kumo_kinds, only: wp, i8
-  use kumo_error, only: error_t, set_error, str, to_lower
+  use kumo_error, only: error_t, set_error, add_context, str, to_lower
   use kumo_phase, only: phase_kind_from_name
   use kumo_math, only: within
+  use kumo_brdf, only: brdf_params_t, brdf_params, brdf_kind_from_name, brdf_validate, &
+                       cox_munk_slope_variance, BRDF_LAMBERT, BRDF_DSM, BRDF_NPAR
   implicit none
   private
   public :: config_t, control_cfg_t, atmosphere_cfg_t, phase_cfg_t, surface_cfg_t, &
@@ -92,11 +94,15 @@ module kumo_config
     integer :: n_table = 20000                     !! inverse-CDF table size
   end type phase_cfg_t
 
-  !> &kumo_surface: Lambert surface.
+  !> &kumo_surface: Lambert surface (uniform or a map) or a uniform BRDF.
   type :: surface_cfg_t
     real(wp) :: albedo = 0.0_wp                    !! uniform albedo
     character(len=PATH_LEN) :: albedo_file = ''    !! netCDF 2-D albedo map (overrides albedo)
     character(len=64) :: albedo_var = 'albedo'     !! variable name in albedo_file
+    character(len=8) :: brdf = 'lambert'           !! lambert, dsm, rpv or lsrt
+    real(wp) :: brdf_param(BRDF_NPAR) = 0.0_wp     !! BRDF parameters in the MCARaTS order
+    real(wp) :: wind_speed = -1.0_wp               !! DSM: sets the slope variance (< 0: unused)
+    type(brdf_params_t) :: model                   !! the BRDF after validation
   end type surface_cfg_t
 
   !> &kumo_source: the solar beam.
@@ -539,15 +545,19 @@ contains
     logical, intent(in) :: present
     type(surface_cfg_t), intent(inout) :: cfg
     type(error_t), allocatable, intent(out) :: error
-    real(wp) :: albedo
+    real(wp) :: albedo, brdf_param(BRDF_NPAR), wind_speed
     character(len=PATH_LEN) :: albedo_file
     character(len=64) :: albedo_var
-    integer :: ios
+    character(len=8) :: brdf
+    integer :: ios, kind
     character(len=512) :: msg
-    namelist /kumo_surface/ albedo, albedo_file, albedo_var
+    namelist /kumo_surface/ albedo, albedo_file, albedo_var, brdf, brdf_param, wind_speed
     albedo = cfg%albedo
     albedo_file = cfg%albedo_file
     albedo_var = cfg%albedo_var
+    brdf = cfg%brdf
+    brdf_param = cfg%brdf_param
+    wind_speed = cfg%wind_speed
     rewind (unit)
     msg = ''
     read (unit, nml=kumo_surface, iostat=ios, iomsg=msg)
@@ -557,9 +567,34 @@ contains
       call set_error(error, '&kumo_surface: albedo = '//str(albedo)//' must be within [0, 1]')
       return
     end if
+    call brdf_kind_from_name(brdf, kind, error)
+    call add_context(error, '&kumo_surface')
+    if (allocated(error)) return
+    if (kind /= BRDF_LAMBERT) then
+      if (len_trim(albedo_file) > 0) then
+        call set_error(error, '&kumo_surface: albedo_file is a Lambert albedo map and cannot'// &
+                       ' be combined with brdf = '''//trim(brdf)//'''')
+        return
+      end if
+      if (wind_speed >= 0.0_wp) then
+        if (kind /= BRDF_DSM) then
+          call set_error(error, '&kumo_surface: wind_speed applies to brdf = ''dsm'' only')
+          return
+        end if
+        ! Cox and Munk (1954): the total mean-square slope from the wind speed
+        brdf_param(5) = cox_munk_slope_variance(wind_speed)
+      end if
+      cfg%model = brdf_params(kind, brdf_param)
+      call brdf_validate(cfg%model, error)
+      call add_context(error, '&kumo_surface')
+      if (allocated(error)) return
+    end if
     cfg%albedo = albedo
     cfg%albedo_file = albedo_file
     cfg%albedo_var = albedo_var
+    cfg%brdf = trim(to_lower(adjustl(brdf)))
+    cfg%brdf_param = brdf_param
+    cfg%wind_speed = wind_speed
   end subroutine read_surface
 
   subroutine read_source(unit, present, cfg, error)
@@ -964,6 +999,11 @@ contains
            'kumo_surface.albedo = '//str(cfg%surface%albedo)//nl// &
            'kumo_surface.albedo_file = '//trim(cfg%surface%albedo_file)//nl// &
            'kumo_surface.albedo_var = '//trim(cfg%surface%albedo_var)//nl// &
+           'kumo_surface.brdf = '//trim(cfg%surface%brdf)//nl// &
+           'kumo_surface.brdf_param = '//str(cfg%surface%brdf_param(1))//', '// &
+           str(cfg%surface%brdf_param(2))//', '//str(cfg%surface%brdf_param(3))//', '// &
+           str(cfg%surface%brdf_param(4))//', '//str(cfg%surface%brdf_param(5))//nl// &
+           'kumo_surface.wind_speed = '//str(cfg%surface%wind_speed)//nl// &
            'kumo_source.sza_deg = '//str(cfg%source%sza_deg)//nl// &
            'kumo_source.phi0_deg = '//str(cfg%source%phi0_deg)//nl// &
            'kumo_source.solar_flux = '//str(cfg%source%solar_flux)//nl// &

@@ -1,12 +1,14 @@
 ! SPDX-License-Identifier: BSD-3-Clause
-!> The lower boundary: a Lambert surface with a uniform albedo or a 2-D albedo map on its own grid.
+!> The lower boundary: a Lambert surface with a uniform albedo or a 2-D albedo map on its own grid,
+!> or a uniform BRDF surface (kumo_brdf: DSM, RPV, LSRT).
 module kumo_surface
   use kumo_kinds, only: wp
   use kumo_error, only: error_t, set_error, str
   use kumo_math, only: within
+  use kumo_brdf, only: brdf_params_t, brdf_table_t, brdf_table_init, BRDF_BLACK, BRDF_LAMBERT
   implicit none
   private
-  public :: surface_t, surface_init
+  public :: surface_t, surface_init, surface_init_brdf
 
   !> Lambert surface. The map covers the periodic domain [0, lx) x [0, ly) with nxs x nys pixels
   !> that are independent of the atmosphere's grid.
@@ -20,6 +22,10 @@ module kumo_surface
     logical :: uniform = .true.             !! one albedo everywhere
     logical :: black = .true.               !! albedo 0 everywhere: no reflection work at all
     real(wp), allocatable :: albedo(:, :)   !! Lambert albedo per pixel, (nxs, nys)
+    !> a BRDF other than Lambert: reflection weights, directions and local estimates come from
+    !> `tab` (albedo(:, :) is then unused)
+    logical :: use_brdf = .false.
+    type(brdf_table_t) :: tab
   contains
     procedure :: albedo_at
   end type surface_t
@@ -52,6 +58,26 @@ contains
     sfc%uniform = all(albedo == albedo(1, 1))
     sfc%black = all(albedo == 0.0_wp)
   end subroutine surface_init
+
+  !> A uniform BRDF surface over the domain [0, lx) x [0, ly). A Lambert or black model gives
+  !> the ordinary Lambert surface.
+  subroutine surface_init_brdf(sfc, model, lx, ly, error)
+    type(surface_t), intent(out) :: sfc
+    type(brdf_params_t), intent(in) :: model
+    real(wp), intent(in) :: lx, ly          !! domain size [m]
+    type(error_t), allocatable, intent(out) :: error
+    select case (model%kind)
+    case (BRDF_BLACK)
+      call surface_init(sfc, reshape([0.0_wp], [1, 1]), lx, ly, error)
+    case (BRDF_LAMBERT)
+      call surface_init(sfc, reshape([model%c(1)], [1, 1]), lx, ly, error)
+    case default
+      call surface_init(sfc, reshape([1.0_wp], [1, 1]), lx, ly, error)
+      if (allocated(error)) return
+      call brdf_table_init(sfc%tab, model, error)
+      sfc%use_brdf = .true.
+    end select
+  end subroutine surface_init_brdf
 
   !> Albedo under the point (x, y), with x in [0, lx) and y in [0, ly).
   pure real(wp) function albedo_at(sfc, x, y) result(a)

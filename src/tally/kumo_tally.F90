@@ -12,16 +12,20 @@ module kumo_tally
   private
   public :: tally_layout_t, tally_t, stats_t, layout_init, tally_reset, stats_init, &
             stats_add_batch, stats_mean, stats_stderr
-  public :: ANOM_UZ_NUDGED, ANOM_EVENT_CAP, ANOM_STEP_CAP, ANOM_POSITION_REPAIR, N_ANOMALIES, &
-            ANOMALY_NAMES
+  public :: ANOM_UZ_NUDGED, ANOM_EVENT_CAP, ANOM_STEP_CAP, ANOM_POSITION_REPAIR, &
+            ANOM_BRDF_ENVELOPE, N_ANOMALIES, ANOMALY_NAMES
 
   integer, parameter :: ANOM_UZ_NUDGED = 1       !! direction nudged away from the horizontal
   integer, parameter :: ANOM_EVENT_CAP = 2       !! photon stopped at the event cap (weight lost)
   integer, parameter :: ANOM_STEP_CAP = 3        !! photon stopped at the step cap (weight lost)
   integer, parameter :: ANOM_POSITION_REPAIR = 4 !! position clamped back into its cell
-  integer, parameter :: N_ANOMALIES = 4
+  !> BRDF direction drawn where the sampling envelope was below the target density (a slight
+  !> bias near that direction; kumo_brdf)
+  integer, parameter :: ANOM_BRDF_ENVELOPE = 5
+  integer, parameter :: N_ANOMALIES = 5
   character(len=24), parameter :: ANOMALY_NAMES(N_ANOMALIES) = &
-    [character(len=24) :: 'uz_nudged', 'event_cap', 'step_cap', 'position_repair']
+    [character(len=24) :: 'uz_nudged', 'event_cap', 'step_cap', 'position_repair', &
+     'brdf_envelope']
 
   !> Where each quantity sits in the buffer. Offsets are 0-based: the quantity for level k is
   !> buf(i_up + k + 1) etc.; see the accessor comments.

@@ -36,6 +36,8 @@ module kumo_local_estimate
   use kumo_atmosphere, only: atmosphere_t, column_of, sigma_trunc_3d, LAYER_CLEAR, LAYER_3D
   use kumo_camera, only: camera_t, camera_project
   use kumo_tally, only: tally_layout_t, tally_t
+  use kumo_surface, only: surface_t
+  use kumo_brdf, only: brdf_albedo, brdf_table_eval_dir
   implicit none
   private
   public :: detectors_t, detectors_init, le_particle, le_surface, ddis_factor, ddis_direction
@@ -219,24 +221,34 @@ contains
     end if
   end function phase_value
 
-  !> Local estimates of a Lambert reflection at (x, y) on the surface; `w` is the reflected
-  !> weight (after multiplication by the albedo).
-  subroutine le_surface(det, atm, lay, tal, rng, x, y, w, lev, column)
+  !> Local estimates of a surface reflection at (x, y), Lambert or BRDF; `w` is the reflected
+  !> weight (after multiplication by the directional albedo).
+  subroutine le_surface(det, atm, lay, tal, rng, sfc, x, y, ux, uy, uz, w, lev, column)
     type(detectors_t), intent(in) :: det
     type(atmosphere_t), intent(in) :: atm
     type(tally_layout_t), intent(in) :: lay
     type(tally_t), intent(inout) :: tal
     type(rng_t), intent(inout) :: rng
+    type(surface_t), intent(in) :: sfc
     real(wp), value :: x, y, w
+    real(wp), value :: ux, uy, uz   !! incoming direction (BRDF surfaces)
     integer, value :: lev
     logical, value :: column   !! as in le_particle
     integer :: d, c, mx, my, ipix
-    real(wp) :: a, vx, vy, vz, dist, factor, z0
+    real(wp) :: a, vx, vy, vz, dist, factor, z0, w_pi
     logical :: hit
     z0 = atm%z(0)
+    ! Lambert: BRDF/albedo = 1/pi; a BRDF: R(in, out)/alpha(mu_in), w already times alpha
+    w_pi = w/PI
+    if (sfc%use_brdf) w_pi = w/brdf_albedo(sfc%tab, -uz)
     do d = 1, det%n_dir
       if (det%uz(d) <= 0.0_wp) cycle
-      a = w*det%uz(d)/PI
+      if (sfc%use_brdf) then
+        a = w_pi*det%uz(d)*brdf_table_eval_dir(sfc%tab, [ux, uy, uz], &
+                                               [det%ux(d), det%uy(d), det%uz(d)])
+      else
+        a = w_pi*det%uz(d)
+      end if
       call level_estimate(det, atm, lay, tal, rng, x, y, z0, 1, 0, d, a, 1.0_wp, lev, column)
     end do
     do c = 1, size(det%cams)
@@ -245,7 +257,11 @@ contains
           call camera_project(det%cams(c), x + mx*atm%lx, y + my*atm%ly, z0, ipix, dist, &
                               vx, vy, vz, factor, hit)
           if (.not. hit .or. vz <= 0.0_wp) cycle
-          a = w*vz/PI
+          if (sfc%use_brdf) then
+            a = w_pi*vz*brdf_table_eval_dir(sfc%tab, [ux, uy, uz], [vx, vy, vz])
+          else
+            a = w_pi*vz
+          end if
           call camera_estimate(det, atm, tal, rng, x, y, z0, 1, vx, vy, vz, dist, &
                                factor, a, 1.0_wp, lev, lay%i_cam(c) + ipix, column)
         end do

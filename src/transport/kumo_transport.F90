@@ -28,8 +28,9 @@ module kumo_transport
   use kumo_atmosphere, only: atmosphere_t, column_of, LAYER_CLEAR, LAYER_ABSORBING, &
                              LAYER_SCATTERING, LAYER_3D
   use kumo_surface, only: surface_t
+  use kumo_brdf, only: brdf_albedo, brdf_sample
   use kumo_tally, only: tally_layout_t, tally_t, ANOM_UZ_NUDGED, ANOM_EVENT_CAP, &
-                        ANOM_STEP_CAP, ANOM_POSITION_REPAIR
+                        ANOM_STEP_CAP, ANOM_POSITION_REPAIR, ANOM_BRDF_ENVELOPE
   implicit none
   private
   public :: source_t, tracer_options_t, source_init, trace_batch
@@ -83,7 +84,7 @@ contains
     type(tally_t), intent(inout) :: tal
     integer(i8) :: ip, n_events, n_steps
     real(wp) :: x, y, z, ux, uy, uz, w, tau, d, zb, e, wn, albedo, mu, cphi, sphi, omega, ps
-    real(wp) :: inv_cf, uxi, uyi, uzi
+    real(wp) :: inv_cf, uxi, uyi, uzi, u_out(3)
     integer :: iz, order, cls, ev, ix, iy, kr, ic, iph, nc, lev, n_pending
     logical :: in3d, track_xy, move_xy, column, forced, secondary, split, plain
     ! DDIS secondaries waiting to be traced: position, direction, weight; layer, order, level
@@ -204,23 +205,42 @@ contains
               tal%buf(lay%i_sfc + 1) = tal%buf(lay%i_sfc + 1) + w
               exit photon
             end if
-            albedo = sfc%albedo_at(x, y)
+            ! a BRDF (seed text section 3.6): weight times the directional albedo, then a
+            ! direction drawn from BRDF mu_out / albedo
+            if (sfc%use_brdf) then
+              albedo = brdf_albedo(sfc%tab, -uz)
+            else
+              albedo = sfc%albedo_at(x, y)
+            end if
             tal%buf(lay%i_sfc + 1) = tal%buf(lay%i_sfc + 1) + w*(1.0_wp - albedo)
             w = w*albedo
             if (w <= 0.0_wp) exit photon
-            if (det%active) call le_surface(det, atm, lay, tal, rng, x, y, w, lev, column)
+            if (det%active) call le_surface(det, atm, lay, tal, rng, sfc, x, y, ux, uy, uz, w, &
+                                            lev, column)
             call roulette(opts, lay, tal, rng, w)
             if (w <= 0.0_wp) exit photon
-            mu = sqrt(rng_uniform(rng))
-            call sample_azimuth(rng, cphi, sphi)
-            if (mu < UZ_MIN) then
-              mu = UZ_MIN
-              tal%anomalies(ANOM_UZ_NUDGED) = tal%anomalies(ANOM_UZ_NUDGED) + 1
+            if (sfc%use_brdf) then
+              call brdf_sample(sfc%tab, [ux, uy, uz], rng, u_out, &
+                               tal%anomalies(ANOM_BRDF_ENVELOPE))
+              ux = u_out(1)
+              uy = u_out(2)
+              uz = u_out(3)
+              if (uz < UZ_MIN) then
+                uz = UZ_MIN
+                tal%anomalies(ANOM_UZ_NUDGED) = tal%anomalies(ANOM_UZ_NUDGED) + 1
+              end if
+            else
+              mu = sqrt(rng_uniform(rng))
+              call sample_azimuth(rng, cphi, sphi)
+              if (mu < UZ_MIN) then
+                mu = UZ_MIN
+                tal%anomalies(ANOM_UZ_NUDGED) = tal%anomalies(ANOM_UZ_NUDGED) + 1
+              end if
+              uz = mu
+              mu = sqrt(max(0.0_wp, 1.0_wp - mu*mu))
+              ux = mu*cphi
+              uy = mu*sphi
             end if
-            uz = mu
-            mu = sqrt(max(0.0_wp, 1.0_wp - mu*mu))
-            ux = mu*cphi
-            uy = mu*sphi
             order = order + 1
             z = atm%z(0)
             iz = 1

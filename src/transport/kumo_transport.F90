@@ -147,11 +147,7 @@ contains
             in3d = .true.
           else
             in3d = .false.
-            if (uz > 0.0_wp) then
-              zb = atm%z(iz)
-            else
-              zb = atm%z(iz - 1)
-            end if
+            zb = level_ahead(atm, iz, uz)
             d = (zb - z)/uz
             ev = 0
             select case (cls)
@@ -647,6 +643,18 @@ contains
     end do
   end subroutine fly_3d
 
+  !> Height of the level a photon in layer iz meets next: the top for uz > 0, else the bottom.
+  pure real(wp) function level_ahead(atm, iz, uz) result(zb)
+    type(atmosphere_t), intent(in) :: atm
+    integer, intent(in) :: iz
+    real(wp), intent(in) :: uz
+    if (uz > 0.0_wp) then
+      zb = atm%z(iz)
+    else
+      zb = atm%z(iz - 1)
+    end if
+  end function level_ahead
+
   !> Flight inside the 3-D region for a photon that keeps its column (ICA, and P3D beyond its
   !> 3-D orders): the column is a stack of uniform voxels, crossed layer by layer like the 1-D
   !> layers, without null collisions. Ends like fly_3d: a collision in voxel (ix, iy, kr)
@@ -671,11 +679,7 @@ contains
       n_steps = n_steps + 1
       kr = iz - atm%k3_lo + 1
       if (n_steps > max_steps) return   ! the caller's step check stops the photon
-      if (uz > 0.0_wp) then
-        zb = atm%z(iz)
-      else
-        zb = atm%z(iz - 1)
-      end if
+      zb = level_ahead(atm, iz, uz)
       d = (zb - z)/uz
       e = atm%ext3(ix, iy, kr)
       if (tau < e*d) then

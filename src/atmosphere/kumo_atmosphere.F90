@@ -22,7 +22,7 @@ module kumo_atmosphere
   implicit none
   private
   public :: atmosphere_t, atmosphere_options_t, atmosphere_init, atmosphere_set_truncation
-  public :: column_of, sigma_trunc_3d
+  public :: column_of, column_xy, sigma_trunc_3d
   public :: LAYER_CLEAR, LAYER_ABSORBING, LAYER_SCATTERING, LAYER_3D, LAYER_CLASS_NAMES
 
   integer, parameter :: LAYER_CLEAR = 0, LAYER_ABSORBING = 1, LAYER_SCATTERING = 2, LAYER_3D = 3
@@ -322,10 +322,18 @@ contains
     type(atmosphere_t), intent(in) :: atm
     real(wp), intent(in) :: x, y
     integer :: ix, iy
-    ix = min(atm%nx, max(1, int(x*atm%inv_dx) + 1))
-    iy = min(atm%ny, max(1, int(y*atm%inv_dy) + 1))
+    call column_xy(atm, x, y, ix, iy)
     icol = ix + (iy - 1)*atm%nx
   end function column_of
+
+  !> Column indices (ix, iy) of the point (x, y), clamped to the grid against round-off.
+  pure subroutine column_xy(atm, x, y, ix, iy)
+    type(atmosphere_t), intent(in) :: atm
+    real(wp), intent(in) :: x, y
+    integer, intent(out) :: ix, iy
+    ix = min(atm%nx, max(1, int(x*atm%inv_dx) + 1))
+    iy = min(atm%ny, max(1, int(y*atm%inv_dy) + 1))
+  end subroutine column_xy
 
   !> Total extinction, mixture albedo and cumulative scattering fractions of one cell.
   pure subroutine mix(ext, ssa, ext_tot, omega, csca)

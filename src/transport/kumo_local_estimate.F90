@@ -33,7 +33,8 @@ module kumo_local_estimate
   use kumo_math, only: wrap, rotate_direction
   use kumo_phase, only: phase_eval, phase_sample_mu
   use kumo_truncation, only: trunc_eval, trunc_sample_mu
-  use kumo_atmosphere, only: atmosphere_t, column_of, sigma_trunc_3d, LAYER_CLEAR, LAYER_3D
+  use kumo_atmosphere, only: atmosphere_t, column_of, column_xy, sigma_trunc_3d, LAYER_CLEAR, &
+                             LAYER_3D
   use kumo_camera, only: camera_t, camera_project
   use kumo_tally, only: tally_layout_t, tally_t
   use kumo_surface, only: surface_t
@@ -520,8 +521,7 @@ contains
       if (atm%uniform3(kr)) then
         tau = tau + sigma_trunc_3d(atm, 1, 1, kr, lev_t)*s
       else
-        ix = min(atm%nx, max(1, int(x*atm%inv_dx) + 1))
-        iy = min(atm%ny, max(1, int(y*atm%inv_dy) + 1))
+        call column_xy(atm, x, y, ix, iy)
         rem = s
         do
           tx = face_distance(ix, x, vx, atm%dx)

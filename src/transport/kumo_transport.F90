@@ -25,8 +25,8 @@ module kumo_transport
   use kumo_truncation, only: trunc_sample_mu
   use kumo_local_estimate, only: detectors_t, le_particle, le_surface, ddis_factor, &
                                  ddis_direction
-  use kumo_atmosphere, only: atmosphere_t, column_of, LAYER_CLEAR, LAYER_ABSORBING, &
-                             LAYER_SCATTERING, LAYER_3D
+  use kumo_atmosphere, only: atmosphere_t, column_of, column_xy, LAYER_CLEAR, &
+                             LAYER_ABSORBING, LAYER_SCATTERING, LAYER_3D
   use kumo_surface, only: surface_t
   use kumo_brdf, only: brdf_albedo, brdf_sample
   use kumo_tally, only: tally_layout_t, tally_t, ANOM_UZ_NUDGED, ANOM_EVENT_CAP, &
@@ -221,21 +221,16 @@ contains
               ux = u_out(1)
               uy = u_out(2)
               uz = u_out(3)
-              if (uz < UZ_MIN) then
-                uz = UZ_MIN
-                tal%anomalies(ANOM_UZ_NUDGED) = tal%anomalies(ANOM_UZ_NUDGED) + 1
-              end if
             else
-              mu = sqrt(rng_uniform(rng))
+              uz = sqrt(rng_uniform(rng))
               call sample_azimuth(rng, cphi, sphi)
-              if (mu < UZ_MIN) then
-                mu = UZ_MIN
-                tal%anomalies(ANOM_UZ_NUDGED) = tal%anomalies(ANOM_UZ_NUDGED) + 1
-              end if
-              uz = mu
-              mu = sqrt(max(0.0_wp, 1.0_wp - mu*mu))
+              mu = sqrt(max(0.0_wp, 1.0_wp - uz*uz))
               ux = mu*cphi
               uy = mu*sphi
+            end if
+            if (uz < UZ_MIN) then
+              uz = UZ_MIN
+              tal%anomalies(ANOM_UZ_NUDGED) = tal%anomalies(ANOM_UZ_NUDGED) + 1
             end if
             order = order + 1
             z = atm%z(0)
@@ -673,8 +668,7 @@ contains
     integer, intent(out) :: ev, ix, iy, kr
     real(wp) :: zb, d, e
     ev = 0
-    ix = min(atm%nx, max(1, int(x*atm%inv_dx) + 1))
-    iy = min(atm%ny, max(1, int(y*atm%inv_dy) + 1))
+    call column_xy(atm, x, y, ix, iy)
     do
       n_steps = n_steps + 1
       kr = iz - atm%k3_lo + 1

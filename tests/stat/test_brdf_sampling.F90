@@ -19,7 +19,8 @@ module test_kumo_brdf_sampling
   use kumo_rng, only: rng_t, rng_init
   use kumo_brdf, only: BRDF_LAMBERT, BRDF_DSM, BRDF_RPV, BRDF_LSRT, brdf_params_t, brdf_table_t, &
                        brdf_params, brdf_table_init, brdf_sample, brdf_eval, &
-                       cox_munk_slope_variance
+                       cox_munk_slope_variance, lsrt_grid_t, lsrt_grid_init, &
+                       brdf_table_init_grid
   use kumo_testing, only: error_t, unittest_t, new_unittest, check
   implicit none
   private
@@ -44,7 +45,9 @@ contains
              new_unittest('chi2_rpv_hot_spot', test_rpv_hot_spot), &
              new_unittest('chi2_rpv_forward_between_nodes', test_rpv_forward), &
              new_unittest('chi2_lsrt_clipped_alb_n98', test_lsrt_clipped), &
-             new_unittest('chi2_lsrt_volume', test_lsrt_volume)]
+             new_unittest('chi2_lsrt_volume', test_lsrt_volume), &
+             new_unittest('chi2_lsrt_map_table_clipped', test_lsrt_grid_clipped), &
+             new_unittest('chi2_lsrt_map_table_volume', test_lsrt_grid_volume)]
   end function collect_brdf_sampling
 
   subroutine test_lambert(error)
@@ -97,14 +100,30 @@ contains
                    'lsrt volume')
   end subroutine test_lsrt_volume
 
+  !> The two LSRT cases above with the tables of surface maps (`brdf_table_init_grid`: albedo
+  !> from shared kernel values, envelopes from the kernels' row extremes).
+  subroutine test_lsrt_grid_clipped(error)
+    type(error_t), allocatable, intent(out) :: error
+    call chi2_case(error, brdf_params(BRDF_LSRT, [0.3_wp, 0.07_wp, 0.03_wp]), 45.0_wp, 8_i8, &
+                   'lsrt alb_N98 (map table)', grid=.true.)
+  end subroutine test_lsrt_grid_clipped
+
+  subroutine test_lsrt_grid_volume(error)
+    type(error_t), allocatable, intent(out) :: error
+    call chi2_case(error, brdf_params(BRDF_LSRT, [0.1_wp, 0.02_wp, 0.6_wp]), 20.0_wp, 9_i8, &
+                   'lsrt volume (map table)', grid=.true.)
+  end subroutine test_lsrt_grid_volume
+
   !> Sample, bin, compare (see the module text).
-  subroutine chi2_case(error, p, theta0_deg, stream, label)
+  subroutine chi2_case(error, p, theta0_deg, stream, label, grid)
     type(error_t), allocatable, intent(inout) :: error
     type(brdf_params_t), intent(in) :: p
     real(wp), intent(in) :: theta0_deg
     integer(i8), intent(in) :: stream
     character(len=*), intent(in) :: label
+    logical, intent(in), optional :: grid   !! use the table of a surface map
     type(error_t), allocatable :: err
+    type(lsrt_grid_t) :: lg
     type(brdf_table_t) :: tab
     type(rng_t) :: rng
     real(wp) :: u_in(3), u_out(3), mu0, expected(N_MU, N_PHI), chi2, pval, pooled_e, phi, h(2)
@@ -113,7 +132,12 @@ contains
     character(len=160) :: msg
 
     if (allocated(error)) return
-    call brdf_table_init(tab, p, err)
+    if (present(grid)) then
+      call lsrt_grid_init(lg)
+      call brdf_table_init_grid(tab, p, lg, err)
+    else
+      call brdf_table_init(tab, p, err)
+    end if
     call check(error, .not. allocated(err), label//': table init failed')
     if (allocated(error)) return
     mu0 = cos(theta0_deg*DEG2RAD)

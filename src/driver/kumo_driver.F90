@@ -18,14 +18,16 @@ module kumo_driver
   use kumo_camera, only: camera_t, camera_init, CAMERA_PINHOLE, CAMERA_ORTHOGRAPHIC, &
                          MAX_IMAGE_SHIFTS
   use kumo_local_estimate, only: detectors_t, detectors_init
-  use kumo_surface, only: surface_t, surface_init, surface_init_brdf
+  use kumo_surface, only: surface_t, surface_init, surface_init_brdf, surface_init_brdf_map
+  use kumo_brdf, only: brdf_params_t, BRDF_NPAR
   use kumo_tally, only: tally_layout_t, tally_t, stats_t, layout_init, tally_reset, stats_init, &
                         stats_add_batch, stats_mean, stats_stderr, N_ANOMALIES, ANOMALY_NAMES
   use kumo_transport, only: source_t, tracer_options_t, source_init, trace_batch
   use kumo_results, only: result_set_t, add_dim, add_var, add_attr, find_var
   use kumo_config, only: config_t, read_config, config_echo
   use kumo_textio, only: read_two_columns, read_whole_file
-  use kumo_netcdf, only: write_results, check_writable, read_scene_3d, read_albedo_map
+  use kumo_netcdf, only: write_results, check_writable, read_scene_3d, read_albedo_map, &
+                         read_brdf_map
   use kumo_parallel, only: par_rank, par_size, par_is_root, par_sum_to_root, &
                            par_allreduce_sum, par_wtime, par_bcast_int, par_bcast_real, PAR_IS_MPI
   implicit none
@@ -126,6 +128,7 @@ contains
     type(phase_t), allocatable :: phases(:)
     type(atmosphere_options_t) :: aopts
     real(wp), allocatable :: ang(:), val(:), ext3(:, :, :, :), ssa3(:, :, :, :), alb(:, :)
+    type(brdf_params_t), allocatable :: bmap(:, :)
     integer, allocatable :: iph3(:, :, :, :)
     integer :: i
     character(len=:), allocatable :: nml_path
@@ -179,7 +182,13 @@ contains
       allocate (alb(1, 1))
       alb = cfg%surface%albedo
     end if
-    if (cfg%surface%brdf == 'lambert') then
+    if (len_trim(cfg%surface%brdf_file) > 0) then
+      call brdf_map_on_root(resolve(cfg%surface%brdf_file, nml_path), cfg%surface%model%kind, &
+                            bmap, error)
+      if (allocated(error)) return
+      call surface_init_brdf_map(scene%sfc, bmap, cfg%atm%lx, cfg%atm%ly, error)
+      call add_context(error, trim(cfg%surface%brdf_file))
+    else if (cfg%surface%brdf == 'lambert') then
       call surface_init(scene%sfc, alb, cfg%atm%lx, cfg%atm%ly, error)
     else
       call surface_init_brdf(scene%sfc, cfg%surface%model, cfg%atm%lx, cfg%atm%ly, error)
@@ -187,6 +196,20 @@ contains
     if (allocated(error)) return
 
     scene%src = source_init(cfg%source%sza_deg, cfg%source%phi0_deg)
+    if (cfg%vr%stratify_source) then
+      ! entry cells: the 3-D region's columns, or else the surface map's pixels
+      if (scene%atm%n3 > 0) then
+        scene%src%nsx = scene%atm%nx
+        scene%src%nsy = scene%atm%ny
+      else if (.not. scene%sfc%uniform) then
+        scene%src%nsx = scene%sfc%nxs
+        scene%src%nsy = scene%sfc%nys
+      end if
+      scene%src%shift_x = scene%src%ux/(-scene%src%uz)*(scene%atm%z(scene%atm%nz) - &
+                                                         scene%atm%z(0))
+      scene%src%shift_y = scene%src%uy/(-scene%src%uz)*(scene%atm%z(scene%atm%nz) - &
+                                                         scene%atm%z(0))
+    end if
     scene%mu0 = cos(cfg%source%sza_deg*DEG2RAD)
     scene%tracer%rr_threshold = cfg%vr%rr_threshold
     scene%tracer%rr_weight = cfg%vr%rr_weight
@@ -350,6 +373,43 @@ contains
       iph3 = reshape(nint(buf), shape(iph3))
     end if
   end subroutine read_scene_on_root
+
+  !> Rank 0 reads the BRDF map and broadcasts it.
+  subroutine brdf_map_on_root(path, default_kind, bmap, error)
+    character(len=*), intent(in) :: path
+    integer, intent(in) :: default_kind
+    type(brdf_params_t), allocatable, intent(out) :: bmap(:, :)
+    type(error_t), allocatable, intent(out) :: error
+    integer :: status(3), i, j
+    integer, allocatable :: kind(:, :)
+    real(wp), allocatable :: c(:, :, :)
+    real(dp), allocatable :: buf(:)
+    status = 0
+    if (par_is_root()) then
+      call read_brdf_map(path, default_kind, status(2), status(3), kind, c, error)
+      if (allocated(error)) status(1) = 1
+    end if
+    call par_bcast_int(status)
+    if (status(1) /= 0) then
+      if (.not. allocated(error)) call set_error(error, 'reading '//path//' failed on rank 0')
+      return
+    end if
+    if (par_size() > 1) then
+      if (.not. par_is_root()) allocate (kind(status(2), status(3)), &
+                                         c(BRDF_NPAR, status(2), status(3)))
+      buf = [real(reshape(kind, [size(kind)]), dp), reshape(c, [size(c)])]
+      call par_bcast_real(buf)
+      kind = reshape(nint(buf(1:size(kind))), shape(kind))
+      c = reshape(buf(size(kind) + 1:), shape(c))
+    end if
+    allocate (bmap(status(2), status(3)))
+    do j = 1, status(3)
+      do i = 1, status(2)
+        bmap(i, j)%kind = kind(i, j)
+        bmap(i, j)%c = c(:, i, j)
+      end do
+    end do
+  end subroutine brdf_map_on_root
 
   !> Rank 0 reads the albedo map and broadcasts it.
   subroutine read_albedo_on_root(path, varname, alb, error)

@@ -15,7 +15,7 @@ module kumo_config
   use kumo_phase, only: phase_kind_from_name
   use kumo_math, only: within
   use kumo_brdf, only: brdf_params_t, brdf_params, brdf_kind_from_name, brdf_validate, &
-                       cox_munk_slope_variance, BRDF_LAMBERT, BRDF_DSM, BRDF_NPAR
+                       cox_munk_slope_variance, BRDF_BLACK, BRDF_LAMBERT, BRDF_DSM, BRDF_NPAR
   implicit none
   private
   public :: config_t, control_cfg_t, atmosphere_cfg_t, phase_cfg_t, surface_cfg_t, &
@@ -94,12 +94,13 @@ module kumo_config
     integer :: n_table = 20000                     !! inverse-CDF table size
   end type phase_cfg_t
 
-  !> &kumo_surface: Lambert surface (uniform or a map) or a uniform BRDF.
+  !> &kumo_surface: Lambert surface (uniform or a map) or a BRDF (uniform or a map).
   type :: surface_cfg_t
     real(wp) :: albedo = 0.0_wp                    !! uniform albedo
     character(len=PATH_LEN) :: albedo_file = ''    !! netCDF 2-D albedo map (overrides albedo)
     character(len=64) :: albedo_var = 'albedo'     !! variable name in albedo_file
-    character(len=8) :: brdf = 'lambert'           !! lambert, dsm, rpv or lsrt
+    character(len=8) :: brdf = 'lambert'           !! lambert, dsm, rpv, lsrt or black
+    character(len=PATH_LEN) :: brdf_file = ''      !! netCDF 2-D BRDF map
     real(wp) :: brdf_param(BRDF_NPAR) = 0.0_wp     !! BRDF parameters in the MCARaTS order
     real(wp) :: wind_speed = -1.0_wp               !! DSM: sets the slope variance (< 0: unused)
     type(brdf_params_t) :: model                   !! the BRDF after validation
@@ -130,6 +131,7 @@ module kumo_config
     integer :: sv_max_layers = 50                  !! most layers per super-layer
     logical :: use_1d_layers = .true.              !! analytic 1-D layers (else 3-D tracer)
     logical :: use_absorbing_layers = .true.       !! absorbing layers without collisions
+    logical :: stratify_source = .true.            !! stratified entry points per batch
     character(len=16) :: preset = 'unbiased'       !! one of PRESET_NAMES
     real(wp) :: zeta_min = 0.3_wp                  !! local-estimate roulette threshold (BRF)
     real(wp) :: trunc_theta_max_deg = 0.0_wp       !! largest truncation angle (0 = off)
@@ -546,14 +548,16 @@ contains
     type(surface_cfg_t), intent(inout) :: cfg
     type(error_t), allocatable, intent(out) :: error
     real(wp) :: albedo, brdf_param(BRDF_NPAR), wind_speed
-    character(len=PATH_LEN) :: albedo_file
+    character(len=PATH_LEN) :: albedo_file, brdf_file
     character(len=64) :: albedo_var
     character(len=8) :: brdf
     integer :: ios, kind
     character(len=512) :: msg
-    namelist /kumo_surface/ albedo, albedo_file, albedo_var, brdf, brdf_param, wind_speed
+    namelist /kumo_surface/ albedo, albedo_file, albedo_var, brdf, brdf_param, wind_speed, &
+      brdf_file
     albedo = cfg%albedo
     albedo_file = cfg%albedo_file
+    brdf_file = cfg%brdf_file
     albedo_var = cfg%albedo_var
     brdf = cfg%brdf
     brdf_param = cfg%brdf_param
@@ -570,7 +574,28 @@ contains
     call brdf_kind_from_name(brdf, kind, error)
     call add_context(error, '&kumo_surface')
     if (allocated(error)) return
-    if (kind /= BRDF_LAMBERT) then
+    if (len_trim(brdf_file) > 0) then
+      ! a BRDF map: kinds and parameters come from the file (brdf: kind of pixels without one)
+      if (len_trim(albedo_file) > 0) then
+        call set_error(error, '&kumo_surface: give either albedo_file (a Lambert albedo map) '// &
+                       'or brdf_file (a BRDF map), not both')
+        return
+      end if
+      if (any(brdf_param /= 0.0_wp) .or. wind_speed >= 0.0_wp) then
+        call set_error(error, '&kumo_surface: brdf_param and wind_speed do not apply with '// &
+                       'brdf_file; the map file holds the parameters of every pixel')
+        return
+      end if
+      cfg%model = brdf_params(kind, [0.0_wp])
+    else if (kind == BRDF_LAMBERT .or. kind == BRDF_BLACK) then
+      if (any(brdf_param /= 0.0_wp)) then
+        call set_error(error, '&kumo_surface: brdf_param applies to brdf = ''dsm'', ''rpv'' '// &
+                       'and ''lsrt''; a Lambert surface takes its albedo from albedo or '// &
+                       'albedo_file')
+        return
+      end if
+    end if
+    if (kind /= BRDF_LAMBERT .and. len_trim(brdf_file) == 0) then
       if (len_trim(albedo_file) > 0) then
         call set_error(error, '&kumo_surface: albedo_file is a Lambert albedo map and cannot'// &
                        ' be combined with brdf = '''//trim(brdf)//'''')
@@ -591,6 +616,7 @@ contains
     end if
     cfg%albedo = albedo
     cfg%albedo_file = albedo_file
+    cfg%brdf_file = brdf_file
     cfg%albedo_var = albedo_var
     cfg%brdf = trim(to_lower(adjustl(brdf)))
     cfg%brdf_param = brdf_param
@@ -687,7 +713,7 @@ contains
     type(error_t), allocatable, intent(out) :: error
     real(wp) :: rr_threshold, rr_weight, sv_fsupg, sv_fsupi
     integer :: sv_max_layers, ios, ip
-    logical :: use_supervoxels, use_1d_layers, use_absorbing_layers
+    logical :: use_supervoxels, use_1d_layers, use_absorbing_layers, stratify_source
     character(len=16) :: vr_preset
     real(wp) :: zeta_min, trunc_theta_max_deg, trunc_peak, cf_tau_min, diffusion, ddis_eps
     integer :: trunc_levels, diffusion_max
@@ -695,7 +721,7 @@ contains
     namelist /kumo_vr/ rr_threshold, rr_weight, use_supervoxels, sv_fsupg, sv_fsupi, &
       sv_max_layers, use_1d_layers, use_absorbing_layers, vr_preset, zeta_min, &
       trunc_theta_max_deg, trunc_levels, trunc_peak, cf_tau_min, diffusion, diffusion_max, &
-      ddis_eps
+      ddis_eps, stratify_source
     rr_threshold = cfg%rr_threshold
     rr_weight = cfg%rr_weight
     use_supervoxels = cfg%use_supervoxels
@@ -704,6 +730,7 @@ contains
     sv_max_layers = cfg%sv_max_layers
     use_1d_layers = cfg%use_1d_layers
     use_absorbing_layers = cfg%use_absorbing_layers
+    stratify_source = cfg%stratify_source
     vr_preset = cfg%preset
     zeta_min = UNSET
     trunc_theta_max_deg = UNSET
@@ -793,6 +820,7 @@ contains
     cfg%sv_max_layers = sv_max_layers
     cfg%use_1d_layers = use_1d_layers
     cfg%use_absorbing_layers = use_absorbing_layers
+    cfg%stratify_source = stratify_source
   end subroutine read_vr
 
   subroutine read_radiance(unit, present, nz, cfg, error)
@@ -999,6 +1027,7 @@ contains
            'kumo_surface.albedo = '//str(cfg%surface%albedo)//nl// &
            'kumo_surface.albedo_file = '//trim(cfg%surface%albedo_file)//nl// &
            'kumo_surface.albedo_var = '//trim(cfg%surface%albedo_var)//nl// &
+           'kumo_surface.brdf_file = '//trim(cfg%surface%brdf_file)//nl// &
            'kumo_surface.brdf = '//trim(cfg%surface%brdf)//nl// &
            'kumo_surface.brdf_param = '//str(cfg%surface%brdf_param(1))//', '// &
            str(cfg%surface%brdf_param(2))//', '//str(cfg%surface%brdf_param(3))//', '// &
@@ -1014,6 +1043,7 @@ contains
            'kumo_vr.rr_threshold = '//str(cfg%vr%rr_threshold)//nl// &
            'kumo_vr.rr_weight = '//str(cfg%vr%rr_weight)//nl// &
            'kumo_vr.use_supervoxels = '//merge('T', 'F', cfg%vr%use_supervoxels)//nl// &
+           'kumo_vr.stratify_source = '//merge('T', 'F', cfg%vr%stratify_source)//nl// &
            'kumo_vr.sv_fsupg = '//str(cfg%vr%sv_fsupg)//nl// &
            'kumo_vr.sv_fsupi = '//str(cfg%vr%sv_fsupi)//nl// &
            'kumo_vr.sv_max_layers = '//str(cfg%vr%sv_max_layers)//nl// &

@@ -26,10 +26,12 @@ module kumo_netcdf
   use kumo_kinds, only: wp, dp
   use kumo_error, only: error_t, set_error
   use kumo_results, only: result_set_t
+  use kumo_brdf, only: BRDF_NPAR, BRDF_NAMES, BRDF_DSM, cox_munk_slope_variance
   implicit none
   private
   public :: write_results, check_writable
-  public :: read_scene_3d, write_scene_3d, read_albedo_map
+  public :: read_scene_3d, write_scene_3d, read_albedo_map, read_brdf_map
+  public :: BRDF_MAP_VARS
   public :: read_var_1d, read_text_attr
 
   !> netCDF-4 file restricted to the classic data model (readable by every netCDF-4 tool).
@@ -45,6 +47,15 @@ module kumo_netcdf
                                  [character(len=9) :: 'x', 'y', 'z', 'component']
   character(len=*), parameter :: SCENE_INDEX = '(x,y,z,component)'
   character(len=*), parameter :: SCENE_CDL_DIMS = '(component, z, y, x)'
+  !> BRDF map: the variable of each parameter slot c(1:5) per kind (blank: unused). DSM's
+  !> slope variance may be given instead as `wind_speed` [m s-1] (Cox-Munk).
+  character(len=21), parameter :: BRDF_MAP_VARS(BRDF_NPAR, 0:4) = reshape([ &
+    character(len=21) :: '', '', '', '', '', &
+    'albedo', '', '', '', '', &
+    'diffuse_albedo', 'diffuse_fraction', 'refractive_index_real', 'refractive_index_imag', &
+    'slope_variance', &
+    'rho0', 'k', 'theta', 'hotspot', '', &
+    'k_iso', 'k_geo', 'k_vol', '', ''], [BRDF_NPAR, 5])
   !> Albedo map: dimension names in Fortran order, and as ncdump shows them.
   character(len=*), parameter :: MAP_DIM_NAMES(2) = [character(len=2) :: 'xs', 'ys']
   character(len=*), parameter :: MAP_INDEX = '(xs,ys)'
@@ -261,6 +272,157 @@ contains
       nys = 0
     end if
   end subroutine read_albedo_map
+
+  !> Read a BRDF map: dimensions `xs`, `ys`; optional integer `brdf_kind(ys, xs)` with the kind
+  !> code of each pixel (0 black, 1 Lambert, 2 DSM, 3 RPV, 4 LSRT; without it every pixel has
+  !> `default_kind`), and for each kind present its parameter variables (ys, xs), named in
+  !> BRDF_MAP_VARS (DSM: `wind_speed` [m s-1] in place of `slope_variance` is converted by
+  !> Cox-Munk). Parameters are read, and must be finite and not missing, only at the pixels of
+  !> their kind; they are returned in the MCARaTS slot order c(1:5). Their ranges are checked
+  !> by the caller (brdf_validate, per pixel).
+  subroutine read_brdf_map(path, default_kind, nxs, nys, kind, c, error)
+    character(len=*), intent(in) :: path                 !! map file
+    integer, intent(in) :: default_kind                  !! kind of every pixel without brdf_kind
+    integer, intent(out) :: nxs, nys                     !! sizes of dimensions xs and ys
+    integer, allocatable, intent(out) :: kind(:, :)      !! kind code per pixel (nxs, nys)
+    real(wp), allocatable, intent(out) :: c(:, :, :)     !! parameters (BRDF_NPAR, nxs, nys)
+    type(error_t), allocatable, intent(out) :: error
+    character(len=*), parameter :: PROC = 'read_brdf_map'
+    integer :: ncid
+    nxs = 0
+    nys = 0
+    call open_read(PROC, trim(path), ncid, error)
+    if (allocated(error)) return
+    call read_brdf_body(PROC, trim(path), ncid, default_kind, kind, c, error)
+    call close_read(PROC, trim(path), ncid, error)
+    if (allocated(error)) then
+      if (allocated(kind)) deallocate (kind)
+      if (allocated(c)) deallocate (c)
+    else
+      nxs = size(kind, 1)
+      nys = size(kind, 2)
+    end if
+  end subroutine read_brdf_map
+
+  subroutine read_brdf_body(routine, path, ncid, default_kind, kind, c, error)
+    character(len=*), intent(in) :: routine, path
+    integer, intent(in) :: ncid, default_kind
+    integer, allocatable, intent(out) :: kind(:, :)
+    real(wp), allocatable, intent(out) :: c(:, :, :)
+    type(error_t), allocatable, intent(out) :: error
+    integer :: dimids(2), lengths(2), varid, i, k, ix, iy, ifill, status
+    real(wp) :: fill
+    real(wp), allocatable :: v(:, :)
+    character(len=:), allocatable :: at, name, units
+    logical :: found, wind
+
+    do i = 1, 2
+      at = where_text(routine, path, trim(MAP_DIM_NAMES(i)))
+      call nc_check(nf90_inq_dimid(ncid, trim(MAP_DIM_NAMES(i)), dimids(i)), at, error)
+      if (allocated(error)) return
+      call nc_check(nf90_inquire_dimension(ncid, dimids(i), len=lengths(i)), at, error)
+      if (allocated(error)) return
+    end do
+    allocate (kind(lengths(1), lengths(2)), c(BRDF_NPAR, lengths(1), lengths(2)))
+    c = 0.0_wp
+    at = where_text(routine, path, 'brdf_kind')
+    if (nf90_inq_varid(ncid, 'brdf_kind', varid) == NF90_NOERR) then
+      call check_layout(at, ncid, varid, dimids, MAP_CDL_DIMS, error)
+      if (allocated(error)) return
+      call integer_fill(at, ncid, varid, ifill, error)
+      if (allocated(error)) return
+      call nc_check(nf90_get_var(ncid, varid, kind), at, error)
+      if (allocated(error)) return
+      do iy = 1, lengths(2)
+        do ix = 1, lengths(1)
+          if (kind(ix, iy) == ifill) then
+            call set_error(error, at//': value '//int_text(kind(ix, iy))//' at '//MAP_INDEX// &
+                           ' = '//int_list([ix, iy])//' is the fill value (missing data)')
+            return
+          else if (kind(ix, iy) < 0 .or. kind(ix, iy) > 4) then
+            call set_error(error, at//': value '//int_text(kind(ix, iy))//' at '//MAP_INDEX// &
+                           ' = '//int_list([ix, iy])//' must be 0 (black), 1 (Lambert), '// &
+                           '2 (DSM), 3 (RPV) or 4 (LSRT)')
+            return
+          end if
+        end do
+      end do
+    else
+      kind = default_kind
+    end if
+
+    allocate (v(lengths(1), lengths(2)))
+    do k = 1, 4
+      if (.not. any(kind == k)) cycle
+      do i = 1, BRDF_NPAR
+        name = trim(BRDF_MAP_VARS(i, k))
+        if (len(name) == 0) cycle
+        wind = .false.
+        status = nf90_inq_varid(ncid, name, varid)
+        if (status /= NF90_NOERR .and. name == 'slope_variance') then
+          wind = nf90_inq_varid(ncid, 'wind_speed', varid) == NF90_NOERR
+          if (wind) name = 'wind_speed'
+        else if (name == 'slope_variance') then
+          if (nf90_inq_varid(ncid, 'wind_speed', ifill) == NF90_NOERR) then
+            call set_error(error, where_text(routine, path, 'wind_speed')// &
+                           ': give either slope_variance or wind_speed, not both')
+            return
+          end if
+        end if
+        at = where_text(routine, path, name)
+        if (status /= NF90_NOERR .and. .not. wind) then
+          call set_error(error, at//': variable not found; the map has '// &
+                         trim(BRDF_NAMES(k))//' pixels, which need '//kind_vars(k))
+          return
+        end if
+        call check_real_var(at, ncid, varid, dimids, MAP_CDL_DIMS, fill, error)
+        if (allocated(error)) return
+        if (wind) then
+          call get_text_att(routine, path, ncid, varid, 'units', units, found, error)
+          if (allocated(error)) return
+          if (.not. found) units = '(none)'
+          if (units /= 'm s-1' .and. units /= 'm/s') then
+            call set_error(error, at//': units "'//units//'" not allowed; wind_speed must be'// &
+                           ' in "m s-1"')
+            return
+          end if
+        else
+          call check_dimensionless(routine, path, at, ncid, varid, error)
+          if (allocated(error)) return
+        end if
+        call nc_check(nf90_get_var(ncid, varid, v), at, error)
+        if (allocated(error)) return
+        do iy = 1, lengths(2)
+          do ix = 1, lengths(1)
+            if (kind(ix, iy) /= k) cycle
+            if (.not. ieee_is_finite(v(ix, iy)) .or. is_fill(v(ix, iy), fill) .or. &
+                (wind .and. v(ix, iy) < 0.0_wp)) then
+              call set_error(error, at//': value '//real_text(v(ix, iy))//' at '//MAP_INDEX// &
+                             ' = '//int_list([ix, iy])//' '// &
+                             value_problem(v(ix, iy), fill, .false.))
+              return
+            end if
+            c(i, ix, iy) = v(ix, iy)
+            if (wind) c(i, ix, iy) = cox_munk_slope_variance(v(ix, iy))
+          end do
+        end do
+      end do
+    end do
+  contains
+    !> The variables a kind needs, as a list for messages.
+    function kind_vars(kk) result(text)
+      integer, intent(in) :: kk
+      character(len=:), allocatable :: text
+      integer :: j
+      text = ''
+      do j = 1, BRDF_NPAR
+        if (len_trim(BRDF_MAP_VARS(j, kk)) == 0) cycle
+        if (len(text) > 0) text = text//', '
+        text = text//trim(BRDF_MAP_VARS(j, kk))
+      end do
+      if (kk == BRDF_DSM) text = text//' (or wind_speed)'
+    end function kind_vars
+  end subroutine read_brdf_body
 
   !> Read a numeric variable of any rank as doubles, flattened in Fortran order.
   subroutine read_var_1d(path, varname, values, error)

@@ -223,14 +223,16 @@ contains
   end function phase_value
 
   !> Local estimates of a surface reflection at (x, y), Lambert or BRDF; `w` is the reflected
-  !> weight (after multiplication by the directional albedo).
-  subroutine le_surface(det, atm, lay, tal, rng, sfc, x, y, ux, uy, uz, w, lev, column)
+  !> weight (after multiplication by the directional albedo), `kb` the BRDF class of the pixel
+  !> (BRDF surfaces only).
+  subroutine le_surface(det, atm, lay, tal, rng, sfc, kb, x, y, ux, uy, uz, w, lev, column)
     type(detectors_t), intent(in) :: det
     type(atmosphere_t), intent(in) :: atm
     type(tally_layout_t), intent(in) :: lay
     type(tally_t), intent(inout) :: tal
     type(rng_t), intent(inout) :: rng
     type(surface_t), intent(in) :: sfc
+    integer, value :: kb
     real(wp), value :: x, y, w
     real(wp), value :: ux, uy, uz   !! incoming direction (BRDF surfaces)
     integer, value :: lev
@@ -241,11 +243,11 @@ contains
     z0 = atm%z(0)
     ! Lambert: BRDF/albedo = 1/pi; a BRDF: R(in, out)/alpha(mu_in), w already times alpha
     w_pi = w/PI
-    if (sfc%use_brdf) w_pi = w/brdf_albedo(sfc%tab, -uz)
+    if (sfc%use_brdf) w_pi = w/brdf_albedo(sfc%tabs(kb), -uz)
     do d = 1, det%n_dir
       if (det%uz(d) <= 0.0_wp) cycle
       if (sfc%use_brdf) then
-        a = w_pi*det%uz(d)*brdf_table_eval_dir(sfc%tab, [ux, uy, uz], &
+        a = w_pi*det%uz(d)*brdf_table_eval_dir(sfc%tabs(kb), [ux, uy, uz], &
                                                [det%ux(d), det%uy(d), det%uz(d)])
       else
         a = w_pi*det%uz(d)
@@ -259,7 +261,7 @@ contains
                               vx, vy, vz, factor, hit)
           if (.not. hit .or. vz <= 0.0_wp) cycle
           if (sfc%use_brdf) then
-            a = w_pi*vz*brdf_table_eval_dir(sfc%tab, [ux, uy, uz], [vx, vy, vz])
+            a = w_pi*vz*brdf_table_eval_dir(sfc%tabs(kb), [ux, uy, uz], [vx, vy, vz])
           else
             a = w_pi*vz
           end if

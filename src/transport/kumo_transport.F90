@@ -36,8 +36,18 @@ module kumo_transport
   public :: source_t, tracer_options_t, source_init, trace_batch
 
   !> The solar source: a parallel beam entering at the top of the domain.
+  !>
+  !> Entry points are stratified when nsx*nsy > 1 and a batch has at least nsx*nsy photons: the
+  !> photons of a batch take the cells of an nsx x nsy grid in turn, from a random first cell,
+  !> each at a uniform random point of its cell, and the grid is shifted by (shift_x, shift_y)
+  !> (the drift of the direct beam from the top to the surface, so that the cells fall onto the
+  !> columns or surface pixels below). Every entry point is still uniform over the domain, so
+  !> the estimates stay unbiased; each batch covers the domain evenly, so per-column and
+  !> per-pixel results vary less between batches.
   type :: source_t
     real(wp) :: ux = 0.0_wp, uy = 0.0_wp, uz = -1.0_wp  !! propagation direction of the beam
+    integer :: nsx = 1, nsy = 1                         !! grid of entry cells (1 x 1: off)
+    real(wp) :: shift_x = 0.0_wp, shift_y = 0.0_wp      !! grid offset [m]
   end type source_t
 
   !> Settings of the photon loop.
@@ -85,8 +95,9 @@ contains
     integer(i8) :: ip, n_events, n_steps
     real(wp) :: x, y, z, ux, uy, uz, w, tau, d, zb, e, wn, albedo, mu, cphi, sphi, omega, ps
     real(wp) :: inv_cf, uxi, uyi, uzi, u_out(3)
-    integer :: iz, order, cls, ev, ix, iy, kr, ic, iph, nc, lev, n_pending
-    logical :: in3d, track_xy, move_xy, column, forced, secondary, split, plain
+    integer :: iz, order, cls, ev, ix, iy, kr, ic, iph, nc, lev, n_pending, kb, ns, s_cell
+    integer(i8) :: s_first
+    logical :: in3d, track_xy, move_xy, column, forced, secondary, split, plain, stratify
     ! DDIS secondaries waiting to be traced: position, direction, weight; layer, order, level
     real(wp) :: pend_r(7, MAX_PENDING)
     integer :: pend_i(3, MAX_PENDING)
@@ -100,9 +111,21 @@ contains
     forced = opts%cf_factor > 1.0_wp
     inv_cf = 1.0_wp/opts%cf_factor
     plain = .not. (det%active .or. forced .or. atm%truncated)
+    ns = src%nsx*src%nsy
+    stratify = ns > 1 .and. n_photons >= ns
+    s_first = 0
+    if (stratify) s_first = min(int(rng_uniform(rng)*ns, i8), int(ns - 1, i8))
     do ip = 1, n_photons
-      x = rng_uniform(rng)*atm%lx
-      y = rng_uniform(rng)*atm%ly
+      if (stratify) then
+        s_cell = int(mod(s_first + ip - 1, int(ns, i8)))
+        x = (mod(s_cell, src%nsx) + rng_uniform(rng))*(atm%lx/src%nsx) - src%shift_x
+        y = (s_cell/src%nsx + rng_uniform(rng))*(atm%ly/src%nsy) - src%shift_y
+        call wrap(x, atm%lx)
+        call wrap(y, atm%ly)
+      else
+        x = rng_uniform(rng)*atm%lx
+        y = rng_uniform(rng)*atm%ly
+      end if
       z = atm%z(atm%nz)
       ux = src%ux
       uy = src%uy
@@ -203,20 +226,22 @@ contains
             end if
             ! a BRDF (seed text section 3.6): weight times the directional albedo, then a
             ! direction drawn from BRDF mu_out / albedo
+            kb = 1
             if (sfc%use_brdf) then
-              albedo = brdf_albedo(sfc%tab, -uz)
+              kb = sfc%class_at(x, y)
+              albedo = brdf_albedo(sfc%tabs(kb), -uz)
             else
               albedo = sfc%albedo_at(x, y)
             end if
             tal%buf(lay%i_sfc + 1) = tal%buf(lay%i_sfc + 1) + w*(1.0_wp - albedo)
             w = w*albedo
             if (w <= 0.0_wp) exit photon
-            if (det%active) call le_surface(det, atm, lay, tal, rng, sfc, x, y, ux, uy, uz, w, &
-                                            lev, column)
+            if (det%active) call le_surface(det, atm, lay, tal, rng, sfc, kb, x, y, ux, uy, uz, &
+                                            w, lev, column)
             call roulette(opts, lay, tal, rng, w)
             if (w <= 0.0_wp) exit photon
             if (sfc%use_brdf) then
-              call brdf_sample(sfc%tab, [ux, uy, uz], rng, u_out, &
+              call brdf_sample(sfc%tabs(kb), [ux, uy, uz], rng, u_out, &
                                tal%anomalies(ANOM_BRDF_ENVELOPE))
               ux = u_out(1)
               uy = u_out(2)

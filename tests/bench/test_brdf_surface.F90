@@ -10,6 +10,13 @@
 !>   LSRT it is kumo_brdf's evaluation, which test_brdf checks against independent forms.
 !> * A cloud over each BRDF: energy closure 1 in every batch, and the reflectance lies between
 !>   those over a black and a white Lambert surface.
+!> * BRDF maps (&kumo_surface brdf_file): a map of eight pixels of five kinds under a
+!>   transparent atmosphere reflects in each pixel its own directional albedo (the upward flux
+!>   per column at the surface, with the 3-D region's columns on the pixels; entry points are
+!>   stratified, so every pixel receives the same number of photons), and the domain-mean
+!>   radiance is the pixels' mean pi R; a uniform LSRT map gives the answer of the uniform
+!>   namelist surface under a cloud (k sigma of the difference), and a uniform Lambert map the
+!>   answer of the uniform albedo exactly.
 module test_brdf_surface_suite
   use kumo_kinds, only: wp, dp, i8
   use kumo_constants, only: PI, DEG2RAD
@@ -18,7 +25,12 @@ module test_brdf_surface_suite
   use kumo_results, only: result_set_t
   use kumo_test_scenes, only: slab_config, run_config, get_scalar, get_array
   use kumo_brdf, only: brdf_params_t, brdf_params, brdf_eval, brdf_albedo_quad, &
-                       cox_munk_slope_variance, BRDF_DSM, BRDF_RPV, BRDF_LSRT
+                       cox_munk_slope_variance, BRDF_BLACK, BRDF_LAMBERT, BRDF_DSM, BRDF_RPV, &
+                       BRDF_LSRT, BRDF_NPAR
+  use kumo_netcdf, only: BRDF_MAP_VARS
+  use kumo_test_scenes, only: attach_scene
+  use netcdf, only: nf90_create, nf90_def_dim, nf90_def_var, nf90_enddef, nf90_put_var, &
+                    nf90_close, nf90_clobber, nf90_int, nf90_double, NF90_NOERR
   use kumo_error, only: str
   implicit none
   private
@@ -36,7 +48,9 @@ contains
     type(unittest_t), allocatable :: tests(:)
     tests = [new_unittest('clear_sky_rpv_is_the_formula', test_clear_rpv), &
              new_unittest('clear_sky_dsm_and_lsrt', test_clear_dsm_lsrt), &
-             new_unittest('cloud_over_each_brdf_closes', test_cloud)]
+             new_unittest('cloud_over_each_brdf_closes', test_cloud), &
+             new_unittest('map_pixels_reflect_their_albedo', test_map_clear), &
+             new_unittest('uniform_maps_give_the_uniform_answer', test_map_uniform)]
   end function collect_brdf_surface
 
   !> A transparent slab (optical depth 0) over the given surface model, radiances at the top.
@@ -166,6 +180,139 @@ contains
       if (allocated(error)) return
     end do
   end subroutine test_cloud
+  !> Write a BRDF map file: brdf_kind and, for each kind present, its parameter variables.
+  subroutine write_brdf_map(path, p, error)
+    character(len=*), intent(in) :: path
+    type(brdf_params_t), intent(in) :: p(:, :)
+    type(error_t), allocatable, intent(inout) :: error
+    integer :: ncid, dx, dy, vk, vid(BRDF_NPAR, 4), i, k, st
+    st = nf90_create(path, nf90_clobber, ncid)
+    st = st + nf90_def_dim(ncid, 'xs', size(p, 1), dx)
+    st = st + nf90_def_dim(ncid, 'ys', size(p, 2), dy)
+    st = st + nf90_def_var(ncid, 'brdf_kind', nf90_int, [dx, dy], vk)
+    vid = 0
+    do k = 1, 4
+      if (.not. any(p%kind == k)) cycle
+      do i = 1, BRDF_NPAR
+        if (len_trim(BRDF_MAP_VARS(i, k)) == 0) cycle
+        st = st + nf90_def_var(ncid, trim(BRDF_MAP_VARS(i, k)), nf90_double, [dx, dy], vid(i, k))
+      end do
+    end do
+    st = st + nf90_enddef(ncid)
+    st = st + nf90_put_var(ncid, vk, p%kind)
+    do k = 1, 4
+      do i = 1, BRDF_NPAR
+        if (vid(i, k) /= 0) st = st + nf90_put_var(ncid, vid(i, k), p%c(i))
+      end do
+    end do
+    st = st + nf90_close(ncid)
+    call check(error, st == NF90_NOERR, 'writing '//path)
+  end subroutine write_brdf_map
+
+  !> Eight pixels of five kinds (two LSRT sets, DSM, two RPV, Lambert, black) on the 4 x 2
+  !> columns of an empty 3-D region, sun at 40 deg.
+  subroutine test_map_clear(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(brdf_params_t) :: p(4, 2)
+    type(config_t) :: cfg
+    type(result_set_t) :: res
+    real(dp), allocatable :: up(:), eup(:), rad(:), erad(:)
+    real(wp) :: mu0, alpha, ref
+    real(wp) :: zero(4, 2, 1)
+    integer :: i, j, d, n
+    p(1, 1) = brdf_params(BRDF_LSRT, [0.3_wp, 0.07_wp, 0.03_wp])
+    p(2, 1) = brdf_params(BRDF_LSRT, [0.1_wp, 0.02_wp, 0.6_wp])
+    p(3, 1) = brdf_params(BRDF_DSM, [0.1_wp, 0.3_wp, 1.334_wp, 0.0_wp, &
+                                     cox_munk_slope_variance(7.0_wp)])
+    p(4, 1) = brdf_params(BRDF_RPV, [0.1_wp, 0.8_wp, -0.1_wp, 0.2_wp])
+    p(1, 2) = brdf_params(BRDF_LAMBERT, [0.4_wp])
+    p(2, 2) = brdf_params(BRDF_BLACK, [0.0_wp])
+    p(3, 2) = brdf_params(BRDF_RPV, [0.25_wp, 0.7_wp, -0.2_wp, 1.0_wp])
+    p(4, 2) = p(1, 1)
+    call write_brdf_map('brdf_map_clear.nc', p, error)
+    if (allocated(error)) return
+    cfg = clear_config('lambert', brdf_params(BRDF_LAMBERT, [0.0_wp]))
+    cfg%surface%brdf_param = 0.0_wp
+    cfg%surface%brdf_file = 'brdf_map_clear.nc'
+    cfg%control%n_photons_per_batch = 8000_i8
+    zero = 0.0_wp
+    call attach_scene(cfg, 'brdf_map_empty.nc', 1, zero, zero + 1.0_wp, 1, error)
+    if (allocated(error)) return
+    call run_config(cfg, res, error)
+    if (allocated(error)) return
+    call get_array(res, 'flux_up_map', up, eup, error)
+    call get_array(res, 'radiance', rad, erad, error)
+    if (allocated(error)) return
+    mu0 = cos(SZA*DEG2RAD)
+    n = 0
+    do j = 1, 2
+      do i = 1, 4
+        n = n + 1          ! flux_up_map(x, y, level): level 1 is the surface
+        alpha = brdf_albedo_quad(p(i, j), mu0)
+        ! table interpolation (2e-3, LSRT map tables 5e-3) and k sigma of the roulette
+        call check(error, abs(up(n) - alpha) <= K*eup(n) + 5.0e-3_dp*alpha + 1.0e-12_dp, &
+                   'pixel ('//str(i)//','//str(j)//'): reflected '//str(up(n))//' +- '// &
+                   str(eup(n))//', albedo '//str(alpha))
+      end do
+    end do
+    do d = 1, size(MUS)
+      ref = 0.0_wp
+      do j = 1, 2
+        do i = 1, 4
+          ref = ref + PI*brdf_eval(p(i, j), mu0, MUS(d), cos(PHIS(d)*DEG2RAD))/8.0_wp
+        end do
+      end do
+      call check_sigma(error, rad(d), real(ref, dp), erad(d), K, 'map radiance '//str(d))
+    end do
+  end subroutine test_map_clear
+
+  !> A uniform LSRT map (tables from the shared kernel grid) against the uniform namelist
+  !> surface (tables by `brdf_table_init`) under a cloud of optical depth 3, and a uniform
+  !> Lambert map against the uniform albedo (the same surface: identical results).
+  subroutine test_map_uniform(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(brdf_params_t) :: p(3, 2), model
+    type(config_t) :: cfg
+    type(result_set_t) :: res
+    real(dp) :: r(2), er(2), t(2), et(2)
+    integer :: m
+    model = brdf_params(BRDF_LSRT, [0.25_wp, 0.04_wp, 0.1_wp])
+    p = model
+    call write_brdf_map('brdf_map_lsrt.nc', p, error)
+    if (allocated(error)) return
+    do m = 1, 2
+      cfg = slab_config(3.0_wp, 0.95_wp, 'hg', 0.85_wp, 50.0_wp, 0.0_wp, 20000_i8, 10)
+      if (m == 1) then
+        cfg%surface%brdf = 'lsrt'
+        cfg%surface%brdf_param = model%c
+        cfg%surface%model = model
+      else
+        cfg%surface%brdf_file = 'brdf_map_lsrt.nc'
+        cfg%control%seed = 8_i8
+      end if
+      call run_config(cfg, res, error)
+      if (allocated(error)) return
+      call get_scalar(res, 'reflectance', r(m), er(m), error)
+      call get_scalar(res, 'transmittance', t(m), et(m), error)
+    end do
+    call check_sigma(error, r(2), r(1), sqrt(er(1)**2 + er(2)**2), K, 'uniform LSRT map: R')
+    call check_sigma(error, t(2), t(1), sqrt(et(1)**2 + et(2)**2), K, 'uniform LSRT map: T')
+    p = brdf_params(BRDF_LAMBERT, [0.35_wp])
+    call write_brdf_map('brdf_map_lambert.nc', p, error)
+    if (allocated(error)) return
+    do m = 1, 2
+      cfg = slab_config(3.0_wp, 0.95_wp, 'hg', 0.85_wp, 50.0_wp, 0.35_wp, 20000_i8, 10)
+      if (m == 2) then
+        cfg%surface%albedo = 0.0_wp
+        cfg%surface%brdf_file = 'brdf_map_lambert.nc'
+      end if
+      call run_config(cfg, res, error)
+      if (allocated(error)) return
+      call get_scalar(res, 'reflectance', r(m), er(m), error)
+    end do
+    call check(error, r(1) == r(2) .and. er(1) == er(2), 'uniform Lambert map: R '// &
+               str(r(2))//' differs from the uniform albedo''s '//str(r(1)))
+  end subroutine test_map_uniform
 end module test_brdf_surface_suite
 
 program test_brdf_surface

@@ -2,13 +2,18 @@
 # Run kumo on a namelist that must be rejected: the run has to end with a non-zero exit code,
 # print a message matching REGEX on standard error, and leave no output file behind.
 # Variables: KUMO (program), NML (namelist), REGEX, OUT (output file that must not exist),
-# optional CDL (a scene in CDL text, turned into scene_small.nc with ncgen before the run).
+# optional CDL_DIR (every <name>.cdl there, netCDF in CDL text, becomes <name>.nc with ncgen
+# before the run).
 file(REMOVE ${OUT} ${OUT}.tmp)
-if(CDL)
-  execute_process(COMMAND ncgen -o scene_small.nc ${CDL} RESULT_VARIABLE rc_gen)
-  if(NOT rc_gen EQUAL 0)
-    message(FATAL_ERROR "ncgen failed on ${CDL}")
-  endif()
+if(CDL_DIR)
+  file(GLOB cdls ${CDL_DIR}/*.cdl)
+  foreach(cdl IN LISTS cdls)
+    get_filename_component(stem ${cdl} NAME_WE)
+    execute_process(COMMAND ncgen -o ${stem}.nc ${cdl} RESULT_VARIABLE rc_gen)
+    if(NOT rc_gen EQUAL 0)
+      message(FATAL_ERROR "ncgen failed on ${cdl}")
+    endif()
+  endforeach()
 endif()
 # run a copy in the working directory, so that relative paths in the namelist point here
 get_filename_component(name ${NML} NAME)

@@ -107,6 +107,8 @@ contains
     select case (kind)
     case (STD_ATM_US1976)
       call us1976_state(z, p, t, rho_air)
+    case default
+      call set_error(error, 'std_atmosphere_profile: no profile for kind '//str(kind))
     end select
   end subroutine std_atmosphere_profile
 

@@ -287,7 +287,8 @@ contains
       a = z_levels(k)
       do
         b = min(z_levels(k + 1), z_prof(j + 1))
-        tau = tau + piece_mass(z_prof(j), z_prof(j + 1), p_prof(j), p_prof(j + 1), a, b, latitude_deg)
+        tau = tau + piece_mass(z_prof(j), z_prof(j + 1), p_prof(j), p_prof(j + 1), a, b, &
+                               latitude_deg)
         if (b >= z_levels(k + 1) .or. j == np - 1) exit
         j = j + 1
         a = b

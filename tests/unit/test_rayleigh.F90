@@ -130,7 +130,24 @@ contains
     call check_close(error, dgdz, -3.085462e-6_wp, rel_tol=1.0e-6_wp, label='dg/dz')
     call check_close(error, column_gravity_height(0.0_wp), 5517.56_wp, rel_tol=1.0e-14_wp, &
                      label='z_c(0)')
+    call gravity_vs_inverse_square(error)
   end subroutine test_molar_mass_gravity
+
+  !> List's polynomial in z follows the inverse-square law g0 (R/(R + z))^2
+  !> = g0 (1 - 2 z/R + 3 z^2/R^2 - 4 z^3/R^3 + ...): with R from its linear term
+  !> (R = 2 g0/3.085462e-4 = 6356 km at 45 deg), the third derivative, taken here as a third
+  !> difference (exact for a cubic), must be -24 g0/R^3 within 2 % (List's 1.517e-17 against
+  !> 4 g0/R^3 = 1.527e-17 cm s-2 m-3).
+  subroutine gravity_vs_inverse_square(error)
+    type(error_t), allocatable, intent(inout) :: error
+    real(wp), parameter :: h = 20000.0_wp
+    real(wp) :: g0, r, d3
+    g0 = gravity_bodhaine(45.0_wp, 0.0_wp)
+    r = 2.0_wp*9.806160_wp/3.085462e-6_wp
+    d3 = (gravity_bodhaine(45.0_wp, 3.0_wp*h) - 3.0_wp*gravity_bodhaine(45.0_wp, 2.0_wp*h) &
+          + 3.0_wp*gravity_bodhaine(45.0_wp, h) - g0)/h**3
+    call check_close(error, d3, -24.0_wp*g0/r**3, rel_tol=0.02_wp, label='d3g/dz3')
+  end subroutine gravity_vs_inverse_square
 
   !> King factor of air in the visible: Young (1981) gives F = 1.048 (quoted in B99), i.e.
   !> rho = 0.0279; B99's Bates-based F at 0.55 um must lie within 0.1 % of it. F and rho are
@@ -139,8 +156,8 @@ contains
     type(error_t), allocatable, intent(out) :: error
     integer :: i
     real(wp) :: rho, f
-    call check_close(error, king_factor_air(0.55_wp, CO2_DEFAULT_PPM), 1.048_wp, rel_tol=1.0e-3_wp, &
-                     label='F_air(0.55 um)')
+    call check_close(error, king_factor_air(0.55_wp, CO2_DEFAULT_PPM), 1.048_wp, &
+                     rel_tol=1.0e-3_wp, label='F_air(0.55 um)')
     call check_close(error, depol_from_king(1.048_wp), 0.0279_wp, abs_tol=5.0e-5_wp, &
                      rel_tol=0.0_wp, label='rho(F = 1.048)')
     do i = 0, 8

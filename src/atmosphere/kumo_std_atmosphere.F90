@@ -5,7 +5,7 @@
 !> Atmosphere, 1976, U.S. Government Printing Office, Washington D.C., NOAA-S/T 76-1562),
 !> computed from its definition up to 86 km geometric height:
 !>
-!> * geopotential height H = r0 z/(r0 + z), r0 = 6356.766 km (eq. 18 of the standard);
+!> * geopotential height H = r0 z/(r0 + z), r0 = 6356.766 km;
 !> * molecular-scale temperature T_M linear in H within seven layers with bases
 !>   H_b = 0, 11, 20, 32, 47, 51, 71 km' and gradients L_b = -6.5, 0, 1, 2.8, 0, -2.8, -2.0
 !>   K/km' (Table 4), T_M = 288.15 K and p = 101325 Pa at H = 0;
@@ -15,7 +15,7 @@
 !>   g0' = 9.80665 m2 s-2 m'-1, M0 = 28.9644 kg/kmol, R* = 8.31432e3 J kmol-1 K-1;
 !> * kinetic temperature T = T_M M/M0, with M/M0 = 1 below 80 km and tabulated from 80 to
 !>   86 km (Table 8);
-!> * air density rho = p M0/(R* T_M) (eq. 42 with T M0/M = T_M).
+!> * air density rho = p M0/(R* T_M) (with T M0/M = T_M).
 !>
 !> The profile is defined from -5 km to 86 km geometric height.
 module kumo_std_atmosphere
@@ -35,7 +35,7 @@ module kumo_std_atmosphere
   real(wp), parameter :: US1976_Z_MIN = -5000.0_wp  !! lowest defined geometric height [m]
   real(wp), parameter :: US1976_Z_MAX = 86000.0_wp  !! highest defined geometric height [m]
 
-  ! Constants of the standard (U.S. Standard Atmosphere 1976, Table 2 and eq. 18).
+  ! Constants of the standard (U.S. Standard Atmosphere 1976).
   real(wp), parameter :: G0P = 9.80665_wp        !! g0' [m2 s-2 m'-1]
   real(wp), parameter :: R_STAR = 8.31432e3_wp   !! gas constant [J kmol-1 K-1]
   real(wp), parameter :: M0 = 28.9644_wp         !! sea-level mean molar mass [kg kmol-1]

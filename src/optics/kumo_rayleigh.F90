@@ -3,30 +3,28 @@
 !> pressure layers and the depolarised Rayleigh phase function.
 !>
 !> The optical depth follows Bodhaine, Wood, Dutton and Slusser (1999), "On Rayleigh optical
-!> depth calculations", J. Atmos. Oceanic Technol. 16, 1854-1861 (cited below as B99 with its
-!> equation numbers):
+!> depth calculations", J. Atmos. Oceanic Technol. 16, 1854-1861 (cited below as B99):
 !>
 !> * refractive index of standard air (288.15 K, 1013.25 hPa) at 300 ppm CO2, Peck and Reeder
 !>   (1972) (B99 eq. 4):
 !>   (n_300 - 1) 1e8 = 8060.51 + 2480990/(132.274 - lambda^-2) + 17455.7/(39.32957 - lambda^-2),
 !>   lambda in um, scaled to another CO2 amount with Edlen's factor (B99 eq. 19)
 !>   (n_CO2 - 1)/(n_300 - 1) = 1 + 0.54 (C - 0.0003), C in parts per volume;
-!> * King factors of Bates (1984) (B99 eqs. 5, 6): F(N2) = 1.034 + 3.17e-4 lambda^-2,
+!> * King factors of Bates (1984): F(N2) = 1.034 + 3.17e-4 lambda^-2,
 !>   F(O2) = 1.096 + 1.385e-3 lambda^-2 + 1.448e-4 lambda^-4, F(Ar) = 1, F(CO2) = 1.15, mixed
-!>   by volume percent 78.084 N2, 20.946 O2, 0.934 Ar and C_CO2 (B99 eq. 23);
-!> * cross-section per molecule (B99 eq. 2)
+!>   by volume percent 78.084 N2, 20.946 O2, 0.934 Ar and C_CO2 (CO2 in percent, B99);
+!> * cross-section per molecule
 !>   sigma = 24 pi^3 (n_s^2 - 1)^2 / (lambda^4 N_s^2 (n_s^2 + 2)^2) F_air,
-!>   N_s = 2.546899e19 cm-3 (molecules per cm3 of standard air, B99 eq. 3 and its text);
+!>   N_s = 2.546899e19 cm-3, molecules per cm3 of standard air;
 !> * optical depth of the air between two pressures under hydrostatic equilibrium
-!>   (B99 eq. 20) tau = sigma N_A Delta p / (m_a g), with the mean molar mass of dry air
-!>   m_a = 15.0556 C + 28.9595 g/mol (B99 eq. 17, C in parts per volume), the gravity of
-!>   List (1968) as a function of latitude and height (B99 eqs. 11, 12) and, for a whole
-!>   column above a station at height z, the mass-weighted height z_c = 0.73737 z + 5517.56 m
-!>   at which g is taken (B99 eq. 13).
+!>   tau = sigma N_A Delta p / (m_a g), with the mean molar mass of dry air
+!>   m_a = 15.0556 C + 28.9595 g/mol (C in parts per volume), the gravity of List (1968) as a
+!>   function of latitude and height and, for a whole column above a station at height z, the
+!>   mass-weighted height z_c = 0.73737 z + 5517.56 m at which g is taken.
 !>
 !> The depolarisation ratio follows from the King factor, rho = 6 (F - 1)/(3 + 7 F)
-!> (inverse of F = (6 + 3 rho)/(6 - 7 rho), B99 eq. 8). The phase function with depolarisation
-!> is Chandrasekhar's (Radiative Transfer, 1950, eq. I.(233)) in kumo's normalisation
+!> (inverse of the King relation F = (6 + 3 rho)/(6 - 7 rho)). The phase function with
+!> depolarisation is Chandrasekhar's (Radiative Transfer, 1950, chapter I) in kumo's normalisation
 !> ((1/2) Int_{-1}^{1} P dmu = 1, see kumo_phase):
 !>
 !>     P(mu) = 3/(4 (1 + 2 gamma)) [(1 + 3 gamma) + (1 - gamma) mu^2],  gamma = rho/(2 - rho).
@@ -54,19 +52,19 @@ module kumo_rayleigh
   !> 0.2-1 um; above 1 um their lambda^-2 terms change F_air by less than 1e-4.
   real(wp), parameter :: RAYLEIGH_WL_MIN_UM = 0.23_wp
   real(wp), parameter :: RAYLEIGH_WL_MAX_UM = 1.69_wp
-  !> Largest accepted CO2 amount [ppm]: Edlen's correction and eq. 17 are linear expansions
-  !> around today's air; 2000 ppm covers past and projected climates with room to spare.
+  !> Largest accepted CO2 amount [ppm]: Edlen's correction and the molar-mass formula are
+  !> linear expansions around today's air; 2000 ppm covers past and projected climates.
   real(wp), parameter :: CO2_MAX_PPM = 2000.0_wp
   !> CO2 amount of B99's reference calculations and fits [ppm].
   real(wp), parameter :: CO2_DEFAULT_PPM = 360.0_wp
-  !> Avogadro's number as used by B99 [mol-1] (Cohen and Taylor 1987 value, B99 eq. 20).
+  !> Avogadro's number as used by B99 [mol-1] (Cohen and Taylor 1987 value, B990).
   real(wp), parameter :: AVOGADRO = 6.0221367e23_wp
   !> Molecules per m3 of standard air, 288.15 K and 1013.25 hPa (B99: 2.546899e19 cm-3).
   real(wp), parameter :: N_STD_AIR = 2.546899e25_wp
   !> The King factor (6 + 3 rho)/(6 - 7 rho) is finite for rho < 6/7.
   real(wp), parameter :: DEPOL_MAX = 6.0_wp/7.0_wp
 
-  ! Volume percentages of the permanent gases of dry air (B99 eq. 23, after Bates 1984).
+  ! Volume percentages of the permanent gases of dry air (B99, after Bates 1984).
   real(wp), parameter :: PCT_N2 = 78.084_wp, PCT_O2 = 20.946_wp, PCT_AR = 0.934_wp
 
 contains
@@ -87,8 +85,8 @@ contains
     dn = dn*(1.0_wp + 0.54_wp*(1.0e-6_wp*co2_ppm - 0.0003_wp))
   end function air_refractivity
 
-  !> King factor of dry air, (B99 eq. 23): the volume-weighted mean of Bates' (1984) factors
-  !> of N2, O2, Ar and CO2 (B99 eqs. 5, 6), CO2 entering in volume percent.
+  !> King factor of dry air (B99): the volume-weighted mean of Bates' (1984) factors
+  !> of N2, O2, Ar and CO2 (B99), CO2 entering in volume percent.
   elemental function king_factor_air(wavelength_um, co2_ppm) result(f)
     real(wp), intent(in) :: wavelength_um  !! vacuum wavelength [um]
     real(wp), intent(in) :: co2_ppm        !! CO2 volume mixing ratio [ppm]
@@ -102,7 +100,7 @@ contains
         /(PCT_N2 + PCT_O2 + PCT_AR + c_pct)
   end function king_factor_air
 
-  !> Depolarisation ratio rho from the King factor F = (6 + 3 rho)/(6 - 7 rho) (B99 eq. 8).
+  !> Depolarisation ratio rho from the King factor F = (6 + 3 rho)/(6 - 7 rho) (B99).
   elemental function depol_from_king(f) result(rho)
     real(wp), intent(in) :: f  !! King factor (>= 1)
     real(wp) :: rho            !! depolarisation ratio
@@ -116,7 +114,7 @@ contains
     f = (6.0_wp + 3.0_wp*rho)/(6.0_wp - 7.0_wp*rho)
   end function king_from_depol
 
-  !> Rayleigh scattering cross-section per molecule of dry air [m2] (B99 eq. 2). The
+  !> Rayleigh scattering cross-section per molecule of dry air [m2] (B99). The
   !> combination (n^2 - 1)/(n^2 + 2) is formed from n - 1 without cancellation.
   elemental function rayleigh_cross_section(wavelength_um, co2_ppm) result(sigma)
     real(wp), intent(in) :: wavelength_um  !! vacuum wavelength [um]
@@ -131,7 +129,7 @@ contains
   end function rayleigh_cross_section
 
   !> Mean molar mass of dry air [kg mol-1], m_a = 15.0556 C + 28.9595 g/mol with C the CO2
-  !> volume fraction (B99 eq. 17: 28.9595 g/mol without CO2, 28.9649 at 360 ppm).
+  !> volume fraction (B99: 28.9595 g/mol without CO2, 28.9649 at 360 ppm).
   elemental function air_molar_mass(co2_ppm) result(m)
     real(wp), intent(in) :: co2_ppm  !! CO2 volume mixing ratio [ppm]
     real(wp) :: m                    !! molar mass [kg mol-1]
@@ -139,7 +137,7 @@ contains
   end function air_molar_mass
 
   !> Acceleration of gravity [m s-2] at latitude `latitude_deg` and height `z` above sea level
-  !> (List 1968, B99 eqs. 11-12, which are in cm s-2 with z in m):
+  !> (List 1968, B99, which are in cm s-2 with z in m):
   !> g0 = 980.6160 (1 - 0.0026373 cos 2phi + 0.0000059 cos^2 2phi),
   !> g = g0 - (3.085462e-4 + 2.27e-7 cos 2phi) z + (7.254e-11 + 1.0e-13 cos 2phi) z^2
   !>        - (1.517e-17 + 6.0e-20 cos 2phi) z^3.
@@ -156,7 +154,7 @@ contains
   end function gravity_bodhaine
 
   !> Height [m] at which g is taken for the whole air column above a station at height `z`:
-  !> the mass-weighted column height z_c = 0.73737 z + 5517.56 (B99 eq. 13).
+  !> the mass-weighted column height z_c = 0.73737 z + 5517.56 (B99).
   elemental function column_gravity_height(z) result(zc)
     real(wp), intent(in) :: z  !! station height above sea level [m]
     real(wp) :: zc             !! effective height for g [m]
@@ -168,7 +166,7 @@ contains
   ! ------------------------------------------------------------------------------------------
 
   !> Rayleigh optical depth of the air between pressures `p_bottom` > `p_top` [Pa], with g
-  !> taken at height `z_g` (B99 eq. 20): tau = sigma N_A (p_bottom - p_top)/(m_a g).
+  !> taken at height `z_g` (B99): tau = sigma N_A (p_bottom - p_top)/(m_a g).
   elemental function rayleigh_layer_tau(wavelength_um, p_bottom, p_top, latitude_deg, z_g, &
                                         co2_ppm) result(tau)
     real(wp), intent(in) :: wavelength_um  !! vacuum wavelength [um]
@@ -183,7 +181,7 @@ contains
   end function rayleigh_layer_tau
 
   !> Rayleigh optical depth of the whole column above a station at height `z_station` with
-  !> surface pressure `p_surface` [Pa]: eq. 20 of B99 with g at z_c (B99 eq. 13).
+  !> surface pressure `p_surface` [Pa]: the layer formula of B99 with g at z_c.
   elemental function rayleigh_column_tau(wavelength_um, p_surface, latitude_deg, z_station, &
                                          co2_ppm) result(tau)
     real(wp), intent(in) :: wavelength_um  !! vacuum wavelength [um]
@@ -221,7 +219,7 @@ contains
   !> The profile p(z) is given at heights `z_prof` (increasing) and interpolated linearly in
   !> log p, i.e. p falls exponentially within each profile interval. The optical depth of the
   !> air between heights a < b is tau = sigma N_A/m_a Int_a^b (-dp/dz)/g(z) dz (hydrostatic
-  !> equilibrium, B99 eq. 20 with height-dependent g of B99 eq. 11); the integral is taken
+  !> equilibrium, B99, with height-dependent g); the integral is taken
   !> over every piece of the layer that lies in one profile interval with 5-point
   !> Gauss-Legendre quadrature, so optical depths add exactly over layers. The extinction of
   !> layer k is its optical depth divided by its thickness z_levels(k+1) - z_levels(k).

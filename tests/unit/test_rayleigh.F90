@@ -109,9 +109,8 @@ contains
   end subroutine test_column_tau_fit
 
   !> B99's text: m_a = 28.9595 g/mol without CO2 and 28.9649 at 360 ppm (rounding 5e-5);
-  !> g at 45 deg and sea level is 980.6160 cm s-2 (the 45-degree value of eq. 12, where
-  !> cos 2phi = 0); g falls by 3.0855e-6 m s-2 per m near the ground (eq. 11) and z_c = 5517.56 m
-  !> for a sea-level station (eq. 13).
+  !> g at 45 deg and sea level is 980.6160 cm s-2 (List's g0 where cos 2phi = 0); g falls by
+  !> 3.085462e-6 m s-2 per m near the ground and z_c = 5517.56 m for a sea-level station.
   subroutine test_molar_mass_gravity(error)
     type(error_t), allocatable, intent(out) :: error
     real(wp) :: dgdz
@@ -208,7 +207,8 @@ contains
 
   !> Optical depth adds over layers: the extinction on a fine grid, times thickness, summed over
   !> the sublayers of each coarse layer, equals the coarse optical depth (to rounding; both use
-  !> the same exact-in-pieces quadrature). Also eq. 20 with fixed g is additive in pressure.
+  !> the same exact-in-pieces quadrature). Also the layer formula with fixed g is additive in
+  !> pressure.
   subroutine test_additive(error)
     type(error_t), allocatable, intent(out) :: error
     type(error_t), allocatable :: err
@@ -246,7 +246,7 @@ contains
     t1 = rayleigh_layer_tau(0.4_wp, 90000.0_wp, 60000.0_wp, 10.0_wp, 3000.0_wp, 400.0_wp)
     t2 = rayleigh_layer_tau(0.4_wp, 60000.0_wp, 20000.0_wp, 10.0_wp, 3000.0_wp, 400.0_wp)
     t12 = rayleigh_layer_tau(0.4_wp, 90000.0_wp, 20000.0_wp, 10.0_wp, 3000.0_wp, 400.0_wp)
-    call check_close(error, t1 + t2, t12, rel_tol=1.0e-14_wp, label='eq. 20 additive')
+    call check_close(error, t1 + t2, t12, rel_tol=1.0e-14_wp, label='fixed-g layer tau additive')
   end subroutine test_additive
 
   !> One kumo layer spanning several profile intervals against a midpoint rule written here:
@@ -336,7 +336,7 @@ contains
     real(wp) :: z, p, t, rho
     integer :: i
     do i = 1, 7
-      z = R0_US76*1000.0_wp*hb(i)/(R0_US76 - 1000.0_wp*hb(i))   ! geometric height (eq. 19)
+      z = R0_US76*1000.0_wp*hb(i)/(R0_US76 - 1000.0_wp*hb(i))   ! geometric height of geopotential H
       call us1976_state(z, p, t, rho)
       call check_close(error, p, pb(i), rel_tol=1.0e-6_wp, label='P_b')
       call check_close(error, t, tb(i), abs_tol=1.0e-9_wp, rel_tol=0.0_wp, label='T_b')

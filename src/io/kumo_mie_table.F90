@@ -99,8 +99,8 @@ contains
   contains
     subroutine define()
       call nc_check(nf90_def_dim(ncid, 'radius', size(table%r_eff_um), dr), at, error)
-      if (.not. allocated(error)) &
-        call nc_check(nf90_def_dim(ncid, 'angle', size(table%angle_deg), da), at, error)
+      if (allocated(error)) return
+      call nc_check(nf90_def_dim(ncid, 'angle', size(table%angle_deg), da), at, error)
       if (allocated(error)) return
       call def_var('r_eff', [dr], 'effective radius of the size distribution', 'um', v_r)
       call def_var('ext_per_lwc', [dr], &

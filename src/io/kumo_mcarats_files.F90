@@ -321,28 +321,33 @@ contains
       logical, intent(in), optional :: open_low
       integer :: loc(2)
       logical :: strict
+      character(len=:), allocatable :: bound
       if (allocated(error)) return
       strict = .false.
       if (present(open_low)) strict = open_low
       if (strict) then
         if (all(x > lo .and. x <= hi)) return
-        loc = minloc(merge(0, 1, x > lo .and. x <= hi))
+        loc = minloc(merge(1, 0, x > lo .and. x <= hi))
       else
         if (all(x >= lo .and. x <= hi)) return
-        loc = minloc(merge(0, 1, x >= lo .and. x <= hi))
+        loc = minloc(merge(1, 0, x >= lo .and. x <= hi))
+      end if
+      if (name == 'apfp3d') then
+        bound = '(-3, '
+        if (present(npf)) then
+          bound = bound//'npf = '//str(npf)//']'
+        else
+          bound = bound//'Inf)'
+        end if
+      else if (hi >= huge(hi)) then
+        bound = '['//str(lo)//', Inf)'
+      else
+        bound = '['//str(lo)//', '//str(hi)//']'
       end if
       call set_error(error, trim(path)//': record '//str(irec)//' ('//trim(names(irec - irec0))// &
                      '), ix = '//str(loc(1))//', iy = '//str(loc(2))//': '//name//' = '// &
-                     str(x(loc(1), loc(2)))// &
-                     ' must be within '//merge('(', '[', strict)//str(lo)//', '// &
-                     merge('npf = '//str(npf_or_zero())//']', str(hi)//']', &
-                           name == 'apfp3d' .and. present(npf)))
+                     str(x(loc(1), loc(2)))//' must be within '//bound)
     end subroutine check_field
-
-    integer function npf_or_zero()
-      npf_or_zero = 0
-      if (present(npf)) npf_or_zero = npf
-    end function npf_or_zero
   end subroutine read_mcarats_atm
 
   !> Read an MCARaTS 3-D atmosphere through its `.ctl` descriptor. Sizes come from it: nx, ny

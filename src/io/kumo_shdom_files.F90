@@ -80,7 +80,8 @@ module kumo_shdom_files
 
   !> A text file read line by line, with the line number for messages.
   type :: text_file_t
-    integer :: unit = -1                       !! Fortran unit, -1 when closed
+    integer :: unit = 0                        !! Fortran unit (from newunit=, negative)
+    logical :: is_open = .false.               !! the unit is open
     character(len=:), allocatable :: path      !! file name for messages
     integer :: line_no = 0                     !! number of the current line (1-based)
     character(len=:), allocatable :: line      !! current line
@@ -238,9 +239,12 @@ contains
       call check_value(tf, vals(1), 'lwc', 'g m-3', 0.0_wp, huge(1.0_wp), error)
       if (field%n_params == 2) then
         call check_value(tf, vals(2), 'reff', 'um', 0.0_wp, huge(1.0_wp), error)
-        if (.not. allocated(error) .and. vals(1) > 0.0_wp .and. vals(2) <= 0.0_wp) then
-          call set_error(error, where_line(tf)//': reff = '//str(vals(2))// &
-                         ' um must be > 0 where lwc > 0')
+        ! nested: Fortran does not short-circuit, and NaN must not reach a comparison
+        if (.not. allocated(error)) then
+          if (vals(1) > 0.0_wp .and. vals(2) <= 0.0_wp) then
+            call set_error(error, where_line(tf)//': reff = '//str(vals(2))// &
+                           ' um must be > 0 where lwc > 0')
+          end if
         end if
       end if
       if (allocated(error)) return
@@ -682,8 +686,9 @@ contains
     open (newunit=tf%unit, file=path, status='old', action='read', form='formatted', &
           access='sequential', iostat=ios, iomsg=msg)
     if (ios /= 0) then
-      tf%unit = -1
       call set_error(error, 'cannot open "'//trim(path)//'": '//trim(msg))
+    else
+      tf%is_open = .true.
     end if
     tf%line = ''
   end subroutine text_open
@@ -691,8 +696,8 @@ contains
   !> Close the file (no-op when closed).
   subroutine text_close(tf)
     type(text_file_t), intent(inout) :: tf
-    if (tf%unit >= 0) close (tf%unit)
-    tf%unit = -1
+    if (tf%is_open) close (tf%unit)
+    tf%is_open = .false.
   end subroutine text_close
 
   !> Advance to the next non-blank line; `found` is false at the end of the file.

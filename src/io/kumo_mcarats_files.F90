@@ -128,6 +128,10 @@ contains
       line = adjustl(line)
       if (len_trim(line) == 0 .or. line(1:1) == '*') cycle
       read (line, *, iostat=ios) key
+      if (ios /= 0) then
+        call fail('cannot read a keyword from "'//trim(line)//'"')
+        return
+      end if
       key = to_lower(key)
       if (in_vars) then
         if (key == 'endvars') then
@@ -147,6 +151,10 @@ contains
       select case (key)
       case ('dset')
         read (line, *, iostat=ios) word, word
+        if (ios /= 0) then
+          call fail('DSET needs a file name')
+          return
+        end if
         word = adjustl(word)
         if (word(1:1) == '^') then
           k = index(path, '/', back=.true.)
@@ -183,6 +191,8 @@ contains
           return
         end if
         in_vars = .true.
+      case default
+        ! TITLE, UNDEF and other keywords are not needed by kumo
       end select
     end do
     close (unit)
@@ -628,6 +638,8 @@ contains
         case (4)
           if (q(1) < 0.0_wp) bad = 'LSRT isotropic weight (parameter 1) = '//str(q(1))// &
                                    ' must be >= 0'
+        case default
+          ! black: no parameters
         end select
         if (len(bad) > 0) then
           call set_error(error, at//bad)
@@ -693,7 +705,8 @@ contains
            (byte_order == BYTE_ORDER_LITTLE .and. .not. native_is_little())
     allocate (raw(nval), f(nval, nrec))
     do irec = 1, nrec
-      pos = (int(ids - 1, int64)*int(nrec, int64) + int(irec - 1, int64))*4_int64*int(nval, int64) + 1_int64
+      pos = (int(ids - 1, int64)*int(nrec, int64) + int(irec - 1, int64))*4_int64* &
+            int(nval, int64) + 1_int64
       read (unit, pos=pos, iostat=ios, iomsg=msg) raw
       if (ios /= 0) then
         call set_error(error, trim(path)//': record '//str((ids - 1)*nrec + irec)//' ('// &

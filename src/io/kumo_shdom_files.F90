@@ -186,8 +186,9 @@ contains
     else if (nfields == field%nz) then
       field%z_are_boundaries = .false.
     else
-      call set_error(error, where_line(tf)//': holds '//str(nfields)//' heights; expected nz+1 = '// &
-                     str(field%nz + 1)//' cell boundaries or nz = '//str(field%nz)//' grid levels')
+      call set_error(error, where_line(tf)//': holds '//str(nfields)//' heights; expected '// &
+                     'nz+1 = '//str(field%nz + 1)//' cell boundaries or nz = '//str(field%nz)// &
+                     ' grid levels')
       return
     end if
     allocate (zt(nfields), field%temperature(nfields))

@@ -80,8 +80,7 @@ module kumo_les_netcdf
   character(len=*), parameter :: DEFAULT_Z(3) = [character(len=2) :: 'z', 'zt', 'zc']
   character(len=*), parameter :: DEFAULT_X_EDGES(2) = [character(len=7) :: 'x_edges', 'xedges']
   character(len=*), parameter :: DEFAULT_Y_EDGES(2) = [character(len=7) :: 'y_edges', 'yedges']
-  character(len=*), parameter :: DEFAULT_Z_EDGES(3) = [character(len=7) :: 'z_edges', 'zedges', &
-                                                       'zh']
+  character(len=*), parameter :: DEFAULT_Z_EDGES(3) = [character(len=7) :: 'z_edges', 'zedges', 'zh']
 
   !> Names of the variables to read. Blank: try the DEFAULT_* list; `'none'`: do not read an
   !> optional variable. A name that is given must exist in the file.
@@ -218,7 +217,7 @@ contains
     type(error_t), allocatable, intent(out) :: error
     integer :: lwc_id, reff_id, num_id, iwc_id, rei_id, t_id, p_id, rho_id
     character(len=:), allocatable :: lwc_name, reff_name, num_name, iwc_name, rei_name
-    character(len=:), allocatable :: t_name, p_name, rho_name
+    character(len=:), allocatable :: t_name, p_name, rho_name, text
     real(wp), allocatable :: edges(:), rho(:, :, :)
     real(wp) :: spacing
     logical :: lwc_per_air, num_per_air, iwc_per_air, ice_per_air, reff_per_air, dummy
@@ -239,9 +238,10 @@ contains
     call read_axis(f, 2, names%y_edges, DEFAULT_Y_EDGES, midpoints, edges, field%dy, field, &
                    error)
     if (allocated(error)) return
-    call read_axis(f, 3, names%z_edges, DEFAULT_Z_EDGES, midpoints, field%z_edges, spacing, &
-                   field, error)
+    call read_axis(f, 3, names%z_edges, DEFAULT_Z_EDGES, midpoints, edges, spacing, field, &
+                   error)
     if (allocated(error)) return
+    call move_alloc(edges, field%z_edges)
 
     ! Liquid water defines the time dimension; every other field must agree with it.
     call find_var(f, 'liquid water', names%lwc, DEFAULT_LWC, .true., lwc_id, lwc_name, error)
@@ -351,8 +351,9 @@ contains
                       trim(field%used%pressure)//'" and "'//trim(field%used%temperature)// &
                       '", R_d = '//str(R_DRY_AIR)//' J kg-1 K-1'//NL
       else
-        call set_error(error, PROC//'('//f%path//'): '//per_air_list(lwc_per_air, num_per_air, &
-                       iwc_per_air, lwc_name, field%used%number, field%used%iwc)// &
+        text = per_air_list(lwc_per_air, num_per_air, iwc_per_air, lwc_name, &
+                            field%used%number, field%used%iwc)
+        call set_error(error, PROC//'('//f%path//'): '//text// &
                        ' per mass of air and need the air density: no density variable (tried '// &
                        tried(names%air_density, DEFAULT_AIR_DENSITY)//')'// &
                        missing_pt(field%has_pressure, field%has_temperature, names))
@@ -787,8 +788,8 @@ contains
     if (allocated(error)) return
     if (.not. found) then
       call unit_factor('', quantity, factor, per_air, error)
-      error%message = at//': units attribute missing; '//error%message(index(error%message, &
-                                                                              'accepted'):)
+      units = error%message(index(error%message, 'accepted'):)
+      error%message = at//': units attribute missing; '//units
       return
     end if
     call unit_factor(units, quantity, factor, per_air, error)
@@ -878,13 +879,14 @@ contains
   subroutine scale_by_ideal_gas(values, p, t)
     real(wp), intent(inout) :: values(:, :, :)
     real(wp), intent(in) :: p(:, :, :), t(:, :, :)
+    real(wp) :: rho
     integer :: ix, iy, iz
     do iz = 1, size(values, 3)
       do iy = 1, size(values, 2)
         do ix = 1, size(values, 1)
-          values(ix, iy, iz) = values(ix, iy, iz)* &
-                               p(min(ix, size(p, 1)), min(iy, size(p, 2)), iz)/(R_DRY_AIR* &
-                               t(min(ix, size(t, 1)), min(iy, size(t, 2)), iz))
+          rho = p(min(ix, size(p, 1)), min(iy, size(p, 2)), iz)/ &
+                (R_DRY_AIR*t(min(ix, size(t, 1)), min(iy, size(t, 2)), iz))
+          values(ix, iy, iz) = values(ix, iy, iz)*rho
         end do
       end do
     end do

@@ -114,7 +114,7 @@ contains
     character(len=:), allocatable :: norm
     character(len=:), allocatable :: s, term, exponent
     integer :: i, n
-    logical :: divide
+    logical :: divide, sign
 
     ! Multi-byte micro signs, then exponent markers.
     s = replace_all(units, MICRO_SIGN, 'u')
@@ -146,8 +146,8 @@ contains
         end do
         exponent = ''
         do while (i <= n)
-          if (.not. (is_digit(s(i:i)) .or. (len(exponent) == 0 .and. (s(i:i) == '-' .or. &
-                                                                        s(i:i) == '+')))) exit
+          sign = len(exponent) == 0 .and. (s(i:i) == '-' .or. s(i:i) == '+')
+          if (.not. (is_digit(s(i:i)) .or. sign)) exit
           exponent = exponent//s(i:i)
           i = i + 1
         end do
@@ -234,6 +234,8 @@ contains
              'kg m**-3, g/kg, 1/cm3)'
     case (QTY_LENGTH, QTY_RADIUS)
       text = text//' (the micro sign and Greek mu are accepted for u)'
+    case default
+      continue                       ! temperature and pressure have no other spellings
     end select
   end function accepted_text
 

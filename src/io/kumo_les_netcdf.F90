@@ -354,7 +354,7 @@ contains
         text = per_air_list(lwc_per_air, num_per_air, iwc_per_air, lwc_name, &
                             field%used%number, field%used%iwc)
         call set_error(error, PROC//'('//f%path//'): '//text// &
-                       ' per mass of air and need the air density: no density variable (tried '// &
+                       ' the air density: no density variable (tried '// &
                        tried(names%air_density, DEFAULT_AIR_DENSITY)//')'// &
                        missing_pt(field%has_pressure, field%has_temperature, names))
         return
@@ -446,7 +446,7 @@ contains
       field%notes = field%notes//AXES(iaxis)//' from edges "'//ename//'"'//NL
       if (vertical) return
       spacing = (edges(n + 1) - edges(1))/n
-      call check_uniform(at, edges, spacing, coordinate_tol(edges, xtype, spacing), error)
+      call check_uniform(at, edges, spacing, coordinate_tol(edges, xtype, spacing), .false., error)
       return
     end if
 
@@ -471,13 +471,13 @@ contains
     spacing = (c(n) - c(1))/(n - 1)
     tol = coordinate_tol(c, xtype, spacing)
     if (.not. vertical) then
-      call check_uniform(at, c, spacing, tol, error)
+      call check_uniform(at, c, spacing, tol, vertical, error)
       if (allocated(error)) return
       field%notes = field%notes//AXES(iaxis)//' from centres "'//cname//'"'//NL
       return
     end if
     if (.not. midpoints) then
-      call check_uniform(at, c, spacing, tol, error)
+      call check_uniform(at, c, spacing, tol, vertical, error)
       if (allocated(error)) then
         error%message = error%message//'; the layer edges of stretched centres are a matter '// &
                         'of convention: give z edges (nz + 1 values; tried '// &
@@ -557,16 +557,17 @@ contains
   end subroutine check_increasing
 
   !> Every step c(i) - c(i-1) must equal `spacing` within `tol` [m].
-  subroutine check_uniform(at, c, spacing, tol, error)
+  subroutine check_uniform(at, c, spacing, tol, vertical, error)
     character(len=*), intent(in) :: at
     real(wp), intent(in) :: c(:), spacing, tol
+    logical, intent(in) :: vertical
     type(error_t), allocatable, intent(out) :: error
     integer :: i
     do i = 2, size(c)
       if (abs(c(i) - c(i - 1) - spacing) <= tol) cycle
       call set_error(error, at//': spacing is not uniform: step '//str(i - 1)//' to '//str(i)// &
-                     ' is '//str(c(i) - c(i - 1))//' m, the mean step is '//str(spacing)// &
-                     ' m; kumo needs uniform horizontal spacing')
+                     ' is '//str(c(i) - c(i - 1))//' m, the mean step is '//str(spacing)//' m')
+      if (.not. vertical) error%message = error%message//'; kumo needs uniform horizontal spacing'
       return
     end do
   end subroutine check_uniform
@@ -1010,7 +1011,11 @@ contains
       if (len(text) > 0) text = text//' and '
       text = text//'"'//trim(iwc_name)//'"'
     end if
-    text = text//' are given'
+    if (count([lwc, num, iwc]) > 1) then
+      text = text//' are given per mass of air and need'
+    else
+      text = text//' is given per mass of air and needs'
+    end if
   end function per_air_list
 
   function missing_pt(has_p, has_t, names) result(text)

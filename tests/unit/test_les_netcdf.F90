@@ -191,6 +191,8 @@ contains
     call check_field(error, fld%reff_ice, 3.0_dp*reff_ref(), 1.0_dp, TOL_FLOAT, 'reff_ice')
     call check(error, .not. fld%reff_computed, 'reff_computed set for a file with reff')
     call check(error, .not. (fld%has_temperature .or. fld%has_pressure), 'T or p invented')
+    call check(error, index(fld%notes, 'z edges midway between centres "z"') > 0, &
+               'notes lack the origin of the z edges: '//fld%notes)
     call check(error, trim(fld%used%lwc) == 'lwc' .and. trim(fld%used%reff) == 're' .and. &
                trim(fld%used%iwc) == 'iwc' .and. trim(fld%used%reff_ice) == 'rei', &
                'names used: '//trim(fld%used%lwc)//' '//trim(fld%used%reff))
@@ -542,8 +544,8 @@ contains
 
   subroutine test_err_no_density(error)
     type(error_t), allocatable, intent(out) :: error
-    call bad_basic(error, 'test_les_bad10.nc', [character(len=64) :: '"lwc" are given per mass of air   ', &
-                                                'need the air density              ', &
+    call bad_basic(error, 'test_les_bad10.nc', [character(len=64) :: '"lwc" is given per mass of air    ', &
+                                                'needs the air density             ', &
                                                 'tried rho, rho_air                ', &
                                                 'no pressure (tried pressure, pres,', &
                                                 'no temperature                    '], &

@@ -80,7 +80,8 @@ module kumo_les_netcdf
   character(len=*), parameter :: DEFAULT_Z(3) = [character(len=2) :: 'z', 'zt', 'zc']
   character(len=*), parameter :: DEFAULT_X_EDGES(2) = [character(len=7) :: 'x_edges', 'xedges']
   character(len=*), parameter :: DEFAULT_Y_EDGES(2) = [character(len=7) :: 'y_edges', 'yedges']
-  character(len=*), parameter :: DEFAULT_Z_EDGES(3) = [character(len=7) :: 'z_edges', 'zedges', 'zh']
+  character(len=*), parameter :: DEFAULT_Z_EDGES(3) = &
+                                 [character(len=7) :: 'z_edges', 'zedges', 'zh']
 
   !> Names of the variables to read. Blank: try the DEFAULT_* list; `'none'`: do not read an
   !> optional variable. A name that is given must exist in the file.

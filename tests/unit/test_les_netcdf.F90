@@ -392,7 +392,8 @@ contains
     call write_basic(PATH, error, z_km=[0.05_dp, 0.15_dp, 0.3_dp, 0.5_dp])
     if (allocated(error)) return
     call read_les_field(PATH, names, -1, fld, err)
-    call expect_error(error, err, [character(len=64) :: 'test_les_f.nc:z)', 'not uniform     ', 'give z edges    '])
+    call expect_error(error, err, [character(len=64) :: &
+        'test_les_f.nc:z)', 'not uniform     ', 'give z edges    '])
     if (allocated(error)) return
     call read_les_field(PATH, names, -1, fld, err, z_edges_from_midpoints=.true.)
     call no_error(error, err)
@@ -416,7 +417,8 @@ contains
 
   subroutine test_err_unknown_units(error)
     type(error_t), allocatable, intent(out) :: error
-    call bad_basic(error, 'test_les_bad2.nc', [character(len=64) :: 'lwc)                         ', &
+    call bad_basic(error, 'test_les_bad2.nc', [character(len=64) :: &
+        'lwc)                         ', &
                                                'units "g/cm3" not accepted   ', &
                                                'g m-3, kg m-3, g kg-1, kg kg-1'], &
                    lwc_units='g/cm3')
@@ -448,7 +450,8 @@ contains
     real(dp) :: lwc(NX, NY, NZ)
     lwc = lwc_ref(1)
     lwc(1, 2, 4) = -999.0_dp
-    call bad_basic(error, 'test_les_bad5.nc', [character(len=64) :: 'lwc)                         ', &
+    call bad_basic(error, 'test_les_bad5.nc', [character(len=64) :: &
+        'lwc)                         ', &
                                                'at (x,y,z) = (1,2,4)         ', &
                                                'fill value (missing data)    '], lwc=lwc, &
                    fill=-999.0_dp)
@@ -456,7 +459,8 @@ contains
 
   subroutine test_err_non_uniform_x(error)
     type(error_t), allocatable, intent(out) :: error
-    call bad_basic(error, 'test_les_bad6.nc', [character(len=64) :: 'test_les_bad6.nc:x)          ', &
+    call bad_basic(error, 'test_les_bad6.nc', [character(len=64) :: &
+        'test_les_bad6.nc:x)          ', &
                                                'spacing is not uniform       ', &
                                                'step 1 to 2 is 100.0000      '], &
                    x_km=[0.05_dp, 0.15_dp, 0.3_dp])
@@ -475,7 +479,8 @@ contains
     call nc_close(ncid, error)
     if (allocated(error)) return
     call read_les_field(PATH, names, -1, fld, err)
-    call expect_error(error, err, [character(len=64) :: 'lwc)                                             ', &
+    call expect_error(error, err, [character(len=64) :: &
+        'lwc)                                             ', &
                                    'dimensions are (x, y, z) in ncdump order         ', &
                                    'expected (z, y, x)                               ', &
                                    'does not transpose                               '])
@@ -504,7 +509,8 @@ contains
     ! lwc found under a given name, but neither reff nor number: both lists named.
     names%lwc = 'cloud'
     call read_les_field(PATH, names, -1, fld, err)
-    call expect_error(error, err, [character(len=64) :: 'tried reff, r_eff  ', 'tried nc, Nc, NC   '])
+    call expect_error(error, err, [character(len=64) :: &
+        'tried reff, r_eff  ', 'tried nc, Nc, NC   '])
     call remove_file(PATH)
   end subroutine test_err_missing_var
 
@@ -523,7 +529,8 @@ contains
     call nc_close(ncid, error)
     if (allocated(error)) return
     call read_les_field(PATH, names, 4, fld, err)
-    call expect_error(error, err, [character(len=64) :: 'time index 4 is outside 1 to 3', 'dimension "time"            '])
+    call expect_error(error, err, [character(len=64) :: &
+        'time index 4 is outside 1 to 3', 'dimension "time"            '])
     if (allocated(error)) return
     call read_les_field(PATH, names, -1, fld, err)
     call expect_error(error, err, [character(len=64) :: 'has a time dimension "time" of length 3'])
@@ -544,7 +551,8 @@ contains
 
   subroutine test_err_no_density(error)
     type(error_t), allocatable, intent(out) :: error
-    call bad_basic(error, 'test_les_bad10.nc', [character(len=64) :: '"lwc" is given per mass of air    ', &
+    call bad_basic(error, 'test_les_bad10.nc', [character(len=64) :: &
+        '"lwc" is given per mass of air    ', &
                                                 'needs the air density             ', &
                                                 'tried rho, rho_air                ', &
                                                 'no pressure (tried pressure, pres,', &
@@ -566,7 +574,8 @@ contains
     call nc_close(ncid, error)
     if (allocated(error)) return
     call read_les_field(PATH, names, -1, fld, err)
-    call expect_error(error, err, [character(len=64) :: 'ice water "IWC" needs an ice effective radius', &
+    call expect_error(error, err, [character(len=64) :: &
+        'ice water "IWC" needs an ice effective radius', &
                                    'tried reff_ice, r_eff_ice                    '])
     call remove_file(PATH)
   end subroutine test_err_ice_no_radius

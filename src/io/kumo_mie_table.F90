@@ -20,7 +20,7 @@
 !> Files are written to `<path>.tmp` and renamed to `<path>` after a successful close, so a
 !> reader never sees a partial table.
 module kumo_mie_table
-  use, intrinsic :: iso_c_binding, only: c_char, c_int, c_null_char
+  use, intrinsic :: iso_c_binding, only: c_null_char
   use netcdf, only: nf90_create, nf90_open, nf90_close, nf90_enddef, nf90_def_dim, &
                     nf90_def_var, nf90_put_att, nf90_get_att, nf90_put_var, nf90_get_var, &
                     nf90_inq_dimid, nf90_inq_varid, nf90_inquire_dimension, &
@@ -30,6 +30,7 @@ module kumo_mie_table
   use kumo_error, only: error_t, set_error, str
   use kumo_mie, only: mie_table_t, mie_table_build, DIST_NAMES, DLNR_DEFAULT, RHO_WATER_G_M3
   use kumo_water_index, only: water_index, WATER_INDEX_SOURCE
+  use kumo_netcdf, only: c_rename, c_remove
   implicit none
   private
   public :: write_mie_table, read_mie_table, mie_table_cached, MIE_TABLE_VERSION
@@ -37,26 +38,6 @@ module kumo_mie_table
   !> Version of the file layout and of the computation; a file of another version is rebuilt.
   integer, parameter :: MIE_TABLE_VERSION = 1
   integer, parameter :: CREATE_MODE = ior(NF90_CLOBBER, ior(NF90_NETCDF4, NF90_CLASSIC_MODEL))
-
-  ! allow(C071)
-  interface
-    !> C `rename` (stdio.h): atomic replacement of `newpath` on POSIX file systems.
-    function c_rename(oldpath, newpath) bind(C, name='rename') result(status)
-      import :: c_char, c_int
-      implicit none
-      character(kind=c_char), intent(in) :: oldpath(*)
-      character(kind=c_char), intent(in) :: newpath(*)
-      integer(c_int) :: status
-    end function c_rename
-
-    !> C `remove` (stdio.h): delete a file.
-    function c_remove(path) bind(C, name='remove') result(status)
-      import :: c_char, c_int
-      implicit none
-      character(kind=c_char), intent(in) :: path(*)
-      integer(c_int) :: status
-    end function c_remove
-  end interface
 
 contains
 

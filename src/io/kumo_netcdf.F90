@@ -32,6 +32,7 @@ module kumo_netcdf
   public :: write_results, check_writable
   public :: read_scene_3d, write_scene_3d, read_albedo_map, read_brdf_map
   public :: BRDF_MAP_VARS
+  public :: c_rename, c_remove
   public :: read_var_1d, read_text_attr
 
   !> netCDF-4 file restricted to the classic data model (readable by every netCDF-4 tool).

@@ -345,11 +345,8 @@ contains
       if (allocated(error)) status(1) = 1
       if (has_iph) status(2) = 1
     end if
-    call par_bcast_int(status)
-    if (status(1) /= 0) then
-      if (.not. allocated(error)) call set_error(error, 'reading '//path//' failed on rank 0')
-      return
-    end if
+    call share_read_status(status, path, error)
+    if (allocated(error)) return
     if (.not. par_is_root()) allocate (ext3(n(1), n(2), n(3), n(4)), ssa3(n(1), n(2), n(3), n(4)))
     if (status(2) == 0) then
       if (allocated(iph3)) deallocate (iph3)
@@ -374,6 +371,17 @@ contains
     end if
   end subroutine read_scene_on_root
 
+  !> Give every rank rank 0's read status (status(1) /= 0: failed; the rest: sizes); ranks
+  !> other than 0 get an error naming the file when the read failed.
+  subroutine share_read_status(status, path, error)
+    integer, intent(inout) :: status(:)
+    character(len=*), intent(in) :: path
+    type(error_t), allocatable, intent(inout) :: error
+    call par_bcast_int(status)
+    if (status(1) /= 0 .and. .not. allocated(error)) &
+      call set_error(error, 'reading '//path//' failed on rank 0')
+  end subroutine share_read_status
+
   !> Rank 0 reads the BRDF map and broadcasts it.
   subroutine brdf_map_on_root(path, default_kind, bmap, error)
     character(len=*), intent(in) :: path
@@ -389,11 +397,8 @@ contains
       call read_brdf_map(path, default_kind, status(2), status(3), kind, c, error)
       if (allocated(error)) status(1) = 1
     end if
-    call par_bcast_int(status)
-    if (status(1) /= 0) then
-      if (.not. allocated(error)) call set_error(error, 'reading '//path//' failed on rank 0')
-      return
-    end if
+    call share_read_status(status, path, error)
+    if (allocated(error)) return
     if (par_size() > 1) then
       if (.not. par_is_root()) allocate (kind(status(2), status(3)), &
                                          c(BRDF_NPAR, status(2), status(3)))
@@ -423,11 +428,8 @@ contains
       call read_albedo_map(path, varname, status(2), status(3), alb, error)
       if (allocated(error)) status(1) = 1
     end if
-    call par_bcast_int(status)
-    if (status(1) /= 0) then
-      if (.not. allocated(error)) call set_error(error, 'reading '//path//' failed on rank 0')
-      return
-    end if
+    call share_read_status(status, path, error)
+    if (allocated(error)) return
     if (par_size() == 1) return
     if (.not. par_is_root()) allocate (alb(status(2), status(3)))
     buf = reshape(alb, [size(alb)])

@@ -5,7 +5,8 @@
 !>
 !> * mu is the cosine of the scattering angle Theta (mu = 1: forward, mu = -1: backward).
 !> * Normalisation (1/4pi) Int P dOmega = (1/2) Int_{-1}^{1} P dmu = 1, so the isotropic phase
-!>   function is P = 1, Rayleigh P = 3/4 (1 + mu^2) and Henyey-Greenstein
+!>   function is P = 1, Rayleigh P = 3/4 (1 + mu^2) (with a depolarisation ratio rho > 0,
+!>   Chandrasekhar's form, see kumo_rayleigh) and Henyey-Greenstein
 !>   P = (1 - g^2)/(1 + g^2 - 2 g mu)^(3/2).
 !> * Every sampler is the inverse of the cumulative distribution accumulated from the backward
 !>   direction, F(mu) = (1/2) Int_{-1}^{mu} P dmu': the deviate u = 0 gives mu = -1 and u -> 1
@@ -27,17 +28,19 @@ module kumo_phase
   use kumo_math, only: GL_X => GL5_X, GL_W => GL5_W
   use kumo_constants, only: PI, DEG2RAD
   use kumo_error, only: error_t, set_error, str, to_lower
+  use kumo_rayleigh, only: DEPOL_MAX, rayleigh_depol_eval, rayleigh_depol_sample_mu
   implicit none
   private
   public :: PHASE_ISOTROPIC, PHASE_RAYLEIGH, PHASE_HG, PHASE_TABLE, PHASE_NAMES
   public :: PHASE_N_INV_DEFAULT
   public :: phase_t, phase_kind_from_name
-  public :: new_phase_isotropic, new_phase_rayleigh, new_phase_hg, phase_from_table
+  public :: new_phase_isotropic, new_phase_rayleigh, new_phase_rayleigh_depol, new_phase_hg
+  public :: phase_from_table
   public :: phase_sample_mu, phase_eval
   public :: isotropic_sample_mu, rayleigh_sample_mu, hg_sample_mu, rayleigh_eval, hg_eval
 
   integer, parameter :: PHASE_ISOTROPIC = 1  !! P = 1
-  integer, parameter :: PHASE_RAYLEIGH = 2   !! P = 3/4 (1 + mu^2)
+  integer, parameter :: PHASE_RAYLEIGH = 2   !! P = 3/4 (1 + mu^2), or depolarised (rho > 0)
   integer, parameter :: PHASE_HG = 3         !! Henyey-Greenstein with asymmetry parameter g
   integer, parameter :: PHASE_TABLE = 4      !! tabulated P(Theta), sampled from an inverse CDF
 
@@ -53,15 +56,16 @@ module kumo_phase
   !> Largest quadrature sub-interval for tabulated phase functions [deg].
   real(wp), parameter :: SUB_STEP_DEG = 0.01_wp
 
-
   !> A phase function ready for evaluation and sampling. Build it with a constructor
-  !> (`new_phase_isotropic`, `new_phase_rayleigh`, `new_phase_hg`, `phase_from_table`); the
-  !> tables are allocated for `PHASE_TABLE` only. (The constructors of the analytic kinds carry
+  !> (`new_phase_isotropic`, `new_phase_rayleigh`, `new_phase_rayleigh_depol`, `new_phase_hg`,
+  !> `phase_from_table`); the tables are allocated for `PHASE_TABLE` only. (The constructors of the analytic kinds carry
   !> a `new_` prefix because Fortran names are case-insensitive: `phase_hg` would clash with
   !> the kind code `PHASE_HG`.)
   type :: phase_t
     integer :: kind = PHASE_ISOTROPIC  !! one of PHASE_ISOTROPIC, _RAYLEIGH, _HG, _TABLE
     real(wp) :: g = 0.0_wp             !! asymmetry parameter <mu> (computed for tables)
+    !> Depolarisation ratio rho of PHASE_RAYLEIGH, 0 <= rho < 6/7; 0 is P = 3/4 (1 + mu^2).
+    real(wp) :: depol = 0.0_wp
     !> Factor the input table was multiplied by to be normalised (1 for analytic kinds);
     !> 1/norm_factor = (1/2) Int P_input sin(Theta) dTheta of the interpolated input.
     real(wp) :: norm_factor = 1.0_wp
@@ -196,6 +200,31 @@ contains
     type(phase_t) :: ph  !! P = 3/4 (1 + mu^2), g = 0
     ph%kind = PHASE_RAYLEIGH
   end function new_phase_rayleigh
+
+  !> Rayleigh phase function with depolarisation ratio rho (Chandrasekhar 1950, Radiative
+  !> Transfer, chapter I; evaluated and sampled exactly by kumo_rayleigh's
+  !> `rayleigh_depol_eval` and `rayleigh_depol_sample_mu`):
+  !>
+  !>     P(mu) = 3/(4 (1 + 2 gamma)) [(1 + 3 gamma) + (1 - gamma) mu^2],  gamma = rho/(2 - rho).
+  !>
+  !> rho = 0 gives the same phase_t as `new_phase_rayleigh()`, which uses the plain formulas.
+  !> Dry air has rho ~ 0.028 at 0.55 um (kumo_rayleigh's `depol_from_king`).
+  function new_phase_rayleigh_depol(depol, error) result(ph)
+    real(wp), intent(in) :: depol                     !! depolarisation ratio, 0 <= rho < 6/7
+    type(error_t), allocatable, intent(out) :: error  !! set if rho is NaN or out of range
+    type(phase_t) :: ph  !! the phase function (the default, isotropic, on error), g = 0
+    logical :: bad
+    bad = ieee_is_nan(depol)   ! tested first: an ordered comparison with NaN may trap
+    if (.not. bad) bad = depol < 0.0_wp .or. depol >= DEPOL_MAX
+    if (bad) then
+      call set_error(error, 'new_phase_rayleigh_depol: depol = '//str(depol)// &
+                     ' must satisfy 0 <= depol < 6/7 (depolarisation ratio; the King factor '// &
+                     '(6 + 3 depol)/(6 - 7 depol) diverges at 6/7)')
+      return
+    end if
+    ph%kind = PHASE_RAYLEIGH
+    ph%depol = depol
+  end function new_phase_rayleigh_depol
 
   !> Henyey-Greenstein phase function.
   function new_phase_hg(g, error) result(ph)
@@ -383,7 +412,11 @@ contains
     case (PHASE_HG)
       p = hg_eval(ph%g, mu)
     case (PHASE_RAYLEIGH)
-      p = rayleigh_eval(mu)
+      if (ph%depol > 0.0_wp) then
+        p = rayleigh_depol_eval(ph%depol, mu)
+      else
+        p = rayleigh_eval(mu)
+      end if
     case (PHASE_TABLE)
       m = min(1.0_wp, max(-1.0_wp, mu))
       lo = 1
@@ -421,7 +454,11 @@ contains
       x = x - j
       mu = ph%mu_inv(j + 1) + x*(ph%mu_inv(j + 2) - ph%mu_inv(j + 1))
     case (PHASE_RAYLEIGH)
-      mu = rayleigh_sample_mu(u)
+      if (ph%depol > 0.0_wp) then
+        mu = rayleigh_depol_sample_mu(ph%depol, u)
+      else
+        mu = rayleigh_sample_mu(u)
+      end if
     case default
       mu = isotropic_sample_mu(u)
     end select
@@ -522,7 +559,5 @@ contains
           hi - lo <= 4.0_wp*epsilon(1.0_wp)*hi) return
     end do
   end function table_invert
-
-
 
 end module kumo_phase

@@ -4,7 +4,8 @@
 !> Each test draws N = 200,000 samples of mu with `phase_sample_mu` and the kumo_rng generator
 !> (fixed seed, one stream per test), maps them through the exact CDF F(mu) and counts them in
 !> 100 bins of equal expected probability (F in [(k-1)/100, k/100)). The exact CDFs are the
-!> closed forms for the analytic kinds; for the C.1 table (path given as the first command-line
+!> closed forms for the analytic kinds (for the depolarised Rayleigh function written out here
+!> from Chandrasekhar's P = a + b mu^2, F = (1 + a mu + b mu^3/3)/2); for the C.1 table (path given as the first command-line
 !> argument) the source table is integrated here, independently of kumo_phase, with composite
 !> Simpson rules on a 0.005 deg grid of the same interpolant (log P linear in angle). The test
 !> passes when chi^2 < 148.230, the 0.999 quantile of the chi-square distribution with 99
@@ -15,7 +16,7 @@ module test_kumo_phase_chi2
   use kumo_constants, only: DEG2RAD
   use kumo_rng, only: rng_t, rng_init, rng_uniform
   use kumo_phase, only: phase_t, new_phase_isotropic, new_phase_rayleigh, new_phase_hg, &
-                        phase_from_table, phase_sample_mu
+                        new_phase_rayleigh_depol, phase_from_table, phase_sample_mu
   use kumo_testing, only: error_t, unittest_t, new_unittest, check
   implicit none
   private
@@ -30,11 +31,13 @@ module test_kumo_phase_chi2
   real(wp), parameter :: CHI2_999_DF99 = 148.230_wp
 
   integer, parameter :: CDF_ISOTROPIC = 1, CDF_RAYLEIGH = 2, CDF_HG = 3, CDF_TABLE = 4
+  integer, parameter :: CDF_RAYLEIGH_DEPOL = 5
 
   !> Exact CDF used for the binning.
   type :: cdf_t
     integer :: kind = CDF_ISOTROPIC
     real(wp) :: g = 0.0_wp
+    real(wp) :: a = 0.0_wp, b = 0.0_wp     !! depolarised Rayleigh: P = a + b mu^2
     real(wp) :: h = 0.0_wp                 !! angular step of the tabulated CDF [rad]
     real(wp), allocatable :: c(:)          !! c(k) = F(cos(k h)), k = 0 ... n
   end type cdf_t
@@ -49,7 +52,9 @@ contains
              new_unittest('chi2_hg_g0.85', test_hg_085), &
              new_unittest('chi2_hg_g0.3', test_hg_03), &
              new_unittest('chi2_hg_g-0.5', test_hg_m05), &
-             new_unittest('chi2_table_c1', test_table_c1)]
+             new_unittest('chi2_table_c1', test_table_c1), &
+             new_unittest('chi2_rayleigh_depol_0.0279', test_rayleigh_depol_0279), &
+             new_unittest('chi2_rayleigh_depol_0.5', test_rayleigh_depol_05)]
   end function collect_phase_chi2
 
   subroutine test_isotropic(error)
@@ -95,6 +100,39 @@ contains
     cdf%g = g
     call chi2_test(error, ph, cdf, stream)
   end subroutine hg_case
+
+  subroutine test_rayleigh_depol_0279(error)
+    type(error_t), allocatable, intent(out) :: error
+    call rayleigh_depol_case(error, 0.0279_wp, 7_i8)
+  end subroutine test_rayleigh_depol_0279
+
+  !> rho = 0.5: far from 3/4 (1 + mu^2) (P(0)/P(1) = 0.75 instead of 0.5), so sampling the
+  !> plain Rayleigh function fails this case; rho = 0.0279 differs too little for that.
+  subroutine test_rayleigh_depol_05(error)
+    type(error_t), allocatable, intent(out) :: error
+    call rayleigh_depol_case(error, 0.5_wp, 8_i8)
+  end subroutine test_rayleigh_depol_05
+
+  !> Depolarised Rayleigh phase_t sampled by phase_sample_mu; CDF from Chandrasekhar's
+  !> coefficients a = 3 (1 + 3 gamma)/(4 (1 + 2 gamma)), b = 3 (1 - gamma)/(4 (1 + 2 gamma)),
+  !> gamma = rho/(2 - rho).
+  subroutine rayleigh_depol_case(error, rho, stream)
+    type(error_t), allocatable, intent(inout) :: error
+    real(wp), intent(in) :: rho
+    integer(i8), intent(in) :: stream
+    type(error_t), allocatable :: err
+    type(phase_t) :: ph
+    type(cdf_t) :: cdf
+    real(wp) :: gam
+    ph = new_phase_rayleigh_depol(rho, err)
+    call check(error, .not. allocated(err), 'new_phase_rayleigh_depol failed')
+    if (allocated(error)) return
+    gam = rho/(2.0_wp - rho)
+    cdf%kind = CDF_RAYLEIGH_DEPOL
+    cdf%a = 3.0_wp*(1.0_wp + 3.0_wp*gam)/(4.0_wp*(1.0_wp + 2.0_wp*gam))
+    cdf%b = 3.0_wp*(1.0_wp - gam)/(4.0_wp*(1.0_wp + 2.0_wp*gam))
+    call chi2_test(error, ph, cdf, stream)
+  end subroutine rayleigh_depol_case
 
   !> Deirmendjian C.1 cloud table (I3RC C.1_PF) with the default inverse-CDF resolution.
   subroutine test_table_c1(error)
@@ -177,6 +215,8 @@ contains
     select case (cdf%kind)
     case (CDF_RAYLEIGH)
       f = (mu**3 + 3.0_wp*mu + 4.0_wp)/8.0_wp
+    case (CDF_RAYLEIGH_DEPOL)
+      f = 0.5_wp*(1.0_wp + cdf%a*mu + cdf%b*mu**3/3.0_wp)
     case (CDF_HG)
       g = cdf%g
       f = (1.0_wp - g*g)/(2.0_wp*g)*(1.0_wp/sqrt(1.0_wp + g*g - 2.0_wp*g*mu) - 1.0_wp/(1.0_wp + g))

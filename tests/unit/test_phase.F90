@@ -1,6 +1,7 @@
 ! SPDX-License-Identifier: BSD-3-Clause
 !> Unit tests of kumo_phase: normalisation, exactness of the analytic inverse CDFs, tables built
-!> from Henyey-Greenstein and from the Deirmendjian C.1 cloud phase function, input validation.
+!> from Henyey-Greenstein and from the Deirmendjian C.1 cloud phase function, the depolarised
+!> Rayleigh phase function, input validation.
 !>
 !> The C.1 table (I3RC Phase 1 file `C.1_PF`) is read from the path given as the first
 !> command-line argument; CTest passes `${KUMO_SHARED_DIR}/data/i3rc/phase1_inputs/C.1_PF`.
@@ -13,9 +14,10 @@ module test_kumo_phase
   use kumo_constants, only: PI, DEG2RAD
   use kumo_phase, only: PHASE_ISOTROPIC, PHASE_RAYLEIGH, PHASE_HG, PHASE_TABLE, PHASE_NAMES, &
                         PHASE_N_INV_DEFAULT, phase_t, phase_kind_from_name, new_phase_isotropic, &
-                        new_phase_rayleigh, new_phase_hg, phase_from_table, phase_sample_mu, &
-                        phase_eval, isotropic_sample_mu, rayleigh_sample_mu, hg_sample_mu, &
-                        rayleigh_eval, hg_eval
+                        new_phase_rayleigh, new_phase_rayleigh_depol, new_phase_hg, &
+                        phase_from_table, phase_sample_mu, phase_eval, &
+                        isotropic_sample_mu, rayleigh_sample_mu, hg_sample_mu, rayleigh_eval, &
+                        hg_eval
   use kumo_testing, only: error_t, unittest_t, new_unittest, check, check_close
   implicit none
   private
@@ -54,6 +56,9 @@ contains
              new_unittest('table_c1_cloud', test_table_c1), &
              new_unittest('table_with_zero_range', test_table_zeros), &
              new_unittest('table_validation_errors', test_table_errors), &
+             new_unittest('rayleigh_depol_closed_form', test_rayleigh_depol), &
+             new_unittest('rayleigh_depol_zero_is_plain', test_rayleigh_depol_zero), &
+             new_unittest('rayleigh_depol_rejects_bad_rho', test_rayleigh_depol_errors), &
              new_unittest('samples_within_bounds', test_bounds)]
   end function collect_phase
 
@@ -165,6 +170,19 @@ contains
       path = buf(1:length)
     end if
   end function c1_path
+
+  !> Closed-form depolarised Rayleigh phase function (Chandrasekhar 1950, Radiative Transfer,
+  !> chapter I, normalised to (1/2) Int P dmu = 1), written out here independently of
+  !> kumo_rayleigh: P = a + b mu^2 with a = 3 (1 + 3 gamma)/(4 (1 + 2 gamma)),
+  !> b = 3 (1 - gamma)/(4 (1 + 2 gamma)), gamma = rho/(2 - rho).
+  subroutine depol_coefficients(rho, a, b)
+    real(wp), intent(in) :: rho
+    real(wp), intent(out) :: a, b
+    real(wp) :: gam
+    gam = rho/(2.0_wp - rho)
+    a = 3.0_wp*(1.0_wp + 3.0_wp*gam)/(4.0_wp*(1.0_wp + 2.0_wp*gam))
+    b = 3.0_wp*(1.0_wp - gam)/(4.0_wp*(1.0_wp + 2.0_wp*gam))
+  end subroutine depol_coefficients
 
 
   !> Fail unless `err` is allocated and its message contains every string in `parts`.
@@ -573,12 +591,101 @@ contains
     call check(error, .not. allocated(err), 'end points within 1e-6 deg rejected')
   end subroutine test_table_errors
 
+  !> The depolarised Rayleigh phase_t against the closed form written out in this test
+  !> (agreement to rounding), its normalisation and the exactness of its sampler: F(mu(u)) = u
+  !> with F(mu) = (1 + a mu + b mu^3/3)/2 (a few roundings of mu times P/2 <= 0.6: 2e-15).
+  subroutine test_rayleigh_depol(error)
+    type(error_t), allocatable, intent(out) :: error
+    real(wp), parameter :: rhos(3) = [0.0279_wp, 0.5_wp, 0.85_wp]
+    real(wp), parameter :: mus(7) = [-1.0_wp, -0.6_wp, -0.1_wp, 0.0_wp, 0.25_wp, 0.9_wp, 1.0_wp]
+    type(error_t), allocatable :: err
+    type(phase_t) :: ph
+    real(wp) :: a, b, mu, u
+    integer :: i, k
+    character(len=40) :: label
+    do k = 1, size(rhos)
+      ph = new_phase_rayleigh_depol(rhos(k), err)
+      call check(error, .not. allocated(err), 'new_phase_rayleigh_depol failed')
+      if (allocated(error)) return
+      call check(error, ph%kind == PHASE_RAYLEIGH, 'kind is not PHASE_RAYLEIGH')
+      call check_close(error, ph%g, 0.0_wp, abs_tol=0.0_wp, label='g')
+      call check_close(error, ph%depol, rhos(k), abs_tol=0.0_wp, label='depol')
+      call depol_coefficients(rhos(k), a, b)
+      do i = 1, size(mus)
+        write (label, '(a, f0.4, a, f0.2)') 'rho = ', rhos(k), ', P at mu = ', mus(i)
+        call check_close(error, phase_eval(ph, mus(i)), a + b*mus(i)**2, &
+                         rel_tol=4.0_wp*epsilon(1.0_wp), label=trim(label))
+      end do
+      call check_close(error, norm_integral(ph, 200, 0), 1.0_wp, abs_tol=1.0e-12_wp, &
+                       label='normalisation')
+      call check_close(error, norm_integral(ph, 200, 1), 0.0_wp, abs_tol=1.0e-12_wp, &
+                       label='first moment')
+      do i = 0, 1000
+        u = i/1000.0_wp
+        mu = phase_sample_mu(ph, u)
+        call check_close(error, 0.5_wp*(1.0_wp + a*mu + b*mu**3/3.0_wp), u, &
+                         abs_tol=2.0e-15_wp, label='F(mu(u)) - u')
+        if (allocated(error)) return
+      end do
+    end do
+    ! P(0) = 3 (1 + 3 gamma)/(4 (1 + 2 gamma)) = 0.76032 for rho = 0.0279, not 3/4
+    ph = new_phase_rayleigh_depol(0.0279_wp, err)
+    call check_close(error, phase_eval(ph, 0.0_wp), 0.76032_wp, abs_tol=1.0e-5_wp, &
+                     label='P(0), rho = 0.0279')
+  end subroutine test_rayleigh_depol
+
+  !> rho = 0 gives the plain Rayleigh phase_t: same evaluation and samples, bit for bit.
+  subroutine test_rayleigh_depol_zero(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(error_t), allocatable :: err
+    type(phase_t) :: ph0, ph
+    real(wp) :: x
+    integer :: i
+    ph0 = new_phase_rayleigh()
+    ph = new_phase_rayleigh_depol(0.0_wp, err)
+    call check(error, .not. allocated(err), 'rho = 0 rejected')
+    if (allocated(error)) return
+    call check(error, ph%kind == ph0%kind, 'kind differs')
+    call check_close(error, ph%depol, 0.0_wp, abs_tol=0.0_wp, label='depol')
+    do i = 0, 997
+      x = i/997.0_wp
+      call check_close(error, phase_sample_mu(ph, x), rayleigh_sample_mu(x), abs_tol=0.0_wp, &
+                       label='sample, rho = 0')
+      call check_close(error, phase_sample_mu(ph0, x), rayleigh_sample_mu(x), abs_tol=0.0_wp, &
+                       label='sample, plain')
+      call check_close(error, phase_eval(ph, 2.0_wp*x - 1.0_wp), rayleigh_eval(2.0_wp*x - 1.0_wp), &
+                       abs_tol=0.0_wp, label='P, rho = 0')
+      if (allocated(error)) return
+    end do
+  end subroutine test_rayleigh_depol_zero
+
+  !> rho outside [0, 6/7) or NaN is rejected with a message naming the value and the bound.
+  subroutine test_rayleigh_depol_errors(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(error_t), allocatable :: err
+    type(phase_t) :: ph
+    ph = new_phase_rayleigh_depol(-0.01_wp, err)
+    call expect_error(error, err, [character(len=48) :: 'new_phase_rayleigh_depol: ', &
+                                   'depol = -0.01 must', '0 <= depol < 6/7'], 'rho = -0.01')
+    call check(error, ph%kind == PHASE_ISOTROPIC, 'result on error')
+    ph = new_phase_rayleigh_depol(6.0_wp/7.0_wp, err)
+    call expect_error(error, err, [character(len=48) :: 'depol = 0.857', '0 <= depol < 6/7'], &
+                      'rho = 6/7')
+    ph = new_phase_rayleigh_depol(0.9_wp, err)
+    call expect_error(error, err, [character(len=48) :: 'depol = 0.9 must'], 'rho = 0.9')
+    ph = new_phase_rayleigh_depol(ieee_value(1.0_wp, ieee_quiet_nan), err)
+    call expect_error(error, err, [character(len=48) :: 'depol = NaN must'], 'rho = NaN')
+    ph = new_phase_rayleigh_depol(0.857_wp, err)
+    call check(error, .not. allocated(err) .and. ph%kind == PHASE_RAYLEIGH, &
+               'rho = 0.857 < 6/7 rejected')
+  end subroutine test_rayleigh_depol_errors
+
   !> Samples of every kind lie in [-1, 1] at the extreme deviates.
   subroutine test_bounds(error)
     type(error_t), allocatable, intent(out) :: error
     type(error_t), allocatable :: err
-    type(phase_t) :: phs(5)
-    real(wp) :: us(4), mu
+    type(phase_t) :: phs(6)
+    real(wp) :: us(4), mu, tol
     integer :: i, k
     us = [0.0_wp, epsilon(1.0_wp), 1.0_wp - epsilon(1.0_wp)/2.0_wp, 1.0_wp]
     phs(1) = new_phase_isotropic()
@@ -587,14 +694,20 @@ contains
     phs(4) = new_phase_hg(-0.999_wp, err)
     phs(5) = phase_from_table([0.0_wp, 1.0_wp, 180.0_wp], [1.0e4_wp, 1.0_wp, 0.5_wp], 50, err)
     call check(error, .not. allocated(err), 'constructor failed')
+    phs(6) = new_phase_rayleigh_depol(0.5_wp, err)
+    call check(error, .not. allocated(err), 'constructor failed')
     do k = 1, size(phs)
       do i = 1, size(us)
         mu = phase_sample_mu(phs(k), us(i))
         call check(error, mu >= -1.0_wp .and. mu <= 1.0_wp, 'sample outside [-1, 1]')
       end do
-      call check_close(error, phase_sample_mu(phs(k), 0.0_wp), -1.0_wp, abs_tol=0.0_wp, &
+      ! exact end points, except the depolarised Rayleigh sampler (hyperbolic Cardano
+      ! formula, kumo_rayleigh), which reaches +-1 to one rounding
+      tol = 0.0_wp
+      if (k == 6) tol = epsilon(1.0_wp)
+      call check_close(error, phase_sample_mu(phs(k), 0.0_wp), -1.0_wp, abs_tol=tol, &
                        label='mu(u = 0)')
-      call check_close(error, phase_sample_mu(phs(k), 1.0_wp), 1.0_wp, abs_tol=0.0_wp, &
+      call check_close(error, phase_sample_mu(phs(k), 1.0_wp), 1.0_wp, abs_tol=tol, &
                        label='mu(u = 1)')
     end do
   end subroutine test_bounds

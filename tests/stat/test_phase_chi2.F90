@@ -5,7 +5,8 @@
 !> (fixed seed, one stream per test), maps them through the exact CDF F(mu) and counts them in
 !> 100 bins of equal expected probability (F in [(k-1)/100, k/100)). The exact CDFs are the
 !> closed forms for the analytic kinds (for the depolarised Rayleigh function written out here
-!> from Chandrasekhar's P = a + b mu^2, F = (1 + a mu + b mu^3/3)/2); for the C.1 table (path given as the first command-line
+!> from Chandrasekhar's P = a + b mu^2, F = (1 + a mu + b mu^3/3)/2) and for Henyey-Greenstein
+!> built from its Legendre moments g^l; for the C.1 table (path given as the first command-line
 !> argument) the source table is integrated here, independently of kumo_phase, with composite
 !> Simpson rules on a 0.005 deg grid of the same interpolant (log P linear in angle). The test
 !> passes when chi^2 < 148.230, the 0.999 quantile of the chi-square distribution with 99
@@ -16,7 +17,8 @@ module test_kumo_phase_chi2
   use kumo_constants, only: DEG2RAD
   use kumo_rng, only: rng_t, rng_init, rng_uniform
   use kumo_phase, only: phase_t, new_phase_isotropic, new_phase_rayleigh, new_phase_hg, &
-                        new_phase_rayleigh_depol, phase_from_table, phase_sample_mu
+                        new_phase_rayleigh_depol, phase_from_table, phase_from_legendre, &
+                        phase_sample_mu, PHASE_N_INV_DEFAULT
   use kumo_testing, only: error_t, unittest_t, new_unittest, check
   implicit none
   private
@@ -54,7 +56,8 @@ contains
              new_unittest('chi2_hg_g-0.5', test_hg_m05), &
              new_unittest('chi2_table_c1', test_table_c1), &
              new_unittest('chi2_rayleigh_depol_0.0279', test_rayleigh_depol_0279), &
-             new_unittest('chi2_rayleigh_depol_0.5', test_rayleigh_depol_05)]
+             new_unittest('chi2_rayleigh_depol_0.5', test_rayleigh_depol_05), &
+             new_unittest('chi2_legendre_hg_g0.85', test_legendre_hg)]
   end function collect_phase_chi2
 
   subroutine test_isotropic(error)
@@ -133,6 +136,25 @@ contains
     cdf%b = 3.0_wp*(1.0_wp - gam)/(4.0_wp*(1.0_wp + 2.0_wp*gam))
     call chi2_test(error, ph, cdf, stream)
   end subroutine rayleigh_depol_case
+
+  !> Henyey-Greenstein g = 0.85 from its Legendre moments chi_l = g^l (l <= 400) through
+  !> phase_from_legendre, against the closed-form HG CDF: the table's CDF differs from it by
+  !> < 1e-5 (test_phase), i.e. < 2 of the 2000 expected counts per bin, far below the
+  !> sampling noise of 45.
+  subroutine test_legendre_hg(error)
+    type(error_t), allocatable, intent(out) :: error
+    real(wp), parameter :: g = 0.85_wp
+    type(error_t), allocatable :: err
+    type(phase_t) :: ph
+    type(cdf_t) :: cdf
+    integer :: l
+    ph = phase_from_legendre([(g**l, l=0, 400)], PHASE_N_INV_DEFAULT, err)
+    call check(error, .not. allocated(err), 'phase_from_legendre failed')
+    if (allocated(error)) return
+    cdf%kind = CDF_HG
+    cdf%g = g
+    call chi2_test(error, ph, cdf, 9_i8)
+  end subroutine test_legendre_hg
 
   !> Deirmendjian C.1 cloud table (I3RC C.1_PF) with the default inverse-CDF resolution.
   subroutine test_table_c1(error)

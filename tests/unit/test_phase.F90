@@ -1,10 +1,11 @@
 ! SPDX-License-Identifier: BSD-3-Clause
 !> Unit tests of kumo_phase: normalisation, exactness of the analytic inverse CDFs, tables built
-!> from Henyey-Greenstein and from the Deirmendjian C.1 cloud phase function, the depolarised
-!> Rayleigh phase function, input validation.
+!> from Henyey-Greenstein and from the Deirmendjian C.1 cloud phase function, phase functions
+!> from Legendre moments, the depolarised Rayleigh phase function, input validation.
 !>
 !> The C.1 table (I3RC Phase 1 file `C.1_PF`) is read from the path given as the first
 !> command-line argument; CTest passes `${KUMO_SHARED_DIR}/data/i3rc/phase1_inputs/C.1_PF`.
+!> The C.1 Legendre moments (`C.1_leg_coef`, 300 values chi_l) are read from the same folder.
 !> Sampling formulas are tested with stratified deviates u = (i - 1/2)/n, no generator.
 module test_kumo_phase
   use, intrinsic :: iso_fortran_env, only: real128
@@ -15,7 +16,7 @@ module test_kumo_phase
   use kumo_phase, only: PHASE_ISOTROPIC, PHASE_RAYLEIGH, PHASE_HG, PHASE_TABLE, PHASE_NAMES, &
                         PHASE_N_INV_DEFAULT, phase_t, phase_kind_from_name, new_phase_isotropic, &
                         new_phase_rayleigh, new_phase_rayleigh_depol, new_phase_hg, &
-                        phase_from_table, phase_sample_mu, phase_eval, &
+                        phase_from_table, phase_from_legendre, phase_sample_mu, phase_eval, &
                         isotropic_sample_mu, rayleigh_sample_mu, hg_sample_mu, rayleigh_eval, &
                         hg_eval
   use kumo_testing, only: error_t, unittest_t, new_unittest, check, check_close
@@ -56,6 +57,12 @@ contains
              new_unittest('table_c1_cloud', test_table_c1), &
              new_unittest('table_with_zero_range', test_table_zeros), &
              new_unittest('table_validation_errors', test_table_errors), &
+             new_unittest('legendre_hg_series', test_legendre_hg), &
+             new_unittest('legendre_special_cases', test_legendre_special), &
+             new_unittest('legendre_depolarised_rayleigh_series', test_legendre_depol), &
+             new_unittest('legendre_c1_moments', test_legendre_c1), &
+             new_unittest('legendre_negative_series', test_legendre_negative), &
+             new_unittest('legendre_validation_errors', test_legendre_errors), &
              new_unittest('rayleigh_depol_closed_form', test_rayleigh_depol), &
              new_unittest('rayleigh_depol_zero_is_plain', test_rayleigh_depol_zero), &
              new_unittest('rayleigh_depol_rejects_bad_rho', test_rayleigh_depol_errors), &
@@ -170,6 +177,30 @@ contains
       path = buf(1:length)
     end if
   end function c1_path
+
+  !> Read the 300 C.1 Legendre moments chi_0 ... chi_299 (one value per line) from the file
+  !> `C.1_leg_coef` next to the C.1_PF file named on the command line.
+  subroutine read_c1_moments(chi, error)
+    real(wp), allocatable, intent(out) :: chi(:)
+    type(error_t), allocatable, intent(inout) :: error
+    character(len=:), allocatable :: path
+    integer :: unit, stat, l
+    path = c1_path()
+    call check(error, len(path) > 0, 'no path of C.1_PF on the command line (CTest passes '// &
+               '${KUMO_SHARED_DIR}/data/i3rc/phase1_inputs/C.1_PF)')
+    if (allocated(error)) return
+    path = path(1:index(path, '/', back=.true.))//'C.1_leg_coef'
+    open (newunit=unit, file=path, status='old', action='read', iostat=stat)
+    call check(error, stat == 0, 'cannot open '//path)
+    if (allocated(error)) return
+    allocate (chi(0:299))
+    do l = 0, 299
+      read (unit, *, iostat=stat) chi(l)
+      if (stat /= 0) exit
+    end do
+    close (unit)
+    call check(error, stat == 0, 'cannot read 300 values from '//path)
+  end subroutine read_c1_moments
 
   !> Closed-form depolarised Rayleigh phase function (Chandrasekhar 1950, Radiative Transfer,
   !> chapter I, normalised to (1/2) Int P dmu = 1), written out here independently of
@@ -591,6 +622,240 @@ contains
     call check(error, .not. allocated(err), 'end points within 1e-6 deg rejected')
   end subroutine test_table_errors
 
+  !> Henyey-Greenstein moments chi_l = g^l, g = 0.85, l <= 400 (the tail
+  !> sum_{l > 400} (2l+1) g^l < 1e-25 is negligible) against the closed form. Tolerances: at
+  !> the grid angles the series is exact to rounding; between them P is interpolated linearly
+  !> in angle of log P, with steps h = 180/(16*400) deg = 4.9e-4 rad near the forward peak, so
+  !> the error is below h^2/8 max|(ln P)''| = 3.4e-6 ((ln P)'' = -3g/(1 - g)^2 = -113 rad^-2 at
+  !> 0 deg, smaller elsewhere); normalising the interpolant changes P by as much again: 1e-5.
+  !> g and the CDF differ from HG by at most (1/2) Int |P_table - P_HG| dmu, the same bound: 1e-5
+  !> (the CDF also carries the linear interpolation of the inverse-CDF table, which
+  !> `table_from_hg` bounds by the same 1e-5).
+  subroutine test_legendre_hg(error)
+    type(error_t), allocatable, intent(out) :: error
+    real(wp), parameter :: g = 0.85_wp
+    integer, parameter :: nleg = 400, n = 100000
+    type(error_t), allocatable :: err
+    type(phase_t) :: ph
+    real(wp) :: chi(0:nleg), angles(12), mu, mean, maxdiff, u
+    integer :: l, i, nneg
+    character(len=40) :: label
+    angles = [0.0_wp, 0.013_wp, 0.5_wp, 1.0_wp, 2.7_wp, 5.0_wp, 17.3_wp, 45.0_wp, 90.0_wp, &
+              133.3_wp, 179.99_wp, 180.0_wp]
+    chi = [(g**l, l=0, nleg)]
+    ph = phase_from_legendre(chi, PHASE_N_INV_DEFAULT, err, nneg)
+    call check(error, .not. allocated(err), 'phase_from_legendre failed')
+    if (allocated(error)) return
+    call check(error, ph%kind == PHASE_TABLE, 'kind is not PHASE_TABLE')
+    call check(error, nneg == 0, 'negative values in a positive series')
+    call check(error, size(ph%mu_inv) == PHASE_N_INV_DEFAULT, 'n_inv not passed on')
+    do i = 1, size(angles)
+      mu = cos(angles(i)*DEG2RAD)
+      write (label, '(a, f0.3, a)') 'P(', angles(i), ' deg)'
+      call check_close(error, phase_eval(ph, mu), hg_eval(g, mu), rel_tol=1.0e-5_wp, &
+                       label=trim(label))
+    end do
+    call check_close(error, ph%g, chi(1), abs_tol=1.0e-5_wp, label='g of the table vs chi(1)')
+    mean = 0.0_wp
+    maxdiff = 0.0_wp
+    do i = 1, n
+      u = (i - 0.5_wp)/n
+      mu = phase_sample_mu(ph, u)
+      mean = mean + mu/n
+      maxdiff = max(maxdiff, abs(hg_cdf(g, mu) - u))
+    end do
+    call check_close(error, mean, chi(1), abs_tol=1.0e-5_wp, label='stratified <mu> vs chi(1)')
+    call check_close(error, maxdiff, 0.0_wp, abs_tol=1.0e-5_wp, label='max |F_HG(mu(u)) - u|')
+  end subroutine test_legendre_hg
+
+  !> nleg = 0 (also after dropping trailing zeros) is isotropic; {1, 0, 0.1} is the analytic
+  !> Rayleigh kind, 3/4 (1 + mu^2) exactly, as SHDOM writes it (a_2 = 0.5, chi_2 = 0.5/5).
+  subroutine test_legendre_special(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(error_t), allocatable :: err
+    type(phase_t) :: ph
+    real(wp) :: mu, u
+    integer :: i, k, nneg
+    ph = phase_from_legendre([1.0_wp], 100, err, nneg)
+    call check(error, .not. allocated(err) .and. ph%kind == PHASE_ISOTROPIC .and. nneg == 0, &
+               '{1} is not isotropic')
+    ph = phase_from_legendre([1.0_wp, 0.0_wp, 0.0_wp], 100, err)
+    call check(error, .not. allocated(err) .and. ph%kind == PHASE_ISOTROPIC, &
+               '{1, 0, 0} is not isotropic')
+    call check_close(error, phase_eval(ph, 0.3_wp), 1.0_wp, abs_tol=0.0_wp, label='P(0.3)')
+    do k = 1, 2
+      if (k == 1) then
+        ph = phase_from_legendre([1.0_wp, 0.0_wp, 0.1_wp], 100, err, nneg)
+      else
+        ph = phase_from_legendre([1.0_wp, 0.0_wp, 0.5_wp/5.0_wp, 0.0_wp, 0.0_wp], 100, err, nneg)
+      end if
+      call check(error, .not. allocated(err) .and. ph%kind == PHASE_RAYLEIGH .and. nneg == 0, &
+                 '{1, 0, 0.1} is not Rayleigh')
+      if (allocated(error)) return
+      do i = 0, 20
+        mu = -1.0_wp + 0.1_wp*i
+        call check_close(error, phase_eval(ph, mu), 0.75_wp*(1.0_wp + mu*mu), abs_tol=0.0_wp, &
+                         label='Rayleigh series, P(mu)')
+        u = 0.05_wp*i
+        call check_close(error, phase_sample_mu(ph, u), rayleigh_sample_mu(u), abs_tol=0.0_wp, &
+                         label='Rayleigh series, sample')
+      end do
+    end do
+    ! a moment just outside the Rayleigh value goes through the table
+    ph = phase_from_legendre([1.0_wp, 0.0_wp, 0.1_wp + 1.0e-9_wp], 100, err)
+    call check(error, .not. allocated(err) .and. ph%kind == PHASE_TABLE, &
+               '{1, 0, 0.1 + 1e-9} is not a table')
+  end subroutine test_legendre_special
+
+  !> The depolarised Rayleigh function as a series, P = a + b mu^2 = 1 + 5 chi_2 P_2(mu) with
+  !> chi_2 = b/7.5, against the closed form (independent check of the summation and of
+  !> kumo_rayleigh's formula). The grid step is 0.25 deg (L = 2) and |(ln P)''| <= 1 rad^-2, so
+  !> the interpolation error is below (4.4e-3)^2/8 = 2.4e-6 relative: tolerance 1e-5. The
+  !> function and the grid are symmetric about 90 deg, so g vanishes to rounding.
+  subroutine test_legendre_depol(error)
+    type(error_t), allocatable, intent(out) :: error
+    real(wp), parameter :: rhos(2) = [0.0279_wp, 0.5_wp]
+    type(error_t), allocatable :: err
+    type(phase_t) :: ph
+    real(wp) :: a, b, mu
+    integer :: i, k
+    do k = 1, size(rhos)
+      call depol_coefficients(rhos(k), a, b)
+      ph = phase_from_legendre([1.0_wp, 0.0_wp, b/7.5_wp], PHASE_N_INV_DEFAULT, err)
+      call check(error, .not. allocated(err) .and. ph%kind == PHASE_TABLE, &
+                 'depolarised series is not a table')
+      if (allocated(error)) return
+      do i = 0, 16
+        mu = cos(real(i, wp)*11.3_wp*DEG2RAD)
+        call check_close(error, phase_eval(ph, mu), a + b*mu*mu, rel_tol=1.0e-5_wp, &
+                         label='series vs a + b mu^2')
+      end do
+      call check_close(error, ph%g, 0.0_wp, abs_tol=1.0e-12_wp, label='g')
+    end do
+  end subroutine test_legendre_depol
+
+  !> The C.1 cloud from its 300 Legendre moments (I3RC `C.1_leg_coef`, equal to Garcia &
+  !> Siewert 1985 Table 17, beta_l/(2l+1)). The first moment of the series is chi_1 = 0.848
+  !> exactly; the table's g differs by the first moment of the interpolation error, which is below
+  !> its L1 size (1/2) Int |P_table - P| dmu = 2.8e-5 plus the renormalisation 1.6e-5 (measured
+  !> with 16 points per grid interval when the grid was chosen): tolerance 5e-5. The I3RC table
+  !> C.1_PF was computed from the same moments: it matches the series to 1.2e-4 at all 1801
+  !> angles (7-digit values); with the interpolation error between grid angles (< 5e-4) the
+  !> phase function must match C.1_PF to 1e-3 relative.
+  subroutine test_legendre_c1(error)
+    type(error_t), allocatable, intent(out) :: error
+    integer, parameter :: n = 200000
+    type(error_t), allocatable :: err
+    real(wp), allocatable :: chi(:), angle(:), value(:)
+    type(phase_t) :: ph
+    real(wp) :: mean, worst, rel
+    integer :: i, nneg, iworst
+    character(len=60) :: label
+    call read_c1_moments(chi, error)
+    if (allocated(error)) return
+    ph = phase_from_legendre(chi, PHASE_N_INV_DEFAULT, err, nneg)
+    call check(error, .not. allocated(err), 'phase_from_legendre failed on C.1_leg_coef')
+    if (allocated(error)) return
+    call check(error, nneg == 0, 'the C.1 series is negative somewhere')
+    call check_close(error, ph%g, 0.848_wp, abs_tol=5.0e-5_wp, label='g of C.1 from moments')
+    mean = 0.0_wp
+    do i = 1, n
+      mean = mean + phase_sample_mu(ph, (i - 0.5_wp)/n)/n
+    end do
+    call check_close(error, mean, 0.848_wp, abs_tol=5.0e-5_wp, label='stratified <mu>')
+    call read_table(c1_path(), angle, value, error)
+    if (allocated(error)) return
+    worst = 0.0_wp
+    iworst = 1
+    do i = 1, size(angle)
+      rel = abs(phase_eval(ph, cos(angle(i)*DEG2RAD))/value(i) - 1.0_wp)
+      if (rel > worst) then
+        worst = rel
+        iworst = i
+      end if
+    end do
+    write (label, '(a, f0.1, a)') 'max relative difference from C.1_PF (at ', angle(iworst), &
+      ' deg)'
+    call check_close(error, worst, 0.0_wp, abs_tol=1.0e-3_wp, label=trim(label))
+  end subroutine test_legendre_c1
+
+  !> {1, 0.9}: P = 1 + 2.7 mu is negative for mu < mu0 = -1/2.7. L = 1 is summed on the
+  !> 0.25 deg grid, so the negative count is the number of grid angles with 1 + 2.7 cos < 0;
+  !> beyond the first of them P = 0 and nothing is sampled there. For mu >= 0 the function is
+  !> (1 + 2.7 mu)/N, N = (1/2) Int_{mu0}^{1} (1 + 2.7 mu) dmu = (1 - mu0)/2 + 0.675 (1 - mu0^2);
+  !> the interpolant differs from it only in the one grid interval holding the zero (its area
+  !> error is ~ P' h^2 < 1e-4 of N) and by log-linear interpolation error < 2e-5, hence 1e-4.
+  subroutine test_legendre_negative(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(error_t), allocatable :: err
+    type(phase_t) :: ph
+    real(wp) :: mu0, norm, mu, mu_cut
+    integer :: i, nneg, expected
+    mu0 = -1.0_wp/2.7_wp
+    ph = phase_from_legendre([1.0_wp, 0.9_wp], 2000, err, nneg)
+    call check(error, .not. allocated(err) .and. ph%kind == PHASE_TABLE, 'conversion failed')
+    if (allocated(error)) return
+    expected = 0
+    do i = 0, 720
+      if (1.0_wp + 2.7_wp*cos(0.25_wp*i*DEG2RAD) < 0.0_wp) expected = expected + 1
+    end do
+    call check(error, expected == 274, 'test set-up: expected 274 negative grid angles')
+    call check(error, nneg == expected, 'n_negative is not the number of negative grid angles')
+    ! first grid angle past the zero: mu there and below has P = 0
+    mu_cut = cos((0.25_wp*ceiling(acos(mu0)/DEG2RAD/0.25_wp))*DEG2RAD)
+    call check_close(error, phase_eval(ph, mu_cut), 0.0_wp, abs_tol=0.0_wp, label='P at cut')
+    call check_close(error, phase_eval(ph, -0.8_wp), 0.0_wp, abs_tol=0.0_wp, label='P(-0.8)')
+    call check(error, ph%mu_inv(1) >= mu_cut - 1.0e-12_wp, 'mu_inv(1) below the zero range')
+    do i = 0, 1000
+      call check(error, phase_sample_mu(ph, i/1000.0_wp) >= mu_cut - 1.0e-12_wp, &
+                 'sample where P = 0')
+      if (allocated(error)) return
+    end do
+    norm = 0.5_wp*(1.0_wp - mu0) + 0.675_wp*(1.0_wp - mu0*mu0)
+    do i = 0, 10
+      mu = 0.1_wp*i
+      call check_close(error, phase_eval(ph, mu), (1.0_wp + 2.7_wp*mu)/norm, rel_tol=1.0e-4_wp, &
+                       label='clipped series, P(mu >= 0)')
+    end do
+  end subroutine test_legendre_negative
+
+  !> Invalid moments give messages naming the index, the value and the rule.
+  subroutine test_legendre_errors(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(error_t), allocatable :: err
+    type(phase_t) :: ph
+    real(wp) :: nan, inf
+    real(wp) :: empty(0:-1)
+    integer :: nneg
+    nan = ieee_value(1.0_wp, ieee_quiet_nan)
+    inf = ieee_value(1.0_wp, ieee_positive_inf)
+    ph = phase_from_legendre([0.9_wp, 0.5_wp], 100, err, nneg)
+    call expect_error(error, err, [character(len=48) :: 'phase_from_legendre: ', &
+                                   'chi(0) = 0.9 must be 1 (within 1e-6)'], 'chi(0) = 0.9')
+    call check(error, ph%kind == PHASE_ISOTROPIC .and. nneg == 0, 'result on error')
+    ph = phase_from_legendre([1.0_wp + 2.0e-6_wp], 100, err)
+    call expect_error(error, err, [character(len=48) :: 'chi(0) = 1.000002 must be 1'], &
+                      'chi(0) = 1 + 2e-6')
+    ph = phase_from_legendre([1.0_wp, 0.5_wp, 0.2_wp, 1.2_wp], 100, err)
+    call expect_error(error, err, [character(len=48) :: 'chi(3) = 1.2 must satisfy', &
+                                   '|chi_l| <= 1 (within 1e-6)'], 'chi(3) = 1.2')
+    ph = phase_from_legendre([1.0_wp, 0.5_wp, -1.5_wp], 100, err)
+    call expect_error(error, err, [character(len=48) :: 'chi(2) = -1.5 must satisfy'], &
+                      'chi(2) = -1.5')
+    ph = phase_from_legendre([1.0_wp, nan], 100, err)
+    call expect_error(error, err, [character(len=48) :: 'chi(1) = NaN is not finite'], 'NaN')
+    ph = phase_from_legendre([inf, 0.5_wp], 100, err)
+    call expect_error(error, err, [character(len=48) :: 'chi(0) = Inf is not finite'], 'Inf')
+    ph = phase_from_legendre(empty, 100, err)
+    call expect_error(error, err, [character(len=48) :: 'chi is empty'], 'empty')
+    ph = phase_from_legendre([1.0_wp, 0.5_wp], 1, err)
+    call expect_error(error, err, [character(len=48) :: 'phase_from_legendre: n_inv = 1', &
+                                   'must be >= 2'], 'n_inv')
+    ! within the tolerances: accepted
+    ph = phase_from_legendre([1.0_wp + 9.0e-7_wp, -1.0_wp - 9.0e-7_wp], 100, err)
+    call check(error, .not. allocated(err), 'moments within 1e-6 of the bounds rejected')
+  end subroutine test_legendre_errors
+
   !> The depolarised Rayleigh phase_t against the closed form written out in this test
   !> (agreement to rounding), its normalisation and the exactness of its sampler: F(mu(u)) = u
   !> with F(mu) = (1 + a mu + b mu^3/3)/2 (a few roundings of mu times P/2 <= 0.6: 2e-15).
@@ -684,7 +949,7 @@ contains
   subroutine test_bounds(error)
     type(error_t), allocatable, intent(out) :: error
     type(error_t), allocatable :: err
-    type(phase_t) :: phs(6)
+    type(phase_t) :: phs(7)
     real(wp) :: us(4), mu, tol
     integer :: i, k
     us = [0.0_wp, epsilon(1.0_wp), 1.0_wp - epsilon(1.0_wp)/2.0_wp, 1.0_wp]
@@ -695,6 +960,8 @@ contains
     phs(5) = phase_from_table([0.0_wp, 1.0_wp, 180.0_wp], [1.0e4_wp, 1.0_wp, 0.5_wp], 50, err)
     call check(error, .not. allocated(err), 'constructor failed')
     phs(6) = new_phase_rayleigh_depol(0.5_wp, err)
+    call check(error, .not. allocated(err), 'constructor failed')
+    phs(7) = phase_from_legendre([(0.9_wp**k, k=0, 200)], 50, err)
     call check(error, .not. allocated(err), 'constructor failed')
     do k = 1, size(phs)
       do i = 1, size(us)

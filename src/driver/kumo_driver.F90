@@ -11,6 +11,7 @@ module kumo_driver
   use kumo_error, only: error_t, set_error, add_context, str
   use kumo_rng, only: rng_t, rng_init
   use kumo_phase, only: phase_t, new_phase_isotropic, new_phase_rayleigh, new_phase_hg, phase_from_table, &
+                        new_phase_rayleigh_depol, &
                         PHASE_ISOTROPIC, PHASE_RAYLEIGH, PHASE_HG, PHASE_TABLE, phase_eval
   use kumo_atmosphere, only: atmosphere_t, atmosphere_options_t, atmosphere_init, &
                              atmosphere_set_truncation, LAYER_CLASS_NAMES, LAYER_3D
@@ -24,7 +25,9 @@ module kumo_driver
                         stats_add_batch, stats_mean, stats_stderr, N_ANOMALIES, ANOMALY_NAMES
   use kumo_transport, only: source_t, tracer_options_t, source_init, trace_batch
   use kumo_results, only: result_set_t, add_dim, add_var, add_attr, find_var
-  use kumo_config, only: config_t, read_config, config_echo
+  use kumo_config, only: config_t, read_config, config_echo, resolve_path
+  use kumo_cloud_scene, only: cloud_optics_t, build_cloud_optics, rayleigh_layers
+  use kumo_rayleigh, only: depol_from_king, king_factor_air
   use kumo_textio, only: read_two_columns, read_whole_file
   use kumo_netcdf, only: write_results, check_writable, read_scene_3d, read_albedo_map, &
                          read_brdf_map
@@ -42,6 +45,8 @@ module kumo_driver
     type(tracer_options_t) :: tracer
     type(detectors_t) :: det                 !! radiance detectors and cameras
     real(wp) :: mu0 = 1.0_wp
+    real(wp), allocatable :: air_density(:)  !! (nz) [kg m-3] for heating rates, if known
+    character(len=:), allocatable :: notes    !! how the scene was built, for the log
     character(len=:), allocatable :: warnings !! for the log and the output file
   end type scene_t
 
@@ -108,18 +113,6 @@ contains
     end if
   end subroutine run_case
 
-  !> Resolve a path given in the namelist: relative paths are relative to the namelist's folder.
-  function resolve(path, nml_path) result(full)
-    character(len=*), intent(in) :: path, nml_path
-    character(len=:), allocatable :: full
-    integer :: i
-    full = trim(path)
-    if (len(full) == 0) return
-    if (full(1:1) == '/') return
-    i = index(nml_path, '/', back=.true.)
-    if (i > 0) full = nml_path(1:i)//full
-  end function resolve
-
   !> Build the scene (phase functions, atmosphere, surface, source) from a configuration.
   subroutine setup_scene(cfg, scene, error)
     type(config_t), intent(in) :: cfg
@@ -129,9 +122,12 @@ contains
     type(atmosphere_options_t) :: aopts
     real(wp), allocatable :: ang(:), val(:), ext3(:, :, :, :), ssa3(:, :, :, :), alb(:, :)
     type(brdf_params_t), allocatable :: bmap(:, :)
-    integer, allocatable :: iph3(:, :, :, :)
+    integer, allocatable :: iph3(:, :, :, :), phase1d(:, :)
     integer :: i
     character(len=:), allocatable :: nml_path
+    real(wp), allocatable :: ext1d(:, :), ssa1d(:, :), ray_ext(:), ray_rho(:)
+    type(cloud_optics_t) :: copt
+    real(wp) :: depol
 
     nml_path = ''
     if (allocated(cfg%path)) nml_path = cfg%path
@@ -145,7 +141,7 @@ contains
       case (PHASE_HG)
         phases(i) = new_phase_hg(cfg%phase%g(i), error)
       case (PHASE_TABLE)
-        call read_two_columns(resolve(cfg%phase%file(i), nml_path), ang, val, error)
+        call read_two_columns(resolve_path(cfg%phase%file(i), nml_path), ang, val, error)
         if (.not. allocated(error)) phases(i) = phase_from_table(ang, val, cfg%phase%n_table, error)
       case default
         call set_error(error, 'unknown phase-function kind code '//str(cfg%phase%kind(i)))
@@ -156,6 +152,49 @@ contains
       end if
     end do
 
+    scene%notes = ''
+    scene%warnings = ''
+    ext1d = cfg%atm%ext1d
+    ssa1d = cfg%atm%ssa1d
+    phase1d = cfg%atm%phase1d
+    if (allocated(cfg%atm%air_density)) scene%air_density = cfg%atm%air_density
+    if (cfg%atm%rayleigh) then
+      ! molecules: one more 1-D component with its own phase function
+      call rayleigh_layers(cfg%atm%z, cfg%source%wavelength_um, cfg%atm%rayleigh_profile, &
+                           cfg%atm%co2_ppm, cfg%atm%latitude_deg, ray_ext, ray_rho, error)
+      if (allocated(error)) then
+        call add_context(error, '&kumo_atmosphere rayleigh')
+        return
+      end if
+      depol = cfg%atm%rayleigh_depol
+      if (depol < 0.0_wp) depol = depol_from_king(king_factor_air(cfg%source%wavelength_um, &
+                                                                  cfg%atm%co2_ppm))
+      phases = [phases, new_phase_rayleigh_depol(depol, error)]
+      if (allocated(error)) then
+        call add_context(error, '&kumo_atmosphere rayleigh_depol')
+        return
+      end if
+      ext1d = reshape([ext1d, ray_ext], [cfg%atm%nz, size(ext1d, 2) + 1])
+      ssa1d = reshape([ssa1d, spread(1.0_wp, 1, cfg%atm%nz)], [cfg%atm%nz, size(ssa1d, 2) + 1])
+      phase1d = reshape([phase1d, spread(size(phases), 1, cfg%atm%nz)], &
+                        [cfg%atm%nz, size(phase1d, 2) + 1])
+      if (.not. allocated(scene%air_density)) scene%air_density = ray_rho
+      scene%notes = scene%notes//'Rayleigh scattering ('//trim(cfg%atm%rayleigh_profile)// &
+                    ', Bodhaine et al. 1999): optical depth '//str(sum(ray_ext*(cfg%atm%z(2:) - &
+                    cfg%atm%z(:cfg%atm%nz))))//', depolarisation ratio '//str(depol)// &
+                    new_line('a')
+    end if
+    if (cfg%cloud%enabled) then
+      call cloud_on_ranks(cfg, size(phases), copt, error)
+      if (allocated(error)) return
+      phases = [phases, copt%phases]
+      call move_alloc(copt%ext, ext3)
+      call move_alloc(copt%ssa, ssa3)
+      call move_alloc(copt%iph, iph3)
+      scene%notes = scene%notes//copt%notes
+      scene%warnings = scene%warnings//copt%warnings
+    end if
+
     aopts%use_1d_layers = cfg%vr%use_1d_layers
     aopts%use_absorbing_layers = cfg%vr%use_absorbing_layers
     aopts%sv%enabled = cfg%vr%use_supervoxels
@@ -163,19 +202,21 @@ contains
     aopts%sv%fsupi = cfg%vr%sv_fsupi
     aopts%sv%max_layers = cfg%vr%sv_max_layers
     if (len_trim(cfg%atm%scene_file) > 0) then
-      call read_scene_on_root(cfg, resolve(cfg%atm%scene_file, nml_path), ext3, ssa3, iph3, error)
+      call read_scene_on_root(cfg, resolve_path(cfg%atm%scene_file, nml_path), ext3, ssa3, &
+                              iph3, error)
       if (allocated(error)) return
-      call atmosphere_init(scene%atm, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, cfg%atm%ext1d, &
-                           cfg%atm%ssa1d, cfg%atm%phase1d, phases, aopts, error, &
-                           cfg%atm%k3d_bottom, ext3, ssa3, iph3)
+    end if
+    if (allocated(ext3)) then
+      call atmosphere_init(scene%atm, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, ext1d, ssa1d, &
+                           phase1d, phases, aopts, error, cfg%atm%k3d_bottom, ext3, ssa3, iph3)
     else
-      call atmosphere_init(scene%atm, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, cfg%atm%ext1d, &
-                           cfg%atm%ssa1d, cfg%atm%phase1d, phases, aopts, error)
+      call atmosphere_init(scene%atm, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, ext1d, ssa1d, &
+                           phase1d, phases, aopts, error)
     end if
     if (allocated(error)) return
 
     if (len_trim(cfg%surface%albedo_file) > 0) then
-      call read_albedo_on_root(resolve(cfg%surface%albedo_file, nml_path), &
+      call read_albedo_on_root(resolve_path(cfg%surface%albedo_file, nml_path), &
                                trim(cfg%surface%albedo_var), alb, error)
       if (allocated(error)) return
     else
@@ -183,7 +224,7 @@ contains
       alb = cfg%surface%albedo
     end if
     if (len_trim(cfg%surface%brdf_file) > 0) then
-      call brdf_map_on_root(resolve(cfg%surface%brdf_file, nml_path), cfg%surface%model%kind, &
+      call brdf_map_on_root(resolve_path(cfg%surface%brdf_file, nml_path), cfg%surface%model%kind, &
                             bmap, error)
       if (allocated(error)) return
       call surface_init_brdf_map(scene%sfc, bmap, cfg%atm%lx, cfg%atm%ly, error)
@@ -243,7 +284,6 @@ contains
     integer :: i, k, kind
     logical :: spiky
 
-    scene%warnings = ''
     allocate (cams(cfg%cam%n))
     do i = 1, cfg%cam%n
       kind = CAMERA_PINHOLE
@@ -371,6 +411,26 @@ contains
     end if
   end subroutine read_scene_on_root
 
+  !> The cloud's optics on every rank. Rank 0 goes first, so that a Mie table it computes is in
+  !> the cache before the other ranks look for it; they then read it instead of computing it.
+  subroutine cloud_on_ranks(cfg, phase_offset, copt, error)
+    type(config_t), intent(in) :: cfg
+    integer, intent(in) :: phase_offset
+    type(cloud_optics_t), intent(out) :: copt
+    type(error_t), allocatable, intent(out) :: error
+    integer :: status(1)
+    status = 0
+    if (par_is_root()) then
+      call build_cloud_optics(cfg%cloud, cfg%source%wavelength_um, cfg%phase%n_table, &
+                              phase_offset, copt, error)
+      if (allocated(error)) status = 1
+    end if
+    call share_read_status(status, cfg%cloud%req%path, error)
+    if (allocated(error) .or. par_is_root()) return
+    call build_cloud_optics(cfg%cloud, cfg%source%wavelength_um, cfg%phase%n_table, &
+                            phase_offset, copt, error)
+  end subroutine cloud_on_ranks
+
   !> Give every rank rank 0's read status (status(1) /= 0: failed; the rest: sizes); ranks
   !> other than 0 get an error naming the file when the read failed.
   subroutine share_read_status(status, path, error)
@@ -477,6 +537,8 @@ contains
     call layout_init(lay, scene%atm%nz, scene%atm%nx*scene%atm%ny, scene%atm%n3, map_levels, &
                      voxel, scene%det%n_dir, scene%det%levels, rad_maps, cam_npix, &
                      [scene%atm%k3_lo - 1, scene%atm%k3_hi])
+    if (par_is_root() .and. len(scene%notes) > 0 .and. cfg%control%verbose >= 1) &
+      write (output_unit, '(a)', advance='no') scene%notes
     if (par_is_root() .and. len(scene%warnings) > 0) write (error_unit, '(a)') &
       'kumo: warning: '//scene%warnings
     call stats_init(st, lay)
@@ -649,8 +711,8 @@ contains
                      stats_mean1(lay%i_dif + lev + 1)*f_hor, stats_err1(lay%i_dif + lev + 1)*f_hor)
         call add_var(set, 'absorbed_power_density_layer', 'layer-mean absorbed power per volume', &
                      'W m-3', ['layer'], m, e)
-        if (allocated(cfg%atm%air_density)) then
-          fac = SECONDS_PER_DAY/(cfg%atm%air_density*cfg%atm%cp_air)
+        if (allocated(scene%air_density)) then
+          fac = SECONDS_PER_DAY/(scene%air_density*cfg%atm%cp_air)
           call add_var(set, 'heating_rate_layer', 'layer-mean heating rate', 'K day-1', &
                        ['layer'], m*fac, e*fac)
         end if
@@ -694,10 +756,10 @@ contains
         if (f_hor > 0.0_dp) then
           call add_var(set, 'absorbed_power_density_voxel', 'absorbed power per volume', &
                        'W m-3', ['x  ', 'y  ', 'z3d'], m*f_hor, e*f_hor)
-          if (allocated(cfg%atm%air_density)) then
+          if (allocated(scene%air_density)) then
             do kr = 1, atm%n3
               fac((kr - 1)*ncol + 1:kr*ncol) = f_hor*SECONDS_PER_DAY/ &
-                (cfg%atm%air_density(atm%k3_lo + kr - 1)*cfg%atm%cp_air)
+                (scene%air_density(atm%k3_lo + kr - 1)*cfg%atm%cp_air)
             end do
             call add_var(set, 'heating_rate_voxel', 'heating rate', 'K day-1', &
                          ['x  ', 'y  ', 'z3d'], m*fac, e*fac)
@@ -743,6 +805,8 @@ contains
       call add_attr(set, 'cpu_time_s', str(summary%cpu_time))
       call add_attr(set, 'setup_time_s', str(summary%setup_time))
       call add_attr(set, 'solar_zenith_angle_deg', str(cfg%source%sza_deg))
+      if (cfg%source%wavelength_um > 0.0_wp) call add_attr(set, 'wavelength_um', &
+                                                           str(cfg%source%wavelength_um))
       call add_attr(set, 'normalisation', 'fluxes and absorptances are divided by the incident'// &
                     ' solar flux on a horizontal plane, mu0*F0; *_wm2 and power densities use F0 = '// &
                     str(cfg%source%solar_flux)//' W m-2')
@@ -757,6 +821,7 @@ contains
       call add_attr(set, 'mode_3d', trim(cfg%control%mode_3d))
       if (cfg%control%mode_3d == 'p3d') call add_attr(set, 'p3d_orders', str(cfg%control%p3d_orders))
       if (len(scene%warnings) > 0) call add_attr(set, 'warnings', scene%warnings)
+      if (len(scene%notes) > 0) call add_attr(set, 'scene_notes', scene%notes)
       call add_attr(set, 'supervoxels', sv_text())
       do i = 1, N_ANOMALIES
         call add_attr(set, 'anomaly_'//trim(ANOMALY_NAMES(i)), str(summary%anomalies(i)))

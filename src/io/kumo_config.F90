@@ -16,11 +16,16 @@ module kumo_config
   use kumo_math, only: within
   use kumo_brdf, only: brdf_params_t, brdf_params, brdf_kind_from_name, brdf_validate, &
                        cox_munk_slope_variance, BRDF_BLACK, BRDF_LAMBERT, BRDF_DSM, BRDF_NPAR
+  use kumo_mie, only: dist_kind_from_name, size_dist_validate
+  use kumo_std_atmosphere, only: std_atmosphere_kind_from_name
+  use kumo_les_netcdf, only: LES_NAME_LEN
+  use kumo_cloud_input, only: cloud_input_t, cloud_request_t, read_cloud_input, &
+                              cloud_format_check, CLOUD_OPTICS
   implicit none
   private
   public :: config_t, control_cfg_t, atmosphere_cfg_t, phase_cfg_t, surface_cfg_t, &
-            source_cfg_t, output_cfg_t, vr_cfg_t, radiance_cfg_t, camera_cfg_t, read_config, &
-            config_echo
+            source_cfg_t, output_cfg_t, vr_cfg_t, radiance_cfg_t, camera_cfg_t, cloud_cfg_t, &
+            read_config, config_echo, resolve_path
   public :: MAX_LAYERS, MAX_COMP, MAX_PHASE, MAX_DIR, MAX_CAMERAS, TARGET_NAMES, PRESET_NAMES, &
             MODE_NAMES
 
@@ -38,9 +43,9 @@ module kumo_config
     [character(len=16) :: 'reflectance', 'transmittance', 'absorptance']
   !> Transport modes: full 3-D, independent columns, 3-D for the first scattering orders.
   character(len=8), parameter :: MODE_NAMES(3) = [character(len=8) :: 'f3d', 'ica', 'p3d']
-  character(len=16), parameter :: GROUP_NAMES(9) = &
+  character(len=16), parameter :: GROUP_NAMES(10) = &
     [character(len=16) :: 'kumo_control', 'kumo_atmosphere', 'kumo_phase', 'kumo_surface', &
-     'kumo_source', 'kumo_output', 'kumo_vr', 'kumo_radiance', 'kumo_camera']
+     'kumo_source', 'kumo_output', 'kumo_vr', 'kumo_radiance', 'kumo_camera', 'kumo_cloud']
   !> Variance-reduction presets, from none to the most aggressive (see read_vr).
   character(len=16), parameter :: PRESET_NAMES(4) = &
     [character(len=16) :: 'analog', 'unbiased', 'standard', 'quick']
@@ -82,7 +87,29 @@ module kumo_config
     integer, allocatable :: phase3d(:)             !! phase index per 3-D component
     real(wp), allocatable :: air_density(:)        !! (nz) [kg m-3], for heating rates in K/day
     real(wp) :: cp_air = 1004.64_wp                !! specific heat [J kg-1 K-1]
+    logical :: levels_from_cloud = .false.         !! levels taken from the &kumo_cloud file
+    ! Molecular (Rayleigh) scattering added to every layer as one more component
+    logical :: rayleigh = .false.                  !! add Rayleigh scattering of dry air
+    character(len=16) :: rayleigh_profile = 'us1976' !! pressure profile: a standard atmosphere
+    real(wp) :: co2_ppm = 400.0_wp                 !! CO2 volume mixing ratio [ppm]
+    real(wp) :: latitude_deg = 45.0_wp             !! latitude for gravity [deg]
+    real(wp) :: rayleigh_depol = -1.0_wp           !! depolarisation ratio; < 0: Bodhaine value
   end type atmosphere_cfg_t
+
+  !> &kumo_cloud: the 3-D region from a model-output or cloud file, optics computed by kumo.
+  type :: cloud_cfg_t
+    logical :: enabled = .false.                   !! a cloud file is given
+    type(cloud_request_t) :: req                   !! format, resolved path, LES names, ...
+    character(len=PATH_LEN) :: file = ''           !! the file as written in the namelist
+    character(len=16) :: size_distribution = 'gamma' !! droplet size distribution
+    real(wp) :: v_eff = 0.1_wp                     !! effective variance
+    real(wp) :: reff_min_um = 1.0_wp               !! smallest table radius [um]
+    real(wp) :: reff_max_um = 40.0_wp              !! largest table radius [um]
+    integer :: n_reff = 40                         !! table radii (geometric spacing)
+    character(len=PATH_LEN) :: mie_cache = ''      !! netCDF Mie-table cache ('' = none)
+    character(len=PATH_LEN) :: ice_optics_file = '' !! ice optics table (Mie-table layout)
+    type(cloud_input_t) :: grid                    !! the file's grid (no field data)
+  end type cloud_cfg_t
 
   !> &kumo_phase: the phase functions, referenced by index from layers and voxels.
   type :: phase_cfg_t
@@ -111,6 +138,7 @@ module kumo_config
     real(wp) :: sza_deg = 0.0_wp                   !! solar zenith angle [deg], 0 <= sza < 90
     real(wp) :: phi0_deg = 0.0_wp                  !! azimuth the beam travels towards [deg]
     real(wp) :: solar_flux = 0.0_wp                !! F0 normal to the beam [W m-2]; 0 = unknown
+    real(wp) :: wavelength_um = 0.0_wp             !! vacuum wavelength [um]; 0 = not given
   end type source_cfg_t
 
   !> &kumo_output: what to write and where.
@@ -175,6 +203,7 @@ module kumo_config
     type(vr_cfg_t) :: vr
     type(radiance_cfg_t) :: rad
     type(camera_cfg_t) :: cam
+    type(cloud_cfg_t) :: cloud
   end type config_t
 
 contains
@@ -195,7 +224,9 @@ contains
     end if
     call scan_groups(unit, present_groups, error)
     if (.not. allocated(error)) call read_control(unit, present_groups(1), cfg%control, error)
-    if (.not. allocated(error)) call read_atmosphere(unit, present_groups(2), cfg%atm, error)
+    if (.not. allocated(error)) call read_cloud(unit, present_groups(10), path, cfg%cloud, error)
+    if (.not. allocated(error)) call read_atmosphere(unit, present_groups(2), cfg%cloud, &
+                                                     cfg%atm, error)
     if (.not. allocated(error)) call read_phase(unit, present_groups(3), cfg%phase, error)
     if (.not. allocated(error)) call read_surface(unit, present_groups(4), cfg%surface, error)
     if (.not. allocated(error)) call read_source(unit, present_groups(5), cfg%source, error)
@@ -330,28 +361,38 @@ contains
     end if
   end subroutine read_control
 
-  subroutine read_atmosphere(unit, present, cfg, error)
+  subroutine read_atmosphere(unit, present, cloud, cfg, error)
     integer, intent(in) :: unit
     logical, intent(in) :: present
+    type(cloud_cfg_t), intent(in) :: cloud
     type(atmosphere_cfg_t), intent(inout) :: cfg
     type(error_t), allocatable, intent(out) :: error
-    integer :: nz, n_components, k3d_bottom, nx, ny, nz3, n_components_3d, ios, k, ic
-    real(wp) :: lx, ly, cp_air
+    integer :: nz, n_components, k3d_bottom, nx, ny, nz3, n_components_3d, ios, k, ic, kind
+    real(wp) :: lx, ly, cp_air, co2_ppm, latitude_deg, rayleigh_depol
+    logical :: rayleigh
+    character(len=16) :: rayleigh_profile
     real(wp) :: z_levels(0:MAX_LAYERS), ext1d(MAX_LAYERS, MAX_COMP), ssa1d(MAX_LAYERS, MAX_COMP)
     real(wp) :: air_density(MAX_LAYERS)
     integer :: phase1d(MAX_LAYERS, MAX_COMP), phase3d(MAX_COMP)
     character(len=PATH_LEN) :: scene_file
     character(len=512) :: msg
     namelist /kumo_atmosphere/ nz, z_levels, lx, ly, n_components, ext1d, ssa1d, phase1d, &
-      scene_file, k3d_bottom, nx, ny, nz3, n_components_3d, phase3d, air_density, cp_air
-    if (.not. present) then
-      call set_error(error, 'namelist group &kumo_atmosphere is required (levels and layers)')
+      scene_file, k3d_bottom, nx, ny, nz3, n_components_3d, phase3d, air_density, cp_air, &
+      rayleigh, rayleigh_profile, co2_ppm, latitude_deg, rayleigh_depol
+    if (.not. present .and. .not. cloud%enabled) then
+      call set_error(error, 'namelist group &kumo_atmosphere is required (levels and layers) '// &
+                     'unless &kumo_cloud gives a cloud file')
       return
     end if
     nz = 0
     z_levels = UNSET
-    lx = cfg%lx
-    ly = cfg%ly
+    lx = UNSET
+    ly = UNSET
+    rayleigh = cfg%rayleigh
+    rayleigh_profile = cfg%rayleigh_profile
+    co2_ppm = cfg%co2_ppm
+    latitude_deg = cfg%latitude_deg
+    rayleigh_depol = cfg%rayleigh_depol
     n_components = cfg%n_components
     ext1d = UNSET
     ssa1d = UNSET
@@ -370,6 +411,40 @@ contains
     read (unit, nml=kumo_atmosphere, iostat=ios, iomsg=msg)
     call check_read('kumo_atmosphere', present, ios, msg, error)
     if (allocated(error)) return
+    if (rayleigh) then
+      call std_atmosphere_kind_from_name(rayleigh_profile, kind, error)
+      if (allocated(error)) then
+        error%message = '&kumo_atmosphere: rayleigh_profile: '//error%message
+        return
+      end if
+      if (.not. (within(co2_ppm, 0.0_wp, 2000.0_wp) .and. within(latitude_deg, -90.0_wp, &
+                                                                  90.0_wp))) then
+        call set_error(error, '&kumo_atmosphere: co2_ppm = '//str(co2_ppm)//' must be within '// &
+                       '[0, 2000] and latitude_deg = '//str(latitude_deg)//' within [-90, 90]')
+        return
+      end if
+      if (.not. rayleigh_depol < 6.0_wp/7.0_wp .or. .not. ieee_is_finite(rayleigh_depol)) then
+        call set_error(error, '&kumo_atmosphere: rayleigh_depol = '//str(rayleigh_depol)// &
+                       ' must be < 6/7 (a value < 0 takes the Bodhaine et al. value)')
+        return
+      end if
+    end if
+    cfg%rayleigh = rayleigh
+    cfg%rayleigh_profile = to_lower(rayleigh_profile)
+    cfg%co2_ppm = co2_ppm
+    cfg%latitude_deg = latitude_deg
+    cfg%rayleigh_depol = rayleigh_depol
+    if (cloud%enabled) then
+      call levels_with_cloud(cloud, nz, z_levels, lx, ly, scene_file, k3d_bottom, nz3, ext1d, &
+                             ssa1d, phase1d, error)
+      if (allocated(error)) return
+      nx = cloud%grid%nx
+      ny = cloud%grid%ny
+      n_components_3d = 1
+      cfg%levels_from_cloud = .true.
+    end if
+    if (lx == UNSET) lx = cfg%lx
+    if (ly == UNSET) ly = cfg%ly
     if (nz < 1 .or. nz > MAX_LAYERS) then
       call set_error(error, '&kumo_atmosphere: nz = '//str(nz)//' must be within 1..'// &
                      str(MAX_LAYERS))
@@ -450,7 +525,7 @@ contains
                        ' must be within 1..'//str(MAX_COMP))
         return
       end if
-    else if (k3d_bottom /= 0 .or. nz3 /= 0) then
+    else if ((k3d_bottom /= 0 .or. nz3 /= 0) .and. .not. cloud%enabled) then
       call set_error(error, '&kumo_atmosphere: k3d_bottom/nz3 are set but scene_file is empty')
       return
     end if
@@ -487,6 +562,216 @@ contains
     cfg%phase3d = phase3d(1:n_components_3d)
     cfg%cp_air = cp_air
   end subroutine read_atmosphere
+
+  !> Levels with a cloud file: the file's layer edges, below them a layer from the ground if
+  !> the file starts above 0; or, when z_levels is given, z_levels must hold the file's edges
+  !> as consecutive levels (to 1 mm), and the 3-D region is put there.
+  subroutine levels_with_cloud(cloud, nz, z_levels, lx, ly, scene_file, k3d_bottom, nz3, &
+                               ext1d, ssa1d, phase1d, error)
+    type(cloud_cfg_t), intent(in) :: cloud
+    integer, intent(inout) :: nz, k3d_bottom, nz3
+    real(wp), intent(inout) :: z_levels(0:), lx, ly, ext1d(:, :), ssa1d(:, :)
+    integer, intent(inout) :: phase1d(:, :)
+    character(len=*), intent(in) :: scene_file
+    type(error_t), allocatable, intent(out) :: error
+    real(wp), parameter :: TOL = 1.0e-3_wp   ! [m]
+    integer :: nzc, k, j
+    real(wp) :: lxc, lyc
+    character(len=*), parameter :: CTX = '&kumo_atmosphere with &kumo_cloud: '
+    nzc = cloud%grid%nz
+    lxc = cloud%grid%nx*cloud%grid%dx
+    lyc = cloud%grid%ny*cloud%grid%dy
+    if (len_trim(scene_file) > 0 .or. k3d_bottom /= 0 .or. nz3 /= 0) then
+      call set_error(error, CTX//'scene_file, k3d_bottom and nz3 must not be set: the 3-D '// &
+                     'region is the cloud file''s grid')
+      return
+    end if
+    if ((lx /= UNSET .and. abs(lx - lxc) > TOL) .or. (ly /= UNSET .and. abs(ly - lyc) > TOL)) then
+      call set_error(error, CTX//'lx, ly = '//str(lx)//', '//str(ly)//' differ from the '// &
+                     'cloud file''s domain '//str(lxc)//' x '//str(lyc)//' m; leave them out')
+      return
+    end if
+    lx = lxc
+    ly = lyc
+    if (nz == 0 .and. all(z_levels == UNSET)) then
+      if (any(ext1d /= UNSET) .or. any(ssa1d /= UNSET) .or. any(phase1d /= IUNSET)) then
+        call set_error(error, CTX//'ext1d, ssa1d or phase1d need z_levels (and nz): give the '// &
+                       'levels of the whole column, the cloud file''s edges among them')
+        return
+      end if
+      k = 0
+      if (cloud%grid%z(0) > 0.0_wp) then
+        z_levels(0) = 0.0_wp
+        k = 1
+      end if
+      if (k + nzc > MAX_LAYERS) then
+        call set_error(error, CTX//'the cloud file has '//str(nzc)//' layers; at most '// &
+                       str(MAX_LAYERS)//' are possible')
+        return
+      end if
+      z_levels(k:k + nzc) = cloud%grid%z
+      nz = k + nzc
+      k3d_bottom = k + 1
+    else
+      k3d_bottom = -1
+      do k = 0, nz - nzc
+        if (all(abs(z_levels(k:k + nzc) - cloud%grid%z) <= TOL)) then
+          k3d_bottom = k + 1
+          exit
+        end if
+      end do
+      if (k3d_bottom < 0) then
+        call set_error(error, CTX//'z_levels must contain the cloud file''s '//str(nzc + 1)// &
+                       ' layer edges '//str(cloud%grid%z(0))//' ... '//str(cloud%grid%z(nzc))// &
+                       ' m as consecutive levels (to 1 mm); or leave z_levels out to use them')
+        return
+      end if
+      j = k3d_bottom - 1
+      z_levels(j:j + nzc) = cloud%grid%z
+    end if
+    nz3 = nzc
+  end subroutine levels_with_cloud
+
+  !> &kumo_cloud: the cloud file, what it lacks, and how kumo computes its optics. The file's
+  !> grid is read here, so that the levels are known to the other groups.
+  subroutine read_cloud(unit, present, nml_path, cfg, error)
+    integer, intent(in) :: unit
+    logical, intent(in) :: present
+    character(len=*), intent(in) :: nml_path
+    type(cloud_cfg_t), intent(inout) :: cfg
+    type(error_t), allocatable, intent(out) :: error
+    character(len=PATH_LEN) :: cloud_file, mie_cache, ice_optics_file
+    character(len=16) :: cloud_format, size_distribution
+    character(len=LES_NAME_LEN) :: les_lwc, les_reff, les_number, les_iwc, les_reff_ice, &
+                                   les_temperature, les_pressure, les_air_density, les_x, les_y, &
+                                   les_z, les_x_edges, les_y_edges, les_z_edges
+    integer :: les_time_index, n_reff, ios, dist
+    real(wp) :: les_k_factor, droplet_number_cm3, v_eff, reff_min_um, reff_max_um
+    logical :: les_z_edges_from_midpoints
+    character(len=512) :: msg
+    namelist /kumo_cloud/ cloud_file, cloud_format, les_time_index, les_lwc, les_reff, &
+      les_number, les_iwc, les_reff_ice, les_temperature, les_pressure, les_air_density, &
+      les_x, les_y, les_z, les_x_edges, les_y_edges, les_z_edges, les_k_factor, &
+      les_z_edges_from_midpoints, droplet_number_cm3, size_distribution, v_eff, reff_min_um, &
+      reff_max_um, n_reff, mie_cache, ice_optics_file
+    if (.not. present) return
+    cloud_file = ''
+    cloud_format = 'les'
+    les_time_index = -1
+    les_lwc = ''
+    les_reff = ''
+    les_number = ''
+    les_iwc = ''
+    les_reff_ice = ''
+    les_temperature = ''
+    les_pressure = ''
+    les_air_density = ''
+    les_x = ''
+    les_y = ''
+    les_z = ''
+    les_x_edges = ''
+    les_y_edges = ''
+    les_z_edges = ''
+    les_k_factor = cfg%req%k_factor
+    les_z_edges_from_midpoints = .false.
+    droplet_number_cm3 = 0.0_wp
+    size_distribution = cfg%size_distribution
+    v_eff = cfg%v_eff
+    reff_min_um = cfg%reff_min_um
+    reff_max_um = cfg%reff_max_um
+    n_reff = cfg%n_reff
+    mie_cache = ''
+    ice_optics_file = ''
+    rewind (unit)
+    msg = ''
+    read (unit, nml=kumo_cloud, iostat=ios, iomsg=msg)
+    call check_read('kumo_cloud', present, ios, msg, error)
+    if (allocated(error)) return
+    call cloud_format_check(cloud_format, cfg%req%format, error)
+    if (allocated(error)) then
+      error%message = '&kumo_cloud: '//error%message
+      return
+    end if
+    if (les_time_index == 0 .or. les_time_index < -1) then
+      call set_error(error, '&kumo_cloud: les_time_index = '//str(les_time_index)// &
+                     ' must be >= 1, or -1 for a file without a time dimension')
+    else if (.not. (les_k_factor > 0.0_wp .and. les_k_factor <= 1.0_wp)) then
+      call set_error(error, '&kumo_cloud: les_k_factor = '//str(les_k_factor)// &
+                     ' must satisfy 0 < les_k_factor <= 1')
+    else if (.not. within(droplet_number_cm3, 0.0_wp, BIG)) then
+      call set_error(error, '&kumo_cloud: droplet_number_cm3 = '//str(droplet_number_cm3)// &
+                     ' must be finite and >= 0 (0 = not given)')
+    else if (n_reff < 2 .or. n_reff > 1000) then
+      call set_error(error, '&kumo_cloud: n_reff = '//str(n_reff)//' must be within 2..1000')
+    else if (.not. (within(reff_min_um, 0.01_wp, 1000.0_wp) .and. &
+                    within(reff_max_um, 0.01_wp, 1000.0_wp) .and. reff_max_um > reff_min_um)) then
+      call set_error(error, '&kumo_cloud: reff_min_um = '//str(reff_min_um)// &
+                     ' and reff_max_um = '//str(reff_max_um)//' must satisfy 0.01 <= '// &
+                     'reff_min_um < reff_max_um <= 1000 [um]')
+    end if
+    if (allocated(error)) return
+    call dist_kind_from_name(size_distribution, dist, error)
+    if (.not. allocated(error)) call size_dist_validate(dist, reff_min_um, v_eff, error)
+    if (allocated(error)) then
+      error%message = '&kumo_cloud: '//error%message
+      return
+    end if
+    if (len_trim(cloud_file) == 0) return   ! no cloud file: the group's settings are unused
+    cfg%enabled = .true.
+    cfg%file = cloud_file
+    cfg%req%path = resolve_path(cloud_file, nml_path)
+    cfg%req%time_index = les_time_index
+    cfg%req%names%lwc = les_lwc
+    cfg%req%names%reff = les_reff
+    cfg%req%names%number = les_number
+    cfg%req%names%iwc = les_iwc
+    cfg%req%names%reff_ice = les_reff_ice
+    cfg%req%names%temperature = les_temperature
+    cfg%req%names%pressure = les_pressure
+    cfg%req%names%air_density = les_air_density
+    cfg%req%names%x = les_x
+    cfg%req%names%y = les_y
+    cfg%req%names%z = les_z
+    cfg%req%names%x_edges = les_x_edges
+    cfg%req%names%y_edges = les_y_edges
+    cfg%req%names%z_edges = les_z_edges
+    cfg%req%k_factor = les_k_factor
+    cfg%req%z_edges_from_midpoints = les_z_edges_from_midpoints
+    cfg%req%droplet_number_cm3 = droplet_number_cm3
+    cfg%size_distribution = to_lower(size_distribution)
+    cfg%v_eff = v_eff
+    cfg%reff_min_um = reff_min_um
+    cfg%reff_max_um = reff_max_um
+    cfg%n_reff = n_reff
+    cfg%mie_cache = ''
+    if (len_trim(mie_cache) > 0) cfg%mie_cache = resolve_path(mie_cache, nml_path)
+    cfg%ice_optics_file = ''
+    if (len_trim(ice_optics_file) > 0) cfg%ice_optics_file = resolve_path(ice_optics_file, &
+                                                                          nml_path)
+    call read_cloud_input(cfg%req, cfg%grid, error, grid_only=.true.)
+    if (allocated(error)) then
+      error%message = '&kumo_cloud: '//error%message
+      return
+    end if
+    ! keep the grid and the kind of content only; the driver reads the fields
+    if (allocated(cfg%grid%lwc)) deallocate (cfg%grid%lwc)
+    if (allocated(cfg%grid%reff)) deallocate (cfg%grid%reff)
+    if (allocated(cfg%grid%ext)) deallocate (cfg%grid%ext)
+    if (allocated(cfg%grid%ssa)) deallocate (cfg%grid%ssa)
+    if (allocated(cfg%grid%iphase)) deallocate (cfg%grid%iphase)
+  end subroutine read_cloud
+
+  !> A path from the namelist: relative paths are relative to the namelist's folder.
+  function resolve_path(path, nml_path) result(full)
+    character(len=*), intent(in) :: path, nml_path
+    character(len=:), allocatable :: full
+    integer :: i
+    full = trim(path)
+    if (len(full) == 0) return
+    if (full(1:1) == '/') return
+    i = index(nml_path, '/', back=.true.)
+    if (i > 0) full = nml_path(1:i)//full
+  end function resolve_path
 
   subroutine read_phase(unit, present, cfg, error)
     integer, intent(in) :: unit
@@ -628,10 +913,11 @@ contains
     logical, intent(in) :: present
     type(source_cfg_t), intent(inout) :: cfg
     type(error_t), allocatable, intent(out) :: error
-    real(wp) :: sza_deg, phi0_deg, solar_flux
+    real(wp) :: sza_deg, phi0_deg, solar_flux, wavelength_um
     integer :: ios
     character(len=512) :: msg
-    namelist /kumo_source/ sza_deg, phi0_deg, solar_flux
+    namelist /kumo_source/ sza_deg, phi0_deg, solar_flux, wavelength_um
+    wavelength_um = cfg%wavelength_um
     sza_deg = cfg%sza_deg
     phi0_deg = cfg%phi0_deg
     solar_flux = cfg%solar_flux
@@ -648,7 +934,11 @@ contains
     else if (.not. within(solar_flux, 0.0_wp, BIG)) then
       call set_error(error, '&kumo_source: solar_flux = '//str(solar_flux)// &
                      ' must be >= 0 [W m-2] (0 = normalised output only)')
+    else if (.not. within(wavelength_um, 0.0_wp, BIG)) then
+      call set_error(error, '&kumo_source: wavelength_um = '//str(wavelength_um)// &
+                     ' must be finite and >= 0 [um] (0 = not given)')
     end if
+    cfg%wavelength_um = wavelength_um
     cfg%sza_deg = sza_deg
     cfg%phi0_deg = phi0_deg
     cfg%solar_flux = solar_flux
@@ -978,6 +1268,14 @@ contains
     else if (allocated(cfg%atm%air_density) .and. cfg%source%solar_flux <= 0.0_wp) then
       call set_error(error, '&kumo_atmosphere: air_density is given but &kumo_source: '// &
                      'solar_flux is not; heating rates in K/day need both')
+    else if (cfg%atm%rayleigh .and. cfg%source%wavelength_um <= 0.0_wp) then
+      call set_error(error, '&kumo_atmosphere: rayleigh = .true. needs the wavelength '// &
+                     '(&kumo_source wavelength_um)')
+    else if (cfg%cloud%enabled .and. cfg%source%wavelength_um <= 0.0_wp .and. &
+             cfg%cloud%grid%content /= CLOUD_OPTICS) then
+      call set_error(error, '&kumo_cloud: the cloud file ('//trim(cfg%cloud%req%format)// &
+                     ') gives no optical properties; kumo computes them for the wavelength '// &
+                     'in &kumo_source wavelength_um, which is not given')
     end if
   end subroutine consolidate
 
@@ -1015,6 +1313,28 @@ contains
            'kumo_atmosphere.phase3d = '//join_int(cfg%atm%phase3d)//nl
     if (allocated(cfg%atm%air_density)) text = text//'kumo_atmosphere.air_density = '// &
                                                join_real(cfg%atm%air_density)//nl
+    text = text//'kumo_atmosphere.rayleigh = '//merge('T', 'F', cfg%atm%rayleigh)//nl
+    if (cfg%atm%rayleigh) text = text// &
+      'kumo_atmosphere.rayleigh_profile = '//trim(cfg%atm%rayleigh_profile)//nl// &
+      'kumo_atmosphere.co2_ppm = '//str(cfg%atm%co2_ppm)//nl// &
+      'kumo_atmosphere.latitude_deg = '//str(cfg%atm%latitude_deg)//nl// &
+      'kumo_atmosphere.rayleigh_depol = '//str(cfg%atm%rayleigh_depol)//nl
+    if (cfg%cloud%enabled) text = text// &
+      'kumo_cloud.cloud_file = '//trim(cfg%cloud%file)//nl// &
+      'kumo_cloud.cloud_format = '//trim(cfg%cloud%req%format)//nl// &
+      'kumo_cloud.grid = '//str(cfg%cloud%grid%nx)//' x '//str(cfg%cloud%grid%ny)//' x '// &
+      str(cfg%cloud%grid%nz)//' voxels of '//str(cfg%cloud%grid%dx)//' x '// &
+      str(cfg%cloud%grid%dy)//' m, levels '//str(cfg%atm%k3d_bottom - 1)//'..'// &
+      str(cfg%atm%k3d_bottom - 1 + cfg%atm%nz3)//nl// &
+      'kumo_cloud.les_time_index = '//str(cfg%cloud%req%time_index)//nl// &
+      'kumo_cloud.droplet_number_cm3 = '//str(cfg%cloud%req%droplet_number_cm3)//nl// &
+      'kumo_cloud.size_distribution = '//trim(cfg%cloud%size_distribution)//nl// &
+      'kumo_cloud.v_eff = '//str(cfg%cloud%v_eff)//nl// &
+      'kumo_cloud.reff_min_um = '//str(cfg%cloud%reff_min_um)//nl// &
+      'kumo_cloud.reff_max_um = '//str(cfg%cloud%reff_max_um)//nl// &
+      'kumo_cloud.n_reff = '//str(cfg%cloud%n_reff)//nl// &
+      'kumo_cloud.mie_cache = '//trim(cfg%cloud%mie_cache)//nl// &
+      'kumo_cloud.ice_optics_file = '//trim(cfg%cloud%ice_optics_file)//nl
     text = text//'kumo_atmosphere.cp_air = '//str(cfg%atm%cp_air)//nl// &
            'kumo_phase.n_phase = '//str(cfg%phase%n_phase)//nl
     do i = 1, cfg%phase%n_phase
@@ -1036,6 +1356,7 @@ contains
            'kumo_source.sza_deg = '//str(cfg%source%sza_deg)//nl// &
            'kumo_source.phi0_deg = '//str(cfg%source%phi0_deg)//nl// &
            'kumo_source.solar_flux = '//str(cfg%source%solar_flux)//nl// &
+           'kumo_source.wavelength_um = '//str(cfg%source%wavelength_um)//nl// &
            'kumo_output.file = '//trim(cfg%output%file)//nl// &
            'kumo_output.flux_levels = '//join_int(cfg%output%flux_levels)//nl// &
            'kumo_output.column_fluxes = '//merge('T', 'F', cfg%output%column_fluxes)//nl// &

@@ -165,7 +165,7 @@ contains
   !> beyond the outer centres), which is exact for uniform centres and is used for stretched
   !> centres only when `z_edges_from_midpoints` is true, since it is one convention among several.
   subroutine read_les_field(path, names, time_index, field, error, k_factor, &
-                            z_edges_from_midpoints)
+                            z_edges_from_midpoints, grid_only)
     character(len=*), intent(in) :: path               !! netCDF file
     type(les_names_t), intent(in) :: names             !! variable names (blank: defaults)
     integer, intent(in) :: time_index                  !! time step (1-based), or -1: no time dim
@@ -174,6 +174,9 @@ contains
     real(wp), intent(in), optional :: k_factor         !! Martin et al. k (default K_MARITIME)
     !> accept edges from midpoints of stretched z centres (default false)
     logical, intent(in), optional :: z_edges_from_midpoints
+    !> read only the grid (nx, ny, nz, dx, dy, z_edges) and check the liquid water variable's
+    !> layout and time step; no field is read (default false)
+    logical, intent(in), optional :: grid_only
     type(les_file_t) :: f
     type(error_t), allocatable :: close_error
     integer :: status
@@ -198,7 +201,7 @@ contains
     call nc_check(nf90_open(f%path, NF90_NOWRITE, f%ncid), PROC//'('//f%path//')', error)
     if (allocated(error)) return
     field%notes = ''
-    call read_body(f, names, k, midpoints, field, error)
+    call read_body(f, names, k, midpoints, field, error, grid_only)
     status = nf90_close(f%ncid)
     if (.not. allocated(error)) then
       call nc_check(status, PROC//'('//f%path//')', close_error)
@@ -209,13 +212,14 @@ contains
 
   ! ------------------------------------------------------------------------------------------------
 
-  subroutine read_body(f, names, k, midpoints, field, error)
+  subroutine read_body(f, names, k, midpoints, field, error, grid_only)
     type(les_file_t), intent(inout) :: f
     type(les_names_t), intent(in) :: names
     real(wp), intent(in) :: k
     logical, intent(in) :: midpoints
     type(les_field_t), intent(inout) :: field
     type(error_t), allocatable, intent(out) :: error
+    logical, intent(in), optional :: grid_only
     integer :: lwc_id, reff_id, num_id, iwc_id, rei_id, t_id, p_id, rho_id
     character(len=:), allocatable :: lwc_name, reff_name, num_name, iwc_name, rei_name
     character(len=:), allocatable :: t_name, p_name, rho_name, text
@@ -249,6 +253,9 @@ contains
     if (allocated(error)) return
     call find_time(f, lwc_id, lwc_name, error)
     if (allocated(error)) return
+    if (present(grid_only)) then
+      if (grid_only) return
+    end if
 
     ! Temperature and pressure (optional; needed for mixing ratios without a density variable).
     call find_var(f, 'temperature', names%temperature, DEFAULT_TEMPERATURE, .false., t_id, &

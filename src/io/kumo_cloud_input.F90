@@ -1,0 +1,348 @@
+! SPDX-License-Identifier: BSD-3-Clause
+!> One cloud field from any of the files kumo reads, in one form for the scene builder.
+!>
+!> `read_cloud_input` reads an LES/CRM netCDF file, an SHDOM/I3RC LWC file, an SHDOM property
+!> file or a MYSTIC 3-D cloud file (the readers of kumo_les_netcdf, kumo_shdom_files and
+!> kumo_mystic_file) and returns a `cloud_input_t`: the grid of the 3-D region (columns and
+!> layer edges) and, per voxel, either water content and effective radius (optics still to be
+!> computed), extinction and effective radius (single-scattering albedo and phase function
+!> still to be computed), or complete optics (extinction, albedo, phase-function index).
+!>
+!> Files whose values sit on grid points (SHDOM's convention: nz heights instead of nz + 1
+!> boundaries) keep their nz planes; layer k of the region lies between planes k and k + 1 and
+!> is the equal mixture of the two (`points`), which keeps SHDOM's column optical depth of a
+!> property varying linearly between the planes.
+module kumo_cloud_input
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
+  use kumo_kinds, only: wp
+  use kumo_error, only: error_t, set_error, str, to_lower
+  use kumo_les_netcdf, only: les_names_t, les_field_t, read_les_field
+  use kumo_shdom_files, only: lwc_field_t, prp_field_t, read_lwc_file, read_prp_file, &
+                              set_reff_from_droplet_number
+  use kumo_mystic_file, only: mystic_cloud_t, read_mystic_file, MYSTIC_EXT_G_SSA, &
+                              MYSTIC_EXT_REFF, MYSTIC_LWC_REFF
+  implicit none
+  private
+  public :: cloud_input_t, cloud_request_t, read_cloud_input, cloud_format_check
+  public :: CLOUD_FORMAT_NAMES, CLOUD_WATER, CLOUD_EXT_REFF, CLOUD_OPTICS
+
+  !> Formats, as named in the namelist (`&kumo_cloud cloud_format`).
+  character(len=8), parameter :: CLOUD_FORMAT_NAMES(4) = &
+    [character(len=8) :: 'les', 'lwc', 'prp', 'mystic']
+
+  integer, parameter :: CLOUD_WATER = 1     !! lwc [g m-3] and reff [um]
+  integer, parameter :: CLOUD_EXT_REFF = 2  !! ext [m-1] and reff [um] (MYSTIC flag 2)
+  integer, parameter :: CLOUD_OPTICS = 3    !! ext [m-1], ssa and a phase-function index
+
+  !> What to read and the facts a file may lack.
+  type :: cloud_request_t
+    character(len=8) :: format = 'les'           !! one of CLOUD_FORMAT_NAMES
+    character(len=:), allocatable :: path        !! the cloud file
+    type(les_names_t) :: names                   !! LES variable names (blank: defaults)
+    integer :: time_index = -1                   !! LES time step, -1: no time dimension
+    real(wp) :: k_factor = 0.80_wp               !! Martin et al. (1994) k for r_e from number
+    logical :: z_edges_from_midpoints = .false.  !! LES: edges midway between stretched centres
+    real(wp) :: droplet_number_cm3 = 0.0_wp      !! 1-parameter LWC files: N [cm-3]
+  end type cloud_request_t
+
+  !> A cloud field on the voxels of the 3-D region.
+  type :: cloud_input_t
+    character(len=8) :: format = ''
+    integer :: nx = 0, ny = 0                  !! columns
+    integer :: nz = 0                          !! layers of the 3-D region
+    real(wp) :: dx = 0.0_wp, dy = 0.0_wp       !! column widths [m]
+    real(wp), allocatable :: z(:)              !! layer edges z(0:nz), bottom first [m]
+    !> values on nz + 1 planes (the third dimension of the arrays); layer k mixes planes k, k+1
+    logical :: points = .false.
+    integer :: content = CLOUD_WATER           !! CLOUD_WATER, CLOUD_EXT_REFF or CLOUD_OPTICS
+    real(wp), allocatable :: lwc(:, :, :)      !! liquid water content [g m-3] (CLOUD_WATER)
+    real(wp), allocatable :: reff(:, :, :)     !! droplet effective radius [um], 0 where empty
+    real(wp), allocatable :: ext(:, :, :)      !! extinction [m-1] (CLOUD_EXT_REFF, CLOUD_OPTICS)
+    real(wp), allocatable :: ssa(:, :, :)      !! single-scattering albedo (CLOUD_OPTICS)
+    integer, allocatable :: iphase(:, :, :)    !! phase-function index (CLOUD_OPTICS)
+    !> CLOUD_OPTICS phase functions: Legendre moments chi(0:nleg, nphase) (property files) ...
+    real(wp), allocatable :: chi(:, :)
+    !> ... or Henyey-Greenstein asymmetry parameters (MYSTIC flag 1), one per distinct value
+    real(wp), allocatable :: hg_g(:)
+    logical :: has_ice = .false.               !! LES ice water present
+    real(wp), allocatable :: iwc(:, :, :)      !! ice water content [g m-3]
+    real(wp), allocatable :: reff_ice(:, :, :) !! ice effective radius [um]
+    !> temperature [K] and pressure [Pa] per layer (horizontal means); size 0 when absent
+    real(wp), allocatable :: t_layer(:), p_layer(:)
+    character(len=:), allocatable :: notes     !! how the file was read, for the run log
+    character(len=:), allocatable :: missing   !! what the file does not give
+  end type cloud_input_t
+
+  character(len=1), parameter :: NL = new_line('a')
+
+contains
+
+  !> Check a format name (case-insensitive) and return it in lower case.
+  subroutine cloud_format_check(name, fmt, error)
+    character(len=*), intent(in) :: name
+    character(len=8), intent(out) :: fmt
+    type(error_t), allocatable, intent(out) :: error
+    integer :: i
+    fmt = trim(adjustl(to_lower(name)))
+    do i = 1, size(CLOUD_FORMAT_NAMES)
+      if (fmt == CLOUD_FORMAT_NAMES(i)) return
+    end do
+    call set_error(error, 'cloud_format = "'//trim(name)//'" must be one of les (LES/CRM '// &
+                   'netCDF), lwc (SHDOM/I3RC LWC file), prp (SHDOM property file), mystic '// &
+                   '(MYSTIC wc_file 3D)')
+  end subroutine cloud_format_check
+
+  !> Read a cloud file. With `grid_only`, only the grid (nx, ny, nz, dx, dy, z) is guaranteed
+  !> (the LES reader then reads coordinates only; text files are read whole).
+  subroutine read_cloud_input(req, cloud, error, grid_only)
+    type(cloud_request_t), intent(in) :: req
+    type(cloud_input_t), intent(out) :: cloud
+    type(error_t), allocatable, intent(out) :: error
+    logical, intent(in), optional :: grid_only
+    logical :: grid
+    grid = .false.
+    if (present(grid_only)) grid = grid_only
+    cloud%format = req%format
+    cloud%notes = ''
+    cloud%missing = ''
+    select case (trim(req%format))
+    case ('les')
+      call from_les(req, grid, cloud, error)
+    case ('lwc')
+      call from_lwc(req, cloud, error)
+    case ('prp')
+      call from_prp(req, cloud, error)
+    case ('mystic')
+      call from_mystic(req, cloud, error)
+    case default
+      call set_error(error, 'cloud_format "'//trim(req%format)//'" is unknown')
+    end select
+    if (allocated(error)) return
+    if (.not. allocated(cloud%t_layer)) allocate (cloud%t_layer(0))
+    if (.not. allocated(cloud%p_layer)) allocate (cloud%p_layer(0))
+  end subroutine read_cloud_input
+
+  subroutine from_les(req, grid, cloud, error)
+    type(cloud_request_t), intent(in) :: req
+    logical, intent(in) :: grid
+    type(cloud_input_t), intent(inout) :: cloud
+    type(error_t), allocatable, intent(out) :: error
+    type(les_field_t) :: f
+    call read_les_field(req%path, req%names, req%time_index, f, error, req%k_factor, &
+                        req%z_edges_from_midpoints, grid)
+    if (allocated(error)) return
+    call set_grid(cloud, f%nx, f%ny, f%nz, f%dx, f%dy, f%z_edges, .false.)
+    if (grid) return
+    cloud%content = CLOUD_WATER
+    call move_alloc(f%lwc, cloud%lwc)
+    call move_alloc(f%reff, cloud%reff)
+    cloud%has_ice = f%has_ice
+    if (f%has_ice) then
+      call move_alloc(f%iwc, cloud%iwc)
+      call move_alloc(f%reff_ice, cloud%reff_ice)
+    end if
+    if (f%has_temperature) cloud%t_layer = layer_means(f%temperature)
+    if (f%has_pressure) cloud%p_layer = layer_means(f%pressure)
+    cloud%notes = f%notes
+    cloud%missing = 'the wavelength'
+  end subroutine from_les
+
+  subroutine from_lwc(req, cloud, error)
+    type(cloud_request_t), intent(in) :: req
+    type(cloud_input_t), intent(inout) :: cloud
+    type(error_t), allocatable, intent(out) :: error
+    type(lwc_field_t) :: f
+    call read_lwc_file(req%path, f, error)
+    if (allocated(error)) return
+    if (f%n_params == 1) then
+      if (.not. req%droplet_number_cm3 > 0.0_wp) then
+        call set_error(error, req%path//': a 1-parameter LWC file has no effective radius; '// &
+                       'give the droplet number concentration (&kumo_cloud '// &
+                       'droplet_number_cm3 > 0)')
+        return
+      end if
+      call set_reff_from_droplet_number(f, req%droplet_number_cm3, error)
+      if (allocated(error)) return
+      cloud%notes = 'r_eff from LWC and the namelist droplet number '// &
+                    str(req%droplet_number_cm3)//' cm-3 (gamma distribution, alpha = 7)'//NL
+    else
+      cloud%notes = ''
+      if (req%droplet_number_cm3 > 0.0_wp) cloud%notes = 'droplet_number_cm3 is not used: '// &
+                                                         'the file gives r_eff'//NL
+    end if
+    call set_grid(cloud, f%nx, f%ny, f%nz, f%dx, f%dy, f%z, .not. f%z_are_boundaries)
+    cloud%content = CLOUD_WATER
+    call move_alloc(f%lwc, cloud%lwc)
+    call move_alloc(f%reff, cloud%reff)
+    if (f%z_are_boundaries) then
+      cloud%t_layer = 0.5_wp*(f%temperature(1:f%nz) + f%temperature(2:f%nz + 1))
+    else
+      cloud%t_layer = 0.5_wp*(f%temperature(1:f%nz - 1) + f%temperature(2:f%nz))
+    end if
+    cloud%notes = cloud%notes//'LWC file: '//str(f%n_listed)//' points listed, heights as '// &
+                  merge('cell boundaries', 'grid points    ', f%z_are_boundaries)
+    cloud%missing = 'the wavelength and the droplet optics'
+  end subroutine from_lwc
+
+  subroutine from_prp(req, cloud, error)
+    type(cloud_request_t), intent(in) :: req
+    type(cloud_input_t), intent(inout) :: cloud
+    type(error_t), allocatable, intent(out) :: error
+    type(prp_field_t) :: f
+    call read_prp_file(req%path, f, error)
+    if (allocated(error)) return
+    call set_grid(cloud, f%nx, f%ny, f%nz, f%dx, f%dy, f%z, .not. f%z_are_boundaries)
+    cloud%content = CLOUD_OPTICS
+    call move_alloc(f%extinction, cloud%ext)
+    call move_alloc(f%ssa, cloud%ssa)
+    call move_alloc(f%iphase, cloud%iphase)
+    call move_alloc(f%chi, cloud%chi)
+    cloud%t_layer = layer_means(f%temperature)
+    if (.not. f%z_are_boundaries) cloud%t_layer = 0.5_wp*(cloud%t_layer(1:f%nz - 1) + &
+                                                          cloud%t_layer(2:f%nz))
+    cloud%notes = 'property file: '//str(f%nphase)//' phase functions of up to '// &
+                  str(f%nleg_max)//' Legendre terms, heights as '// &
+                  merge('cell boundaries', 'grid points    ', f%z_are_boundaries)
+    cloud%missing = 'the wavelength'
+  end subroutine from_prp
+
+  subroutine from_mystic(req, cloud, error)
+    type(cloud_request_t), intent(in) :: req
+    type(cloud_input_t), intent(inout) :: cloud
+    type(error_t), allocatable, intent(out) :: error
+    type(mystic_cloud_t) :: f
+    real(wp), allocatable :: gs(:)
+    integer :: n, ix, iy, iz
+    call read_mystic_file(req%path, f, error)
+    if (allocated(error)) return
+    call set_grid(cloud, f%nx, f%ny, f%nz, f%dx, f%dy, f%z, .false.)
+    select case (f%flag)
+    case (MYSTIC_EXT_G_SSA)
+      cloud%content = CLOUD_OPTICS
+      call move_alloc(f%ext, cloud%ext)
+      call move_alloc(f%ssa, cloud%ssa)
+      ! one Henyey-Greenstein phase function per distinct g (exact values, no binning)
+      gs = [0.0_wp, pack(f%g, f%listed)]
+      call sort_unique_exact(gs, n)
+      cloud%hg_g = gs(1:n)
+      allocate (cloud%iphase(f%nx, f%ny, f%nz))
+      do iz = 1, f%nz
+        do iy = 1, f%ny
+          do ix = 1, f%nx
+            cloud%iphase(ix, iy, iz) = locate(cloud%hg_g, merge(f%g(ix, iy, iz), 0.0_wp, &
+                                                                 f%listed(ix, iy, iz)))
+          end do
+        end do
+      end do
+      cloud%notes = 'MYSTIC file, flag 1 (ext, g, ssa): '//str(f%n_listed)//' cells, '// &
+                    str(n)//' distinct Henyey-Greenstein g'
+      cloud%missing = 'the wavelength'
+    case (MYSTIC_EXT_REFF)
+      cloud%content = CLOUD_EXT_REFF
+      call move_alloc(f%ext, cloud%ext)
+      call move_alloc(f%reff, cloud%reff)
+      cloud%notes = 'MYSTIC file, flag 2 (ext, r_eff): '//str(f%n_listed)//' cells'
+      cloud%missing = 'the wavelength, the single-scattering albedo and phase function'
+    case default
+      cloud%content = CLOUD_WATER
+      call move_alloc(f%lwc, cloud%lwc)
+      call move_alloc(f%reff, cloud%reff)
+      cloud%notes = 'MYSTIC file, flag 3 (LWC, r_eff): '//str(f%n_listed)//' cells'
+      cloud%missing = 'the wavelength and the droplet optics'
+    end select
+  end subroutine from_mystic
+
+  !> Grid of the region from a file's heights: nz + 1 boundaries, or nz grid points.
+  subroutine set_grid(cloud, nx, ny, nz_file, dx, dy, z, points)
+    type(cloud_input_t), intent(inout) :: cloud
+    integer, intent(in) :: nx, ny, nz_file
+    real(wp), intent(in) :: dx, dy, z(:)
+    logical, intent(in) :: points
+    cloud%nx = nx
+    cloud%ny = ny
+    cloud%dx = dx
+    cloud%dy = dy
+    cloud%points = points
+    if (points) then
+      cloud%nz = nz_file - 1
+    else
+      cloud%nz = nz_file
+    end if
+    allocate (cloud%z(0:cloud%nz))
+    cloud%z = z(1:cloud%nz + 1)
+  end subroutine set_grid
+
+  !> Horizontal mean per layer of a (nx, ny, nz) field or a (1, 1, nz) profile.
+  pure function layer_means(a) result(m)
+    real(wp), intent(in) :: a(:, :, :)
+    real(wp) :: m(size(a, 3))
+    integer :: k
+    do k = 1, size(a, 3)
+      m(k) = sum(a(:, :, k))/real(size(a, 1)*size(a, 2), wp)
+    end do
+  end function layer_means
+
+  !> Sort x ascending (heap sort) and keep one copy of each value: x(1:n).
+  pure subroutine sort_unique_exact(x, n)
+    real(wp), intent(inout) :: x(:)
+    integer, intent(out) :: n
+    integer :: i, m, last
+    real(wp) :: t
+    m = size(x)
+    do i = m/2, 1, -1
+      call sift(x, i, m)
+    end do
+    do last = m, 2, -1
+      t = x(1)
+      x(1) = x(last)
+      x(last) = t
+      call sift(x, 1, last - 1)
+    end do
+    n = min(m, 1)
+    do i = 2, m
+      if (x(i) /= x(n)) then
+        n = n + 1
+        x(n) = x(i)
+      end if
+    end do
+  end subroutine sort_unique_exact
+
+  !> Restore the max-heap x(start:hi) below x(start).
+  pure subroutine sift(x, start, hi)
+    real(wp), intent(inout) :: x(:)
+    integer, intent(in) :: start, hi
+    integer :: root, child
+    real(wp) :: v
+    root = start
+    v = x(root)
+    do
+      child = 2*root
+      if (child > hi) exit
+      if (child < hi) then
+        if (x(child + 1) > x(child)) child = child + 1
+      end if
+      if (x(child) <= v) exit
+      x(root) = x(child)
+      root = child
+    end do
+    x(root) = v
+  end subroutine sift
+
+  !> Index of the value v in the sorted, distinct list x (v must be present).
+  pure integer function locate(x, v) result(i)
+    real(wp), intent(in) :: x(:), v
+    integer :: lo, hi
+    lo = 1
+    hi = size(x)
+    do while (lo < hi)
+      i = (lo + hi)/2
+      if (x(i) < v) then
+        lo = i + 1
+      else
+        hi = i
+      end if
+    end do
+    i = lo
+  end function locate
+
+end module kumo_cloud_input

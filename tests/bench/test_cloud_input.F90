@@ -1,0 +1,336 @@
+! SPDX-License-Identifier: BSD-3-Clause
+!> Cloud files in whole runs (&kumo_cloud): the same cloud through every route gives one answer.
+!>
+!> * LES netCDF against the equivalent optical-property file. A small cloud is written as an
+!>   LES file (liquid water in kg m-3, effective radius in m, coordinates in km, stretched
+!>   layers with edges). The test then builds the optics itself, from the Mie table kumo
+!>   cached and the test's own unit conversion and radius interpolation (the mixture of the
+!>   two bracketing table populations whose effective radius is the voxel's, LWC shares
+!>   f = (1/r - 1/r2)/(1/r1 - 1/r2)), writes them as a kumo scene file with the table's phase
+!>   functions as text tables, and runs that with another seed. Reflectance, transmittance,
+!>   absorptance and the layer absorption profile agree within 4 sigma of the difference.
+!> * The same cloud as a MYSTIC flag-3 file and as an I3RC two-parameter LWC file gives the LES
+!>   answer to rounding with the same seed: only the reader differs.
+!> * Henyey-Greenstein optics as a MYSTIC flag-1 file (analytic HG) and as an SHDOM property
+!>   file (Legendre moments g^l summed into a table) agree within 4 sigma with different seeds.
+module test_cloud_input_suite
+  use kumo_kinds, only: wp, dp
+  use kumo_testing, only: error_t, unittest_t, new_unittest, check, check_sigma
+  use kumo_config, only: config_t, read_config
+  use kumo_results, only: result_set_t
+  use kumo_test_scenes, only: run_config, get_scalar, get_array
+  use kumo_mie, only: mie_table_t
+  use kumo_mie_table, only: read_mie_table
+  use kumo_netcdf, only: write_scene_3d
+  use kumo_error, only: str
+  use netcdf, only: nf90_create, nf90_def_dim, nf90_def_var, nf90_enddef, nf90_put_var, &
+                    nf90_close, nf90_put_att, nf90_clobber, nf90_double, NF90_GLOBAL
+  implicit none
+  private
+  public :: collect_cloud_input
+
+  integer, parameter :: NX = 6, NY = 5, NZ = 4
+  real(wp), parameter :: DX_KM = 0.1_wp, DY_KM = 0.12_wp
+  !> layer edges [km]: stretched, starting above the ground
+  real(wp), parameter :: ZE_KM(0:NZ) = [0.5_wp, 0.6_wp, 0.75_wp, 0.85_wp, 1.0_wp]
+  real(dp), parameter :: K = 4.0_dp
+
+contains
+
+  function collect_cloud_input() result(tests)
+    type(unittest_t), allocatable :: tests(:)
+    tests = [new_unittest('les_equals_optical_property_file', test_les_vs_optics), &
+             new_unittest('mystic_and_lwc_files_equal_les', test_text_formats), &
+             new_unittest('hg_as_legendre_equals_hg', test_hg_routes)]
+  end function collect_cloud_input
+
+  !> The test cloud: LWC [g m-3] and r_eff [um]; some voxels clear, radii across the table.
+  subroutine cloud(lwc, reff)
+    real(wp), intent(out) :: lwc(NX, NY, NZ), reff(NX, NY, NZ)
+    integer :: i, j, kk
+    do kk = 1, NZ
+      do j = 1, NY
+        do i = 1, NX
+          lwc(i, j, kk) = 0.05_wp*real(mod(i*3 + j*5 + kk*7, 11), wp)
+          reff(i, j, kk) = 4.5_wp + 1.1_wp*real(mod(i + 2*j + 3*kk, 10), wp)
+          if (lwc(i, j, kk) == 0.0_wp) reff(i, j, kk) = 0.0_wp
+        end do
+      end do
+    end do
+  end subroutine cloud
+
+  !> Write the cloud as an LES netCDF file in SI units with km coordinates.
+  subroutine write_les(path)
+    character(len=*), intent(in) :: path
+    real(wp) :: lwc(NX, NY, NZ), reff(NX, NY, NZ)
+    integer :: nc, dx_, dy_, dz_, dze, vx, vy, vze, vl, vr, s, i
+    call cloud(lwc, reff)
+    s = nf90_create(path, nf90_clobber, nc)
+    s = nf90_def_dim(nc, 'x', NX, dx_)
+    s = nf90_def_dim(nc, 'y', NY, dy_)
+    s = nf90_def_dim(nc, 'z', NZ, dz_)
+    s = nf90_def_dim(nc, 'z_edges', NZ + 1, dze)
+    s = nf90_def_var(nc, 'x', nf90_double, [dx_], vx)
+    s = nf90_put_att(nc, vx, 'units', 'km')
+    s = nf90_def_var(nc, 'y', nf90_double, [dy_], vy)
+    s = nf90_put_att(nc, vy, 'units', 'km')
+    s = nf90_def_var(nc, 'z_edges', nf90_double, [dze], vze)
+    s = nf90_put_att(nc, vze, 'units', 'km')
+    s = nf90_def_var(nc, 'lwc', nf90_double, [dx_, dy_, dz_], vl)
+    s = nf90_put_att(nc, vl, 'units', 'kg m-3')
+    s = nf90_def_var(nc, 'reff', nf90_double, [dx_, dy_, dz_], vr)
+    s = nf90_put_att(nc, vr, 'units', 'm')
+    s = nf90_put_att(nc, NF90_GLOBAL, 'title', 'kumo test cloud')
+    s = nf90_enddef(nc)
+    s = nf90_put_var(nc, vx, [((i - 0.5_wp)*DX_KM, i=1, NX)])
+    s = nf90_put_var(nc, vy, [((i - 0.5_wp)*DY_KM, i=1, NY)])
+    s = nf90_put_var(nc, vze, ZE_KM)
+    s = nf90_put_var(nc, vl, lwc*1.0e-3_wp)
+    s = nf90_put_var(nc, vr, reff*1.0e-6_wp)
+    s = nf90_close(nc)
+  end subroutine write_les
+
+  !> Write a namelist file.
+  subroutine write_text(path, text)
+    character(len=*), intent(in) :: path, text
+    integer :: u
+    open (newunit=u, file=path, status='replace', action='write')
+    write (u, '(a)') text
+    close (u)
+  end subroutine write_text
+
+  function common_groups(seed, out) result(text)
+    integer, intent(in) :: seed
+    character(len=*), intent(in) :: out
+    character(len=:), allocatable :: text
+    text = '&kumo_control n_photons_per_batch = 4000, n_batches = 20, seed = '//str(seed)// &
+           ', verbose = 0 /'//new_line('a')// &
+           '&kumo_source sza_deg = 30.0, wavelength_um = 2.13 /'//new_line('a')// &
+           '&kumo_surface albedo = 0.2 /'//new_line('a')// &
+           '&kumo_output file = '''//out//''' /'//new_line('a')
+  end function common_groups
+
+  function cloud_group(file, fmt) result(text)
+    character(len=*), intent(in) :: file, fmt
+    character(len=:), allocatable :: text
+    text = '&kumo_cloud cloud_file = '''//file//''', cloud_format = '''//fmt//''', '// &
+           'mie_cache = ''cloud_mie_test.nc'', n_reff = 6, reff_min_um = 4.0, '// &
+           'reff_max_um = 16.0, v_eff = 0.1 /'//new_line('a')
+  end function cloud_group
+
+  subroutine run_namelist(path, text, set, error)
+    character(len=*), intent(in) :: path, text
+    type(result_set_t), intent(out) :: set
+    type(error_t), allocatable, intent(out) :: error
+    type(config_t) :: cfg
+    call write_text(path, text)
+    call read_config(path, cfg, error)
+    if (allocated(error)) return
+    call run_config(cfg, set, error)
+  end subroutine run_namelist
+
+  !> |a - b| <= k sigma of the difference for R, T, A and the layer absorption.
+  subroutine compare_runs(a, b, error)
+    type(result_set_t), intent(in) :: a, b
+    type(error_t), allocatable, intent(inout) :: error
+    character(len=*), parameter :: NAMES(3) = [character(len=22) :: 'reflectance', &
+                                               'transmittance', 'absorptance_atmosphere']
+    real(dp) :: ma, sa, mb, sb
+    real(dp), allocatable :: va(:), ea(:), vb(:), eb(:)
+    integer :: i
+    do i = 1, size(NAMES)
+      call get_scalar(a, trim(NAMES(i)), ma, sa, error)
+      call get_scalar(b, trim(NAMES(i)), mb, sb, error)
+      if (allocated(error)) return
+      call check_sigma(error, ma - mb, 0.0_dp, sqrt(sa**2 + sb**2), K, trim(NAMES(i)))
+    end do
+    call get_array(a, 'absorptance_layer', va, ea, error)
+    call get_array(b, 'absorptance_layer', vb, eb, error)
+    if (allocated(error)) return
+    call check(error, size(va) == size(vb), 'absorptance_layer sizes differ')
+    do i = 1, size(va)
+      call check_sigma(error, va(i) - vb(i), 0.0_dp, sqrt(ea(i)**2 + eb(i)**2), K, &
+                       'absorptance_layer('//str(i)//')', abs_floor=1.0e-12_dp)
+    end do
+  end subroutine compare_runs
+
+  subroutine test_les_vs_optics(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(result_set_t) :: a, b
+    type(mie_table_t) :: t
+    real(wp) :: lwc(NX, NY, NZ), reff(NX, NY, NZ), f, r, r1, r2
+    real(wp) :: ext(NX, NY, NZ, 2), ssa(NX, NY, NZ, 2)
+    integer :: iph(NX, NY, NZ, 2), i, j, kk, n, i1, u, ia
+    character(len=:), allocatable :: nml, phases
+    real(dp) :: ra, sa
+    call write_les('cloud_les_test.nc')
+    call run_namelist('cloud_les_test.nml', common_groups(1, 'cloud_les_out.nc')// &
+                      cloud_group('cloud_les_test.nc', 'les'), a, error)
+    if (allocated(error)) return
+    call get_scalar(a, 'reflectance', ra, sa, error)
+    if (allocated(error)) return
+    call check(error, ra > 0.05_dp .and. ra < 0.9_dp, 'LES cloud reflectance '//str(ra)// &
+               ' is not that of a cloud')
+    if (allocated(error)) return
+
+    ! the equivalent optics, from the cached table
+    call read_mie_table('cloud_mie_test.nc', t, error)
+    if (allocated(error)) return
+    n = size(t%r_eff_um)
+    call cloud(lwc, reff)
+    do kk = 1, NZ
+      do j = 1, NY
+        do i = 1, NX
+          r = reff(i, j, kk)
+          if (lwc(i, j, kk) <= 0.0_wp) then
+            ext(i, j, kk, :) = 0.0_wp
+            ssa(i, j, kk, :) = 1.0_wp
+            iph(i, j, kk, :) = 1
+            cycle
+          end if
+          i1 = 1
+          do while (i1 < n - 1 .and. t%r_eff_um(i1 + 1) < r)
+            i1 = i1 + 1
+          end do
+          r1 = t%r_eff_um(i1)
+          r2 = t%r_eff_um(i1 + 1)
+          f = (1.0_wp/r - 1.0_wp/r2)/(1.0_wp/r1 - 1.0_wp/r2)
+          ext(i, j, kk, 1) = f*lwc(i, j, kk)*t%ext_per_lwc(i1)
+          ext(i, j, kk, 2) = (1.0_wp - f)*lwc(i, j, kk)*t%ext_per_lwc(i1 + 1)
+          ssa(i, j, kk, :) = [t%ssa(i1), t%ssa(i1 + 1)]
+          iph(i, j, kk, :) = [i1, i1 + 1]
+        end do
+      end do
+    end do
+    call write_scene_3d('cloud_optics_test.nc', ext, ssa, iph, error)
+    if (allocated(error)) return
+    phases = ''
+    do i = 1, n
+      open (newunit=u, file='cloud_pf'//str(i)//'.txt', status='replace', action='write')
+      do ia = 1, size(t%angle_deg)
+        write (u, '(es24.16, 1x, es24.16)') t%angle_deg(ia), t%phase(ia, i)
+      end do
+      close (u)
+      phases = phases//'  phase_kind('//str(i)//') = ''table'', phase_file('//str(i)// &
+               ') = ''cloud_pf'//str(i)//'.txt'''//new_line('a')
+    end do
+    nml = common_groups(2, 'cloud_optics_out.nc')// &
+          '&kumo_atmosphere nz = 5, z_levels = 0.0, 500.0, 600.0, 750.0, 850.0, 1000.0, '// &
+          'lx = 600.0, ly = 600.0, scene_file = ''cloud_optics_test.nc'', k3d_bottom = 2, '// &
+          'nx = 6, ny = 5, nz3 = 4, n_components_3d = 2 /'//new_line('a')// &
+          '&kumo_phase n_phase = '//str(n)//new_line('a')//phases//'/'
+    call run_namelist('cloud_optics_test.nml', nml, b, error)
+    if (allocated(error)) return
+    call compare_runs(a, b, error)
+  end subroutine test_les_vs_optics
+
+  subroutine test_text_formats(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(result_set_t) :: a, b, c
+    real(wp) :: lwc(NX, NY, NZ), reff(NX, NY, NZ)
+    real(dp) :: ma, sa, mb, sb, mc, sc
+    integer :: u, i, j, kk
+    call cloud(lwc, reff)
+    call write_les('cloud_les_test2.nc')
+    open (newunit=u, file='cloud_test.mystic', status='replace', action='write')
+    write (u, '(3i4, a)') NX, NY, NZ, ' 3'
+    write (u, '(7f8.3)') DX_KM, DY_KM, ZE_KM
+    do kk = 1, NZ
+      do j = 1, NY
+        do i = 1, NX
+          if (lwc(i, j, kk) > 0.0_wp) write (u, '(3i4, 2es24.16)') i, j, kk, lwc(i, j, kk), &
+            reff(i, j, kk)
+        end do
+      end do
+    end do
+    close (u)
+    open (newunit=u, file='cloud_test.lwc', status='replace', action='write')
+    write (u, '(a)') '2  parameter LWC file'
+    write (u, '(3i4)') NX, NY, NZ
+    write (u, '(2f8.3)') DX_KM, DY_KM
+    write (u, '(5f8.3)') ZE_KM
+    write (u, '(5f8.2)') [(280.0_wp, kk=0, NZ)]
+    do kk = 1, NZ
+      do j = 1, NY
+        do i = 1, NX
+          if (lwc(i, j, kk) > 0.0_wp) write (u, '(3i4, 2es24.16)') i, j, kk, lwc(i, j, kk), &
+            reff(i, j, kk)
+        end do
+      end do
+    end do
+    close (u)
+    call run_namelist('cloud_les_test2.nml', common_groups(5, 'cloud_les_out2.nc')// &
+                      cloud_group('cloud_les_test2.nc', 'les'), a, error)
+    if (allocated(error)) return
+    call run_namelist('cloud_mystic_test.nml', common_groups(5, 'cloud_mystic_out.nc')// &
+                      cloud_group('cloud_test.mystic', 'mystic'), b, error)
+    if (allocated(error)) return
+    call run_namelist('cloud_lwc_test.nml', common_groups(5, 'cloud_lwc_out.nc')// &
+                      cloud_group('cloud_test.lwc', 'lwc'), c, error)
+    if (allocated(error)) return
+    call get_scalar(a, 'reflectance', ma, sa, error)
+    call get_scalar(b, 'reflectance', mb, sb, error)
+    call get_scalar(c, 'reflectance', mc, sc, error)
+    if (allocated(error)) return
+    ! same seed, same optics: the same photon paths, so equal to rounding (the text files
+    ! hold 17 digits)
+    call check(error, abs(ma - mb) <= 1.0e-9_dp*ma .and. abs(ma - mc) <= 1.0e-9_dp*ma, &
+               'reflectance LES '//str(ma)//', MYSTIC '//str(mb)//', LWC file '//str(mc)// &
+               ' differ with the same seed')
+  end subroutine test_text_formats
+
+  subroutine test_hg_routes(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(result_set_t) :: a, b
+    real(wp), parameter :: G(2) = [0.8_wp, 0.6_wp]
+    integer, parameter :: NLEG = 300
+    real(wp) :: lwc(NX, NY, NZ), reff(NX, NY, NZ), e
+    integer :: u, v, i, j, kk, l, ip
+    call cloud(lwc, reff)
+    open (newunit=u, file='cloud_hg.mystic', status='replace', action='write')
+    write (u, '(3i4, a)') NX, NY, NZ, ' 1'
+    write (u, '(7f8.3)') DX_KM, DY_KM, ZE_KM
+    open (newunit=v, file='cloud_hg.prp', status='replace', action='write')
+    write (v, '(a)') 'Tabulated phase function property file'
+    write (v, '(3i4)') NX, NY, NZ
+    write (v, '(7f8.3)') DX_KM, DY_KM, ZE_KM
+    write (v, '(i4)') 2
+    do ip = 1, 2
+      write (v, '(i5, *(1x, es22.14))') NLEG, [((2*l + 1)*G(ip)**l, l=1, NLEG)]
+    end do
+    do kk = 1, NZ
+      do j = 1, NY
+        do i = 1, NX
+          e = 20.0_wp*lwc(i, j, kk)       ! [km-1]
+          ip = 1 + mod(i + j, 2)
+          write (v, '(3i4, f7.1, es24.16, f10.6, i3)') i, j, kk, 280.0, e, 0.99_wp, ip
+          if (e > 0.0_wp) write (u, '(3i4, es24.16, 2f10.6)') i, j, kk, e, G(ip), 0.99_wp
+        end do
+      end do
+    end do
+    close (u)
+    close (v)
+    call run_namelist('cloud_hg_mystic.nml', common_groups(7, 'cloud_hg_out1.nc')// &
+                      '&kumo_cloud cloud_file = ''cloud_hg.mystic'', cloud_format = ''mystic'' /', &
+                      a, error)
+    if (allocated(error)) return
+    call run_namelist('cloud_hg_prp.nml', common_groups(8, 'cloud_hg_out2.nc')// &
+                      '&kumo_cloud cloud_file = ''cloud_hg.prp'', cloud_format = ''prp'' /', &
+                      b, error)
+    if (allocated(error)) return
+    call compare_runs(a, b, error)
+  end subroutine test_hg_routes
+
+end module test_cloud_input_suite
+
+program test_cloud_input
+  use test_cloud_input_suite, only: collect_cloud_input
+  use kumo_testing, only: run_unittests
+  use kumo_parallel, only: par_init, par_finalize
+  implicit none
+  integer :: n_failed
+  call par_init()
+  call run_unittests('cloud files in whole runs', collect_cloud_input(), n_failed)
+  call par_finalize()
+  if (n_failed > 0) error stop 1
+end program test_cloud_input

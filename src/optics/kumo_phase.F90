@@ -81,9 +81,8 @@ module kumo_phase
   !> A phase function ready for evaluation and sampling. Build it with a constructor
   !> (`new_phase_isotropic`, `new_phase_rayleigh`, `new_phase_rayleigh_depol`, `new_phase_hg`,
   !> `phase_from_table`, `phase_from_legendre`); the tables are allocated for `PHASE_TABLE`
-  !> only. (The constructors of the analytic kinds carry
-  !> a `new_` prefix because Fortran names are case-insensitive: `phase_hg` would clash with
-  !> the kind code `PHASE_HG`.)
+  !> only. (The constructors of the analytic kinds carry a `new_` prefix because Fortran names
+  !> are case-insensitive: `phase_hg` would clash with the kind code `PHASE_HG`.)
   type :: phase_t
     integer :: kind = PHASE_ISOTROPIC  !! one of PHASE_ISOTROPIC, _RAYLEIGH, _HG, _TABLE
     real(wp) :: g = 0.0_wp             !! asymmetry parameter <mu> (computed for tables)

@@ -1,0 +1,160 @@
+#!/usr/bin/env python3
+# SPDX-License-Identifier: BSD-3-Clause
+"""Bars of the cloud-file input (&kumo_cloud), run on demand.
+
+1. Setup of a 256 x 256 x 100 LES field with two species: liquid water and ice (lwc, reff,
+   iwc, reff_ice as float32, 105 MB), optics from cached tables, super-voxels built. The water
+   table is kumo's Mie table (cache warmed by a first run); the ice table is a stand-in in the
+   same layout (water spheres of 10-60 um, written by kumo), since kumo has no ice optics of
+   its own: the setup work is the same. Measured: the setup time kumo reports (setup_time_s)
+   and the peak resident memory of the whole run (/usr/bin/time), with 2 x 10 photons.
+2. The I3RC LES stratocumulus at 2.13 um from its SHDOM property file (les_stcu_w213.prp),
+   SZA 60, black surface, domain fluxes only: CPU time to a 0.1 % standard error of the
+   reflectance, t (sigma/R / 0.001)^2 from runs of 20 batches (median of three).
+
+    python3 bench/run_les_bench.py [--kumo build/kumo] [--shared ../shared] [--out DIR]
+
+Writes DIR/les_bench.md (default bench/results/les_bench.md).
+"""
+import argparse
+import os
+import re
+import statistics
+import subprocess
+import sys
+
+import numpy as np
+from netCDF4 import Dataset
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+REPO = os.path.dirname(HERE)
+
+
+def make_les(path, nx=256, ny=256, nz=100, seed=1):
+    """A stratocumulus-like field: cloud between layers 30 and 60, ice between 70 and 95."""
+    rng = np.random.default_rng(seed)
+    z_edges = np.linspace(0.0, 2500.0, nz + 1)
+    x = (np.arange(nx) + 0.5) * 50.0
+    y = (np.arange(ny) + 0.5) * 50.0
+    base = rng.random((ny, nx)).astype(np.float32)
+    lwc = np.zeros((nz, ny, nx), np.float32)
+    reff = np.zeros((nz, ny, nx), np.float32)
+    iwc = np.zeros((nz, ny, nx), np.float32)
+    rei = np.zeros((nz, ny, nx), np.float32)
+    for k in range(30, 60):
+        w = np.clip(base - 0.3, 0.0, None) * (k - 29) / 30.0
+        lwc[k] = 0.5 * w
+        reff[k] = np.where(w > 0, 4.0 + 12.0 * w, 0.0)
+    for k in range(70, 95):
+        w = np.clip(rng.random((ny, nx)) - 0.5, 0.0, None).astype(np.float32)
+        iwc[k] = 0.02 * w
+        rei[k] = np.where(w > 0, 20.0 + 40.0 * w, 0.0)
+    with Dataset(path, "w") as nc:
+        nc.createDimension("x", nx)
+        nc.createDimension("y", ny)
+        nc.createDimension("z", nz)
+        nc.createDimension("z_edges", nz + 1)
+        for name, dims, data, units in [("x", ("x",), x, "m"), ("y", ("y",), y, "m"),
+                                        ("z_edges", ("z_edges",), z_edges, "m")]:
+            v = nc.createVariable(name, "f8", dims)
+            v.units = units
+            v[:] = data
+        for name, data, units in [("lwc", lwc, "g m-3"), ("reff", reff, "um"),
+                                  ("iwc", iwc, "g m-3"), ("reff_ice", rei, "um")]:
+            v = nc.createVariable(name, "f4", ("z", "y", "x"))
+            v.units = units
+            v[:] = data
+    return 4 * lwc.nbytes
+
+
+def run(kumo, nml, cwd):
+    """Run kumo under /usr/bin/time; return (log, peak RSS in MB)."""
+    p = subprocess.run(["/usr/bin/time", "-f", "MAXRSS %M", kumo, nml], cwd=cwd,
+                       capture_output=True, text=True)
+    if p.returncode != 0:
+        sys.exit(f"kumo failed on {nml}:\n{p.stdout[-2000:]}\n{p.stderr[-2000:]}")
+    rss = float(re.search(r"MAXRSS (\d+)", p.stderr).group(1)) / 1024.0
+    return p.stdout, rss
+
+
+def attr(path, name):
+    with Dataset(path) as nc:
+        return float(getattr(nc, name))
+
+
+def setup_bar(kumo, work):
+    les = os.path.join(work, "les_256.nc")
+    nbytes = make_les(les)
+    common = ("&kumo_control n_photons_per_batch = 10, n_batches = 2, verbose = 0 /\n"
+              "&kumo_source sza_deg = 30.0, wavelength_um = 0.67 /\n"
+              "&kumo_output file = '{out}', column_fluxes = .false., "
+              "voxel_absorption = .false. /\n")
+    # the ice stand-in table, then warm the water cache
+    with open(os.path.join(work, "ice.nml"), "w") as f:
+        f.write(common.format(out="ice_out.nc") +
+                "&kumo_cloud cloud_file = 'les_256.nc', les_iwc = 'none', "
+                "mie_cache = 'ice_standin.nc', reff_min_um = 10.0, reff_max_um = 60.0, "
+                "n_reff = 20 /\n")
+    run(kumo, "ice.nml", work)
+    nml = (common.format(out="les_out.nc") +
+           "&kumo_cloud cloud_file = 'les_256.nc', mie_cache = 'water.nc', "
+           "reff_min_um = 2.0, reff_max_um = 30.0, n_reff = 30, "
+           "ice_optics_file = 'ice_standin.nc' /\n")
+    with open(os.path.join(work, "les.nml"), "w") as f:
+        f.write(nml)
+    run(kumo, "les.nml", work)          # computes the water table
+    times, rss = [], []
+    for _ in range(3):
+        log, r = run(kumo, "les.nml", work)
+        times.append(attr(os.path.join(work, "les_out.nc"), "setup_time_s"))
+        rss.append(r)
+    return nbytes / 1e6, statistics.median(times), statistics.median(rss)
+
+
+def flux_bar(kumo, shared, work):
+    prp = os.path.join(shared, "data", "i3rc", "les_examples", "les_stcu_w213.prp")
+    nml = ("&kumo_control n_photons_per_batch = 50000, n_batches = 20, seed = {seed}, "
+           "verbose = 1 /\n"
+           f"&kumo_cloud cloud_file = '{prp}', cloud_format = 'prp' /\n"
+           "&kumo_source sza_deg = 60.0 /\n"
+           "&kumo_output file = 'prp_out.nc', column_fluxes = .false., "
+           "voxel_absorption = .false. /\n")
+    t01 = []
+    for seed in (1, 2, 3):
+        with open(os.path.join(work, "prp.nml"), "w") as f:
+            f.write(nml.format(seed=seed))
+        log, _ = run(kumo, "prp.nml", work)
+        cpu = float(re.search(r"cpu ([0-9.eE+-]+) s", log).group(1))
+        m = re.search(r"reflectance\s+([0-9.]+) \+-\s+([0-9.eE+-]+)", log)
+        r, s = float(m.group(1)), float(m.group(2))
+        t01.append(cpu * (s / r / 0.001) ** 2)
+    return r, statistics.median(t01), min(t01), max(t01)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--kumo", default=os.path.join(REPO, "build", "kumo"))
+    ap.add_argument("--shared", default=os.path.join(REPO, "..", "shared"))
+    ap.add_argument("--out", default=os.path.join(HERE, "results"))
+    a = ap.parse_args()
+    kumo = os.path.abspath(a.kumo)
+    work = os.path.join(a.out, "les_bench_work")
+    os.makedirs(work, exist_ok=True)
+    mb, t_setup, rss = setup_bar(kumo, work)
+    r, t_med, t_lo, t_hi = flux_bar(kumo, os.path.abspath(a.shared), work)
+    text = (
+        "# Cloud-file bars (bench/run_les_bench.py)\n\n"
+        "| bar | required | measured | met |\n|---|---|---|---|\n"
+        f"| 256 x 256 x 100 LES, liquid + ice, setup time (cached tables) | < 10 s | "
+        f"{t_setup:.2f} s | {'yes' if t_setup < 10 else 'no'} |\n"
+        f"| the same, peak memory of the run / input fields ({mb:.0f} MB float32) | < 3 | "
+        f"{rss:.0f} MB = {rss / mb:.2f} | {'yes' if rss < 3 * mb else 'no'} |\n"
+        f"| les_stcu_w213.prp, SZA 60, reflectance R = {r:.4f} to 0.1 %, CPU-s | <= 1 | "
+        f"{t_med:.2f} ({t_lo:.2f} - {t_hi:.2f}) | {'yes' if t_med <= 1 else 'no'} |\n")
+    with open(os.path.join(a.out, "les_bench.md"), "w") as f:
+        f.write(text)
+    print(text)
+
+
+if __name__ == "__main__":
+    main()

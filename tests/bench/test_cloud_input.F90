@@ -235,14 +235,7 @@ contains
     open (newunit=u, file='cloud_test.mystic', status='replace', action='write')
     write (u, '(3i4, a)') NX, NY, NZ, ' 3'
     write (u, '(7f8.3)') DX_KM, DY_KM, ZE_KM
-    do kk = 1, NZ
-      do j = 1, NY
-        do i = 1, NX
-          if (lwc(i, j, kk) > 0.0_wp) write (u, '(3i4, 2es24.16)') i, j, kk, lwc(i, j, kk), &
-            reff(i, j, kk)
-        end do
-      end do
-    end do
+    call write_points(u, lwc, reff)
     close (u)
     open (newunit=u, file='cloud_test.lwc', status='replace', action='write')
     write (u, '(a)') '2  parameter LWC file'
@@ -250,14 +243,7 @@ contains
     write (u, '(2f8.3)') DX_KM, DY_KM
     write (u, '(5f8.3)') ZE_KM
     write (u, '(5f8.2)') [(280.0_wp, kk=0, NZ)]
-    do kk = 1, NZ
-      do j = 1, NY
-        do i = 1, NX
-          if (lwc(i, j, kk) > 0.0_wp) write (u, '(3i4, 2es24.16)') i, j, kk, lwc(i, j, kk), &
-            reff(i, j, kk)
-        end do
-      end do
-    end do
+    call write_points(u, lwc, reff)
     close (u)
     call run_namelist('cloud_les_test2.nml', common_groups(5, 'cloud_les_out2.nc')// &
                       cloud_group('cloud_les_test2.nc', 'les'), a, error)
@@ -278,6 +264,21 @@ contains
                'reflectance LES '//str(ma)//', MYSTIC '//str(mb)//', LWC file '//str(mc)// &
                ' differ with the same seed')
   end subroutine test_text_formats
+
+  !> One line "ix iy iz lwc reff" per cloudy cell (MYSTIC flag 3 and LWC files alike).
+  subroutine write_points(u, lwc, reff)
+    integer, intent(in) :: u
+    real(wp), intent(in) :: lwc(NX, NY, NZ), reff(NX, NY, NZ)
+    integer :: i, j, kk
+    do kk = 1, NZ
+      do j = 1, NY
+        do i = 1, NX
+          if (lwc(i, j, kk) > 0.0_wp) write (u, '(3i4, 2es24.16)') i, j, kk, lwc(i, j, kk), &
+            reff(i, j, kk)
+        end do
+      end do
+    end do
+  end subroutine write_points
 
   subroutine test_hg_routes(error)
     type(error_t), allocatable, intent(out) :: error

@@ -152,6 +152,9 @@ contains
         opt%ssa(:, :, :, ic) = c%ssa(:, :, ic:ic + c%nz - 1)
         opt%iph(:, :, :, ic) = c%iphase(:, :, ic:ic + c%nz - 1) + phase_offset
       end do
+    case default
+      call set_error(error, ccfg%req%path//': unknown kind of cloud content '//str(c%content))
+      return
     end select
     if (n_out_liq > 0) opt%warnings = opt%warnings//str(n_out_liq)//' cloud voxel values '// &
       'have an effective radius outside the Mie table ('//str(ccfg%reff_min_um)//' - '// &

@@ -438,8 +438,9 @@ contains
     character(len=*), intent(in) :: path
     type(error_t), allocatable, intent(inout) :: error
     call par_bcast_int(status)
-    if (status(1) /= 0 .and. .not. allocated(error)) &
+    if (status(1) /= 0 .and. .not. allocated(error)) then
       call set_error(error, 'reading '//path//' failed on rank 0')
+    end if
   end subroutine share_read_status
 
   !> Rank 0 reads the BRDF map and broadcasts it.
@@ -537,8 +538,9 @@ contains
     call layout_init(lay, scene%atm%nz, scene%atm%nx*scene%atm%ny, scene%atm%n3, map_levels, &
                      voxel, scene%det%n_dir, scene%det%levels, rad_maps, cam_npix, &
                      [scene%atm%k3_lo - 1, scene%atm%k3_hi])
-    if (par_is_root() .and. len(scene%notes) > 0 .and. cfg%control%verbose >= 1) &
+    if (par_is_root() .and. len(scene%notes) > 0 .and. cfg%control%verbose >= 1) then
       write (output_unit, '(a)', advance='no') scene%notes
+    end if
     if (par_is_root() .and. len(scene%warnings) > 0) write (error_unit, '(a)') &
       'kumo: warning: '//scene%warnings
     call stats_init(st, lay)

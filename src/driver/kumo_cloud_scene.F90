@@ -69,6 +69,7 @@ contains
     type(error_t), allocatable, intent(out) :: error
     type(cloud_input_t) :: c
     type(mie_table_t) :: liq, ice
+    type(phase_t), allocatable :: more(:)
     integer :: nplanes, ncomp, nneg, i, n_out_liq, n_out_ice, ic
     character(len=:), allocatable :: action
 
@@ -119,9 +120,9 @@ contains
         call mie_voxels(c, c%ext, c%reff, liq, phase_offset, .true., opt, 1, n_out_liq)
       end if
       if (c%has_ice) then
-        call ice_phases(ice, n_table, opt%phases, error)
+        call table_phases(ice, n_table, more, error)
         if (allocated(error)) return
-        c%points = .false.
+        opt%phases = [opt%phases, more]
         call mie_voxels(c, c%iwc, c%reff_ice, ice, phase_offset + size(liq%r_eff_um), .false., &
                         opt, 2*nplanes + 1, n_out_ice)
       end if
@@ -212,18 +213,6 @@ contains
     end do
   end subroutine table_phases
 
-  !> Append the phase functions of the ice table.
-  subroutine ice_phases(table, n_table, phases, error)
-    type(mie_table_t), intent(in) :: table
-    integer, intent(in) :: n_table
-    type(phase_t), allocatable, intent(inout) :: phases(:)
-    type(error_t), allocatable, intent(out) :: error
-    type(phase_t), allocatable :: more(:)
-    call table_phases(table, n_table, more, error)
-    if (allocated(error)) return
-    phases = [phases, more]
-  end subroutine ice_phases
-
   !> Two components per plane (the bracketing table radii) from water content or extinction
   !> and effective radius, into components first, first + 1 (and first + 2, + 3 for points).
   subroutine mie_voxels(c, amount, reff, table, offset, is_ext, opt, first, n_out)
@@ -236,7 +225,7 @@ contains
     type(cloud_optics_t), intent(inout) :: opt
     integer, intent(inout) :: n_out
     integer :: ix, iy, k, ip, np, i1, i2, ic, nr
-    real(wp) :: a, r, f, w, e1, e2, scale
+    real(wp) :: a, r, f, w_phase, e1, e2, scale
     logical :: inside
     np = merge(2, 1, c%points)
     nr = size(table%r_eff_um)
@@ -257,8 +246,9 @@ contains
               n_out = n_out + 1
               r = min(max(r, table%r_eff_um(1)), table%r_eff_um(nr))
             end if
+            ! (w_phase, the phase-function weight, is implied by the two components' shares)
             call mie_table_bracket(table%r_eff_um, table%ext_per_lwc, table%ssa, r, i1, i2, f, &
-                                   w, inside)
+                                   w_phase, inside)
             e1 = f*table%ext_per_lwc(i1)
             e2 = (1.0_wp - f)*table%ext_per_lwc(i2)
             if (is_ext) then
@@ -290,7 +280,6 @@ contains
     integer :: nz, k, j, nsub, n
     nz = size(z) - 1
     ! profile: every level and steps of at most PROFILE_STEP between them
-    n = 0
     allocate (zp(0))
     do k = 1, nz
       nsub = max(1, ceiling((z(k) - z(k - 1))/PROFILE_STEP))

@@ -67,8 +67,6 @@ module kumo_cloud_input
     logical :: has_ice = .false.               !! LES ice water present
     real(wp), allocatable :: iwc(:, :, :)      !! ice water content [g m-3]
     real(wp), allocatable :: reff_ice(:, :, :) !! ice effective radius [um]
-    !> temperature [K] and pressure [Pa] per layer (horizontal means); size 0 when absent
-    real(wp), allocatable :: t_layer(:), p_layer(:)
     character(len=:), allocatable :: notes     !! how the file was read, for the run log
     character(len=:), allocatable :: missing   !! what the file does not give
   end type cloud_input_t
@@ -117,9 +115,6 @@ contains
     case default
       call set_error(error, 'cloud_format "'//trim(req%format)//'" is unknown')
     end select
-    if (allocated(error)) return
-    if (.not. allocated(cloud%t_layer)) allocate (cloud%t_layer(0))
-    if (.not. allocated(cloud%p_layer)) allocate (cloud%p_layer(0))
   end subroutine read_cloud_input
 
   subroutine from_les(req, grid, cloud, error)
@@ -141,8 +136,6 @@ contains
       call move_alloc(f%iwc, cloud%iwc)
       call move_alloc(f%reff_ice, cloud%reff_ice)
     end if
-    if (f%has_temperature) cloud%t_layer = layer_means(f%temperature)
-    if (f%has_pressure) cloud%p_layer = layer_means(f%pressure)
     cloud%notes = f%notes
     cloud%missing = 'the wavelength'
   end subroutine from_les
@@ -174,11 +167,6 @@ contains
     cloud%content = CLOUD_WATER
     call move_alloc(f%lwc, cloud%lwc)
     call move_alloc(f%reff, cloud%reff)
-    if (f%z_are_boundaries) then
-      cloud%t_layer = 0.5_wp*(f%temperature(1:f%nz) + f%temperature(2:f%nz + 1))
-    else
-      cloud%t_layer = 0.5_wp*(f%temperature(1:f%nz - 1) + f%temperature(2:f%nz))
-    end if
     cloud%notes = cloud%notes//'LWC file: '//str(f%n_listed)//' points listed, heights as '// &
                   merge('cell boundaries', 'grid points    ', f%z_are_boundaries)
     cloud%missing = 'the wavelength and the droplet optics'
@@ -197,9 +185,6 @@ contains
     call move_alloc(f%ssa, cloud%ssa)
     call move_alloc(f%iphase, cloud%iphase)
     call move_alloc(f%chi, cloud%chi)
-    cloud%t_layer = layer_means(f%temperature)
-    if (.not. f%z_are_boundaries) cloud%t_layer = 0.5_wp*(cloud%t_layer(1:f%nz - 1) + &
-                                                          cloud%t_layer(2:f%nz))
     cloud%notes = 'property file: '//str(f%nphase)//' phase functions of up to '// &
                   str(f%nleg_max)//' Legendre terms, heights as '// &
                   merge('cell boundaries', 'grid points    ', f%z_are_boundaries)
@@ -271,16 +256,6 @@ contains
     allocate (cloud%z(0:cloud%nz))
     cloud%z = z(1:cloud%nz + 1)
   end subroutine set_grid
-
-  !> Horizontal mean per layer of a (nx, ny, nz) field or a (1, 1, nz) profile.
-  pure function layer_means(a) result(m)
-    real(wp), intent(in) :: a(:, :, :)
-    real(wp) :: m(size(a, 3))
-    integer :: k
-    do k = 1, size(a, 3)
-      m(k) = sum(a(:, :, k))/real(size(a, 1)*size(a, 2), wp)
-    end do
-  end function layer_means
 
   !> Sort x ascending (heap sort) and keep one copy of each value: x(1:n).
   pure subroutine sort_unique_exact(x, n)

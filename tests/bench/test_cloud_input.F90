@@ -229,7 +229,7 @@ contains
     type(result_set_t) :: a, b, c
     real(wp) :: lwc(NX, NY, NZ), reff(NX, NY, NZ)
     real(dp) :: ma, sa, mb, sb, mc, sc
-    integer :: u, i, j, kk
+    integer :: u, kk
     call cloud(lwc, reff)
     call write_les('cloud_les_test2.nc')
     open (newunit=u, file='cloud_test.mystic', status='replace', action='write')

@@ -1,29 +1,28 @@
 ! SPDX-License-Identifier: BSD-3-Clause
 !> Optics of the 3-D region from a cloud file (&kumo_cloud), and Rayleigh layers.
 !>
-!> `build_cloud_optics` reads the whole cloud file and returns voxel components for
-!> `atmosphere_init`: extinction, single-scattering albedo and phase-function index per voxel,
-!> with the phase functions they refer to.
+!> `build_cloud_atmosphere` reads the cloud file and builds the atmosphere with it: the cloud's
+!> phase functions join the scene's list, and its voxel optics are put into the atmosphere one
+!> species and one layer at a time, so that no copy of the whole field exists besides the
+!> atmosphere's own arrays and the one species being read.
 !>
 !> * Water content and effective radius: the Mie table of the namelist's size distribution at
 !>   the run's wavelength (from the cache file when it matches). A voxel with radius r between
 !>   table radii r1 < r2 is the mixture of the two tabulated populations that has effective
-!>   radius r (`mie_table_bracket`); the two are two components of the voxel, so the photon
-!>   chooses the population by its share of the scattering coefficient and then scatters with
-!>   that population's phase function. This is exactly the blended phase function
-!>   w P(r1) + (1 - w) P(r2) with w the scattering share (MCARaTS's fractional phase index),
-!>   sampled without a blended table. Radii outside the table are clamped to its ends and
-!>   counted in a warning.
-!> * Extinction and effective radius (MYSTIC flag 2): as above, with the extinction split by
-!>   the two populations' shares of it.
-!> * Complete optics (SHDOM property files, MYSTIC flag 1): one component, with the file's
-!>   phase functions (Legendre series or Henyey-Greenstein).
+!>   radius r (`mie_table_bracket`): its extinction and albedo are the mixture's, and its phase
+!>   function the blend (1 - w) P(r1) + w P(r2) with w the share of r2 in the scattering
+!>   (MCARaTS's fractional phase index), sampled exactly by taking table r2 with probability w.
+!>   Radii outside the table are clamped to its ends and counted in a warning.
+!> * Extinction and effective radius (MYSTIC flag 2): as above, with the file's extinction.
+!> * Complete optics (SHDOM property files, MYSTIC flag 1): the file's phase functions
+!>   (Legendre series or Henyey-Greenstein).
 !> * Files on grid points: every plane is a component of the two layers it bounds, with half
 !>   of its value in each.
 !> * Ice water (LES files) uses an optics table in the Mie-table layout named by
-!>   `ice_optics_file`; kumo has no ice-crystal optics of its own.
+!>   `ice_optics_file`; kumo has no ice-crystal optics of its own. It is read after the liquid
+!>   water has been put into the atmosphere.
 module kumo_cloud_scene
-  use kumo_kinds, only: wp, dp
+  use kumo_kinds, only: wp, vp
   use kumo_error, only: error_t, set_error, str
   use kumo_phase, only: phase_t, phase_from_table, new_phase_hg, phase_from_legendre
   use kumo_mie, only: mie_table_t, mie_table_build, mie_table_bracket, dist_kind_from_name
@@ -33,137 +32,169 @@ module kumo_cloud_scene
   use kumo_std_atmosphere, only: std_atmosphere_profile
   use kumo_cloud_input, only: cloud_input_t, read_cloud_input, CLOUD_WATER, CLOUD_EXT_REFF, &
                               CLOUD_OPTICS
+  use kumo_atmosphere, only: atmosphere_t, atmosphere_options_t, atmosphere_begin, &
+                             atmosphere_put_layer, atmosphere_end
   use kumo_config, only: cloud_cfg_t
   implicit none
   private
-  public :: cloud_optics_t, build_cloud_optics, rayleigh_layers
+  public :: build_cloud_atmosphere, rayleigh_layers
 
   !> Standard gravity [m s-2] (CGPM 1901), for layer air densities from pressure differences.
   real(wp), parameter :: G0 = 9.80665_wp
   !> Step of the pressure profile handed to the Rayleigh integration [m].
   real(wp), parameter :: PROFILE_STEP = 100.0_wp
 
-  !> Voxel components of the 3-D region and their phase functions.
-  type :: cloud_optics_t
-    real(wp), allocatable :: ext(:, :, :, :)   !! (nx, ny, nz, ncomp) extinction [m-1]
-    real(wp), allocatable :: ssa(:, :, :, :)   !! (nx, ny, nz, ncomp) single-scattering albedo
-    integer, allocatable :: iph(:, :, :, :)    !! (nx, ny, nz, ncomp) index into `phases`
-    type(phase_t), allocatable :: phases(:)    !! the phase functions of the cloud
-    character(len=:), allocatable :: notes     !! for the run log
-    character(len=:), allocatable :: warnings  !! for the log and the output file
-  end type cloud_optics_t
-
   character(len=1), parameter :: NL = new_line('a')
 
 contains
 
-  !> Read the cloud file of `ccfg` and compute the voxel optics at `wavelength_um`.
-  !> `phase_offset` is added to every phase index (the phase functions of the namelist and of
-  !> the molecules come first in the scene's list).
-  subroutine build_cloud_optics(ccfg, wavelength_um, n_table, phase_offset, opt, error)
+  !> Read the cloud file of `ccfg`, compute its voxel optics at `wavelength_um` and build the
+  !> atmosphere: levels `z`, domain lx x ly, the 1-D components `ext1d`, `ssa1d`, `iph1d`
+  !> (nz, ncomp1) and the cloud in the 3-D region from layer `k3_lo`. `phases` (the namelist's
+  !> and the molecules') gets the cloud's appended and moves into the atmosphere.
+  subroutine build_cloud_atmosphere(ccfg, wavelength_um, n_table, z, lx, ly, k3_lo, ext1d, &
+                                    ssa1d, iph1d, phases, aopts, atm, notes, warnings, error)
     type(cloud_cfg_t), intent(in) :: ccfg
     real(wp), intent(in) :: wavelength_um   !! [um]; 0 when not given (optics files only)
     integer, intent(in) :: n_table          !! inverse-CDF table size of tabulated phases
-    integer, intent(in) :: phase_offset
-    type(cloud_optics_t), intent(out) :: opt
+    real(wp), intent(in) :: z(0:), lx, ly
+    integer, intent(in) :: k3_lo
+    real(wp), intent(in) :: ext1d(:, :), ssa1d(:, :)
+    integer, intent(in) :: iph1d(:, :)
+    type(phase_t), allocatable, intent(inout) :: phases(:)
+    type(atmosphere_options_t), intent(in) :: aopts
+    type(atmosphere_t), intent(out) :: atm
+    character(len=:), allocatable, intent(out) :: notes, warnings
     type(error_t), allocatable, intent(out) :: error
     type(cloud_input_t) :: c
     type(mie_table_t) :: liq, ice
     type(phase_t), allocatable :: more(:)
-    integer :: nplanes, ncomp, nneg, i, n_out_liq, n_out_ice, ic
+    integer :: nplanes, nspecies, nneg, i, n_out_liq, n_out_ice, offset, offset_ice
     character(len=:), allocatable :: action
 
-    call read_cloud_input(ccfg%req, c, error)
+    call read_cloud_input(ccfg%req, c, error, part='liquid')
     if (allocated(error)) return
-    opt%notes = 'cloud file '//ccfg%req%path//' ('//trim(c%format)//'): '//c%notes//NL
-    opt%warnings = ''
-    if (len(c%missing) > 0) opt%notes = opt%notes//'the file does not give '//c%missing// &
-                                        '; taken from the namelist'//NL
+    notes = 'cloud file '//ccfg%req%path//' ('//trim(c%format)//'): '//c%notes//NL
+    warnings = ''
+    if (len(c%missing) > 0) notes = notes//'the file does not give '//c%missing// &
+                                    '; taken from the namelist'//NL
     nplanes = merge(2, 1, c%points)
     n_out_liq = 0
     n_out_ice = 0
+    offset = size(phases)
 
     select case (c%content)
     case (CLOUD_WATER, CLOUD_EXT_REFF)
       call water_table(ccfg, wavelength_um, liq, action, error)
       if (allocated(error)) return
-      opt%notes = opt%notes//'Mie table of water, '//trim(ccfg%size_distribution)// &
-                  ' v_eff = '//str(ccfg%v_eff)//', '//str(size(liq%r_eff_um))//' radii '// &
-                  str(liq%r_eff_um(1))//' ... '//str(liq%r_eff_um(size(liq%r_eff_um)))// &
-                  ' um at '//str(wavelength_um)//' um: '//action//NL
-      ncomp = 2*nplanes
-      if (c%has_ice) then
-        if (len_trim(ccfg%ice_optics_file) == 0) then
-          call set_error(error, ccfg%req%path//': the file has ice water; kumo needs its '// &
-                         'optics as a table (&kumo_cloud ice_optics_file) or les_iwc = ''none'' '// &
-                         'to leave the ice out')
-          return
-        end if
-        call read_mie_table(trim(ccfg%ice_optics_file), ice, error)
-        if (allocated(error)) return
-        if (abs(ice%wavelength_um - wavelength_um) > 1.0e-6_wp*wavelength_um) then
-          call set_error(error, trim(ccfg%ice_optics_file)//': the ice optics table is for '// &
-                         str(ice%wavelength_um)//' um, the run for '//str(wavelength_um)//' um')
-          return
-        end if
-        opt%notes = opt%notes//'ice optics table '//trim(ccfg%ice_optics_file)//', '// &
-                    str(size(ice%r_eff_um))//' radii'//NL
-        ncomp = ncomp + 2
-      end if
-      allocate (opt%ext(c%nx, c%ny, c%nz, ncomp), opt%ssa(c%nx, c%ny, c%nz, ncomp), &
-                opt%iph(c%nx, c%ny, c%nz, ncomp))
-      call table_phases(liq, n_table, opt%phases, error)
+      notes = notes//'Mie table of water, '//trim(ccfg%size_distribution)//' v_eff = '// &
+              str(ccfg%v_eff)//', '//str(size(liq%r_eff_um))//' radii '// &
+              str(liq%r_eff_um(1))//' ... '//str(liq%r_eff_um(size(liq%r_eff_um)))// &
+              ' um at '//str(wavelength_um)//' um: '//action//NL
+      call table_phases(liq, n_table, more, error)
       if (allocated(error)) return
-      if (c%content == CLOUD_WATER) then
-        call mie_voxels(c, c%lwc, c%reff, liq, phase_offset, .false., opt, 1, n_out_liq)
-      else
-        call mie_voxels(c, c%ext, c%reff, liq, phase_offset, .true., opt, 1, n_out_liq)
-      end if
+      phases = [phases, more]
+      nspecies = 1
+      offset_ice = size(phases)
       if (c%has_ice) then
+        call ice_table(ccfg, wavelength_um, ice, error)
+        if (allocated(error)) return
+        notes = notes//'ice optics table '//trim(ccfg%ice_optics_file)//', '// &
+                str(size(ice%r_eff_um))//' radii'//NL
         call table_phases(ice, n_table, more, error)
         if (allocated(error)) return
-        opt%phases = [opt%phases, more]
-        call mie_voxels(c, c%iwc, c%reff_ice, ice, phase_offset + size(liq%r_eff_um), .false., &
-                        opt, 2*nplanes + 1, n_out_ice)
+        phases = [phases, more]
+        nspecies = 2
+      end if
+      call atmosphere_begin(atm, z, lx, ly, ext1d, ssa1d, iph1d, phases, aopts, error, k3_lo, &
+                            c%nx, c%ny, c%nz, nspecies*nplanes, blend=.true.)
+      if (allocated(error)) return
+      if (c%content == CLOUD_WATER) then
+        call mie_voxels(c, c%lwc, c%reff, liq, offset, .false., atm, 0, n_out_liq)
+        deallocate (c%lwc)
+      else
+        call mie_voxels(c, c%ext, c%reff, liq, offset, .true., atm, 0, n_out_liq)
+        deallocate (c%ext)
+      end if
+      deallocate (c%reff)
+      if (nspecies == 2) then
+        call read_cloud_input(ccfg%req, c, error, part='ice')
+        if (allocated(error)) return
+        call mie_voxels(c, c%iwc, c%reff_ice, ice, offset_ice, .false., atm, nplanes, n_out_ice)
       end if
     case (CLOUD_OPTICS)
-      ncomp = nplanes
-      allocate (opt%ext(c%nx, c%ny, c%nz, ncomp), opt%ssa(c%nx, c%ny, c%nz, ncomp), &
-                opt%iph(c%nx, c%ny, c%nz, ncomp))
       if (allocated(c%chi)) then
-        allocate (opt%phases(size(c%chi, 2)))
+        allocate (more(size(c%chi, 2)))
         do i = 1, size(c%chi, 2)
-          opt%phases(i) = phase_from_legendre(c%chi(:, i), n_table, error, nneg)
+          more(i) = phase_from_legendre(c%chi(:, i), n_table, error, nneg)
           if (allocated(error)) then
             error%message = ccfg%req%path//': phase function '//str(i)//': '//error%message
             return
           end if
-          if (nneg > 0) opt%notes = opt%notes//'phase function '//str(i)//': its Legendre '// &
-                                    'series is negative at '//str(nneg)//' angles, set to 0'//NL
+          if (nneg > 0) notes = notes//'phase function '//str(i)//': its Legendre '// &
+                                'series is negative at '//str(nneg)//' angles, set to 0'//NL
         end do
       else
-        allocate (opt%phases(size(c%hg_g)))
+        allocate (more(size(c%hg_g)))
         do i = 1, size(c%hg_g)
-          opt%phases(i) = new_phase_hg(c%hg_g(i), error)
+          more(i) = new_phase_hg(c%hg_g(i), error)
           if (allocated(error)) return
         end do
       end if
-      do ic = 1, nplanes
-        opt%ext(:, :, :, ic) = c%ext(:, :, ic:ic + c%nz - 1)/nplanes
-        opt%ssa(:, :, :, ic) = c%ssa(:, :, ic:ic + c%nz - 1)
-        opt%iph(:, :, :, ic) = c%iphase(:, :, ic:ic + c%nz - 1) + phase_offset
-      end do
+      phases = [phases, more]
+      call atmosphere_begin(atm, z, lx, ly, ext1d, ssa1d, iph1d, phases, aopts, error, k3_lo, &
+                            c%nx, c%ny, c%nz, nplanes)
+      if (allocated(error)) return
+      call optics_voxels(c, offset, atm)
     case default
       call set_error(error, ccfg%req%path//': unknown kind of cloud content '//str(c%content))
       return
     end select
-    if (n_out_liq > 0) opt%warnings = opt%warnings//str(n_out_liq)//' cloud voxel values '// &
-      'have an effective radius outside the Mie table ('//str(ccfg%reff_min_um)//' - '// &
+    call atmosphere_end(atm, aopts, error)
+    if (allocated(error)) return
+    if (n_out_liq > 0) warnings = warnings//str(n_out_liq)//' cloud voxel values have an '// &
+      'effective radius outside the Mie table ('//str(ccfg%reff_min_um)//' - '// &
       str(ccfg%reff_max_um)//' um) and were given the nearest table radius; '// &
       'widen reff_min_um/reff_max_um to avoid it. '
-    if (n_out_ice > 0) opt%warnings = opt%warnings//str(n_out_ice)//' ice voxel values have '// &
-      'an effective radius outside the ice optics table and were given the nearest table radius. '
-  end subroutine build_cloud_optics
+    if (n_out_ice > 0) warnings = warnings//str(n_out_ice)//' ice voxel values have an '// &
+      'effective radius outside the ice optics table and were given the nearest table radius. '
+  end subroutine build_cloud_atmosphere
+
+  !> The ice optics table named by the namelist, checked against the run's wavelength.
+  subroutine ice_table(ccfg, wavelength_um, table, error)
+    type(cloud_cfg_t), intent(in) :: ccfg
+    real(wp), intent(in) :: wavelength_um
+    type(mie_table_t), intent(out) :: table
+    type(error_t), allocatable, intent(out) :: error
+    if (len_trim(ccfg%ice_optics_file) == 0) then
+      call set_error(error, ccfg%req%path//': the file has ice water; kumo needs its '// &
+                     'optics as a table (&kumo_cloud ice_optics_file) or les_iwc = ''none'' '// &
+                     'to leave the ice out')
+      return
+    end if
+    call read_mie_table(trim(ccfg%ice_optics_file), table, error)
+    if (allocated(error)) return
+    if (abs(table%wavelength_um - wavelength_um) > 1.0e-6_wp*wavelength_um) then
+      call set_error(error, trim(ccfg%ice_optics_file)//': the ice optics table is for '// &
+                     str(table%wavelength_um)//' um, the run for '//str(wavelength_um)//' um')
+    end if
+  end subroutine ice_table
+
+  !> Complete optics into components 1 (and 2 for points): extinction, albedo, phase index.
+  subroutine optics_voxels(c, offset, atm)
+    type(cloud_input_t), intent(in) :: c
+    integer, intent(in) :: offset
+    type(atmosphere_t), intent(inout) :: atm
+    integer :: ip, np, k
+    np = merge(2, 1, c%points)
+    do ip = 1, np
+      do k = 1, c%nz
+        call atmosphere_put_layer(atm, ip, k, real(c%ext(:, :, k + ip - 1), wp)/np, &
+                                  real(c%ssa(:, :, k + ip - 1), wp), &
+                                  c%iphase(:, :, k + ip - 1) + offset)
+      end do
+    end do
+  end subroutine optics_voxels
 
   !> The Mie table of water droplets, from the cache or computed.
   subroutine water_table(ccfg, wavelength_um, table, action, error)
@@ -213,32 +244,36 @@ contains
     end do
   end subroutine table_phases
 
-  !> Two components per plane (the bracketing table radii) from water content or extinction
-  !> and effective radius, into components first, first + 1 (and first + 2, + 3 for points).
-  subroutine mie_voxels(c, amount, reff, table, offset, is_ext, opt, first, n_out)
+  !> One component per plane from water content or extinction and effective radius: the
+  !> mixture of the two bracketing table populations, with its phase-function blend; into
+  !> components first + 1 (and first + 2 for points).
+  subroutine mie_voxels(c, amount, reff, table, offset, is_ext, atm, first, n_out)
     type(cloud_input_t), intent(in) :: c
-    real(wp), intent(in) :: amount(:, :, :)  !! water content [g m-3] or extinction [m-1]
-    real(wp), intent(in) :: reff(:, :, :)    !! effective radius [um]
+    real(vp), intent(in) :: amount(:, :, :)  !! water content [g m-3] or extinction [m-1]
+    real(vp), intent(in) :: reff(:, :, :)    !! effective radius [um]
     type(mie_table_t), intent(in) :: table
     integer, intent(in) :: offset, first
     logical, intent(in) :: is_ext            !! amount is the extinction
-    type(cloud_optics_t), intent(inout) :: opt
+    type(atmosphere_t), intent(inout) :: atm
     integer, intent(inout) :: n_out
-    integer :: ix, iy, k, ip, np, i1, i2, ic, nr
+    integer :: ix, iy, k, ip, np, i1, i2, nr
     real(wp) :: a, r, f, w_phase, e1, e2, scale
+    real(wp), allocatable :: ext(:, :), ssa(:, :), wph(:, :)
+    integer, allocatable :: iph(:, :)
     logical :: inside
     np = merge(2, 1, c%points)
     nr = size(table%r_eff_um)
+    allocate (ext(c%nx, c%ny), ssa(c%nx, c%ny), wph(c%nx, c%ny), iph(c%nx, c%ny))
     do ip = 1, np
-      ic = first + 2*(ip - 1)
       do k = 1, c%nz
         do iy = 1, c%ny
           do ix = 1, c%nx
             a = amount(ix, iy, k + ip - 1)/np
             if (a <= 0.0_wp) then
-              opt%ext(ix, iy, k, ic:ic + 1) = 0.0_wp
-              opt%ssa(ix, iy, k, ic:ic + 1) = table%ssa(1)
-              opt%iph(ix, iy, k, ic:ic + 1) = offset + 1
+              ext(ix, iy) = 0.0_wp
+              ssa(ix, iy) = table%ssa(1)
+              iph(ix, iy) = offset + 1
+              wph(ix, iy) = 0.0_wp
               cycle
             end if
             r = reff(ix, iy, k + ip - 1)
@@ -246,24 +281,23 @@ contains
               n_out = n_out + 1
               r = min(max(r, table%r_eff_um(1)), table%r_eff_um(nr))
             end if
-            ! (w_phase, the phase-function weight, is implied by the two components' shares)
+            ! i2 = i1 + 1, or i1 for a table of one radius
             call mie_table_bracket(table%r_eff_um, table%ext_per_lwc, table%ssa, r, i1, i2, f, &
                                    w_phase, inside)
             e1 = f*table%ext_per_lwc(i1)
             e2 = (1.0_wp - f)*table%ext_per_lwc(i2)
             if (is_ext) then
-              scale = a/(e1 + e2)      ! the file's extinction, split by the populations' shares
+              scale = a/(e1 + e2)      ! the file's extinction
             else
               scale = a                ! extinction = water content x extinction per water
             end if
-            opt%ext(ix, iy, k, ic) = e1*scale
-            opt%ext(ix, iy, k, ic + 1) = e2*scale
-            opt%ssa(ix, iy, k, ic) = table%ssa(i1)
-            opt%ssa(ix, iy, k, ic + 1) = table%ssa(i2)
-            opt%iph(ix, iy, k, ic) = offset + i1
-            opt%iph(ix, iy, k, ic + 1) = offset + i2
+            ext(ix, iy) = (e1 + e2)*scale
+            ssa(ix, iy) = (e1*table%ssa(i1) + e2*table%ssa(i2))/(e1 + e2)
+            iph(ix, iy) = offset + i1
+            wph(ix, iy) = merge(1.0_wp - w_phase, 0.0_wp, i2 > i1)
           end do
         end do
+        call atmosphere_put_layer(atm, first + ip, k, ext, ssa, iph, wph)
       end do
     end do
   end subroutine mie_voxels

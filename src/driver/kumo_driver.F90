@@ -26,7 +26,7 @@ module kumo_driver
   use kumo_transport, only: source_t, tracer_options_t, source_init, trace_batch
   use kumo_results, only: result_set_t, add_dim, add_var, add_attr, find_var
   use kumo_config, only: config_t, read_config, config_echo, resolve_path
-  use kumo_cloud_scene, only: cloud_optics_t, build_cloud_optics, rayleigh_layers
+  use kumo_cloud_scene, only: build_cloud_atmosphere, rayleigh_layers
   use kumo_rayleigh, only: depol_from_king, king_factor_air
   use kumo_textio, only: read_two_columns, read_whole_file
   use kumo_netcdf, only: write_results, check_writable, read_scene_3d, read_albedo_map, &
@@ -126,8 +126,8 @@ contains
     integer :: i
     character(len=:), allocatable :: nml_path
     real(wp), allocatable :: ext1d(:, :), ssa1d(:, :), ray_ext(:), ray_rho(:)
-    type(cloud_optics_t) :: copt
     real(wp) :: depol
+    character(len=:), allocatable :: cloud_notes, cloud_warnings
 
     nml_path = ''
     if (allocated(cfg%path)) nml_path = cfg%path
@@ -184,36 +184,33 @@ contains
                     cfg%atm%z(:cfg%atm%nz))))//', depolarisation ratio '//str(depol)// &
                     new_line('a')
     end if
-    if (cfg%cloud%enabled) then
-      call cloud_on_ranks(cfg, size(phases), copt, error)
-      if (allocated(error)) return
-      phases = [phases, copt%phases]
-      call move_alloc(copt%ext, ext3)
-      call move_alloc(copt%ssa, ssa3)
-      call move_alloc(copt%iph, iph3)
-      scene%notes = scene%notes//copt%notes
-      scene%warnings = scene%warnings//copt%warnings
-    end if
-
     aopts%use_1d_layers = cfg%vr%use_1d_layers
     aopts%use_absorbing_layers = cfg%vr%use_absorbing_layers
     aopts%sv%enabled = cfg%vr%use_supervoxels
     aopts%sv%fsupg = cfg%vr%sv_fsupg
     aopts%sv%fsupi = cfg%vr%sv_fsupi
     aopts%sv%max_layers = cfg%vr%sv_max_layers
-    if (len_trim(cfg%atm%scene_file) > 0) then
-      call read_scene_on_root(cfg, resolve_path(cfg%atm%scene_file, nml_path), ext3, ssa3, &
-                              iph3, error)
+    if (cfg%cloud%enabled) then
+      call cloud_on_ranks(cfg, ext1d, ssa1d, phase1d, phases, aopts, scene%atm, cloud_notes, &
+                          cloud_warnings, error)
+      if (allocated(error)) return
+      scene%notes = scene%notes//cloud_notes
+      scene%warnings = scene%warnings//cloud_warnings
+    else
+      if (len_trim(cfg%atm%scene_file) > 0) then
+        call read_scene_on_root(cfg, resolve_path(cfg%atm%scene_file, nml_path), ext3, ssa3, &
+                                iph3, error)
+        if (allocated(error)) return
+      end if
+      if (allocated(ext3)) then
+        call atmosphere_init(scene%atm, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, ext1d, ssa1d, &
+                             phase1d, phases, aopts, error, cfg%atm%k3d_bottom, ext3, ssa3, iph3)
+      else
+        call atmosphere_init(scene%atm, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, ext1d, ssa1d, &
+                             phase1d, phases, aopts, error)
+      end if
       if (allocated(error)) return
     end if
-    if (allocated(ext3)) then
-      call atmosphere_init(scene%atm, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, ext1d, ssa1d, &
-                           phase1d, phases, aopts, error, cfg%atm%k3d_bottom, ext3, ssa3, iph3)
-    else
-      call atmosphere_init(scene%atm, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, ext1d, ssa1d, &
-                           phase1d, phases, aopts, error)
-    end if
-    if (allocated(error)) return
 
     if (len_trim(cfg%surface%albedo_file) > 0) then
       call read_albedo_on_root(resolve_path(cfg%surface%albedo_file, nml_path), &
@@ -329,7 +326,7 @@ contains
       tau_col = 0.0_wp
       do k = 1, atm%nz
         if (atm%layer_class(k) == LAYER_3D) then
-          tau_col = tau_col + sum(atm%ext3(:, :, k - atm%k3_lo + 1))/(atm%nx*atm%ny)* &
+          tau_col = tau_col + sum(real(atm%ext3(:, :, k - atm%k3_lo + 1), wp))/(atm%nx*atm%ny)* &
                     (atm%z(k) - atm%z(k - 1))
         else
           tau_col = tau_col + atm%ext1(k)*(atm%z(k) - atm%z(k - 1))
@@ -411,24 +408,35 @@ contains
     end if
   end subroutine read_scene_on_root
 
-  !> The cloud's optics on every rank. Rank 0 goes first, so that a Mie table it computes is in
-  !> the cache before the other ranks look for it; they then read it instead of computing it.
-  subroutine cloud_on_ranks(cfg, phase_offset, copt, error)
+  !> The cloud's atmosphere on every rank. Rank 0 goes first, so that a Mie table it computes
+  !> is in the cache before the other ranks look for it; they then read it instead of
+  !> computing it.
+  subroutine cloud_on_ranks(cfg, ext1d, ssa1d, phase1d, phases, aopts, atm, notes, warnings, &
+                            error)
     type(config_t), intent(in) :: cfg
-    integer, intent(in) :: phase_offset
-    type(cloud_optics_t), intent(out) :: copt
+    real(wp), intent(in) :: ext1d(:, :), ssa1d(:, :)
+    integer, intent(in) :: phase1d(:, :)
+    type(phase_t), allocatable, intent(inout) :: phases(:)
+    type(atmosphere_options_t), intent(in) :: aopts
+    type(atmosphere_t), intent(out) :: atm
+    character(len=:), allocatable, intent(out) :: notes, warnings
     type(error_t), allocatable, intent(out) :: error
     integer :: status(1)
     status = 0
     if (par_is_root()) then
-      call build_cloud_optics(cfg%cloud, cfg%source%wavelength_um, cfg%phase%n_table, &
-                              phase_offset, copt, error)
+      call build(error)
       if (allocated(error)) status = 1
     end if
     call share_read_status(status, cfg%cloud%req%path, error)
     if (allocated(error) .or. par_is_root()) return
-    call build_cloud_optics(cfg%cloud, cfg%source%wavelength_um, cfg%phase%n_table, &
-                            phase_offset, copt, error)
+    call build(error)
+  contains
+    subroutine build(err)
+      type(error_t), allocatable, intent(out) :: err
+      call build_cloud_atmosphere(cfg%cloud, cfg%source%wavelength_um, cfg%phase%n_table, &
+                                  cfg%atm%z, cfg%atm%lx, cfg%atm%ly, cfg%atm%k3d_bottom, ext1d, &
+                                  ssa1d, phase1d, phases, aopts, atm, notes, warnings, err)
+    end subroutine build
   end subroutine cloud_on_ranks
 
   !> Give every rank rank 0's read status (status(1) /= 0: failed; the rest: sizes); ranks

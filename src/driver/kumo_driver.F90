@@ -264,15 +264,14 @@ contains
     ! only catches a photon that no longer makes progress
     scene%tracer%max_steps = max(1000000000_i8, min(huge(1_i8)/2000_i8, cfg%control%max_events)*1000_i8)
 
-    call setup_estimators(cfg, phases, scene, error)
+    call setup_estimators(cfg, scene, error)
   end subroutine setup_scene
 
   !> Radiance detectors, cameras and the variance reduction that serves them. Truncation and
   !> collision forcing act on local estimates only, so they are set up only when radiances or
   !> cameras are requested: a flux run pays for neither.
-  subroutine setup_estimators(cfg, phases, scene, error)
+  subroutine setup_estimators(cfg, scene, error)
     type(config_t), intent(in) :: cfg
-    type(phase_t), intent(in) :: phases(:)
     type(scene_t), intent(inout) :: scene
     type(error_t), allocatable, intent(out) :: error
     type(camera_t), allocatable :: cams(:)
@@ -310,7 +309,8 @@ contains
     if (.not. scene%det%active) return
 
     if (cfg%vr%trunc_levels > 1) then
-      call truncation_init(tr, phases, cfg%vr%trunc_theta_max_deg, cfg%vr%trunc_levels, &
+      call truncation_init(tr, scene%atm%phases, cfg%vr%trunc_theta_max_deg, &
+                           cfg%vr%trunc_levels, &
                            cfg%vr%trunc_peak, error)
       if (allocated(error)) then
         call add_context(error, '&kumo_vr: truncation')
@@ -345,16 +345,16 @@ contains
 
     scene%det%ddis_mu_cone = cos(DDIS_CONE_DEG*DEG2RAD)
     deallocate (scene%det%ddis_phase)
-    allocate (scene%det%ddis_phase(size(phases)))
-    do i = 1, size(phases)
-      scene%det%ddis_phase(i) = phase_eval(phases(i), 1.0_wp) > DDIS_PEAK
+    allocate (scene%det%ddis_phase(size(scene%atm%phases)))
+    do i = 1, size(scene%atm%phases)
+      scene%det%ddis_phase(i) = phase_eval(scene%atm%phases(i), 1.0_wp) > DDIS_PEAK
     end do
 
     ! MYSTIC stops in this situation; kumo warns: local estimates with a forward peak and no
     ! variance reduction converge very slowly (one rare near-forward scattering dominates).
     spiky = .false.
-    do i = 1, size(phases)
-      if (phase_eval(phases(i), 1.0_wp) > SPIKY_PEAK) spiky = .true.
+    do i = 1, size(scene%atm%phases)
+      if (phase_eval(scene%atm%phases(i), 1.0_wp) > SPIKY_PEAK) spiky = .true.
     end do
     if (spiky .and. cfg%vr%zeta_min <= 0.0_wp .and. .not. scene%atm%truncated) then
       scene%warnings = scene%warnings//'radiances are requested for a phase function with a forward peak '// &

@@ -16,8 +16,9 @@
 !> * outside the cloud file's levels: the US 1976 standard atmosphere (us1976_state, checked
 !>   against the standard's tables in test_rayleigh) scaled to the file's edge pressure,
 !>   integrated by brute force in 1 m steps;
-!> * the 'us1976' run of the same levels, for a cloud file holding US 1976 pressures at its
-!>   layer centres, to a tolerance derived from the log-p interpolation error;
+!> * the 'us1976' run of the same levels (itself checked against the brute-force integral of
+!>   the standard), for a cloud file holding US 1976 pressures at its layer centres, to a
+!>   tolerance derived from the log-p interpolation error;
 !> * a 3-D pressure field against a file holding its horizontal-mean profile.
 !>
 !> Bad inputs: no pressure variable, a missing named variable, a pressure that grows with
@@ -393,6 +394,15 @@ contains
     if (allocated(error)) return
     ta = layer_tau(a)
     tb = layer_tau(b)
+    ! 'us1976' itself: the standard's pressure at every 100 m, so each layer's p_bottom - p_top
+    ! is exact and only g is weighted differently from the brute-force sum
+    do k = 1, 19
+      call check_close(error, tb(k), tau_us_scaled(zl(k - 1), zl(k), p76(0.0_wp), 0.0_wp), &
+                       rel_tol=TOL_EXACT, label='tau of layer '//str(k)//' (us1976 vs B99)')
+      call check_close(error, b%air_density(k), (p76(zl(k - 1)) - p76(zl(k)))/ &
+                       (G0*(zl(k) - zl(k - 1))), rel_tol=1.0e-12_wp, &
+                       label='air density of layer '//str(k)//' (us1976)')
+    end do
     do k = 1, 19
       tol = DELTA
       if (k >= 2 .and. k <= 16) tol = DELTA*(p76(zl(k - 1)) + p76(zl(k)))/ &
@@ -516,8 +526,12 @@ end module test_rayleigh_profile_suite
 program test_rayleigh_profile
   use test_rayleigh_profile_suite, only: collect_rayleigh_profile
   use kumo_testing, only: run_unittests
+  use kumo_parallel, only: par_init, par_finalize
   implicit none
   integer :: n_failed
+  ! setup_scene reads cloud files on rank 0 and broadcasts them (one rank in this test)
+  call par_init()
   call run_unittests('rayleigh pressure profiles', collect_rayleigh_profile(), n_failed)
+  call par_finalize()
   if (n_failed > 0) error stop 1
 end program test_rayleigh_profile

@@ -302,34 +302,214 @@ contains
     end do
   end subroutine mie_voxels
 
-  !> Rayleigh extinction of dry air in every layer [m-1] and the layers' air density
-  !> [kg m-3] (mass per area Δp/g over the thickness) from a named standard atmosphere.
-  subroutine rayleigh_layers(z, wavelength_um, profile, co2_ppm, latitude_deg, ext, rho, error)
+  !> Rayleigh extinction of dry air in every layer [m-1], the layers' air density [kg m-3]
+  !> (mass per area (p_bottom - p_top)/g0 over the thickness) and a note saying where the
+  !> pressure came from. The pressure profile is
+  !>
+  !> * a named standard atmosphere (`profile` = 'us1976'), evaluated at the levels and at steps
+  !>   of at most PROFILE_STEP between them;
+  !> * 'levels': `p_levels`, the pressure at every level (a sounding);
+  !> * 'cloud_file': `p_file`, the pressure of each layer of a cloud file whose layer edges
+  !>   `z_file` are consecutive levels, completed above and below by `cloud_file_pressure`.
+  !>
+  !> Between the heights of the profile p is interpolated linearly in log p
+  !> (`rayleigh_extinction`); the air density uses the pressure at the levels.
+  subroutine rayleigh_layers(z, wavelength_um, profile, co2_ppm, latitude_deg, ext, rho, notes, &
+                             error, p_levels, z_file, p_file)
+    use kumo_config, only: RAYLEIGH_LEVELS, RAYLEIGH_CLOUD_FILE
     real(wp), intent(in) :: z(0:)            !! levels [m]
     real(wp), intent(in) :: wavelength_um, co2_ppm, latitude_deg
-    character(len=*), intent(in) :: profile
+    character(len=*), intent(in) :: profile  !! standard atmosphere, 'levels' or 'cloud_file'
     real(wp), allocatable, intent(out) :: ext(:), rho(:)
+    character(len=:), allocatable, intent(out) :: notes
     type(error_t), allocatable, intent(out) :: error
-    real(wp), allocatable :: zp(:), p(:), t(:), r(:), pl(:), tl(:), rl(:)
-    integer :: nz, k, j, nsub, n
+    real(wp), intent(in), optional :: p_levels(0:)  !! 'levels': pressure at z [Pa]
+    real(wp), intent(in), optional :: z_file(0:)    !! 'cloud_file': the file's layer edges [m]
+    real(wp), intent(in), optional :: p_file(:)     !! 'cloud_file': its layer pressures [Pa]
+    real(wp), allocatable :: zp(:), pp(:), pl(:), t(:), r(:)
+    integer, allocatable :: at_level(:)
+    integer :: nz
     nz = size(z) - 1
-    ! profile: every level and steps of at most PROFILE_STEP between them
-    allocate (zp(0))
-    do k = 1, nz
-      nsub = max(1, ceiling((z(k) - z(k - 1))/PROFILE_STEP))
-      zp = [zp, (z(k - 1) + (z(k) - z(k - 1))*j/real(nsub, wp), j=0, nsub - 1)]
-    end do
-    zp = [zp, z(nz)]
-    n = size(zp)
-    allocate (p(n), t(n), r(n))
-    call std_atmosphere_profile(profile, zp, p, t, r, error)
-    if (allocated(error)) return
-    call rayleigh_extinction(wavelength_um, z, zp, p, latitude_deg, co2_ppm, ext, error)
-    if (allocated(error)) return
-    allocate (pl(0:nz), tl(0:nz), rl(0:nz))
-    call std_atmosphere_profile(profile, z, pl, tl, rl, error)
+    select case (trim(profile))
+    case (RAYLEIGH_LEVELS)
+      if (.not. present(p_levels)) then
+        call set_error(error, 'rayleigh_layers: the profile '''//RAYLEIGH_LEVELS// &
+                       ''' needs the pressure at the levels')
+        return
+      end if
+      if (size(p_levels) /= nz + 1) then
+        call set_error(error, 'rayleigh_layers: '//str(size(p_levels))//' pressures for '// &
+                       str(nz + 1)//' levels')
+        return
+      end if
+      zp = z
+      pp = p_levels
+      allocate (pl(0:nz))
+      pl(:) = p_levels
+      notes = 'the sounding pressure_levels_hpa at the '//str(nz + 1)//' levels'
+    case (RAYLEIGH_CLOUD_FILE)
+      if (.not. (present(z_file) .and. present(p_file))) then
+        call set_error(error, 'rayleigh_layers: the profile '''//RAYLEIGH_CLOUD_FILE// &
+                       ''' needs the cloud file''s layer edges and pressures')
+        return
+      end if
+      call cloud_file_pressure(z, z_file, p_file, zp, pp, pl, notes, error)
+      if (allocated(error)) return
+    case default
+      call profile_heights(z, spread(.true., 1, nz), zp, at_level)
+      allocate (pp(size(zp)), t(size(zp)), r(size(zp)))
+      call std_atmosphere_profile(profile, zp, pp, t, r, error)
+      if (allocated(error)) return
+      allocate (pl(0:nz))
+      pl(:) = pp(at_level)
+      notes = 'standard atmosphere '//trim(profile)
+    end select
+    call rayleigh_extinction(wavelength_um, z, zp, pp, latitude_deg, co2_ppm, ext, error)
     if (allocated(error)) return
     rho = (pl(0:nz - 1) - pl(1:nz))/(G0*(z(1:nz) - z(0:nz - 1)))
   end subroutine rayleigh_layers
+
+  !> The pressure profile of rayleigh_profile = 'cloud_file' on the levels `z` [m], from the
+  !> pressure `p_file` [Pa] of each layer of a cloud file whose layer edges `z_file` are the
+  !> consecutive levels z(j0..j0 + nzc):
+  !>
+  !> * p_file(k) is the pressure at the middle of layer k, zm(k) = (z_file(k-1) + z_file(k))/2;
+  !> * an edge between two layers takes the value of the straight line in log p through the
+  !>   two layers' centres; the bottom and top edges continue the line through the two lowest
+  !>   and the two highest centres (the file's own scale height there). A file of one layer
+  !>   has no scale height: its edges follow the US 1976 shape through its centre;
+  !> * below the file (levels 0..j0) and above it (levels j0 + nzc..nz) the pressure is the
+  !>   US 1976 standard atmosphere scaled to the file's edge: p(z) = p_edge p76(z)/p76(z_edge).
+  !>   The air above the file's top then weighs what the file's top pressure says, spread over
+  !>   height as in the standard (tropopause and stratosphere included), which an isothermal
+  !>   extension at the scale height of a boundary-layer model's top would not do. Levels there
+  !>   must lie within the standard's -5 to 86 km.
+  !>
+  !> Returns the profile heights `zp` and pressures `pp` (the levels, and steps of at most
+  !> PROFILE_STEP outside the file), the pressure at the levels `pl`, and a note.
+  subroutine cloud_file_pressure(z, z_file, p_file, zp, pp, pl, notes, error)
+    real(wp), intent(in) :: z(0:), z_file(0:), p_file(:)
+    real(wp), allocatable, intent(out) :: zp(:), pp(:), pl(:)
+    character(len=:), allocatable, intent(out) :: notes
+    type(error_t), allocatable, intent(out) :: error
+    real(wp), parameter :: TOL = 1.0e-3_wp   ! [m], as for the cloud file's levels in kumo_config
+    real(wp), allocatable :: pe(:), zm(:)
+    real(wp) :: q(3), t(3), r(3)
+    integer, allocatable :: at_level(:)
+    integer :: nz, nzc, j0, j, k, i, n
+    nz = size(z) - 1
+    nzc = size(p_file)
+    if (size(z_file) /= nzc + 1 .or. nzc < 1) then
+      call set_error(error, 'rayleigh_layers: the cloud file has '//str(size(z_file))// &
+                     ' layer edges and '//str(nzc)//' layer pressures')
+      return
+    end if
+    j0 = -1
+    do j = 0, nz - nzc
+      if (all(abs(z(j:j + nzc) - z_file) <= TOL)) then
+        j0 = j
+        exit
+      end if
+    end do
+    if (j0 < 0) then
+      call set_error(error, 'rayleigh_layers: the cloud file''s layer edges '// &
+                     str(z_file(0))//' ... '//str(z_file(nzc))//' m are not consecutive levels')
+      return
+    end if
+
+    ! pressure at the file's layer edges
+    allocate (pe(0:nzc))
+    zm = 0.5_wp*(z_file(0:nzc - 1) + z_file(1:nzc))
+    if (nzc >= 2) then
+      do k = 0, nzc
+        i = min(max(k, 1), nzc - 1)       ! the centres i, i + 1 around edge k, or nearest to it
+        pe(k) = p_file(i)*(p_file(i + 1)/p_file(i))**((z_file(k) - zm(i))/(zm(i + 1) - zm(i)))
+      end do
+      notes = 'the layer pressures interpolated in log p to the layer edges, the bottom and '// &
+              'top edges extrapolated from the two lowest and two highest layers'
+    else
+      call std_atmosphere_profile('us1976', [zm(1), z_file(0), z_file(1)], q, t, r, error)
+      if (allocated(error)) then
+        error%message = 'the edges of the cloud file''s one layer follow the US 1976 shape: '// &
+                        error%message
+        return
+      end if
+      pe = p_file(1)*q(2:3)/q(1)
+      notes = 'the one layer''s pressure at its centre, its edges from the US 1976 shape '// &
+              'through it'
+    end if
+
+    ! the profile: the levels, and steps outside the file
+    call profile_heights(z, [(k <= j0 .or. k > j0 + nzc, k=1, nz)], zp, at_level)
+    n = size(zp)
+    allocate (pp(n))
+    pp(at_level(j0:j0 + nzc)) = pe
+    if (j0 > 0) then
+      call scaled_standard(zp(1:at_level(j0)), at_level(j0), pe(0), pp(1:at_level(j0)), &
+                           'from '//str(z(0))//' to '//str(z_file(0))//' m, below the file', &
+                           notes, error)
+      if (allocated(error)) return
+    end if
+    if (j0 + nzc < nz) then
+      call scaled_standard(zp(at_level(j0 + nzc):n), 1, pe(nzc), pp(at_level(j0 + nzc):n), &
+                           'from '//str(z_file(nzc))//' to '//str(z(nz))//' m, above the file', &
+                           notes, error)
+      if (allocated(error)) return
+    end if
+    allocate (pl(0:nz))
+    pl(:) = pp(at_level)
+  end subroutine cloud_file_pressure
+
+  !> p(zs) = p_edge p76(zs)/p76(zs(iedge)) with the US 1976 standard atmosphere p76, where
+  !> zs(iedge) is the file's edge. Adds a clause on `span` to `notes`.
+  subroutine scaled_standard(zs, iedge, p_edge, p, span, notes, error)
+    real(wp), intent(in) :: zs(:)      !! heights [m]
+    integer, intent(in) :: iedge       !! index of the file's edge in zs
+    real(wp), intent(in) :: p_edge     !! the file's pressure at its edge [Pa]
+    real(wp), intent(out) :: p(:)      !! pressure at zs [Pa]
+    character(len=*), intent(in) :: span
+    character(len=:), allocatable, intent(inout) :: notes
+    type(error_t), allocatable, intent(out) :: error
+    real(wp), allocatable :: q(:), t(:), r(:)
+    allocate (q(size(zs)), t(size(zs)), r(size(zs)))
+    call std_atmosphere_profile('us1976', zs, q, t, r, error)
+    if (allocated(error)) then
+      error%message = 'the levels outside the cloud file follow the US 1976 shape: '// &
+                      error%message
+      return
+    end if
+    p = p_edge*(q/q(iedge))
+    notes = notes//'; '//span//': US 1976 scaled by '//str(p_edge/q(iedge))//' to the file''s '// &
+            str(p_edge)//' Pa at '//str(zs(iedge))//' m'
+  end subroutine scaled_standard
+
+  !> Heights of a pressure profile: the levels z(0:nz) and, inside every layer k with split(k),
+  !> equal steps of at most PROFILE_STEP. at_level(j) is the index of level j in zp.
+  subroutine profile_heights(z, split, zp, at_level)
+    real(wp), intent(in) :: z(0:)
+    logical, intent(in) :: split(:)
+    real(wp), allocatable, intent(out) :: zp(:)
+    integer, allocatable, intent(out) :: at_level(:)
+    integer :: nz, k, j, n
+    integer, allocatable :: nsub(:)
+    nz = size(z) - 1
+    allocate (at_level(0:nz), nsub(nz))
+    nsub = 1
+    do k = 1, nz
+      if (split(k)) nsub(k) = max(1, ceiling((z(k) - z(k - 1))/PROFILE_STEP))
+    end do
+    allocate (zp(1 + sum(nsub)))
+    n = 1
+    zp(1) = z(0)
+    at_level(0) = 1
+    do k = 1, nz
+      do j = 1, nsub(k) - 1
+        zp(n + j) = z(k - 1) + (z(k) - z(k - 1))*j/real(nsub(k), wp)
+      end do
+      n = n + nsub(k)
+      zp(n) = z(k)
+      at_level(k) = n
+    end do
+  end subroutine profile_heights
 
 end module kumo_cloud_scene

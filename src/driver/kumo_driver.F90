@@ -126,6 +126,7 @@ contains
     integer :: i
     character(len=:), allocatable :: nml_path
     real(wp), allocatable :: ext1d(:, :), ssa1d(:, :), ray_ext(:), ray_rho(:)
+    character(len=:), allocatable :: ray_notes
     real(wp) :: depol
     character(len=:), allocatable :: cloud_notes, cloud_warnings
 
@@ -159,11 +160,15 @@ contains
     phase1d = cfg%atm%phase1d
     if (allocated(cfg%atm%air_density)) scene%air_density = cfg%atm%air_density
     if (cfg%atm%rayleigh) then
-      ! molecules: one more 1-D component with its own phase function
+      ! molecules: one more 1-D component with its own phase function. The profile's arrays
+      ! that are not allocated (those of the other profiles) count as absent arguments.
       call rayleigh_layers(cfg%atm%z, cfg%source%wavelength_um, cfg%atm%rayleigh_profile, &
-                           cfg%atm%co2_ppm, cfg%atm%latitude_deg, ray_ext, ray_rho, error)
+                           cfg%atm%co2_ppm, cfg%atm%latitude_deg, ray_ext, ray_rho, ray_notes, &
+                           error, p_levels=cfg%atm%p_levels, z_file=cfg%cloud%grid%z, &
+                           p_file=cfg%atm%p_cloud)
       if (allocated(error)) then
-        call add_context(error, '&kumo_atmosphere rayleigh')
+        call add_context(error, '&kumo_atmosphere rayleigh_profile = '''// &
+                         trim(cfg%atm%rayleigh_profile)//'''')
         return
       end if
       depol = cfg%atm%rayleigh_depol
@@ -178,11 +183,20 @@ contains
       ssa1d = reshape([ssa1d, spread(1.0_wp, 1, cfg%atm%nz)], [cfg%atm%nz, size(ssa1d, 2) + 1])
       phase1d = reshape([phase1d, spread(size(phases), 1, cfg%atm%nz)], &
                         [cfg%atm%nz, size(phase1d, 2) + 1])
-      if (.not. allocated(scene%air_density)) scene%air_density = ray_rho
-      scene%notes = scene%notes//'Rayleigh scattering ('//trim(cfg%atm%rayleigh_profile)// &
-                    ', Bodhaine et al. 1999): optical depth '//str(sum(ray_ext*(cfg%atm%z(2:) - &
-                    cfg%atm%z(:cfg%atm%nz))))//', depolarisation ratio '//str(depol)// &
-                    new_line('a')
+      if (allocated(cfg%atm%p_cloud_source)) ray_notes = cfg%atm%p_cloud_source//'; '//ray_notes
+      scene%notes = scene%notes//'Rayleigh scattering (Bodhaine et al. 1999), rayleigh_profile'// &
+                    ' = '''//trim(cfg%atm%rayleigh_profile)//''': optical depth '// &
+                    str(sum(ray_ext*(cfg%atm%z(2:) - cfg%atm%z(:cfg%atm%nz))))// &
+                    ', depolarisation ratio '//str(depol)//new_line('a')// &
+                    '  pressure from '//ray_notes//new_line('a')
+      if (allocated(scene%air_density)) then
+        scene%notes = scene%notes//'  layer air density (heating rates): air_density of '// &
+                      '&kumo_atmosphere'//new_line('a')
+      else
+        scene%air_density = ray_rho
+        scene%notes = scene%notes//'  layer air density (heating rates): (p_bottom - p_top)/'// &
+                      '(g0 dz) of the same pressure, g0 = 9.80665 m s-2'//new_line('a')
+      end if
     end if
     aopts%use_1d_layers = cfg%vr%use_1d_layers
     aopts%use_absorbing_layers = cfg%vr%use_absorbing_layers

@@ -43,6 +43,8 @@ module kumo_cloud_input
     real(wp) :: k_factor = 0.80_wp               !! Martin et al. (1994) k for r_e from number
     logical :: z_edges_from_midpoints = .false.  !! LES: edges midway between stretched centres
     real(wp) :: droplet_number_cm3 = 0.0_wp      !! 1-parameter LWC files: N [cm-3]
+    !> LES grid-only reads: also the pressure of every layer (required; `cloud_input_t%pressure`)
+    logical :: pressure_profile = .false.
   end type cloud_request_t
 
   !> A cloud field on the voxels of the 3-D region.
@@ -68,6 +70,10 @@ module kumo_cloud_input
     logical :: has_ice = .false.               !! LES ice water present
     real(vp), allocatable :: iwc(:, :, :)      !! ice water content [g m-3]
     real(vp), allocatable :: reff_ice(:, :, :) !! ice effective radius [um]
+    !> LES grid-only reads with `pressure_profile`: pressure of each layer [Pa], bottom first,
+    !> in double precision; a 3-D variable is averaged over the columns of each layer
+    real(wp), allocatable :: pressure(:)
+    character(len=:), allocatable :: pressure_source !! variable and whether it was averaged
     character(len=:), allocatable :: notes     !! how the file was read, for the run log
     character(len=:), allocatable :: missing   !! what the file does not give
   end type cloud_input_t
@@ -129,9 +135,19 @@ contains
     character(len=*), intent(in), optional :: part
     type(les_field_t) :: f
     call read_les_field(req%path, req%names, req%time_index, f, error, req%k_factor, &
-                        req%z_edges_from_midpoints, grid, part)
+                        req%z_edges_from_midpoints, grid, part, req%pressure_profile)
     if (allocated(error)) return
     call set_grid(cloud, f%nx, f%ny, f%nz, f%dx, f%dy, f%z_edges, .false.)
+    if (allocated(f%pressure_profile)) then
+      call move_alloc(f%pressure_profile, cloud%pressure)
+      cloud%pressure_source = 'variable "'//trim(f%used%pressure)//'" of '//req%path
+      if (f%pressure_averaged) then
+        cloud%pressure_source = cloud%pressure_source//', a 3-D field averaged over the '// &
+                                'columns of each layer'
+      else
+        cloud%pressure_source = cloud%pressure_source//', a profile'
+      end if
+    end if
     if (grid) return
     cloud%content = CLOUD_WATER
     if (allocated(f%lwc)) call move_alloc(f%lwc, cloud%lwc)

@@ -123,6 +123,10 @@ module kumo_les_netcdf
     logical :: has_pressure = .false.                 !! pressure present
     !> pressure [Pa]: shape (nx, ny, nz), or (1, 1, nz) for a profile
     real(vp), allocatable :: pressure(:, :, :)
+    !> grid-only reads with `pressure_profile`: the pressure of each layer [Pa] in double
+    !> precision, the horizontal mean of a 3-D variable (`pressure_averaged`)
+    real(wp), allocatable :: pressure_profile(:)
+    logical :: pressure_averaged = .false.
     type(les_names_t) :: used                         !! names actually read (blank: not read)
     character(len=:), allocatable :: notes            !! one line per variable: name, unit, origin
   end type les_field_t
@@ -165,7 +169,7 @@ contains
   !> beyond the outer centres), which is exact for uniform centres and is used for stretched
   !> centres only when `z_edges_from_midpoints` is true, since it is one convention among several.
   subroutine read_les_field(path, names, time_index, field, error, k_factor, &
-                            z_edges_from_midpoints, grid_only, part)
+                            z_edges_from_midpoints, grid_only, part, pressure_profile)
     character(len=*), intent(in) :: path               !! netCDF file
     type(les_names_t), intent(in) :: names             !! variable names (blank: defaults)
     integer, intent(in) :: time_index                  !! time step (1-based), or -1: no time dim
@@ -181,6 +185,10 @@ contains
     !> ice water); 'ice': ice water and its radius only; default: both. Reading the species one
     !> at a time halves the memory of a large field.
     character(len=*), intent(in), optional :: part
+    !> with `grid_only`: also read the pressure, which is then required, into
+    !> `pressure_profile` (one value per layer, a 3-D variable averaged over the columns of
+    !> each layer and read one layer at a time, so that no 3-D array is held; default false)
+    logical, intent(in), optional :: pressure_profile
     type(les_file_t) :: f
     type(error_t), allocatable :: close_error
     logical :: liquid, ice
@@ -219,7 +227,8 @@ contains
     call nc_check(nf90_open(f%path, NF90_NOWRITE, f%ncid), PROC//'('//f%path//')', error)
     if (allocated(error)) return
     field%notes = ''
-    call read_body(f, names, k, midpoints, liquid, ice, field, error, grid_only)
+    call read_body(f, names, k, midpoints, liquid, ice, field, error, grid_only, &
+                   pressure_profile)
     status = nf90_close(f%ncid)
     if (.not. allocated(error)) then
       call nc_check(status, PROC//'('//f%path//')', close_error)
@@ -230,7 +239,8 @@ contains
 
   ! ------------------------------------------------------------------------------------------------
 
-  subroutine read_body(f, names, k, midpoints, liquid, ice, field, error, grid_only)
+  subroutine read_body(f, names, k, midpoints, liquid, ice, field, error, grid_only, &
+                       pressure_profile)
     type(les_file_t), intent(inout) :: f
     type(les_names_t), intent(in) :: names
     real(wp), intent(in) :: k
@@ -238,7 +248,7 @@ contains
     logical, intent(in) :: liquid, ice     !! read these species
     type(les_field_t), intent(inout) :: field
     type(error_t), allocatable, intent(out) :: error
-    logical, intent(in), optional :: grid_only
+    logical, intent(in), optional :: grid_only, pressure_profile
     integer :: lwc_id, reff_id, num_id, iwc_id, rei_id, t_id, p_id, rho_id
     character(len=:), allocatable :: lwc_name, reff_name, num_name, iwc_name, rei_name
     character(len=:), allocatable :: t_name, p_name, rho_name, text
@@ -274,7 +284,12 @@ contains
     call find_time(f, lwc_id, lwc_name, error)
     if (allocated(error)) return
     if (present(grid_only)) then
-      if (grid_only) return
+      if (grid_only) then
+        if (present(pressure_profile)) then
+          if (pressure_profile) call read_pressure_profile(f, names, field, error)
+        end if
+        return
+      end if
     end if
 
     ! Temperature and pressure (optional; needed for mixing ratios without a density variable).
@@ -798,6 +813,76 @@ contains
     notes = notes//NL
   end subroutine read_field
 
+  !> The pressure variable (required) as a layer profile in field%pressure_profile(1:nz) [Pa],
+  !> in double precision. A profile variable is read as it is; a 3-D variable is read one layer
+  !> at a time and each layer replaced by its arithmetic mean over the columns, so the largest
+  !> array held is one layer. Every value is checked as in `read_field` (finite, not missing,
+  !> > 0).
+  subroutine read_pressure_profile(f, names, field, error)
+    type(les_file_t), intent(in) :: f
+    type(les_names_t), intent(in) :: names
+    type(les_field_t), intent(inout) :: field
+    type(error_t), allocatable, intent(out) :: error
+    integer :: p_id, xtype, ndims, iz
+    real(wp) :: factor, fill, missing
+    real(wp), allocatable :: slab(:, :, :)
+    logical :: profile, per_air, has_missing, found
+    character(len=:), allocatable :: p_name, at, units
+
+    call find_var(f, 'pressure', names%pressure, DEFAULT_PRESSURE, .true., p_id, p_name, error)
+    if (allocated(error)) return
+    at = at_text(f, p_name)
+    call check_layout(f, p_id, p_name, .true., error, profile)
+    if (allocated(error)) return
+    call nc_check(nf90_inquire_variable(f%ncid, p_id, xtype=xtype, ndims=ndims), at, error)
+    if (allocated(error)) return
+    call real_var_attrs(f, p_id, p_name, xtype, QTY_PRESSURE, factor, per_air, fill, &
+                        has_missing, missing, error)
+    if (allocated(error)) return
+    allocate (field%pressure_profile(f%n(3)))
+    if (profile) then
+      allocate (slab(1, 1, f%n(3)))
+      if (ndims == 2) then
+        call nc_check(nf90_get_var(f%ncid, p_id, slab, start=[1, f%itime], &
+                                   count=[f%n(3), 1]), at, error)
+      else
+        call nc_check(nf90_get_var(f%ncid, p_id, slab, start=[1], count=[f%n(3)]), at, error)
+      end if
+      if (allocated(error)) return
+      call check_values(f, at, slab, 0, fill, has_missing, missing, .true., error)
+      if (allocated(error)) return
+      field%pressure_profile = factor*slab(1, 1, :)
+    else
+      allocate (slab(f%n(1), f%n(2), 1))
+      do iz = 1, f%n(3)
+        if (f%tdim >= 0) then
+          call nc_check(nf90_get_var(f%ncid, p_id, slab, start=[1, 1, iz, f%itime], &
+                                     count=[f%n(1), f%n(2), 1, 1]), at, error)
+        else
+          call nc_check(nf90_get_var(f%ncid, p_id, slab, start=[1, 1, iz], &
+                                     count=[f%n(1), f%n(2), 1]), at, error)
+        end if
+        if (allocated(error)) return
+        call check_values(f, at, slab, iz - 1, fill, has_missing, missing, .true., error)
+        if (allocated(error)) return
+        field%pressure_profile(iz) = factor*sum(slab)/real(size(slab), wp)
+      end do
+      field%pressure_averaged = .true.
+    end if
+    call get_text_att(f, p_id, p_name, 'units', units, found, error)
+    if (allocated(error)) return
+    field%notes = field%notes//'"'//p_name//'" ['//units//']'
+    if (profile) then
+      field%notes = field%notes//' profile'
+    else
+      field%notes = field%notes//' 3-D, averaged over the columns of each layer'
+    end if
+    if (f%tdim >= 0) field%notes = field%notes//', '//trim(f%tname)//' '//str(f%itime)// &
+                                   ' of '//str(f%nt)
+    field%notes = field%notes//NL
+    field%used%pressure = p_name
+  end subroutine read_pressure_profile
+
   !> Type, packing, units (factor to kumo's unit), fill and missing values of a real variable.
   subroutine real_var_attrs(f, varid, name, xtype, quantity, factor, per_air, fill, has_missing, &
                             missing, error)
@@ -1091,6 +1176,8 @@ contains
     field%has_ice = .false.
     field%has_temperature = .false.
     field%has_pressure = .false.
+    if (allocated(field%pressure_profile)) deallocate (field%pressure_profile)
+    field%pressure_averaged = .false.
     field%reff_computed = .false.
   end subroutine clear_field
 

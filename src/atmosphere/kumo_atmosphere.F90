@@ -364,26 +364,28 @@ contains
     do kr = 1, atm%n3
       atm%uniform3(kr) = all(atm%ext3(:, :, kr) == atm%ext3(1, 1, kr)) .and. &
                          all(atm%omg3(:, :, kr) == atm%omg3(1, 1, kr))
-      if (allocated(atm%csca3)) then
-        do ic = 1, nc - 1
-          atm%uniform3(kr) = atm%uniform3(kr) .and. &
-                             all(atm%csca3(ic, :, :, kr) == atm%csca3(ic, 1, 1, kr))
-        end do
-      end if
+      if (allocated(atm%csca3)) atm%uniform3(kr) = atm%uniform3(kr) .and. &
+                                                   uniform_layer(atm%csca3(:, :, :, kr))
       if (allocated(atm%iph3)) then
         do ic = 1, nc
           atm%uniform3(kr) = atm%uniform3(kr) .and. &
                              all(atm%iph3(ic, :, :, kr) == atm%iph3(ic, 1, 1, kr))
         end do
       end if
-      if (allocated(atm%wph3)) then
-        do ic = 1, nc
-          atm%uniform3(kr) = atm%uniform3(kr) .and. &
-                             all(atm%wph3(ic, :, :, kr) == atm%wph3(ic, 1, 1, kr))
-        end do
-      end if
+      if (allocated(atm%wph3)) atm%uniform3(kr) = atm%uniform3(kr) .and. &
+                                                  uniform_layer(atm%wph3(:, :, :, kr))
     end do
   end subroutine atmosphere_end
+
+  !> Every column of a layer holds the same values a(:, ix, iy).
+  pure logical function uniform_layer(a) result(same)
+    real(vp), intent(in) :: a(:, :, :)   !! (components, nx, ny)
+    integer :: ic
+    same = .true.
+    do ic = 1, size(a, 1)
+      same = same .and. all(a(ic, :, :) == a(ic, 1, 1))
+    end do
+  end function uniform_layer
 
   !> Switch truncation on: store the delta fractions and the truncated extinction of the 1-D
   !> layers per level (sigma_a + sum_i (1 - f_i) sigma_s,i, seed text eq. 4.2.20 per component).

@@ -791,13 +791,7 @@ contains
     else
       allocate (slab(f%n(1), f%n(2), 1), values(f%n(1), f%n(2), f%n(3)))
       do iz = 1, f%n(3)
-        if (f%tdim >= 0) then
-          call nc_check(nf90_get_var(f%ncid, varid, slab, start=[1, 1, iz, f%itime], &
-                                     count=[f%n(1), f%n(2), 1, 1]), at, error)
-        else
-          call nc_check(nf90_get_var(f%ncid, varid, slab, start=[1, 1, iz], &
-                                     count=[f%n(1), f%n(2), 1]), at, error)
-        end if
+        call get_layer(f, varid, iz, slab, at, error)
         if (allocated(error)) return
         call check_values(f, at, slab, iz - 1, fill, has_missing, missing, positive, error)
         if (allocated(error)) return
@@ -855,13 +849,7 @@ contains
     else
       allocate (slab(f%n(1), f%n(2), 1))
       do iz = 1, f%n(3)
-        if (f%tdim >= 0) then
-          call nc_check(nf90_get_var(f%ncid, p_id, slab, start=[1, 1, iz, f%itime], &
-                                     count=[f%n(1), f%n(2), 1, 1]), at, error)
-        else
-          call nc_check(nf90_get_var(f%ncid, p_id, slab, start=[1, 1, iz], &
-                                     count=[f%n(1), f%n(2), 1]), at, error)
-        end if
+        call get_layer(f, p_id, iz, slab, at, error)
         if (allocated(error)) return
         call check_values(f, at, slab, iz - 1, fill, has_missing, missing, .true., error)
         if (allocated(error)) return
@@ -882,6 +870,22 @@ contains
     field%notes = field%notes//NL
     field%used%pressure = p_name
   end subroutine read_pressure_profile
+
+  !> Layer iz of a 3-D variable (of the chosen time step, if it has a time dimension).
+  subroutine get_layer(f, varid, iz, slab, at, error)
+    type(les_file_t), intent(in) :: f
+    integer, intent(in) :: varid, iz
+    real(wp), intent(out) :: slab(:, :, :)
+    character(len=*), intent(in) :: at
+    type(error_t), allocatable, intent(out) :: error
+    if (f%tdim >= 0) then
+      call nc_check(nf90_get_var(f%ncid, varid, slab, start=[1, 1, iz, f%itime], &
+                                 count=[f%n(1), f%n(2), 1, 1]), at, error)
+    else
+      call nc_check(nf90_get_var(f%ncid, varid, slab, start=[1, 1, iz], &
+                                 count=[f%n(1), f%n(2), 1]), at, error)
+    end if
+  end subroutine get_layer
 
   !> Type, packing, units (factor to kumo's unit), fill and missing values of a real variable.
   subroutine real_var_attrs(f, varid, name, xtype, quantity, factor, per_air, fill, has_missing, &

@@ -232,45 +232,36 @@ contains
     call check(error, atm%iph3(2, 1, 1, 1) == 2 .and. atm%iph3(3, 2, 1, 2) == 4, &
                'phase indices per component')
     ! without blends or varying indices nothing per-voxel is kept
-    ph = [(new_phase_isotropic(), i=1, 4)]
-    call atmosphere_begin(atm, [0.0_wp, 100.0_wp, 200.0_wp, 300.0_wp], 20.0_wp, 10.0_wp, ext1, &
-                          ssa1, iph1, ph, opts, error, k3_lo=2, nx=2, ny=1, n3f=1, nc3=1, &
-                          blend=.true.)
-    if (allocated(error)) return
     e(:, 1) = [1.0e-2_wp, 2.0e-2_wp]
-    ip = 3
-    w = 0.0_wp
-    call atmosphere_put_layer(atm, 1, 1, e, s, ip, w)
-    call atmosphere_end(atm, opts, error)
+    call one_layer(3, 0.0_wp)
     if (allocated(error)) return
     call check(error, .not. allocated(atm%wph3) .and. .not. allocated(atm%iph3) .and. &
                all(atm%iph3_const == [1, 3]), 'constant phase and no blend stored once')
     ! a blend past the last table, and a weight above 1
-    ph = [(new_phase_isotropic(), i=1, 4)]
-    call atmosphere_begin(atm, [0.0_wp, 100.0_wp, 200.0_wp, 300.0_wp], 20.0_wp, 10.0_wp, ext1, &
-                          ssa1, iph1, ph, opts, error, k3_lo=2, nx=2, ny=1, n3f=1, nc3=1, &
-                          blend=.true.)
-    if (allocated(error)) return
-    ip = 4
-    w = 0.5_wp
-    call atmosphere_put_layer(atm, 1, 1, e, s, ip, w)
-    call atmosphere_end(atm, opts, error)
+    call one_layer(4, 0.5_wp)
     call check(error, allocated(error), 'a blend with table 5 of 4 is rejected')
     if (.not. allocated(error)) return
     if (index(error%message, 'iph + 1') == 0) return
     deallocate (error)
-    ph = [(new_phase_isotropic(), i=1, 4)]
-    call atmosphere_begin(atm, [0.0_wp, 100.0_wp, 200.0_wp, 300.0_wp], 20.0_wp, 10.0_wp, ext1, &
-                          ssa1, iph1, ph, opts, error, k3_lo=2, nx=2, ny=1, n3f=1, nc3=1, &
-                          blend=.true.)
-    if (allocated(error)) return
-    ip = 2
-    w = 1.5_wp
-    call atmosphere_put_layer(atm, 1, 1, e, s, ip, w)
-    call atmosphere_end(atm, opts, error)
+    call one_layer(2, 1.5_wp)
     call check(error, allocated(error), 'a blend weight of 1.5 is rejected')
     if (.not. allocated(error)) return
     if (index(error%message, 'outside 0..1') > 0) deallocate (error)
+  contains
+    !> One 3-D layer (layer 2) of one component with phase index iph_all and blend weight w_all.
+    subroutine one_layer(iph_all, w_all)
+      integer, intent(in) :: iph_all
+      real(wp), intent(in) :: w_all
+      ph = [(new_phase_isotropic(), i=1, 4)]
+      call atmosphere_begin(atm, [0.0_wp, 100.0_wp, 200.0_wp, 300.0_wp], 20.0_wp, 10.0_wp, &
+                            ext1, ssa1, iph1, ph, opts, error, k3_lo=2, nx=2, ny=1, n3f=1, &
+                            nc3=1, blend=.true.)
+      if (allocated(error)) return
+      ip = iph_all
+      w = w_all
+      call atmosphere_put_layer(atm, 1, 1, e, s, ip, w)
+      call atmosphere_end(atm, opts, error)
+    end subroutine one_layer
   end subroutine test_put_layers
 end module test_supervoxel_suite
 

@@ -516,6 +516,12 @@ contains
   !> Null-collision flight inside the 3-D region until a real collision (ev = EV_COLLISION, with
   !> the voxel ix, iy, kr), or until the photon leaves the region through its top or bottom
   !> (ev from cross_level: 0, EV_ESCAPE or EV_SURFACE). `tau` is the optical path left to fly.
+  !>
+  !> The photon walks the majorant grid as a 3-D digital differential analyser: the distances
+  !> to the next x face, y face and level are kept and decreased as it moves, and only the one
+  !> that is crossed is recomputed, from the width of the block or layer it enters. Levels
+  !> inside the region (within a super-layer or between two) are tallied here and the walk goes
+  !> on, so that the caller sees the photon again only at a collision or when it leaves.
   subroutine fly_3d(atm, lay, tal, rng, x, y, z, ux, uy, uz, w, order, iz, tau, n_steps, &
                     max_steps, inv_cf, ev, ix, iy, kr)
     type(atmosphere_t), intent(in) :: atm
@@ -530,145 +536,164 @@ contains
     integer(i8), intent(in) :: max_steps
     real(wp), intent(in) :: inv_cf  !! 1/(collision-forcing factor)
     integer, intent(out) :: ev, ix, iy, kr
-    integer :: s, jx, jy, bx, by, nbx, nby, face, klo, khi
-    real(wp) :: xlo, xhi, ylo, yhi, zlo, zhi, dxf, dyf, dzf, d, smax, bdx, bdy
+    integer :: s, jx, jy, bx, by, nbx, nby, off, ixlo, ixhi, iylo, iyhi
+    real(wp) :: dxf, dyf, dzf, d, smax, bdx, bdy, xlo, ylo, rux, ruy, ruz, e
 
     ev = 0
     ix = 0
     iy = 0
+    ! path length per unit of x, y and z travelled (huge along an axis the photon does not move)
+    rux = huge(1.0_wp)
+    ruy = huge(1.0_wp)
+    if (abs(ux) >= tiny(1.0_wp)) rux = 1.0_wp/abs(ux)
+    if (abs(uy) >= tiny(1.0_wp)) ruy = 1.0_wp/abs(uy)
+    ruz = 1.0_wp/abs(uz)
     kr = iz - atm%k3_lo + 1
-    s = atm%sv%sl_of_layer(kr)
-    bx = atm%sv%bx(s)
-    by = atm%sv%by(s)
-    nbx = atm%sv%nbx(s)
-    nby = atm%sv%nby(s)
-    klo = atm%k3_lo + atm%sv%kb(s) - 1   ! lowest layer of the super-layer
-    khi = atm%k3_lo + atm%sv%kt(s) - 1   ! highest layer
-    zlo = atm%z(klo - 1)
-    zhi = atm%z(khi)
-    bdx = bx*atm%dx
-    bdy = by*atm%dy
-    jx = min(nbx, int(x/bdx) + 1)
-    jy = min(nby, int(y/bdy) + 1)
+    if (uz > 0.0_wp) then
+      dzf = max(0.0_wp, (atm%z(iz) - z)*ruz)
+    else
+      dzf = max(0.0_wp, (z - atm%z(iz - 1))*ruz)
+    end if
 
-    do
-      n_steps = n_steps + 1
-      if (n_steps > max_steps) then
-        ! the caller's step check stops the photon
-        return
-      end if
+    superlayer: do
+      ! enter super-layer s: the block under the photon and the distances to its x and y faces
+      s = atm%sv%sl_of_layer(kr)
+      bx = atm%sv%bx(s)
+      by = atm%sv%by(s)
+      nbx = atm%sv%nbx(s)
+      nby = atm%sv%nby(s)
+      off = atm%sv%off(s)
+      bdx = bx*atm%dx
+      bdy = by*atm%dy
+      jx = min(nbx, int(x/bdx) + 1)
+      jy = min(nby, int(y/bdy) + 1)
       xlo = (jx - 1)*bdx
-      xhi = min(atm%lx, jx*bdx)
       ylo = (jy - 1)*bdy
-      yhi = min(atm%ly, jy*bdy)
       if (ux > 0.0_wp) then
-        dxf = (xhi - x)/ux
-      else if (ux < 0.0_wp) then
-        dxf = (xlo - x)/ux
+        dxf = max(0.0_wp, (min(atm%lx, xlo + bdx) - x)*rux)
       else
-        dxf = huge(1.0_wp)
+        dxf = max(0.0_wp, (x - xlo)*rux)
       end if
       if (uy > 0.0_wp) then
-        dyf = (yhi - y)/uy
-      else if (uy < 0.0_wp) then
-        dyf = (ylo - y)/uy
+        dyf = max(0.0_wp, (min(atm%ly, ylo + bdy) - y)*ruy)
       else
-        dyf = huge(1.0_wp)
+        dyf = max(0.0_wp, (y - ylo)*ruy)
       end if
-      if (uz > 0.0_wp) then
-        dzf = (zhi - z)/uz
-      else
-        dzf = (zlo - z)/uz
-      end if
-      dxf = max(0.0_wp, dxf)
-      dyf = max(0.0_wp, dyf)
-      dzf = max(0.0_wp, dzf)
-      if (dzf <= dxf .and. dzf <= dyf) then
-        d = dzf
-        face = 3
-      else if (dxf <= dyf) then
-        d = dxf
-        face = 1
-      else
-        d = dyf
-        face = 2
-      end if
-      smax = atm%sv%maj(atm%sv%off(s) + jx + (jy - 1)*nbx)
+      smax = atm%sv%maj(off + jx + (jy - 1)*nbx)
 
-      if (smax*d <= tau) then
-        ! leave the super-voxel through `face`
-        tau = tau - smax*d
-        call move_segment(atm, lay, tal, x, y, z, ux, uy, uz, w, order, iz, klo, khi, d)
-        select case (face)
-        case (1)
-          if (ux > 0.0_wp) then
-            jx = jx + 1
-            x = xhi
-            if (jx > nbx) then
-              jx = 1
-              x = 0.0_wp
-            end if
-          else
-            jx = jx - 1
-            x = xlo
-            if (jx < 1) then
-              jx = nbx
-              x = atm%lx
-            end if
-          end if
-          call wrap(y, atm%ly)
-        case (2)
-          if (uy > 0.0_wp) then
-            jy = jy + 1
-            y = yhi
-            if (jy > nby) then
-              jy = 1
-              y = 0.0_wp
-            end if
-          else
-            jy = jy - 1
-            y = ylo
-            if (jy < 1) then
-              jy = nby
-              y = atm%ly
-            end if
-          end if
-          call wrap(x, atm%lx)
-        case default
-          call wrap(x, atm%lx)
-          call wrap(y, atm%ly)
-          if (uz > 0.0_wp) then
-            z = zhi
-            iz = khi
-          else
-            z = zlo
-            iz = klo
-          end if
-          call cross_level(atm, lay, tal, x, y, uz, w, order, iz, ev)
-          return
-        end select
-      else
-        ! tentative collision inside the super-voxel
-        d = tau/smax
-        call move_segment(atm, lay, tal, x, y, z, ux, uy, uz, w, order, iz, klo, khi, d)
-        ix = int(x*atm%inv_dx) + 1
-        iy = int(y*atm%inv_dy) + 1
-        if (ix < (jx - 1)*bx + 1 .or. ix > min(atm%nx, jx*bx) .or. &
-            iy < (jy - 1)*by + 1 .or. iy > min(atm%ny, jy*by)) then
-          ix = min(min(atm%nx, jx*bx), max((jx - 1)*bx + 1, ix))
-          iy = min(min(atm%ny, jy*by), max((jy - 1)*by + 1, iy))
-          tal%anomalies(ANOM_POSITION_REPAIR) = tal%anomalies(ANOM_POSITION_REPAIR) + 1
+      step: do
+        n_steps = n_steps + 1
+        if (n_steps > max_steps) return   ! the caller's step check stops the photon
+        if (dzf <= dxf .and. dzf <= dyf) then
+          d = dzf
+        else
+          d = min(dxf, dyf)
         end if
-        kr = iz - atm%k3_lo + 1
-        if (rng_uniform(rng)*smax < atm%ext3(ix, iy, kr)) then
+
+        if (smax*d > tau) then
+          ! tentative collision inside the block
+          d = tau/smax
+          x = x + ux*d
+          y = y + uy*d
+          z = z + uz*d
+          dxf = dxf - d
+          dyf = dyf - d
+          dzf = dzf - d
+          ix = int(x*atm%inv_dx) + 1
+          iy = int(y*atm%inv_dy) + 1
+          ixlo = (jx - 1)*bx + 1
+          ixhi = min(atm%nx, jx*bx)
+          iylo = (jy - 1)*by + 1
+          iyhi = min(atm%ny, jy*by)
+          if (ix < ixlo .or. ix > ixhi .or. iy < iylo .or. iy > iyhi) then
+            ix = min(ixhi, max(ixlo, ix))
+            iy = min(iyhi, max(iylo, iy))
+            tal%anomalies(ANOM_POSITION_REPAIR) = tal%anomalies(ANOM_POSITION_REPAIR) + 1
+          end if
+          e = atm%ext3(ix, iy, kr)
+          ! real with probability e/smax; no random number is needed when the voxel is its
+          ! block's majorant (always so for a block of one voxel)
+          if (e < smax) then
+            if (rng_uniform(rng)*smax >= e) then
+              tau = -log(1.0_wp - rng_uniform(rng))*inv_cf
+              cycle step
+            end if
+          end if
           call wrap(x, atm%lx)
           call wrap(y, atm%ly)
           ev = EV_COLLISION
           return
         end if
-        tau = -log(1.0_wp - rng_uniform(rng))*inv_cf
-      end if
-    end do
+
+        ! cross the nearest face
+        tau = tau - smax*d
+        if (dzf <= dxf .and. dzf <= dyf) then
+          ! a level: tally it; leave the region, or go on in the next layer
+          x = x + ux*d
+          y = y + uy*d
+          call wrap(x, atm%lx)
+          call wrap(y, atm%ly)
+          dxf = dxf - d
+          dyf = dyf - d
+          if (uz > 0.0_wp) then
+            z = atm%z(iz)
+          else
+            z = atm%z(iz - 1)
+          end if
+          call cross_level(atm, lay, tal, x, y, uz, w, order, iz, ev)
+          if (ev /= 0 .or. iz < atm%k3_lo .or. iz > atm%k3_hi) return
+          dzf = (atm%z(iz) - atm%z(iz - 1))*ruz
+          kr = iz - atm%k3_lo + 1
+          if (atm%sv%sl_of_layer(kr) /= s) cycle superlayer
+        else if (dxf <= dyf) then
+          ! an x face: the next block in x, across the periodic boundary if need be
+          y = y + uy*d
+          z = z + uz*d
+          call wrap(y, atm%ly)
+          dyf = dyf - d
+          dzf = dzf - d
+          if (ux > 0.0_wp) then
+            jx = jx + 1
+            if (jx > nbx) jx = 1
+            xlo = (jx - 1)*bdx
+            x = xlo
+          else
+            x = xlo
+            jx = jx - 1
+            if (jx < 1) then
+              jx = nbx
+              x = atm%lx
+            end if
+            xlo = (jx - 1)*bdx
+          end if
+          dxf = (min(atm%lx, xlo + bdx) - xlo)*rux
+          smax = atm%sv%maj(off + jx + (jy - 1)*nbx)
+        else
+          ! a y face
+          x = x + ux*d
+          z = z + uz*d
+          call wrap(x, atm%lx)
+          dxf = dxf - d
+          dzf = dzf - d
+          if (uy > 0.0_wp) then
+            jy = jy + 1
+            if (jy > nby) jy = 1
+            ylo = (jy - 1)*bdy
+            y = ylo
+          else
+            y = ylo
+            jy = jy - 1
+            if (jy < 1) then
+              jy = nby
+              y = atm%ly
+            end if
+            ylo = (jy - 1)*bdy
+          end if
+          dyf = (min(atm%ly, ylo + bdy) - ylo)*ruy
+          smax = atm%sv%maj(off + jx + (jy - 1)*nbx)
+        end if
+      end do step
+    end do superlayer
   end subroutine fly_3d
 
   !> Height of the level a photon in layer iz meets next: the top for uz > 0, else the bottom.
@@ -720,67 +745,6 @@ contains
       if (ev /= 0 .or. iz < atm%k3_lo .or. iz > atm%k3_hi) return
     end do
   end subroutine fly_column
-
-  !> Move by distance d inside a super-layer. The common case, a segment that stays in the
-  !> photon's layer, is handled here without the level search of move_inside.
-  subroutine move_segment(atm, lay, tal, x, y, z, ux, uy, uz, w, order, iz, klo, khi, d)
-    type(atmosphere_t), intent(in) :: atm
-    type(tally_layout_t), intent(in) :: lay
-    type(tally_t), intent(inout) :: tal
-    real(wp), intent(inout) :: x, y, z
-    real(wp), intent(in) :: ux, uy, uz, w, d
-    integer, intent(in) :: order, klo, khi
-    integer, intent(inout) :: iz
-    real(wp) :: znew
-    znew = z + uz*d
-    if (uz > 0.0_wp .and. znew < atm%z(iz) .or. uz <= 0.0_wp .and. znew >= atm%z(iz - 1)) then
-      x = x + ux*d
-      y = y + uy*d
-      z = znew
-    else
-      call move_inside(atm, lay, tal, x, y, z, ux, uy, uz, w, order, iz, klo, khi, d)
-    end if
-  end subroutine move_segment
-
-  !> Move by distance d inside a super-layer, tallying the internal levels that are crossed.
-  !> The horizontal position is not wrapped here (the caller keeps it inside its super-voxel).
-  subroutine move_inside(atm, lay, tal, x, y, z, ux, uy, uz, w, order, iz, klo, khi, d)
-    type(atmosphere_t), intent(in) :: atm
-    type(tally_layout_t), intent(in) :: lay
-    type(tally_t), intent(inout) :: tal
-    real(wp), intent(inout) :: x, y, z
-    real(wp), intent(in) :: ux, uy, uz, w, d
-    integer, intent(in) :: order, klo, khi
-    integer, intent(inout) :: iz
-    real(wp) :: znew, t, xc, yc
-    znew = z + uz*d
-    if (uz > 0.0_wp) then
-      do while (iz < khi)
-        if (znew < atm%z(iz)) exit
-        t = (atm%z(iz) - z)/uz
-        xc = x + ux*t
-        yc = y + uy*t
-        call wrap(xc, atm%lx)
-        call wrap(yc, atm%ly)
-        call tally_level(atm, lay, tal, iz, .true., order, w, xc, yc)
-        iz = iz + 1
-      end do
-    else
-      do while (iz > klo)
-        if (znew >= atm%z(iz - 1)) exit
-        t = (atm%z(iz - 1) - z)/uz
-        xc = x + ux*t
-        yc = y + uy*t
-        call wrap(xc, atm%lx)
-        call wrap(yc, atm%ly)
-        call tally_level(atm, lay, tal, iz - 1, .false., order, w, xc, yc)
-        iz = iz - 1
-      end do
-    end if
-    x = x + ux*d
-    y = y + uy*d
-    z = znew
-  end subroutine move_inside
 
   !> Russian roulette with a weight window (seed text section 3.4.4): below the threshold the
   !> photon survives with probability w/W and then carries W. The net weight it creates or

@@ -22,17 +22,21 @@
 !>   of its value in each.
 !> * Ice water (LES files) uses an optics table in the Mie-table layout named by
 !>   `ice_optics_file`; kumo has no ice-crystal optics of its own.
+!> * MCARaTS 3-D atmospheres: `mcarats_optics` (one or two components per MCARaTS component,
+!>   one for the gas-absorption perturbation).
 module kumo_cloud_scene
   use kumo_kinds, only: wp, dp
   use kumo_error, only: error_t, set_error, str
-  use kumo_phase, only: phase_t, phase_from_table, new_phase_hg, phase_from_legendre
+  use kumo_phase, only: phase_t, phase_from_table, new_phase_hg, phase_from_legendre, &
+                        new_phase_isotropic, new_phase_rayleigh
   use kumo_mie, only: mie_table_t, mie_table_build, mie_table_bracket, dist_kind_from_name
   use kumo_water_index, only: water_index
   use kumo_mie_table, only: mie_table_cached, read_mie_table
   use kumo_rayleigh, only: rayleigh_extinction
   use kumo_std_atmosphere, only: std_atmosphere_profile
   use kumo_cloud_input, only: cloud_input_t, read_cloud_input, CLOUD_WATER, CLOUD_EXT_REFF, &
-                              CLOUD_OPTICS
+                              CLOUD_OPTICS, CLOUD_MCARATS
+  use kumo_mcarats_files, only: mcarats_request_t
   use kumo_config, only: cloud_cfg_t
   implicit none
   private
@@ -153,6 +157,9 @@ contains
         opt%ssa(:, :, :, ic) = c%ssa(:, :, ic:ic + c%nz - 1)
         opt%iph(:, :, :, ic) = c%iphase(:, :, ic:ic + c%nz - 1) + phase_offset
       end do
+    case (CLOUD_MCARATS)
+      call mcarats_optics(c, ccfg%req%mcarats, ccfg%req%path, n_table, phase_offset, opt, error)
+      if (allocated(error)) return
     case default
       call set_error(error, ccfg%req%path//': unknown kind of cloud content '//str(c%content))
       return
@@ -267,6 +274,218 @@ contains
       end do
     end do
   end subroutine mie_voxels
+
+  !> Voxel components of an MCARaTS 3-D atmosphere (Iwabuchi, MCARaTS 0.10 `mcarAtm`,
+  !> `mcarSca`). Each MCARaTS component keeps its extinction and albedo; its phase-function code
+  !> apf gives the kumo phase function: (-3, -2] isotropic, (-2, -1] Rayleigh (no
+  !> depolarisation), (-1, 1) Henyey-Greenstein with g = apf (one phase function per distinct
+  !> g), >= 1 table ipf = int(apf) of the phase-function file blended with table ipf + 1 as
+  !> P = (1 - r) P_ipf + r P_ipf+1, r = apf - ipf. A component with blends becomes two kumo
+  !> components with extinction (1 - r) ext and r ext, the same albedo and the two tables: the
+  !> photon chooses a component by its share of the scattering coefficient, (1 - r) : r, so it
+  !> scatters with exactly the blended phase function (as `mie_voxels` does for radius blends).
+  !> The gas-absorption perturbation of k-term `m%ikd` is one more component with albedo 0
+  !> when it is not zero everywhere. MCARaTS adds it to the 1-D gas absorption (Atm_abs1d),
+  !> which kumo takes from the 1-D components of the region's layers, added to every voxel
+  !> (`m%abs1d`): so the perturbation may be negative where the voxel's absorption
+  !> coefficient stays >= 0; a voxel where it would not is an error.
+  subroutine mcarats_optics(c, m, path, n_table, offset, opt, error)
+    type(cloud_input_t), intent(in) :: c           !! the file read (content CLOUD_MCARATS)
+    type(mcarats_request_t), intent(in) :: m       !! the namelist's request (k-term, abs1d)
+    character(len=*), intent(in) :: path           !! the atmosphere file, for messages
+    integer, intent(in) :: n_table                 !! inverse-CDF table size of the tables
+    integer, intent(in) :: offset                  !! added to every phase index
+    type(cloud_optics_t), intent(inout) :: opt
+    type(error_t), allocatable, intent(out) :: error
+    integer :: nx, ny, nz, np, npf, nph, i_iso, i_ray, i_hg, ip, ic, k, ix, iy, ipf, j, j2, ncomp
+    integer :: n_iso, n_ray, n_hg, n_tab, n_blend
+    integer, allocatable :: slot(:), first(:)
+    logical, allocatable :: used(:), blended(:)
+    logical :: has_abs
+    real(wp) :: apf, r, e, tot, a1d, amin, amax
+
+    associate (a => c%mca_atm, pf => c%mca_phase)
+      nx = a%nx
+      ny = a%ny
+      nz = a%nz3
+      np = a%np3d
+      npf = pf%npf
+      ! tables referenced by some voxel, and components with fractional codes
+      allocate (used(npf), blended(np), first(np), slot(npf))
+      used = .false.
+      blended = .false.
+      do ip = 1, np
+        do k = 1, nz
+          do iy = 1, ny
+            do ix = 1, nx
+              apf = a%apf(ix, iy, k, ip)
+              if (apf < 1.0_wp) cycle
+              ipf = int(apf)
+              used(ipf) = .true.
+              if (apf > ipf) then   ! then ipf < npf: the reader keeps apf <= npf
+                used(ipf + 1) = .true.
+                blended(ip) = .true.
+              end if
+            end do
+          end do
+        end do
+      end do
+
+      ! the phase functions: isotropic, Rayleigh, the distinct HG g, the tables used
+      nph = 0
+      i_iso = 0
+      i_ray = 0
+      if (any(a%apf <= -2.0_wp)) then
+        nph = nph + 1
+        i_iso = nph
+      end if
+      if (any(a%apf > -2.0_wp .and. a%apf <= -1.0_wp)) then
+        nph = nph + 1
+        i_ray = nph
+      end if
+      i_hg = nph
+      nph = nph + size(c%hg_g)
+      slot = 0
+      do ipf = 1, npf
+        if (.not. used(ipf)) cycle
+        nph = nph + 1
+        slot(ipf) = nph
+      end do
+      allocate (opt%phases(max(nph, 1)))
+      opt%phases(1) = new_phase_isotropic()    ! (the absorption component's, if nothing else)
+      if (i_iso > 0) opt%phases(i_iso) = new_phase_isotropic()
+      if (i_ray > 0) opt%phases(i_ray) = new_phase_rayleigh()
+      do j = 1, size(c%hg_g)
+        opt%phases(i_hg + j) = new_phase_hg(c%hg_g(j), error)
+        if (allocated(error)) then
+          error%message = path//': apf = '//str(c%hg_g(j))//': '//error%message
+          return
+        end if
+      end do
+      do ipf = 1, npf
+        if (slot(ipf) == 0) cycle
+        opt%phases(slot(ipf)) = phase_from_table(pf%angle_deg, pf%p(:, ipf), n_table, error)
+        if (allocated(error)) then
+          error%message = 'phase function '//str(ipf)//' of the MCARaTS '// &
+                          'phase-function file: '//error%message
+          return
+        end if
+      end do
+
+      ! components: one per MCARaTS component, two where it has blends, one for absorption
+      has_abs = any(a%absg(:, :, :, m%ikd) /= 0.0_wp)
+      ncomp = 0
+      do ip = 1, np
+        first(ip) = ncomp + 1
+        ncomp = ncomp + merge(2, 1, blended(ip))
+      end do
+      if (has_abs) ncomp = ncomp + 1
+      allocate (opt%ext(nx, ny, nz, ncomp), opt%ssa(nx, ny, nz, ncomp), opt%iph(nx, ny, nz, ncomp))
+      n_iso = 0
+      n_ray = 0
+      n_hg = 0
+      n_tab = 0
+      n_blend = 0
+      do ip = 1, np
+        ic = first(ip)
+        do k = 1, nz
+          do iy = 1, ny
+            do ix = 1, nx
+              apf = a%apf(ix, iy, k, ip)
+              e = a%ext(ix, iy, k, ip)
+              r = 0.0_wp
+              if (apf <= -2.0_wp) then
+                j = i_iso
+                if (e > 0.0_wp) n_iso = n_iso + 1
+              else if (apf <= -1.0_wp) then
+                j = i_ray
+                if (e > 0.0_wp) n_ray = n_ray + 1
+              else if (apf < 1.0_wp) then
+                j = i_hg + hg_slot(c%hg_g, apf)
+                if (e > 0.0_wp) n_hg = n_hg + 1
+              else
+                ipf = int(apf)
+                r = apf - ipf
+                j = slot(ipf)
+                if (e > 0.0_wp) n_tab = n_tab + 1
+                if (r > 0.0_wp .and. e > 0.0_wp) n_blend = n_blend + 1
+              end if
+              j2 = j
+              if (r > 0.0_wp) j2 = slot(ipf + 1)
+              opt%ext(ix, iy, k, ic) = (1.0_wp - r)*e
+              opt%ssa(ix, iy, k, ic) = a%omg(ix, iy, k, ip)
+              opt%iph(ix, iy, k, ic) = offset + j
+              if (blended(ip)) then
+                opt%ext(ix, iy, k, ic + 1) = r*e
+                opt%ssa(ix, iy, k, ic + 1) = a%omg(ix, iy, k, ip)
+                opt%iph(ix, iy, k, ic + 1) = offset + j2
+              end if
+            end do
+          end do
+        end do
+      end do
+      opt%notes = opt%notes//'apf codes of the voxel values with extinction > 0: '// &
+                  str(n_iso)//' isotropic, '//str(n_ray)//' Rayleigh, '//str(n_hg)// &
+                  ' Henyey-Greenstein ('//str(size(c%hg_g))//' distinct g), '//str(n_tab)// &
+                  ' tabulated ('//str(n_blend)//' blending two tables); kumo uses '// &
+                  str(count(used))//' of the '//str(npf)//' tables'//NL
+      if (any(blended)) opt%notes = opt%notes//'a component with blended codes is two kumo '// &
+        'components, extinction (1 - r) ext and r ext with tables int(apf) and int(apf) + 1'//NL
+
+      if (.not. has_abs) then
+        opt%notes = opt%notes//'gas absorption perturbation (absg3d) of k-term '//str(m%ikd)// &
+                    ': 0 everywhere'//NL
+        return
+      end if
+      opt%ext(:, :, :, ncomp) = a%absg(:, :, :, m%ikd)
+      opt%ssa(:, :, :, ncomp) = 0.0_wp
+      opt%iph(:, :, :, ncomp) = offset + 1
+      amin = huge(1.0_wp)
+      do k = 1, nz
+        a1d = 0.0_wp
+        if (allocated(m%abs1d)) a1d = m%abs1d(k)
+        do iy = 1, ny
+          do ix = 1, nx
+            tot = a1d + a%absg(ix, iy, k, m%ikd) + &
+                  sum(a%ext(ix, iy, k, :)*(1.0_wp - a%omg(ix, iy, k, :)))
+            amin = min(amin, tot)
+            if (tot >= 0.0_wp) cycle
+            call set_error(error, path//': absg3d k-term '//str(m%ikd)//' layer '//str(k)// &
+                           ' (kumo layer '//str(m%k3d_bottom + k - 1)//'), ix = '//str(ix)// &
+                           ', iy = '//str(iy)//': the perturbation '// &
+                           str(a%absg(ix, iy, k, m%ikd))//' m-1 makes the absorption '// &
+                           'coefficient of the voxel '//str(tot)//' m-1 < 0 (1-D absorption '// &
+                           str(a1d)//' m-1). MCARaTS adds absg3d to Atm_abs1d; kumo takes '// &
+                           'that from the absorbing 1-D components of &kumo_atmosphere '// &
+                           '(ext1d with ssa1d < 1) in the 3-D layers: give it there')
+            return
+          end do
+        end do
+      end do
+      amax = maxval(a%absg(:, :, :, m%ikd))
+      opt%notes = opt%notes//'gas absorption perturbation (absg3d) of k-term '//str(m%ikd)// &
+                  ': '//str(minval(a%absg(:, :, :, m%ikd)))//' ... '//str(amax)// &
+                  ' m-1, one more component (albedo 0) added to the 1-D absorption of the '// &
+                  'layers; smallest absorption coefficient of a voxel '//str(amin)//' m-1'//NL
+    end associate
+  end subroutine mcarats_optics
+
+  !> Position of g in the sorted, distinct list gs (g must be in it).
+  pure integer function hg_slot(gs, g) result(i)
+    real(wp), intent(in) :: gs(:), g
+    integer :: lo, hi
+    lo = 1
+    hi = size(gs)
+    do while (lo < hi)
+      i = (lo + hi)/2
+      if (gs(i) < g) then
+        lo = i + 1
+      else
+        hi = i
+      end if
+    end do
+    i = lo
+  end function hg_slot
 
   !> Rayleigh extinction of dry air in every layer [m-1] and the layers' air density
   !> [kg m-3] (mass per area Δp/g over the thickness) from a named standard atmosphere.

@@ -276,9 +276,9 @@ contains
       if (atm_ctl) then
         call mcarats_atm_ctl_sizes(req%path, ctl, nz3, mtprof, nkd, np3d, error)
         if (allocated(error)) return
-        call agree('mcarats_np3d', m%np3d, np3d, req%path, 'components')
-        call agree('mcarats_nkd', m%nkd, nkd, req%path, 'k-terms')
-        call agree('mcarats_mtprof', m%mtprof, mtprof, req%path, 'temperature levels - nz3')
+        call agree('mcarats_np3d', m%np3d, np3d, req%path, 'np3d')
+        call agree('mcarats_nkd', m%nkd, nkd, req%path, 'nkd')
+        call agree('mcarats_mtprof', m%mtprof, mtprof, req%path, 'mtprof')
         if (allocated(error)) return
         cloud%nx = ctl%nx
         cloud%ny = ctl%ny
@@ -295,8 +295,8 @@ contains
         if (is_ctl_path(m%phase_path)) then
           call mcarats_phase_ctl_sizes(m%phase_path, ctl, nang, npf, error)
           if (allocated(error)) return
-          call agree('mcarats_nang', m%nang, nang, m%phase_path, 'angles')
-          call agree('mcarats_npf', m%npf, npf, m%phase_path, 'phase functions')
+          call agree('mcarats_nang', m%nang, nang, m%phase_path, 'nang')
+          call agree('mcarats_npf', m%npf, npf, m%phase_path, 'npf')
           if (allocated(error)) return
         end if
       end if
@@ -379,8 +379,9 @@ contains
                                      ': '//str(cloud%mca_phase%npf)//' tables of '// &
                                      str(cloud%mca_phase%nang)//' angles'
         cloud%missing = 'the column widths '//str(m%dx)//' x '//str(m%dy)// &
-                        ' m (lx/nx, ly/ny) and the layer edges '//str(m%z(1))//' ... '// &
-                        str(m%z(size(m%z)))//' m (z_levels of layers '//str(m%k3d_bottom)// &
+                        ' m (lx/nx, ly/ny) and the layer edges '//str(m%z(lbound(m%z, 1)))// &
+                        ' ... '//str(m%z(ubound(m%z, 1)))//' m (z_levels of layers '// &
+                        str(m%k3d_bottom)//&
                         '..'//str(m%k3d_bottom + a%nz3 - 1)//', k3d_bottom = Atm_iz3l)'
         if (.not. atm_ctl) cloud%missing = cloud%missing//', its sizes (nx, ny, nz3; '// &
                                            'mcarats_np3d, mcarats_nkd, mcarats_mtprof)'
@@ -396,7 +397,7 @@ contains
       integer, intent(in) :: given, found
       if (allocated(error) .or. given < 0 .or. given == found) return
       call set_error(error, name//' = '//str(given)//' disagrees with '//path//', which '// &
-                     'gives '//str(found)//' '//what//' (leave '//name//' out to take it)')
+                     'gives '//what//' = '//str(found)//' (leave '//name//' out to take it)')
     end subroutine agree
   end subroutine from_mcarats
 

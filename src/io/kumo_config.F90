@@ -1514,7 +1514,10 @@ contains
       m%dy = atm%ly/atm%ny
       m%k3d_bottom = k0
       ! atm%z(1:nz+1) holds levels 0..nz
-      m%z = atm%z(k0:k0 + atm%nz3)
+      if (allocated(m%z)) deallocate (m%z)
+      allocate (m%z(0:atm%nz3))
+      m%z(:) = atm%z(k0:k0 + atm%nz3)
+      if (allocated(m%abs1d)) deallocate (m%abs1d)
       allocate (m%abs1d(atm%nz3))
       do k = 1, atm%nz3
         m%abs1d(k) = sum(atm%ext1d(k0 + k - 1, :)*(1.0_wp - atm%ssa1d(k0 + k - 1, :)))
@@ -1524,7 +1527,9 @@ contains
       cloud%grid%nz = m%nz3
       cloud%grid%dx = m%dx
       cloud%grid%dy = m%dy
-      cloud%grid%z = m%z
+      if (allocated(cloud%grid%z)) deallocate (cloud%grid%z)
+      allocate (cloud%grid%z(0:m%nz3))
+      cloud%grid%z(:) = m%z
     end associate
   end subroutine complete_mcarats
 

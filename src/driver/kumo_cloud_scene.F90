@@ -429,8 +429,10 @@ contains
                   ' Henyey-Greenstein ('//str(size(c%hg_g))//' distinct g), '//str(n_tab)// &
                   ' tabulated ('//str(n_blend)//' blending two tables); kumo uses '// &
                   str(count(used))//' of the '//str(npf)//' tables'//NL
-      if (any(blended)) opt%notes = opt%notes//'a component with blended codes is two kumo '// &
-        'components, extinction (1 - r) ext and r ext with tables int(apf) and int(apf) + 1'//NL
+      if (any(blended)) then
+        opt%notes = opt%notes//'a component with blended codes is two kumo components, '// &
+                    'extinction (1 - r) ext and r ext with tables int(apf) and int(apf) + 1'//NL
+      end if
 
       if (.not. has_abs) then
         opt%notes = opt%notes//'gas absorption perturbation (absg3d) of k-term '//str(m%ikd)// &

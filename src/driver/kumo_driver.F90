@@ -501,8 +501,8 @@ contains
     integer, allocatable :: kind(:, :)
     real(wp), allocatable :: c(:, :, :)
     real(dp), allocatable :: buf(:)
-    character(len=*), parameter :: KIND_NAMES(0:4) = [character(len=7) :: 'black', 'Lambert', &
-                                                      'DSM', 'RPV', 'LSRT']
+    character(len=*), parameter :: KIND_NAMES(0:4) = &
+      [character(len=7) :: 'black', 'Lambert', 'DSM', 'RPV', 'LSRT']
     nxb = cfg%surface%surface_nxb
     nyb = cfg%surface%surface_nyb
     notes = ''

@@ -375,18 +375,23 @@ contains
                       ' used), mtprof = '//str(a%mtprof)//NL// &
                       'its temperatures (tmpa3d) are not used: kumo computes solar '// &
                       'radiation only'
-        if (has_phase) cloud%notes = cloud%notes//NL//'phase functions '//m%phase_path// &
-                                     ': '//str(cloud%mca_phase%npf)//' tables of '// &
-                                     str(cloud%mca_phase%nang)//' angles'
+        if (has_phase) then
+          cloud%notes = cloud%notes//NL//'phase functions '//m%phase_path//': '// &
+                        str(cloud%mca_phase%npf)//' tables of '//str(cloud%mca_phase%nang)// &
+                        ' angles'
+        end if
         cloud%missing = 'the column widths '//str(m%dx)//' x '//str(m%dy)// &
                         ' m (lx/nx, ly/ny) and the layer edges '//str(m%z(lbound(m%z, 1)))// &
                         ' ... '//str(m%z(ubound(m%z, 1)))//' m (z_levels of layers '// &
-                        str(m%k3d_bottom)//&
-                        '..'//str(m%k3d_bottom + a%nz3 - 1)//', k3d_bottom = Atm_iz3l)'
-        if (.not. atm_ctl) cloud%missing = cloud%missing//', its sizes (nx, ny, nz3; '// &
-                                           'mcarats_np3d, mcarats_nkd, mcarats_mtprof)'
-        if (has_phase .and. .not. is_ctl_path(m%phase_path)) cloud%missing = cloud%missing// &
-          ', the phase file''s sizes (mcarats_nang, mcarats_npf)'
+                        str(m%k3d_bottom)//'..'//str(m%k3d_bottom + a%nz3 - 1)// &
+                        ', k3d_bottom = Atm_iz3l)'
+        if (.not. atm_ctl) then
+          cloud%missing = cloud%missing//', its sizes (nx, ny, nz3; mcarats_np3d, '// &
+                          'mcarats_nkd, mcarats_mtprof)'
+        end if
+        if (has_phase .and. .not. is_ctl_path(m%phase_path)) then
+          cloud%missing = cloud%missing//', the phase file''s sizes (mcarats_nang, mcarats_npf)'
+        end if
       end associate
     end associate
 

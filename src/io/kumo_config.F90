@@ -598,8 +598,7 @@ contains
     character(len=*), intent(in) :: scene_file
     integer, intent(inout) :: nx, ny, nz3
     type(error_t), allocatable, intent(out) :: error
-    character(len=*), parameter :: CTX = '&kumo_atmosphere with &kumo_cloud cloud_format = '// &
-                                         '''mcarats'': '
+    character(len=*), parameter :: CTX = '&kumo_atmosphere with an MCARaTS cloud file: '
     if (len_trim(scene_file) > 0) then
       call set_error(error, CTX//'scene_file must not be set: the 3-D region is the MCARaTS file')
     else if (lx == UNSET .or. ly == UNSET) then
@@ -1474,8 +1473,9 @@ contains
     type(config_t), intent(inout) :: cfg
     type(error_t), allocatable, intent(out) :: error
     integer :: np
-    if (cfg%cloud%enabled .and. cfg%cloud%req%format == 'mcarats') call complete_mcarats(cfg%atm, &
-                                                                                     cfg%cloud)
+    if (cfg%cloud%enabled .and. cfg%cloud%req%format == 'mcarats') then
+      call complete_mcarats(cfg%atm, cfg%cloud)
+    end if
     np = cfg%phase%n_phase
     if (any(cfg%atm%phase1d < 1) .or. any(cfg%atm%phase1d > np)) then
       call set_error(error, '&kumo_atmosphere: phase1d values must be within 1..n_phase = '// &
@@ -1490,7 +1490,8 @@ contains
       call set_error(error, '&kumo_atmosphere: rayleigh = .true. needs the wavelength '// &
                      '(&kumo_source wavelength_um)')
     else if (cfg%cloud%enabled .and. cfg%source%wavelength_um <= 0.0_wp .and. &
-             cfg%cloud%grid%content /= CLOUD_OPTICS .and. cfg%cloud%grid%content /= CLOUD_MCARATS) then
+             cfg%cloud%grid%content /= CLOUD_OPTICS .and. &
+             cfg%cloud%grid%content /= CLOUD_MCARATS) then
       call set_error(error, '&kumo_cloud: the cloud file ('//trim(cfg%cloud%req%format)// &
                      ') gives no optical properties; kumo computes them for the wavelength '// &
                      'in &kumo_source wavelength_um, which is not given')

@@ -10,7 +10,8 @@
    and the peak resident memory of the whole run (/usr/bin/time), with 2 x 10 photons.
 2. The I3RC LES stratocumulus at 2.13 um from its SHDOM property file (les_stcu_w213.prp),
    SZA 60, black surface, domain fluxes only: CPU time to a 0.1 % standard error of the
-   reflectance, t (sigma/R / 0.001)^2 from runs of 20 batches (median of three).
+   reflectance, t (sigma/R / 0.001)^2 from runs of 100 batches of 1e4 photons (median of
+   three seeds; 100 batches pin sigma^2 to about 14 %).
 
     python3 bench/run_les_bench.py [--kumo build/kumo] [--shared ../shared] [--out DIR]
 
@@ -113,7 +114,7 @@ def setup_bar(kumo, work):
 
 def flux_bar(kumo, shared, work):
     prp = os.path.join(shared, "data", "i3rc", "les_examples", "les_stcu_w213.prp")
-    nml = ("&kumo_control n_photons_per_batch = 50000, n_batches = 20, seed = {seed}, "
+    nml = ("&kumo_control n_photons_per_batch = 10000, n_batches = 100, seed = {seed}, "
            "verbose = 1 /\n"
            f"&kumo_cloud cloud_file = '{prp}', cloud_format = 'prp' /\n"
            "&kumo_source sza_deg = 60.0 /\n"

@@ -14,7 +14,7 @@
 !> layers are traced analytically (their extinction is uniform, no null collisions), and 3-D
 !> layers use the super-voxel majorant grid.
 module kumo_atmosphere
-  use kumo_kinds, only: wp
+  use kumo_kinds, only: wp, vp
   use kumo_error, only: error_t, set_error, str
   use kumo_phase, only: phase_t
   use kumo_truncation, only: truncation_t
@@ -22,6 +22,7 @@ module kumo_atmosphere
   implicit none
   private
   public :: atmosphere_t, atmosphere_options_t, atmosphere_init, atmosphere_set_truncation
+  public :: atmosphere_begin, atmosphere_put_layer, atmosphere_end
   public :: column_of, column_xy, sigma_trunc_3d
   public :: LAYER_CLEAR, LAYER_ABSORBING, LAYER_SCATTERING, LAYER_3D, LAYER_CLASS_NAMES
 
@@ -44,6 +45,9 @@ module kumo_atmosphere
     integer :: ncomp1 = 0                    !! components per 1-D layer
     integer :: ncomp = 0                     !! components per 3-D voxel (the 1-D ones present
                                              !! in the region first, then the scene file's)
+    integer :: nc3 = 0                       !! components given per voxel
+    integer :: kf_lo = 1, kf_hi = 0          !! layers whose voxels are given
+    integer, allocatable :: act1(:)          !! 1-D components present in the 3-D region
     real(wp) :: lx = 1.0_wp, ly = 1.0_wp     !! domain size [m]
     real(wp) :: dx = 1.0_wp, dy = 1.0_wp     !! column size of the 3-D region [m]
     real(wp) :: inv_dx = 1.0_wp, inv_dy = 1.0_wp
@@ -53,12 +57,16 @@ module kumo_atmosphere
     real(wp), allocatable :: omg1(:)         !! 1-D layers: mixture single-scattering albedo
     real(wp), allocatable :: csca1(:, :)     !! (ncomp1, nz) cumulative scattering fraction
     integer, allocatable :: iph1(:, :)       !! (ncomp1, nz) phase function per component
-    real(wp), allocatable :: ext3(:, :, :)   !! (nx, ny, n3) total extinction [m-1]
-    real(wp), allocatable :: omg3(:, :, :)   !! (nx, ny, n3) mixture single-scattering albedo
-    real(wp), allocatable :: csca3(:, :, :, :) !! (ncomp, nx, ny, n3) cumulative fractions;
-                                               !! allocated only when ncomp > 1
+    real(vp), allocatable :: ext3(:, :, :)   !! (nx, ny, n3) total extinction [m-1]
+    real(vp), allocatable :: omg3(:, :, :)   !! (nx, ny, n3) mixture single-scattering albedo
+    !> (ncomp - 1, nx, ny, n3) cumulative scattering fractions of components 1 .. ncomp - 1
+    !> (the last ends at 1); allocated only when ncomp > 1
+    real(vp), allocatable :: csca3(:, :, :, :)
     integer, allocatable :: iph3(:, :, :, :) !! (ncomp, nx, ny, n3) phase function index;
                                              !! allocated only when it varies between voxels
+    !> (ncomp, nx, ny, n3) weight w of table iph + 1: the phase function is
+    !> (1 - w) P(iph) + w P(iph + 1) (MCARaTS's fractional index); allocated only when used
+    real(vp), allocatable :: wph3(:, :, :, :)
     integer, allocatable :: iph3_const(:)    !! (ncomp) phase index when it is the same everywhere
     type(phase_t), allocatable :: phases(:)  !! phase functions referenced by index
     type(supervoxel_grid_t) :: sv            !! majorant grid of the 3-D region
@@ -75,7 +83,8 @@ contains
   !>
   !> `ext1d`, `ssa1d`, `iph1d` are (nz, ncomp1) and describe every layer; inside the 3-D region
   !> they are added to the voxel components `ext3d`, `ssa3d`, `iph3d` (nx, ny, n3, ncomp3), as a
-  !> background (e.g. molecules around a cloud).
+  !> background (e.g. molecules around a cloud). This is `atmosphere_begin`, one
+  !> `atmosphere_put_layer` per component and layer, and `atmosphere_end`.
   subroutine atmosphere_init(atm, z, lx, ly, ext1d, ssa1d, iph1d, phases, opts, error, &
                              k3_lo, ext3d, ssa3d, iph3d)
     type(atmosphere_t), intent(out) :: atm
@@ -91,11 +100,56 @@ contains
     real(wp), intent(in), optional :: ext3d(:, :, :, :)  !! (nx, ny, n3, ncomp3) [m-1]
     real(wp), intent(in), optional :: ssa3d(:, :, :, :)
     integer, intent(in), optional :: iph3d(:, :, :, :)
-    integer :: nz, k, ic, nc1, nc3, ix, iy, kr, klo, khi, ncomp, kf_lo, kf_hi, na1
-    integer, allocatable :: act1(:)
-    real(wp), allocatable :: e(:), s(:), csca(:)
-    integer, allocatable :: p(:)
-    logical :: has3d, phase_varies
+    type(phase_t), allocatable :: ph(:)
+    integer :: ic, kf
+    integer, allocatable :: one(:, :)
+
+    ph = phases
+    if (present(k3_lo) .and. present(ext3d) .and. present(ssa3d)) then
+      call atmosphere_begin(atm, z, lx, ly, ext1d, ssa1d, iph1d, ph, opts, error, k3_lo, &
+                            size(ext3d, 1), size(ext3d, 2), size(ext3d, 3), size(ext3d, 4))
+      if (allocated(error)) return
+      if (.not. present(iph3d)) allocate (one(size(ext3d, 1), size(ext3d, 2)), source=1)
+      do ic = 1, size(ext3d, 4)
+        do kf = 1, size(ext3d, 3)
+          if (present(iph3d)) then
+            call atmosphere_put_layer(atm, ic, kf, ext3d(:, :, kf, ic), ssa3d(:, :, kf, ic), &
+                                      iph3d(:, :, kf, ic))
+          else
+            call atmosphere_put_layer(atm, ic, kf, ext3d(:, :, kf, ic), ssa3d(:, :, kf, ic), one)
+          end if
+        end do
+      end do
+    else
+      call atmosphere_begin(atm, z, lx, ly, ext1d, ssa1d, iph1d, ph, opts, error)
+      if (allocated(error)) return
+    end if
+    call atmosphere_end(atm, opts, error)
+  end subroutine atmosphere_init
+
+  !> First step of building an atmosphere whose voxels are given layer by layer: the levels, the
+  !> 1-D layers and their classes, and the voxel arrays of the 3-D region, holding the 1-D
+  !> components present there (the background). The 3-D region has `n3f` layers from `k3_lo`
+  !> with `nc3` components on nx x ny columns; `blend` reserves a per-voxel weight for phase
+  !> functions that blend two consecutive tables. `phases` is moved into the atmosphere.
+  !> Then `atmosphere_put_layer` for every component and layer, then `atmosphere_end`.
+  subroutine atmosphere_begin(atm, z, lx, ly, ext1d, ssa1d, iph1d, phases, opts, error, &
+                              k3_lo, nx, ny, n3f, nc3, blend)
+    type(atmosphere_t), intent(out) :: atm
+    real(wp), intent(in) :: z(0:)              !! levels [m], strictly increasing
+    real(wp), intent(in) :: lx, ly             !! domain size [m]
+    real(wp), intent(in) :: ext1d(:, :)        !! (nz, ncomp1) extinction [m-1]
+    real(wp), intent(in) :: ssa1d(:, :)        !! (nz, ncomp1) single-scattering albedo
+    integer, intent(in) :: iph1d(:, :)         !! (nz, ncomp1) phase-function index
+    type(phase_t), allocatable, intent(inout) :: phases(:)  !! the phase functions (moved)
+    type(atmosphere_options_t), intent(in) :: opts
+    type(error_t), allocatable, intent(out) :: error
+    integer, intent(in), optional :: k3_lo     !! lowest layer of the 3-D region
+    integer, intent(in), optional :: nx, ny    !! columns of the 3-D region
+    integer, intent(in), optional :: n3f, nc3  !! layers and components given per voxel
+    logical, intent(in), optional :: blend     !! some voxels blend two phase tables
+    integer :: nz, k, ic, nc1, klo, khi, ncomp, na1, ix, iy, kr
+    real(wp) :: e, s
 
     nz = size(z) - 1
     nc1 = size(ext1d, 2)
@@ -120,7 +174,7 @@ contains
     atm%lx = lx
     atm%ly = ly
     atm%ncomp1 = nc1
-    atm%phases = phases
+    call move_alloc(phases, atm%phases)
 
     ! 1-D layers: totals and cumulative scattering fractions
     allocate (atm%ext1(nz), atm%omg1(nz), atm%csca1(max(nc1, 1), nz), atm%iph1(max(nc1, 1), nz))
@@ -130,33 +184,26 @@ contains
       atm%iph1(1:nc1, k) = iph1d(k, :)
     end do
 
-    has3d = present(k3_lo) .and. present(ext3d) .and. present(ssa3d)
-    kf_lo = 1     ! layers whose voxels come from the scene file (none if kf_hi < kf_lo)
-    kf_hi = 0
-    if (has3d) then
+    atm%nc3 = 0
+    atm%kf_lo = 1     ! layers whose voxels are given (none if kf_hi < kf_lo)
+    atm%kf_hi = 0
+    if (present(k3_lo) .and. present(nx) .and. present(ny) .and. present(n3f) .and. &
+        present(nc3)) then
       klo = k3_lo
-      khi = k3_lo + size(ext3d, 3) - 1
-      kf_lo = klo
-      kf_hi = khi
-      atm%nx = size(ext3d, 1)
-      atm%ny = size(ext3d, 2)
-      nc3 = size(ext3d, 4)
+      khi = k3_lo + n3f - 1
+      atm%kf_lo = klo
+      atm%kf_hi = khi
+      atm%nx = nx
+      atm%ny = ny
+      atm%nc3 = nc3
       if (klo < 1 .or. khi > nz) then
         call set_error(error, 'atmosphere: the 3-D region (layers '//str(klo)//'..'// &
                        str(khi)//') must lie within layers 1..'//str(nz))
         return
       end if
-      if (present(iph3d)) then
-        if (any(iph3d < 1) .or. any(iph3d > size(phases))) then
-          call set_error(error, 'atmosphere: a 3-D phase-function index is outside 1..'// &
-                         str(size(phases)))
-          return
-        end if
-      end if
     else
       klo = 1
       khi = 0
-      nc3 = 0
     end if
     if (.not. opts%use_1d_layers) then
       ! Every layer goes through the 3-D tracer: the region is widened to the whole column.
@@ -183,81 +230,162 @@ contains
         atm%layer_class(k) = LAYER_SCATTERING
       end if
     end do
+    if (atm%n3 == 0) return
 
-    if (atm%n3 > 0) then
-      ! 1-D components that are empty throughout the region (e.g. no molecules given in cloud
-      ! layers) are left out of the voxels: no choice of scatterer, no storage for them.
-      act1 = pack([(ic, ic=1, nc1)], [(any(ext1d(klo:khi, ic) > 0.0_wp), ic=1, nc1)])
-      na1 = size(act1)
-      ncomp = na1 + nc3
-      atm%ncomp = ncomp
-      allocate (atm%ext3(atm%nx, atm%ny, atm%n3), atm%omg3(atm%nx, atm%ny, atm%n3))
-      ! Per-voxel scattering fractions and phase indices are kept only when the photon loop
-      ! needs them: one component needs no choice, and a phase index that is the same in every
-      ! voxel is stored once. This keeps the voxel data of large fields in the caches.
-      allocate (csca(ncomp))
-      if (ncomp > 1) allocate (atm%csca3(ncomp, atm%nx, atm%ny, atm%n3))
-      phase_varies = .false.
-      do ic = 1, na1
-        if (any(iph1d(klo:khi, act1(ic)) /= iph1d(klo, act1(ic)))) phase_varies = .true.
+    ! 1-D components that are empty throughout the region (e.g. no molecules given in cloud
+    ! layers) are left out of the voxels: no choice of scatterer, no storage for them.
+    atm%act1 = pack([(ic, ic=1, nc1)], [(any(ext1d(klo:khi, ic) > 0.0_wp), ic=1, nc1)])
+    na1 = size(atm%act1)
+    ncomp = na1 + atm%nc3
+    atm%ncomp = ncomp
+    ! While the layers are put, ext3 sums the extinction, omg3 the scattering coefficient and
+    ! csca3 holds each component's scattering coefficient (the last component's is the rest);
+    ! atmosphere_end turns them into the albedo and the cumulative fractions.
+    allocate (atm%ext3(atm%nx, atm%ny, atm%n3), atm%omg3(atm%nx, atm%ny, atm%n3))
+    if (ncomp > 1) allocate (atm%csca3(ncomp - 1, atm%nx, atm%ny, atm%n3))
+    allocate (atm%iph3(ncomp, atm%nx, atm%ny, atm%n3))
+    if (present(blend)) then
+      if (blend) then
+        allocate (atm%wph3(ncomp, atm%nx, atm%ny, atm%n3))
+        atm%wph3 = 0.0_vp
+      end if
+    end if
+    do kr = 1, atm%n3
+      k = klo + kr - 1
+      do iy = 1, atm%ny
+        do ix = 1, atm%nx
+          e = 0.0_wp
+          s = 0.0_wp
+          do ic = 1, na1
+            e = e + ext1d(k, atm%act1(ic))
+            s = s + ext1d(k, atm%act1(ic))*ssa1d(k, atm%act1(ic))
+            if (ic < ncomp) atm%csca3(ic, ix, iy, kr) = real(ext1d(k, atm%act1(ic))* &
+                                                             ssa1d(k, atm%act1(ic)), vp)
+          end do
+          atm%ext3(ix, iy, kr) = real(e, vp)
+          atm%omg3(ix, iy, kr) = real(s, vp)
+          atm%iph3(1:na1, ix, iy, kr) = iph1d(k, atm%act1)
+          atm%iph3(na1 + 1:, ix, iy, kr) = 1
+          if (ncomp > 1 .and. na1 < ncomp - 1) atm%csca3(na1 + 1:, ix, iy, kr) = 0.0_vp
+        end do
       end do
-      if (present(iph3d) .and. nc3 > 0) then
-        do ic = 1, nc3
-          if (any(iph3d(:, :, :, ic) /= iph3d(1, 1, 1, ic))) phase_varies = .true.
+    end do
+  end subroutine atmosphere_begin
+
+  !> Put layer `kf` (1..n3f of atmosphere_begin) of 3-D component `ic` (1..nc3): extinction
+  !> [m-1], single-scattering albedo and phase-function index per column, and optionally the
+  !> weight w of table iph + 1 in the blend P = (1 - w) P(iph) + w P(iph + 1).
+  subroutine atmosphere_put_layer(atm, ic, kf, ext, ssa, iph, wph)
+    type(atmosphere_t), intent(inout) :: atm
+    integer, intent(in) :: ic, kf
+    real(wp), intent(in) :: ext(:, :), ssa(:, :)   !! (nx, ny)
+    integer, intent(in) :: iph(:, :)               !! (nx, ny)
+    real(wp), intent(in), optional :: wph(:, :)    !! (nx, ny) in [0, 1]
+    integer :: kr, icc, ix, iy
+    real(wp) :: sca
+    kr = atm%kf_lo + kf - 1 - atm%k3_lo + 1
+    icc = size(atm%act1) + ic
+    do iy = 1, atm%ny
+      do ix = 1, atm%nx
+        sca = ext(ix, iy)*ssa(ix, iy)
+        atm%ext3(ix, iy, kr) = real(atm%ext3(ix, iy, kr) + ext(ix, iy), vp)
+        atm%omg3(ix, iy, kr) = real(atm%omg3(ix, iy, kr) + sca, vp)
+        if (icc < atm%ncomp) atm%csca3(icc, ix, iy, kr) = real(sca, vp)
+        atm%iph3(icc, ix, iy, kr) = iph(ix, iy)
+      end do
+    end do
+    if (present(wph) .and. allocated(atm%wph3)) atm%wph3(icc, :, :, kr) = real(wph, vp)
+  end subroutine atmosphere_put_layer
+
+  !> Last step: albedo and cumulative scattering fractions from the sums, checks of the phase
+  !> indices, storage dropped where nothing varies, the super-voxel grid.
+  subroutine atmosphere_end(atm, opts, error)
+    type(atmosphere_t), intent(inout) :: atm
+    type(atmosphere_options_t), intent(in) :: opts
+    type(error_t), allocatable, intent(out) :: error
+    integer :: ic, ix, iy, kr, nc, np, klo, khi
+    real(wp) :: ext_tot, sca_tot, acc
+    logical :: varies
+
+    if (atm%n3 == 0) return
+    nc = atm%ncomp
+    np = size(atm%phases)
+    if (any(atm%iph3 < 1) .or. any(atm%iph3 > np)) then
+      call set_error(error, 'atmosphere: a 3-D phase-function index is outside 1..'//str(np))
+      return
+    end if
+    if (allocated(atm%wph3)) then
+      if (any(atm%wph3 < 0.0_vp) .or. any(atm%wph3 > 1.0_vp)) then
+        call set_error(error, 'atmosphere: a phase-function blend weight is outside 0..1')
+        return
+      end if
+      if (any(atm%wph3 > 0.0_vp .and. atm%iph3 >= np)) then
+        call set_error(error, 'atmosphere: a phase-function blend needs table iph + 1 > '// &
+                       str(np))
+        return
+      end if
+      if (all(atm%wph3 <= 0.0_vp)) deallocate (atm%wph3)
+    end if
+    do kr = 1, atm%n3
+      do iy = 1, atm%ny
+        do ix = 1, atm%nx
+          ext_tot = atm%ext3(ix, iy, kr)
+          sca_tot = atm%omg3(ix, iy, kr)
+          if (ext_tot > 0.0_wp) then
+            atm%omg3(ix, iy, kr) = real(min(1.0_wp, sca_tot/ext_tot), vp)
+          else
+            atm%omg3(ix, iy, kr) = 1.0_vp
+          end if
+          acc = 0.0_wp
+          do ic = 1, nc - 1
+            acc = acc + atm%csca3(ic, ix, iy, kr)
+            if (sca_tot > 0.0_wp) then
+              atm%csca3(ic, ix, iy, kr) = real(min(1.0_wp, acc/sca_tot), vp)
+            else
+              atm%csca3(ic, ix, iy, kr) = real(real(ic, wp)/nc, vp)
+            end if
+          end do
+        end do
+      end do
+    end do
+    ! A phase index that is the same in every voxel is stored once.
+    atm%iph3_const = atm%iph3(:, 1, 1, 1)
+    varies = allocated(atm%wph3)
+    do ic = 1, nc
+      if (any(atm%iph3(ic, :, :, :) /= atm%iph3_const(ic))) varies = .true.
+    end do
+    if (.not. varies) deallocate (atm%iph3)
+
+    klo = atm%k3_lo
+    khi = atm%k3_hi
+    call build_supervoxels(atm%ext3, atm%dx, atm%dy, atm%z(klo:khi) - atm%z(klo - 1:khi - 1), &
+                           opts%sv, atm%sv)
+    allocate (atm%uniform3(atm%n3))
+    do kr = 1, atm%n3
+      atm%uniform3(kr) = all(atm%ext3(:, :, kr) == atm%ext3(1, 1, kr)) .and. &
+                         all(atm%omg3(:, :, kr) == atm%omg3(1, 1, kr))
+      if (allocated(atm%csca3)) atm%uniform3(kr) = atm%uniform3(kr) .and. &
+                                                   uniform_layer(atm%csca3(:, :, :, kr))
+      if (allocated(atm%iph3)) then
+        do ic = 1, nc
+          atm%uniform3(kr) = atm%uniform3(kr) .and. &
+                             all(atm%iph3(ic, :, :, kr) == atm%iph3(ic, 1, 1, kr))
         end do
       end if
-      if (phase_varies) allocate (atm%iph3(ncomp, atm%nx, atm%ny, atm%n3))
-      allocate (e(ncomp), s(ncomp), p(ncomp))
-      do kr = 1, atm%n3
-        k = klo + kr - 1
-        do iy = 1, atm%ny
-          do ix = 1, atm%nx
-            e(1:na1) = ext1d(k, act1)
-            s(1:na1) = ssa1d(k, act1)
-            p(1:na1) = iph1d(k, act1)
-            if (k >= kf_lo .and. k <= kf_hi) then
-              do ic = 1, nc3
-                e(na1 + ic) = ext3d(ix, iy, k - kf_lo + 1, ic)
-                s(na1 + ic) = ssa3d(ix, iy, k - kf_lo + 1, ic)
-                if (present(iph3d)) then
-                  p(na1 + ic) = iph3d(ix, iy, k - kf_lo + 1, ic)
-                else
-                  p(na1 + ic) = 1
-                end if
-              end do
-            else if (nc3 > 0) then
-              e(na1 + 1:) = 0.0_wp
-              s(na1 + 1:) = 0.0_wp
-              p(na1 + 1:) = 1
-            end if
-            call mix(e, s, atm%ext3(ix, iy, kr), atm%omg3(ix, iy, kr), csca)
-            if (ncomp > 1) atm%csca3(:, ix, iy, kr) = csca
-            if (phase_varies) atm%iph3(:, ix, iy, kr) = p
-            if (kr == 1 .and. ix == 1 .and. iy == 1) atm%iph3_const = p
-          end do
-        end do
-      end do
-      call build_supervoxels(atm%ext3, atm%dx, atm%dy, z(klo:khi) - z(klo - 1:khi - 1), &
-                             opts%sv, atm%sv)
-      allocate (atm%uniform3(atm%n3))
-      do kr = 1, atm%n3
-        atm%uniform3(kr) = all(atm%ext3(:, :, kr) == atm%ext3(1, 1, kr)) .and. &
-                           all(atm%omg3(:, :, kr) == atm%omg3(1, 1, kr))
-        if (allocated(atm%csca3)) then
-          do ic = 1, ncomp
-            atm%uniform3(kr) = atm%uniform3(kr) .and. &
-                               all(atm%csca3(ic, :, :, kr) == atm%csca3(ic, 1, 1, kr))
-          end do
-        end if
-        if (allocated(atm%iph3)) then
-          do ic = 1, ncomp
-            atm%uniform3(kr) = atm%uniform3(kr) .and. &
-                               all(atm%iph3(ic, :, :, kr) == atm%iph3(ic, 1, 1, kr))
-          end do
-        end if
-      end do
-    end if
-  end subroutine atmosphere_init
+      if (allocated(atm%wph3)) atm%uniform3(kr) = atm%uniform3(kr) .and. &
+                                                  uniform_layer(atm%wph3(:, :, :, kr))
+    end do
+  end subroutine atmosphere_end
+
+  !> Every column of a layer holds the same values a(:, ix, iy).
+  pure logical function uniform_layer(a) result(same)
+    real(vp), intent(in) :: a(:, :, :)   !! (components, nx, ny)
+    integer :: ic
+    same = .true.
+    do ic = 1, size(a, 1)
+      same = same .and. all(a(ic, :, :) == a(ic, 1, 1))
+    end do
+  end function uniform_layer
 
   !> Switch truncation on: store the delta fractions and the truncated extinction of the 1-D
   !> layers per level (sigma_a + sum_i (1 - f_i) sigma_s,i, seed text eq. 4.2.20 per component).
@@ -290,32 +418,41 @@ contains
     type(atmosphere_t), intent(in) :: atm
     integer, intent(in) :: ix, iy, kr, lev
     real(wp) :: sig
-    real(wp) :: fbar, prev
-    integer :: ic, iph
+    real(wp) :: fbar, prev, c
+    integer :: ic
     sig = atm%ext3(ix, iy, kr)
     if (lev <= 1 .or. sig <= 0.0_wp) return
-    if (atm%ncomp == 1) then
-      if (allocated(atm%iph3)) then
-        iph = atm%iph3(1, ix, iy, kr)
+    fbar = 0.0_wp
+    prev = 0.0_wp
+    do ic = 1, atm%ncomp
+      if (ic < atm%ncomp) then
+        c = atm%csca3(ic, ix, iy, kr)
       else
-        iph = atm%iph3_const(1)
+        c = 1.0_wp
       end if
-      fbar = atm%trunc%f(lev, iph)
-    else
-      fbar = 0.0_wp
-      prev = 0.0_wp
-      do ic = 1, atm%ncomp
-        if (allocated(atm%iph3)) then
-          iph = atm%iph3(ic, ix, iy, kr)
-        else
-          iph = atm%iph3_const(ic)
-        end if
-        fbar = fbar + (atm%csca3(ic, ix, iy, kr) - prev)*atm%trunc%f(lev, iph)
-        prev = atm%csca3(ic, ix, iy, kr)
-      end do
-    end if
+      fbar = fbar + (c - prev)*delta_fraction(atm, ic, ix, iy, kr, lev)
+      prev = c
+    end do
     sig = sig*(1.0_wp - atm%omg3(ix, iy, kr)*fbar)
   end function sigma_trunc_3d
+
+  !> Truncated (delta) fraction of component ic of a voxel at level lev, blends included.
+  pure real(wp) function delta_fraction(atm, ic, ix, iy, kr, lev) result(f)
+    type(atmosphere_t), intent(in) :: atm
+    integer, intent(in) :: ic, ix, iy, kr, lev
+    integer :: iph
+    real(wp) :: w
+    if (allocated(atm%iph3)) then
+      iph = atm%iph3(ic, ix, iy, kr)
+    else
+      iph = atm%iph3_const(ic)
+    end if
+    f = atm%trunc%f(lev, iph)
+    if (allocated(atm%wph3)) then
+      w = atm%wph3(ic, ix, iy, kr)
+      if (w > 0.0_wp) f = (1.0_wp - w)*f + w*atm%trunc%f(lev, iph + 1)
+    end if
+  end function delta_fraction
 
   !> Column (1..nx*ny) of the 3-D grid under (x, y).
   pure integer function column_of(atm, x, y) result(icol)

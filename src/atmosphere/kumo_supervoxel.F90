@@ -10,7 +10,7 @@
 !> more null collisions; the rule balances the two. A block whose majorant is exactly zero is
 !> clear: photons cross it without sampling a collision.
 module kumo_supervoxel
-  use kumo_kinds, only: wp
+  use kumo_kinds, only: wp, vp
   implicit none
   private
   public :: supervoxel_grid_t, supervoxel_options_t, build_supervoxels
@@ -37,7 +37,7 @@ contains
 
   !> Build the majorant grid for extinction `ext(nx, ny, n3)` on voxels of size dx x dy x dz(k).
   subroutine build_supervoxels(ext, dx, dy, dz, opts, sv)
-    real(wp), intent(in) :: ext(:, :, :)      !! total extinction per voxel [m-1]
+    real(vp), intent(in) :: ext(:, :, :)      !! total extinction per voxel [m-1]
     real(wp), intent(in) :: dx, dy            !! voxel size [m]
     real(wp), intent(in) :: dz(:)             !! layer thickness of each region layer [m]
     type(supervoxel_options_t), intent(in) :: opts
@@ -94,7 +94,8 @@ contains
 
   !> Double the block size along x or y while the merge rule allows it (smaller extent first).
   subroutine merge_horizontally(ext, dz, dx, dy, opts, bx, by)
-    real(wp), intent(in) :: ext(:, :, :), dz(:), dx, dy
+    real(vp), intent(in) :: ext(:, :, :)
+    real(wp), intent(in) :: dz(:), dx, dy
     type(supervoxel_options_t), intent(in) :: opts
     integer, intent(out) :: bx, by
     logical :: can_x, can_y
@@ -130,7 +131,8 @@ contains
 
   !> Does the merge rule accept blocks of bx x by voxels spanning all layers of `ext`?
   logical function merge_ok(ext, dz, dx, dy, bx, by, opts) result(ok)
-    real(wp), intent(in) :: ext(:, :, :), dz(:), dx, dy
+    real(vp), intent(in) :: ext(:, :, :)
+    real(wp), intent(in) :: dz(:), dx, dy
     integer, intent(in) :: bx, by
     type(supervoxel_options_t), intent(in) :: opts
     integer :: nx, ny, i0, j0, i1, j1, k, n_blocks, n_nonclear
@@ -172,7 +174,7 @@ contains
 
   !> Largest extinction in each block of bx x by voxels (over all layers of `ext`).
   subroutine block_majorants(ext, bx, by, maj)
-    real(wp), intent(in) :: ext(:, :, :)
+    real(vp), intent(in) :: ext(:, :, :)
     integer, intent(in) :: bx, by
     real(wp), intent(out) :: maj(:)
     integer :: nbx, jx, jy, i0, j0

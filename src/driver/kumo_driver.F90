@@ -26,7 +26,7 @@ module kumo_driver
   use kumo_transport, only: source_t, tracer_options_t, source_init, trace_batch
   use kumo_results, only: result_set_t, add_dim, add_var, add_attr, find_var
   use kumo_config, only: config_t, read_config, config_echo, resolve_path
-  use kumo_cloud_scene, only: cloud_optics_t, build_cloud_optics, rayleigh_layers
+  use kumo_cloud_scene, only: build_cloud_atmosphere, rayleigh_layers
   use kumo_rayleigh, only: depol_from_king, king_factor_air
   use kumo_textio, only: read_two_columns, read_whole_file
   use kumo_netcdf, only: write_results, check_writable, read_scene_3d, read_albedo_map, &
@@ -128,8 +128,9 @@ contains
     integer :: i
     character(len=:), allocatable :: nml_path
     real(wp), allocatable :: ext1d(:, :), ssa1d(:, :), ray_ext(:), ray_rho(:)
-    type(cloud_optics_t) :: copt
+    character(len=:), allocatable :: ray_notes
     real(wp) :: depol
+    character(len=:), allocatable :: cloud_notes, cloud_warnings
     character(len=:), allocatable :: sfc_notes
 
     nml_path = ''
@@ -162,11 +163,15 @@ contains
     phase1d = cfg%atm%phase1d
     if (allocated(cfg%atm%air_density)) scene%air_density = cfg%atm%air_density
     if (cfg%atm%rayleigh) then
-      ! molecules: one more 1-D component with its own phase function
+      ! molecules: one more 1-D component with its own phase function. The profile's arrays
+      ! that are not allocated (those of the other profiles) count as absent arguments.
       call rayleigh_layers(cfg%atm%z, cfg%source%wavelength_um, cfg%atm%rayleigh_profile, &
-                           cfg%atm%co2_ppm, cfg%atm%latitude_deg, ray_ext, ray_rho, error)
+                           cfg%atm%co2_ppm, cfg%atm%latitude_deg, ray_ext, ray_rho, ray_notes, &
+                           error, p_levels=cfg%atm%p_levels, z_file=cfg%cloud%grid%z, &
+                           p_file=cfg%atm%p_cloud)
       if (allocated(error)) then
-        call add_context(error, '&kumo_atmosphere rayleigh')
+        call add_context(error, '&kumo_atmosphere rayleigh_profile = '''// &
+                         trim(cfg%atm%rayleigh_profile)//'''')
         return
       end if
       depol = cfg%atm%rayleigh_depol
@@ -181,42 +186,48 @@ contains
       ssa1d = reshape([ssa1d, spread(1.0_wp, 1, cfg%atm%nz)], [cfg%atm%nz, size(ssa1d, 2) + 1])
       phase1d = reshape([phase1d, spread(size(phases), 1, cfg%atm%nz)], &
                         [cfg%atm%nz, size(phase1d, 2) + 1])
-      if (.not. allocated(scene%air_density)) scene%air_density = ray_rho
-      scene%notes = scene%notes//'Rayleigh scattering ('//trim(cfg%atm%rayleigh_profile)// &
-                    ', Bodhaine et al. 1999): optical depth '//str(sum(ray_ext*(cfg%atm%z(2:) - &
-                    cfg%atm%z(:cfg%atm%nz))))//', depolarisation ratio '//str(depol)// &
-                    new_line('a')
+      if (allocated(cfg%atm%p_cloud_source)) ray_notes = cfg%atm%p_cloud_source//'; '//ray_notes
+      scene%notes = scene%notes//'Rayleigh scattering (Bodhaine et al. 1999), rayleigh_profile'// &
+                    ' = '''//trim(cfg%atm%rayleigh_profile)//''': optical depth '// &
+                    str(sum(ray_ext*(cfg%atm%z(2:) - cfg%atm%z(:cfg%atm%nz))))// &
+                    ', depolarisation ratio '//str(depol)//new_line('a')// &
+                    '  pressure from '//ray_notes//new_line('a')
+      if (allocated(scene%air_density)) then
+        scene%notes = scene%notes//'  layer air density (heating rates): air_density of '// &
+                      '&kumo_atmosphere'//new_line('a')
+      else
+        scene%air_density = ray_rho
+        scene%notes = scene%notes//'  layer air density (heating rates): (p_bottom - p_top)/'// &
+                      '(g0 dz) of the same pressure, g0 = 9.80665 m s-2'//new_line('a')
+      end if
     end if
-    if (cfg%cloud%enabled) then
-      call cloud_on_ranks(cfg, size(phases), copt, error)
-      if (allocated(error)) return
-      phases = [phases, copt%phases]
-      call move_alloc(copt%ext, ext3)
-      call move_alloc(copt%ssa, ssa3)
-      call move_alloc(copt%iph, iph3)
-      scene%notes = scene%notes//copt%notes
-      scene%warnings = scene%warnings//copt%warnings
-    end if
-
     aopts%use_1d_layers = cfg%vr%use_1d_layers
     aopts%use_absorbing_layers = cfg%vr%use_absorbing_layers
     aopts%sv%enabled = cfg%vr%use_supervoxels
     aopts%sv%fsupg = cfg%vr%sv_fsupg
     aopts%sv%fsupi = cfg%vr%sv_fsupi
     aopts%sv%max_layers = cfg%vr%sv_max_layers
-    if (len_trim(cfg%atm%scene_file) > 0) then
-      call read_scene_on_root(cfg, resolve_path(cfg%atm%scene_file, nml_path), ext3, ssa3, &
-                              iph3, error)
+    if (cfg%cloud%enabled) then
+      call cloud_on_ranks(cfg, ext1d, ssa1d, phase1d, phases, aopts, scene%atm, cloud_notes, &
+                          cloud_warnings, error)
+      if (allocated(error)) return
+      scene%notes = scene%notes//cloud_notes
+      scene%warnings = scene%warnings//cloud_warnings
+    else
+      if (len_trim(cfg%atm%scene_file) > 0) then
+        call read_scene_on_root(cfg, resolve_path(cfg%atm%scene_file, nml_path), ext3, ssa3, &
+                                iph3, error)
+        if (allocated(error)) return
+      end if
+      if (allocated(ext3)) then
+        call atmosphere_init(scene%atm, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, ext1d, ssa1d, &
+                             phase1d, phases, aopts, error, cfg%atm%k3d_bottom, ext3, ssa3, iph3)
+      else
+        call atmosphere_init(scene%atm, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, ext1d, ssa1d, &
+                             phase1d, phases, aopts, error)
+      end if
       if (allocated(error)) return
     end if
-    if (allocated(ext3)) then
-      call atmosphere_init(scene%atm, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, ext1d, ssa1d, &
-                           phase1d, phases, aopts, error, cfg%atm%k3d_bottom, ext3, ssa3, iph3)
-    else
-      call atmosphere_init(scene%atm, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, ext1d, ssa1d, &
-                           phase1d, phases, aopts, error)
-    end if
-    if (allocated(error)) return
 
     if (len_trim(cfg%surface%albedo_file) > 0) then
       call read_albedo_on_root(resolve_path(cfg%surface%albedo_file, nml_path), &
@@ -277,15 +288,14 @@ contains
     ! only catches a photon that no longer makes progress
     scene%tracer%max_steps = max(1000000000_i8, min(huge(1_i8)/2000_i8, cfg%control%max_events)*1000_i8)
 
-    call setup_estimators(cfg, phases, scene, error)
+    call setup_estimators(cfg, scene, error)
   end subroutine setup_scene
 
   !> Radiance detectors, cameras and the variance reduction that serves them. Truncation and
   !> collision forcing act on local estimates only, so they are set up only when radiances or
   !> cameras are requested: a flux run pays for neither.
-  subroutine setup_estimators(cfg, phases, scene, error)
+  subroutine setup_estimators(cfg, scene, error)
     type(config_t), intent(in) :: cfg
-    type(phase_t), intent(in) :: phases(:)
     type(scene_t), intent(inout) :: scene
     type(error_t), allocatable, intent(out) :: error
     type(camera_t), allocatable :: cams(:)
@@ -323,7 +333,8 @@ contains
     if (.not. scene%det%active) return
 
     if (cfg%vr%trunc_levels > 1) then
-      call truncation_init(tr, phases, cfg%vr%trunc_theta_max_deg, cfg%vr%trunc_levels, &
+      call truncation_init(tr, scene%atm%phases, cfg%vr%trunc_theta_max_deg, &
+                           cfg%vr%trunc_levels, &
                            cfg%vr%trunc_peak, error)
       if (allocated(error)) then
         call add_context(error, '&kumo_vr: truncation')
@@ -339,7 +350,7 @@ contains
       tau_col = 0.0_wp
       do k = 1, atm%nz
         if (atm%layer_class(k) == LAYER_3D) then
-          tau_col = tau_col + sum(atm%ext3(:, :, k - atm%k3_lo + 1))/(atm%nx*atm%ny)* &
+          tau_col = tau_col + sum(real(atm%ext3(:, :, k - atm%k3_lo + 1), wp))/(atm%nx*atm%ny)* &
                     (atm%z(k) - atm%z(k - 1))
         else
           tau_col = tau_col + atm%ext1(k)*(atm%z(k) - atm%z(k - 1))
@@ -358,16 +369,16 @@ contains
 
     scene%det%ddis_mu_cone = cos(DDIS_CONE_DEG*DEG2RAD)
     deallocate (scene%det%ddis_phase)
-    allocate (scene%det%ddis_phase(size(phases)))
-    do i = 1, size(phases)
-      scene%det%ddis_phase(i) = phase_eval(phases(i), 1.0_wp) > DDIS_PEAK
+    allocate (scene%det%ddis_phase(size(scene%atm%phases)))
+    do i = 1, size(scene%atm%phases)
+      scene%det%ddis_phase(i) = phase_eval(scene%atm%phases(i), 1.0_wp) > DDIS_PEAK
     end do
 
     ! MYSTIC stops in this situation; kumo warns: local estimates with a forward peak and no
     ! variance reduction converge very slowly (one rare near-forward scattering dominates).
     spiky = .false.
-    do i = 1, size(phases)
-      if (phase_eval(phases(i), 1.0_wp) > SPIKY_PEAK) spiky = .true.
+    do i = 1, size(scene%atm%phases)
+      if (phase_eval(scene%atm%phases(i), 1.0_wp) > SPIKY_PEAK) spiky = .true.
     end do
     if (spiky .and. cfg%vr%zeta_min <= 0.0_wp .and. .not. scene%atm%truncated) then
       scene%warnings = scene%warnings//'radiances are requested for a phase function with a forward peak '// &
@@ -421,24 +432,35 @@ contains
     end if
   end subroutine read_scene_on_root
 
-  !> The cloud's optics on every rank. Rank 0 goes first, so that a Mie table it computes is in
-  !> the cache before the other ranks look for it; they then read it instead of computing it.
-  subroutine cloud_on_ranks(cfg, phase_offset, copt, error)
+  !> The cloud's atmosphere on every rank. Rank 0 goes first, so that a Mie table it computes
+  !> is in the cache before the other ranks look for it; they then read it instead of
+  !> computing it.
+  subroutine cloud_on_ranks(cfg, ext1d, ssa1d, phase1d, phases, aopts, atm, notes, warnings, &
+                            error)
     type(config_t), intent(in) :: cfg
-    integer, intent(in) :: phase_offset
-    type(cloud_optics_t), intent(out) :: copt
+    real(wp), intent(in) :: ext1d(:, :), ssa1d(:, :)
+    integer, intent(in) :: phase1d(:, :)
+    type(phase_t), allocatable, intent(inout) :: phases(:)
+    type(atmosphere_options_t), intent(in) :: aopts
+    type(atmosphere_t), intent(out) :: atm
+    character(len=:), allocatable, intent(out) :: notes, warnings
     type(error_t), allocatable, intent(out) :: error
     integer :: status(1)
     status = 0
     if (par_is_root()) then
-      call build_cloud_optics(cfg%cloud, cfg%source%wavelength_um, cfg%phase%n_table, &
-                              phase_offset, copt, error)
+      call build(error)
       if (allocated(error)) status = 1
     end if
     call share_read_status(status, cfg%cloud%req%path, error)
     if (allocated(error) .or. par_is_root()) return
-    call build_cloud_optics(cfg%cloud, cfg%source%wavelength_um, cfg%phase%n_table, &
-                            phase_offset, copt, error)
+    call build(error)
+  contains
+    subroutine build(err)
+      type(error_t), allocatable, intent(out) :: err
+      call build_cloud_atmosphere(cfg%cloud, cfg%source%wavelength_um, cfg%phase%n_table, &
+                                  cfg%atm%z, cfg%atm%lx, cfg%atm%ly, cfg%atm%k3d_bottom, ext1d, &
+                                  ssa1d, phase1d, phases, aopts, atm, notes, warnings, err)
+    end subroutine build
   end subroutine cloud_on_ranks
 
   !> Give every rank rank 0's read status (status(1) /= 0: failed; the rest: sizes); ranks

@@ -18,7 +18,7 @@
 !> the tabulated phase functions); kumo_cloud_scene turns it into voxel components.
 module kumo_cloud_input
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
-  use kumo_kinds, only: wp
+  use kumo_kinds, only: wp, vp
   use kumo_error, only: error_t, set_error, str, to_lower
   use kumo_les_netcdf, only: les_names_t, les_field_t, read_les_field
   use kumo_shdom_files, only: lwc_field_t, prp_field_t, read_lwc_file, read_prp_file, &
@@ -52,6 +52,8 @@ module kumo_cloud_input
     real(wp) :: k_factor = 0.80_wp               !! Martin et al. (1994) k for r_e from number
     logical :: z_edges_from_midpoints = .false.  !! LES: edges midway between stretched centres
     real(wp) :: droplet_number_cm3 = 0.0_wp      !! 1-parameter LWC files: N [cm-3]
+    !> LES grid-only reads: also the pressure of every layer (required; `cloud_input_t%pressure`)
+    logical :: pressure_profile = .false.
     type(mcarats_request_t) :: mcarats           !! MCARaTS files: sizes and grid from the namelist
   end type cloud_request_t
 
@@ -65,18 +67,23 @@ module kumo_cloud_input
     !> values on nz + 1 planes (the third dimension of the arrays); layer k mixes planes k, k+1
     logical :: points = .false.
     integer :: content = CLOUD_WATER           !! CLOUD_WATER, CLOUD_EXT_REFF or CLOUD_OPTICS
-    real(wp), allocatable :: lwc(:, :, :)      !! liquid water content [g m-3] (CLOUD_WATER)
-    real(wp), allocatable :: reff(:, :, :)     !! droplet effective radius [um], 0 where empty
-    real(wp), allocatable :: ext(:, :, :)      !! extinction [m-1] (CLOUD_EXT_REFF, CLOUD_OPTICS)
-    real(wp), allocatable :: ssa(:, :, :)      !! single-scattering albedo (CLOUD_OPTICS)
+    ! Fields are kept in the voxel precision (vp), as the atmosphere stores them.
+    real(vp), allocatable :: lwc(:, :, :)      !! liquid water content [g m-3] (CLOUD_WATER)
+    real(vp), allocatable :: reff(:, :, :)     !! droplet effective radius [um], 0 where empty
+    real(vp), allocatable :: ext(:, :, :)      !! extinction [m-1] (CLOUD_EXT_REFF, CLOUD_OPTICS)
+    real(vp), allocatable :: ssa(:, :, :)      !! single-scattering albedo (CLOUD_OPTICS)
     integer, allocatable :: iphase(:, :, :)    !! phase-function index (CLOUD_OPTICS)
     !> CLOUD_OPTICS phase functions: Legendre moments chi(0:nleg, nphase) (property files) ...
     real(wp), allocatable :: chi(:, :)
     !> ... or Henyey-Greenstein asymmetry parameters (MYSTIC flag 1), one per distinct value
     real(wp), allocatable :: hg_g(:)
     logical :: has_ice = .false.               !! LES ice water present
-    real(wp), allocatable :: iwc(:, :, :)      !! ice water content [g m-3]
-    real(wp), allocatable :: reff_ice(:, :, :) !! ice effective radius [um]
+    real(vp), allocatable :: iwc(:, :, :)      !! ice water content [g m-3]
+    real(vp), allocatable :: reff_ice(:, :, :) !! ice effective radius [um]
+    !> LES grid-only reads with `pressure_profile`: pressure of each layer [Pa], bottom first,
+    !> in double precision; a 3-D variable is averaged over the columns of each layer
+    real(wp), allocatable :: pressure(:)
+    character(len=:), allocatable :: pressure_source !! variable and whether it was averaged
     type(mcarats_atm_t) :: mca_atm             !! CLOUD_MCARATS: the dataset read
     type(mcarats_phase_t) :: mca_phase         !! CLOUD_MCARATS: its tables (npf = 0: none)
     character(len=:), allocatable :: notes     !! how the file was read, for the run log
@@ -103,12 +110,15 @@ contains
   end subroutine cloud_format_check
 
   !> Read a cloud file. With `grid_only`, only the grid (nx, ny, nz, dx, dy, z) is guaranteed
-  !> (the LES reader then reads coordinates only; text files are read whole).
-  subroutine read_cloud_input(req, cloud, error, grid_only)
+  !> (the LES reader then reads coordinates only; text files are read whole). `part` ('liquid'
+  !> or 'ice') reads one species of an LES file (`has_ice` still tells whether there is ice);
+  !> the other formats have liquid water only and ignore it.
+  subroutine read_cloud_input(req, cloud, error, grid_only, part)
     type(cloud_request_t), intent(in) :: req
     type(cloud_input_t), intent(out) :: cloud
     type(error_t), allocatable, intent(out) :: error
     logical, intent(in), optional :: grid_only
+    character(len=*), intent(in), optional :: part
     logical :: grid
     grid = .false.
     if (present(grid_only)) grid = grid_only
@@ -117,7 +127,7 @@ contains
     cloud%missing = ''
     select case (trim(req%format))
     case ('les')
-      call from_les(req, grid, cloud, error)
+      call from_les(req, grid, cloud, error, part)
     case ('lwc')
       call from_lwc(req, cloud, error)
     case ('prp')
@@ -131,25 +141,34 @@ contains
     end select
   end subroutine read_cloud_input
 
-  subroutine from_les(req, grid, cloud, error)
+  subroutine from_les(req, grid, cloud, error, part)
     type(cloud_request_t), intent(in) :: req
     logical, intent(in) :: grid
     type(cloud_input_t), intent(inout) :: cloud
     type(error_t), allocatable, intent(out) :: error
+    character(len=*), intent(in), optional :: part
     type(les_field_t) :: f
     call read_les_field(req%path, req%names, req%time_index, f, error, req%k_factor, &
-                        req%z_edges_from_midpoints, grid)
+                        req%z_edges_from_midpoints, grid, part, req%pressure_profile)
     if (allocated(error)) return
     call set_grid(cloud, f%nx, f%ny, f%nz, f%dx, f%dy, f%z_edges, .false.)
+    if (allocated(f%pressure_profile)) then
+      call move_alloc(f%pressure_profile, cloud%pressure)
+      cloud%pressure_source = 'variable "'//trim(f%used%pressure)//'" of '//req%path
+      if (f%pressure_averaged) then
+        cloud%pressure_source = cloud%pressure_source//', a 3-D field averaged over the '// &
+                                'columns of each layer'
+      else
+        cloud%pressure_source = cloud%pressure_source//', a profile'
+      end if
+    end if
     if (grid) return
     cloud%content = CLOUD_WATER
-    call move_alloc(f%lwc, cloud%lwc)
-    call move_alloc(f%reff, cloud%reff)
+    if (allocated(f%lwc)) call move_alloc(f%lwc, cloud%lwc)
+    if (allocated(f%reff)) call move_alloc(f%reff, cloud%reff)
     cloud%has_ice = f%has_ice
-    if (f%has_ice) then
-      call move_alloc(f%iwc, cloud%iwc)
-      call move_alloc(f%reff_ice, cloud%reff_ice)
-    end if
+    if (allocated(f%iwc)) call move_alloc(f%iwc, cloud%iwc)
+    if (allocated(f%reff_ice)) call move_alloc(f%reff_ice, cloud%reff_ice)
     cloud%notes = f%notes
     cloud%missing = 'the wavelength'
   end subroutine from_les
@@ -179,8 +198,8 @@ contains
     end if
     call set_grid(cloud, f%nx, f%ny, f%nz, f%dx, f%dy, f%z, .not. f%z_are_boundaries)
     cloud%content = CLOUD_WATER
-    call move_alloc(f%lwc, cloud%lwc)
-    call move_alloc(f%reff, cloud%reff)
+    call take(f%lwc, cloud%lwc)
+    call take(f%reff, cloud%reff)
     cloud%notes = cloud%notes//'LWC file: '//str(f%n_listed)//' points listed, heights as '// &
                   merge('cell boundaries', 'grid points    ', f%z_are_boundaries)
     cloud%missing = 'the wavelength and the droplet optics'
@@ -195,8 +214,8 @@ contains
     if (allocated(error)) return
     call set_grid(cloud, f%nx, f%ny, f%nz, f%dx, f%dy, f%z, .not. f%z_are_boundaries)
     cloud%content = CLOUD_OPTICS
-    call move_alloc(f%extinction, cloud%ext)
-    call move_alloc(f%ssa, cloud%ssa)
+    call take(f%extinction, cloud%ext)
+    call take(f%ssa, cloud%ssa)
     call move_alloc(f%iphase, cloud%iphase)
     call move_alloc(f%chi, cloud%chi)
     cloud%notes = 'property file: '//str(f%nphase)//' phase functions of up to '// &
@@ -218,8 +237,8 @@ contains
     select case (f%flag)
     case (MYSTIC_EXT_G_SSA)
       cloud%content = CLOUD_OPTICS
-      call move_alloc(f%ext, cloud%ext)
-      call move_alloc(f%ssa, cloud%ssa)
+      call take(f%ext, cloud%ext)
+      call take(f%ssa, cloud%ssa)
       ! one Henyey-Greenstein phase function per distinct g (exact values, no binning)
       gs = [0.0_wp, pack(f%g, f%listed)]
       call sort_unique_exact(gs, n)
@@ -238,14 +257,14 @@ contains
       cloud%missing = 'the wavelength'
     case (MYSTIC_EXT_REFF)
       cloud%content = CLOUD_EXT_REFF
-      call move_alloc(f%ext, cloud%ext)
-      call move_alloc(f%reff, cloud%reff)
+      call take(f%ext, cloud%ext)
+      call take(f%reff, cloud%reff)
       cloud%notes = 'MYSTIC file, flag 2 (ext, r_eff): '//str(f%n_listed)//' cells'
       cloud%missing = 'the wavelength, the single-scattering albedo and phase function'
     case default
       cloud%content = CLOUD_WATER
-      call move_alloc(f%lwc, cloud%lwc)
-      call move_alloc(f%reff, cloud%reff)
+      call take(f%lwc, cloud%lwc)
+      call take(f%reff, cloud%reff)
       cloud%notes = 'MYSTIC file, flag 3 (LWC, r_eff): '//str(f%n_listed)//' cells'
       cloud%missing = 'the wavelength and the droplet optics'
     end select
@@ -405,6 +424,14 @@ contains
                      'gives '//what//' = '//str(found)//' (leave '//name//' out to take it)')
     end subroutine agree
   end subroutine from_mcarats
+
+  !> Move a field read in working precision into the cloud's voxel precision.
+  subroutine take(from, to)
+    real(wp), allocatable, intent(inout) :: from(:, :, :)
+    real(vp), allocatable, intent(out) :: to(:, :, :)
+    to = real(from, vp)
+    deallocate (from)
+  end subroutine take
 
   !> Grid of the region from a file's heights: nz + 1 boundaries, or nz grid points.
   subroutine set_grid(cloud, nx, ny, nz_file, dx, dy, z, points)

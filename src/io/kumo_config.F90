@@ -17,7 +17,7 @@ module kumo_config
   use kumo_brdf, only: brdf_params_t, brdf_params, brdf_kind_from_name, brdf_validate, &
                        cox_munk_slope_variance, BRDF_BLACK, BRDF_LAMBERT, BRDF_DSM, BRDF_NPAR
   use kumo_mie, only: dist_kind_from_name, size_dist_validate
-  use kumo_std_atmosphere, only: std_atmosphere_kind_from_name
+  use kumo_std_atmosphere, only: std_atmosphere_kind_from_name, STD_ATMOSPHERE_NAMES
   use kumo_les_netcdf, only: LES_NAME_LEN
   use kumo_cloud_input, only: cloud_input_t, cloud_request_t, read_cloud_input, &
                               cloud_format_check, CLOUD_OPTICS, CLOUD_MCARATS
@@ -29,6 +29,7 @@ module kumo_config
             read_config, config_echo, resolve_path
   public :: MAX_LAYERS, MAX_COMP, MAX_PHASE, MAX_DIR, MAX_CAMERAS, TARGET_NAMES, PRESET_NAMES, &
             MODE_NAMES
+  public :: RAYLEIGH_LEVELS, RAYLEIGH_CLOUD_FILE
 
   integer, parameter :: MAX_LAYERS = 2000   !! most layers a namelist can describe
   integer, parameter :: MAX_COMP = 8        !! most components per layer
@@ -47,6 +48,10 @@ module kumo_config
   character(len=16), parameter :: GROUP_NAMES(10) = &
     [character(len=16) :: 'kumo_control', 'kumo_atmosphere', 'kumo_phase', 'kumo_surface', &
      'kumo_source', 'kumo_output', 'kumo_vr', 'kumo_radiance', 'kumo_camera', 'kumo_cloud']
+  !> Pressure profiles of the Rayleigh layers besides the named standard atmospheres: the
+  !> namelist's sounding (pressure_levels_hpa) and the pressure of the &kumo_cloud LES file.
+  character(len=*), parameter :: RAYLEIGH_LEVELS = 'levels'
+  character(len=*), parameter :: RAYLEIGH_CLOUD_FILE = 'cloud_file'
   !> Variance-reduction presets, from none to the most aggressive (see read_vr).
   character(len=16), parameter :: PRESET_NAMES(4) = &
     [character(len=16) :: 'analog', 'unbiased', 'standard', 'quick']
@@ -91,7 +96,13 @@ module kumo_config
     logical :: levels_from_cloud = .false.         !! levels taken from the &kumo_cloud file
     ! Molecular (Rayleigh) scattering added to every layer as one more component
     logical :: rayleigh = .false.                  !! add Rayleigh scattering of dry air
-    character(len=16) :: rayleigh_profile = 'us1976' !! pressure profile: a standard atmosphere
+    !> pressure profile: a standard atmosphere (STD_ATMOSPHERE_NAMES), RAYLEIGH_LEVELS or
+    !> RAYLEIGH_CLOUD_FILE
+    character(len=16) :: rayleigh_profile = 'us1976'
+    real(wp), allocatable :: p_levels(:)           !! 'levels': pressure at levels 0..nz [Pa]
+    !> 'cloud_file': pressure of each layer of the &kumo_cloud file [Pa], bottom first
+    real(wp), allocatable :: p_cloud(:)
+    character(len=:), allocatable :: p_cloud_source !! 'cloud_file': where p_cloud came from
     real(wp) :: co2_ppm = 400.0_wp                 !! CO2 volume mixing ratio [ppm]
     real(wp) :: latitude_deg = 45.0_wp             !! latitude for gravity [deg]
     real(wp) :: rayleigh_depol = -1.0_wp           !! depolarisation ratio; < 0: Bodhaine value
@@ -375,18 +386,18 @@ contains
     type(cloud_cfg_t), intent(in) :: cloud
     type(atmosphere_cfg_t), intent(inout) :: cfg
     type(error_t), allocatable, intent(out) :: error
-    integer :: nz, n_components, k3d_bottom, nx, ny, nz3, n_components_3d, ios, k, ic, kind
+    integer :: nz, n_components, k3d_bottom, nx, ny, nz3, n_components_3d, ios, k, ic
     real(wp) :: lx, ly, cp_air, co2_ppm, latitude_deg, rayleigh_depol
     logical :: rayleigh
     character(len=16) :: rayleigh_profile
     real(wp) :: z_levels(0:MAX_LAYERS), ext1d(MAX_LAYERS, MAX_COMP), ssa1d(MAX_LAYERS, MAX_COMP)
-    real(wp) :: air_density(MAX_LAYERS)
+    real(wp) :: air_density(MAX_LAYERS), pressure_levels_hpa(0:MAX_LAYERS)
     integer :: phase1d(MAX_LAYERS, MAX_COMP), phase3d(MAX_COMP)
     character(len=PATH_LEN) :: scene_file
     character(len=512) :: msg
     namelist /kumo_atmosphere/ nz, z_levels, lx, ly, n_components, ext1d, ssa1d, phase1d, &
       scene_file, k3d_bottom, nx, ny, nz3, n_components_3d, phase3d, air_density, cp_air, &
-      rayleigh, rayleigh_profile, co2_ppm, latitude_deg, rayleigh_depol
+      rayleigh, rayleigh_profile, co2_ppm, latitude_deg, rayleigh_depol, pressure_levels_hpa
     if (.not. present .and. .not. cloud%enabled) then
       call set_error(error, 'namelist group &kumo_atmosphere is required (levels and layers) '// &
                      'unless &kumo_cloud gives a cloud file')
@@ -401,6 +412,7 @@ contains
     co2_ppm = cfg%co2_ppm
     latitude_deg = cfg%latitude_deg
     rayleigh_depol = cfg%rayleigh_depol
+    pressure_levels_hpa = UNSET
     n_components = cfg%n_components
     ext1d = UNSET
     ssa1d = UNSET
@@ -420,11 +432,8 @@ contains
     call check_read('kumo_atmosphere', present, ios, msg, error)
     if (allocated(error)) return
     if (rayleigh) then
-      call std_atmosphere_kind_from_name(rayleigh_profile, kind, error)
-      if (allocated(error)) then
-        error%message = '&kumo_atmosphere: rayleigh_profile: '//error%message
-        return
-      end if
+      call rayleigh_profile_check(rayleigh_profile, error)
+      if (allocated(error)) return
       if (.not. (within(co2_ppm, 0.0_wp, 2000.0_wp) .and. within(latitude_deg, -90.0_wp, &
                                                                   90.0_wp))) then
         call set_error(error, '&kumo_atmosphere: co2_ppm = '//str(co2_ppm)//' must be within '// &
@@ -438,7 +447,7 @@ contains
       end if
     end if
     cfg%rayleigh = rayleigh
-    cfg%rayleigh_profile = to_lower(rayleigh_profile)
+    cfg%rayleigh_profile = to_lower(adjustl(rayleigh_profile))
     cfg%co2_ppm = co2_ppm
     cfg%latitude_deg = latitude_deg
     cfg%rayleigh_depol = rayleigh_depol
@@ -585,6 +594,7 @@ contains
     cfg%n_components_3d = n_components_3d
     cfg%phase3d = phase3d(1:n_components_3d)
     cfg%cp_air = cp_air
+    call rayleigh_pressure(pressure_levels_hpa, cloud, cfg, error)
   end subroutine read_atmosphere
 
   !> The 3-D region of an MCARaTS atmosphere (cloud_format = 'mcarats'). As in MCARaTS, the
@@ -628,6 +638,128 @@ contains
       given = found
     end subroutine agree
   end subroutine mcarats_region_sizes
+
+  !> A Rayleigh profile name: a named standard atmosphere, RAYLEIGH_LEVELS or RAYLEIGH_CLOUD_FILE.
+  subroutine rayleigh_profile_check(name, error)
+    character(len=*), intent(in) :: name
+    type(error_t), allocatable, intent(out) :: error
+    character(len=:), allocatable :: lname
+    integer :: kind
+    lname = trim(adjustl(to_lower(name)))
+    if (lname == RAYLEIGH_LEVELS .or. lname == RAYLEIGH_CLOUD_FILE) return
+    call std_atmosphere_kind_from_name(lname, kind, error)
+    if (.not. allocated(error)) return
+    error%message = '&kumo_atmosphere: rayleigh_profile = '''//trim(name)//''' must be one '// &
+                    'of '//join(STD_ATMOSPHERE_NAMES)//' (standard atmospheres), '// &
+                    RAYLEIGH_LEVELS//' (the sounding pressure_levels_hpa) or '// &
+                    RAYLEIGH_CLOUD_FILE//' (the pressure of the &kumo_cloud LES file)'
+  end subroutine rayleigh_profile_check
+
+  !> The pressure of the Rayleigh layers when it does not come from a standard atmosphere:
+  !> `pressure_levels_hpa` for RAYLEIGH_LEVELS, or the layer pressures of the &kumo_cloud LES
+  !> file for RAYLEIGH_CLOUD_FILE, read here (grid and a pressure profile only, no 3-D field
+  !> is kept). Runs after the levels are set (cfg%nz, cfg%z).
+  subroutine rayleigh_pressure(pressure_levels_hpa, cloud, cfg, error)
+    real(wp), intent(in) :: pressure_levels_hpa(0:)  !! the namelist array, UNSET where not given
+    type(cloud_cfg_t), intent(in) :: cloud
+    type(atmosphere_cfg_t), intent(inout) :: cfg
+    type(error_t), allocatable, intent(out) :: error
+    character(len=*), parameter :: CTX = '&kumo_atmosphere: '
+    character(len=:), allocatable :: ctx_cloud
+    type(cloud_request_t) :: req
+    type(cloud_input_t) :: c
+    integer :: nz, n_given, k
+
+    if (.not. cfg%rayleigh) return   ! every Rayleigh setting is unused
+    nz = cfg%nz
+    n_given = count(pressure_levels_hpa /= UNSET)
+    if (n_given > 0 .and. cfg%rayleigh_profile /= RAYLEIGH_LEVELS) then
+      call set_error(error, CTX//'pressure_levels_hpa is given but rayleigh_profile = '''// &
+                     trim(cfg%rayleigh_profile)//'''; the sounding is used only with '// &
+                     'rayleigh_profile = '''//RAYLEIGH_LEVELS//'''')
+      return
+    end if
+    select case (trim(cfg%rayleigh_profile))
+    case (RAYLEIGH_LEVELS)
+      if (n_given == 0) then
+        call set_error(error, CTX//'rayleigh_profile = '''//RAYLEIGH_LEVELS//''' needs '// &
+                       'pressure_levels_hpa, the pressure at each of the nz + 1 = '// &
+                       str(nz + 1)//' entries of z_levels [hPa]')
+        return
+      end if
+      if (any(pressure_levels_hpa(0:nz) == UNSET) .or. &
+          any(pressure_levels_hpa(nz + 1:) /= UNSET)) then
+        call set_error(error, CTX//'pressure_levels_hpa has '//str(n_given)//' values but '// &
+                       'needs nz + 1 = '//str(nz + 1)//', one per entry of z_levels '// &
+                       '(levels 0..nz, bottom first) [hPa]')
+        return
+      end if
+      do k = 0, nz
+        if (.not. within(pressure_levels_hpa(k), SMALL, BIG)) then
+          call set_error(error, CTX//'pressure_levels_hpa('//str(k)//') = '// &
+                         str(pressure_levels_hpa(k))//' must be finite and > 0 [hPa]')
+          return
+        end if
+      end do
+      do k = 1, nz
+        if (.not. pressure_levels_hpa(k) < pressure_levels_hpa(k - 1)) then
+          call set_error(error, CTX//'pressure_levels_hpa('//str(k)//') = '// &
+                         str(pressure_levels_hpa(k))//' must be < pressure_levels_hpa('// &
+                         str(k - 1)//') = '//str(pressure_levels_hpa(k - 1))// &
+                         ': pressure falls with height (levels bottom first)')
+          return
+        end if
+      end do
+      cfg%p_levels = 100.0_wp*pressure_levels_hpa(0:nz)
+    case (RAYLEIGH_CLOUD_FILE)
+      ctx_cloud = CTX//'rayleigh_profile = '''//RAYLEIGH_CLOUD_FILE//''': '
+      if (.not. cloud%enabled) then
+        call set_error(error, ctx_cloud//'needs a cloud file (&kumo_cloud cloud_file) '// &
+                       'whose pressure gives the profile; there is none')
+        return
+      end if
+      if (trim(cloud%req%format) /= 'les') then
+        call set_error(error, ctx_cloud//'only LES netCDF files (cloud_format = ''les'') '// &
+                       'have a pressure variable; the cloud file '//cloud%req%path// &
+                       ' has cloud_format = '''//trim(cloud%req%format)//'''. Use '// &
+                       'rayleigh_profile = '''//RAYLEIGH_LEVELS//''' with pressure_levels_hpa'// &
+                       ' or a standard atmosphere')
+        return
+      end if
+      req = cloud%req
+      req%pressure_profile = .true.
+      call read_cloud_input(req, c, error, grid_only=.true.)
+      if (allocated(error)) then
+        error%message = ctx_cloud//error%message
+        return
+      end if
+      if (.not. allocated(c%pressure)) then
+        call set_error(error, ctx_cloud//cloud%req%path//': no pressure was read')
+        return
+      end if
+      if (size(c%pressure) /= cloud%grid%nz) then
+        call set_error(error, ctx_cloud//cloud%req%path//': '//str(size(c%pressure))// &
+                       ' pressure values for '//str(cloud%grid%nz)//' layers')
+        return
+      end if
+      associate (p => c%pressure)
+        do k = 2, size(p)
+          if (.not. p(k) < p(k - 1)) then
+            call set_error(error, ctx_cloud//'the pressure of the cloud file ('// &
+                           c%pressure_source//') must fall with height, but layer '// &
+                           str(k)//' (z = '//str(cloud%grid%z(k - 1))//' to '// &
+                           str(cloud%grid%z(k))//' m) has '//str(p(k))//' Pa >= '// &
+                           str(p(k - 1))//' Pa of layer '//str(k - 1)//' below it')
+            return
+          end if
+        end do
+      end associate
+      call move_alloc(c%pressure, cfg%p_cloud)
+      cfg%p_cloud_source = c%pressure_source
+    case default
+      continue   ! a standard atmosphere: nothing to read
+    end select
+  end subroutine rayleigh_pressure
 
   !> Levels with a cloud file: the file's layer edges, below them a layer from the ground if
   !> the file starts above 0; or, when z_levels is given, z_levels must hold the file's edges
@@ -1574,6 +1706,8 @@ contains
       'kumo_atmosphere.co2_ppm = '//str(cfg%atm%co2_ppm)//nl// &
       'kumo_atmosphere.latitude_deg = '//str(cfg%atm%latitude_deg)//nl// &
       'kumo_atmosphere.rayleigh_depol = '//str(cfg%atm%rayleigh_depol)//nl
+    if (allocated(cfg%atm%p_levels)) text = text//'kumo_atmosphere.pressure_levels_hpa = '// &
+                                            join_real(0.01_wp*cfg%atm%p_levels)//nl
     if (cfg%cloud%enabled) text = text// &
       'kumo_cloud.cloud_file = '//trim(cfg%cloud%file)//nl// &
       'kumo_cloud.cloud_format = '//trim(cfg%cloud%req%format)//nl// &

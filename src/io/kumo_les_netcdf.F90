@@ -21,7 +21,7 @@ module kumo_les_netcdf
                     nf90_inquire_attribute, nf90_strerror, NF90_NOERR, NF90_ENOTATT, &
                     NF90_NOWRITE, NF90_DOUBLE, NF90_FLOAT, NF90_CHAR, NF90_FILL_DOUBLE, &
                     NF90_FILL_FLOAT, NF90_MAX_VAR_DIMS, NF90_MAX_NAME
-  use kumo_kinds, only: wp, sp, dp
+  use kumo_kinds, only: wp, sp, dp, vp
   use kumo_constants, only: PI
   use kumo_error, only: error_t, set_error, str
   use kumo_units, only: unit_factor, QTY_WATER_CONTENT, QTY_LENGTH, QTY_RADIUS, QTY_NUMBER, &
@@ -110,19 +110,23 @@ module kumo_les_netcdf
     real(wp) :: dx = 0.0_wp                           !! column width along x [m]
     real(wp) :: dy = 0.0_wp                           !! column width along y [m]
     real(wp), allocatable :: z_edges(:)               !! layer edges (nz + 1), bottom first [m]
-    real(wp), allocatable :: lwc(:, :, :)             !! liquid water content (nx, ny, nz) [g m-3]
-    real(wp), allocatable :: reff(:, :, :)            !! droplet effective radius [um]
+    real(vp), allocatable :: lwc(:, :, :)             !! liquid water content (nx, ny, nz) [g m-3]
+    real(vp), allocatable :: reff(:, :, :)            !! droplet effective radius [um]
     logical :: reff_computed = .false.                !! reff computed from lwc and droplet number
     real(wp) :: k_factor = 0.0_wp                     !! k used when reff_computed
     logical :: has_ice = .false.                      !! iwc and reff_ice present
-    real(wp), allocatable :: iwc(:, :, :)             !! ice water content (nx, ny, nz) [g m-3]
-    real(wp), allocatable :: reff_ice(:, :, :)        !! ice effective radius [um]
+    real(vp), allocatable :: iwc(:, :, :)             !! ice water content (nx, ny, nz) [g m-3]
+    real(vp), allocatable :: reff_ice(:, :, :)        !! ice effective radius [um]
     logical :: has_temperature = .false.              !! temperature present
     !> temperature [K]: shape (nx, ny, nz), or (1, 1, nz) for a profile
-    real(wp), allocatable :: temperature(:, :, :)
+    real(vp), allocatable :: temperature(:, :, :)
     logical :: has_pressure = .false.                 !! pressure present
     !> pressure [Pa]: shape (nx, ny, nz), or (1, 1, nz) for a profile
-    real(wp), allocatable :: pressure(:, :, :)
+    real(vp), allocatable :: pressure(:, :, :)
+    !> grid-only reads with `pressure_profile`: the pressure of each layer [Pa] in double
+    !> precision, the horizontal mean of a 3-D variable (`pressure_averaged`)
+    real(wp), allocatable :: pressure_profile(:)
+    logical :: pressure_averaged = .false.
     type(les_names_t) :: used                         !! names actually read (blank: not read)
     character(len=:), allocatable :: notes            !! one line per variable: name, unit, origin
   end type les_field_t
@@ -165,7 +169,7 @@ contains
   !> beyond the outer centres), which is exact for uniform centres and is used for stretched
   !> centres only when `z_edges_from_midpoints` is true, since it is one convention among several.
   subroutine read_les_field(path, names, time_index, field, error, k_factor, &
-                            z_edges_from_midpoints, grid_only)
+                            z_edges_from_midpoints, grid_only, part, pressure_profile)
     character(len=*), intent(in) :: path               !! netCDF file
     type(les_names_t), intent(in) :: names             !! variable names (blank: defaults)
     integer, intent(in) :: time_index                  !! time step (1-based), or -1: no time dim
@@ -177,8 +181,17 @@ contains
     !> read only the grid (nx, ny, nz, dx, dy, z_edges) and check the liquid water variable's
     !> layout and time step; no field is read (default false)
     logical, intent(in), optional :: grid_only
+    !> 'liquid': liquid water and its radius only (`has_ice` still tells whether the file has
+    !> ice water); 'ice': ice water and its radius only; default: both. Reading the species one
+    !> at a time halves the memory of a large field.
+    character(len=*), intent(in), optional :: part
+    !> with `grid_only`: also read the pressure, which is then required, into
+    !> `pressure_profile` (one value per layer, a 3-D variable averaged over the columns of
+    !> each layer and read one layer at a time, so that no 3-D array is held; default false)
+    logical, intent(in), optional :: pressure_profile
     type(les_file_t) :: f
     type(error_t), allocatable :: close_error
+    logical :: liquid, ice
     integer :: status
     real(wp) :: k
     logical :: midpoints
@@ -196,12 +209,26 @@ contains
                      ' must be >= 1, or -1 for a file without a time dimension')
       return
     end if
+    liquid = .true.
+    ice = .true.
+    if (present(part)) then
+      select case (part)
+      case ('liquid')
+        ice = .false.
+      case ('ice')
+        liquid = .false.
+      case default
+        call set_error(error, PROC//': part = "'//part//'" must be liquid or ice')
+        return
+      end select
+    end if
     f%path = trim(path)
     f%itime = time_index
     call nc_check(nf90_open(f%path, NF90_NOWRITE, f%ncid), PROC//'('//f%path//')', error)
     if (allocated(error)) return
     field%notes = ''
-    call read_body(f, names, k, midpoints, field, error, grid_only)
+    call read_body(f, names, k, midpoints, liquid, ice, field, error, grid_only, &
+                   pressure_profile)
     status = nf90_close(f%ncid)
     if (.not. allocated(error)) then
       call nc_check(status, PROC//'('//f%path//')', close_error)
@@ -212,18 +239,21 @@ contains
 
   ! ------------------------------------------------------------------------------------------------
 
-  subroutine read_body(f, names, k, midpoints, field, error, grid_only)
+  subroutine read_body(f, names, k, midpoints, liquid, ice, field, error, grid_only, &
+                       pressure_profile)
     type(les_file_t), intent(inout) :: f
     type(les_names_t), intent(in) :: names
     real(wp), intent(in) :: k
     logical, intent(in) :: midpoints
+    logical, intent(in) :: liquid, ice     !! read these species
     type(les_field_t), intent(inout) :: field
     type(error_t), allocatable, intent(out) :: error
-    logical, intent(in), optional :: grid_only
+    logical, intent(in), optional :: grid_only, pressure_profile
     integer :: lwc_id, reff_id, num_id, iwc_id, rei_id, t_id, p_id, rho_id
     character(len=:), allocatable :: lwc_name, reff_name, num_name, iwc_name, rei_name
     character(len=:), allocatable :: t_name, p_name, rho_name, text
-    real(wp), allocatable :: edges(:), rho(:, :, :)
+    real(wp), allocatable :: edges(:)
+    real(vp), allocatable :: rho(:, :, :)
     real(wp) :: spacing
     logical :: lwc_per_air, num_per_air, iwc_per_air, ice_per_air, reff_per_air, dummy
 
@@ -254,7 +284,12 @@ contains
     call find_time(f, lwc_id, lwc_name, error)
     if (allocated(error)) return
     if (present(grid_only)) then
-      if (grid_only) return
+      if (grid_only) then
+        if (present(pressure_profile)) then
+          if (pressure_profile) call read_pressure_profile(f, names, field, error)
+        end if
+        return
+      end if
     end if
 
     ! Temperature and pressure (optional; needed for mixing ratios without a density variable).
@@ -279,36 +314,39 @@ contains
     end if
 
     ! Liquid water and its effective radius, or droplet number.
-    call read_field(f, lwc_id, lwc_name, QTY_WATER_CONTENT, .false., .false., field%lwc, &
-                    lwc_per_air, field%notes, error)
-    if (allocated(error)) return
-    field%used%lwc = lwc_name
-    call find_var(f, 'droplet effective radius', names%reff, DEFAULT_REFF, .false., reff_id, &
-                  reff_name, error)
-    if (allocated(error)) return
+    lwc_per_air = .false.
     num_per_air = .false.
-    if (reff_id >= 0) then
-      call read_field(f, reff_id, reff_name, QTY_RADIUS, .false., .false., field%reff, &
-                      reff_per_air, field%notes, error)
+    if (liquid) then
+      call read_field(f, lwc_id, lwc_name, QTY_WATER_CONTENT, .false., .false., field%lwc, &
+                      lwc_per_air, field%notes, error)
       if (allocated(error)) return
-      field%used%reff = reff_name
-    else
-      call find_var(f, 'droplet number', names%number, DEFAULT_NUMBER, .false., num_id, &
-                    num_name, error)
+      field%used%lwc = lwc_name
+      call find_var(f, 'droplet effective radius', names%reff, DEFAULT_REFF, .false., reff_id, &
+                    reff_name, error)
       if (allocated(error)) return
-      if (num_id < 0) then
-        call set_error(error, PROC//'('//f%path//'): neither a droplet effective radius '// &
-                       '(tried '//tried(names%reff, DEFAULT_REFF)//') nor a droplet number '// &
-                       '(tried '//tried(names%number, DEFAULT_NUMBER)//') is in the file')
-        return
+      if (reff_id >= 0) then
+        call read_field(f, reff_id, reff_name, QTY_RADIUS, .false., .false., field%reff, &
+                        reff_per_air, field%notes, error)
+        if (allocated(error)) return
+        field%used%reff = reff_name
+      else
+        call find_var(f, 'droplet number', names%number, DEFAULT_NUMBER, .false., num_id, &
+                      num_name, error)
+        if (allocated(error)) return
+        if (num_id < 0) then
+          call set_error(error, PROC//'('//f%path//'): neither a droplet effective radius '// &
+                         '(tried '//tried(names%reff, DEFAULT_REFF)//') nor a droplet number '// &
+                         '(tried '//tried(names%number, DEFAULT_NUMBER)//') is in the file')
+          return
+        end if
+        ! The number goes into the reff array and is turned into a radius below (no temporary).
+        call read_field(f, num_id, num_name, QTY_NUMBER, .false., .false., field%reff, &
+                        num_per_air, field%notes, error)
+        if (allocated(error)) return
+        field%used%number = num_name
+        field%reff_computed = .true.
+        field%k_factor = k
       end if
-      ! The number goes into the reff array and is turned into a radius below (no temporary).
-      call read_field(f, num_id, num_name, QTY_NUMBER, .false., .false., field%reff, &
-                      num_per_air, field%notes, error)
-      if (allocated(error)) return
-      field%used%number = num_name
-      field%reff_computed = .true.
-      field%k_factor = k
     end if
 
     ! Ice (optional): water content and then a required effective radius.
@@ -316,9 +354,6 @@ contains
     if (allocated(error)) return
     iwc_per_air = .false.
     if (iwc_id >= 0) then
-      call read_field(f, iwc_id, iwc_name, QTY_WATER_CONTENT, .false., .false., field%iwc, &
-                      iwc_per_air, field%notes, error)
-      if (allocated(error)) return
       call find_var(f, 'ice effective radius', names%reff_ice, DEFAULT_REFF_ICE, .false., &
                     rei_id, rei_name, error)
       if (allocated(error)) return
@@ -328,12 +363,17 @@ contains
                        ' (name it, or set the ice water name to "none" to skip ice)')
         return
       end if
-      call read_field(f, rei_id, rei_name, QTY_RADIUS, .false., .false., field%reff_ice, &
-                      ice_per_air, field%notes, error)
-      if (allocated(error)) return
       field%has_ice = .true.
       field%used%iwc = iwc_name
       field%used%reff_ice = rei_name
+      if (ice) then
+        call read_field(f, iwc_id, iwc_name, QTY_WATER_CONTENT, .false., .false., field%iwc, &
+                        iwc_per_air, field%notes, error)
+        if (allocated(error)) return
+        call read_field(f, rei_id, rei_name, QTY_RADIUS, .false., .false., field%reff_ice, &
+                        ice_per_air, field%notes, error)
+        if (allocated(error)) return
+      end if
     end if
 
     ! Quantities per mass of air: multiply by the air density.
@@ -713,12 +753,13 @@ contains
     character(len=*), intent(in) :: name
     integer, intent(in) :: quantity
     logical, intent(in) :: allow_profile, positive
-    real(wp), allocatable, intent(out) :: values(:, :, :)
+    real(vp), allocatable, intent(out) :: values(:, :, :)
     logical, intent(out) :: per_air
     character(len=:), allocatable, intent(inout) :: notes
     type(error_t), allocatable, intent(out) :: error
-    integer :: xtype, ndims
+    integer :: xtype, ndims, iz
     real(wp) :: factor, fill, missing
+    real(wp), allocatable :: slab(:, :, :)
     logical :: profile, has_missing
     character(len=:), allocatable :: at, units
     logical :: found
@@ -733,27 +774,30 @@ contains
                         missing, error)
     if (allocated(error)) return
 
+    ! Read and check in double precision one layer at a time, keep the field in the voxel
+    ! precision: a large field never exists in double precision.
     if (profile) then
-      allocate (values(1, 1, f%n(3)))
+      allocate (slab(1, 1, f%n(3)), values(1, 1, f%n(3)))
       if (ndims == 2) then
-        call nc_check(nf90_get_var(f%ncid, varid, values, start=[1, f%itime], &
+        call nc_check(nf90_get_var(f%ncid, varid, slab, start=[1, f%itime], &
                                    count=[f%n(3), 1]), at, error)
       else
-        call nc_check(nf90_get_var(f%ncid, varid, values, start=[1], count=[f%n(3)]), at, error)
+        call nc_check(nf90_get_var(f%ncid, varid, slab, start=[1], count=[f%n(3)]), at, error)
       end if
+      if (allocated(error)) return
+      call check_values(f, at, slab, 0, fill, has_missing, missing, positive, error)
+      if (allocated(error)) return
+      values = real(slab*factor, vp)
     else
-      allocate (values(f%n(1), f%n(2), f%n(3)))
-      if (f%tdim >= 0) then
-        call nc_check(nf90_get_var(f%ncid, varid, values, start=[1, 1, 1, f%itime], &
-                                   count=[f%n, 1]), at, error)
-      else
-        call nc_check(nf90_get_var(f%ncid, varid, values, start=[1, 1, 1], count=f%n), at, error)
-      end if
+      allocate (slab(f%n(1), f%n(2), 1), values(f%n(1), f%n(2), f%n(3)))
+      do iz = 1, f%n(3)
+        call get_layer(f, varid, iz, slab, at, error)
+        if (allocated(error)) return
+        call check_values(f, at, slab, iz - 1, fill, has_missing, missing, positive, error)
+        if (allocated(error)) return
+        values(:, :, iz) = real(slab(:, :, 1)*factor, vp)
+      end do
     end if
-    if (allocated(error)) return
-    call check_values(f, at, values, fill, has_missing, missing, positive, error)
-    if (allocated(error)) return
-    values = values*factor
 
     call get_text_att(f, varid, name, 'units', units, found, error)
     if (allocated(error)) return
@@ -762,6 +806,86 @@ contains
     if (f%tdim >= 0) notes = notes//', '//trim(f%tname)//' '//str(f%itime)//' of '//str(f%nt)
     notes = notes//NL
   end subroutine read_field
+
+  !> The pressure variable (required) as a layer profile in field%pressure_profile(1:nz) [Pa],
+  !> in double precision. A profile variable is read as it is; a 3-D variable is read one layer
+  !> at a time and each layer replaced by its arithmetic mean over the columns, so the largest
+  !> array held is one layer. Every value is checked as in `read_field` (finite, not missing,
+  !> > 0).
+  subroutine read_pressure_profile(f, names, field, error)
+    type(les_file_t), intent(in) :: f
+    type(les_names_t), intent(in) :: names
+    type(les_field_t), intent(inout) :: field
+    type(error_t), allocatable, intent(out) :: error
+    integer :: p_id, xtype, ndims, iz
+    real(wp) :: factor, fill, missing
+    real(wp), allocatable :: slab(:, :, :)
+    logical :: profile, per_air, has_missing, found
+    character(len=:), allocatable :: p_name, at, units
+
+    call find_var(f, 'pressure', names%pressure, DEFAULT_PRESSURE, .true., p_id, p_name, error)
+    if (allocated(error)) return
+    at = at_text(f, p_name)
+    call check_layout(f, p_id, p_name, .true., error, profile)
+    if (allocated(error)) return
+    call nc_check(nf90_inquire_variable(f%ncid, p_id, xtype=xtype, ndims=ndims), at, error)
+    if (allocated(error)) return
+    call real_var_attrs(f, p_id, p_name, xtype, QTY_PRESSURE, factor, per_air, fill, &
+                        has_missing, missing, error)
+    if (allocated(error)) return
+    allocate (field%pressure_profile(f%n(3)))
+    if (profile) then
+      allocate (slab(1, 1, f%n(3)))
+      if (ndims == 2) then
+        call nc_check(nf90_get_var(f%ncid, p_id, slab, start=[1, f%itime], &
+                                   count=[f%n(3), 1]), at, error)
+      else
+        call nc_check(nf90_get_var(f%ncid, p_id, slab, start=[1], count=[f%n(3)]), at, error)
+      end if
+      if (allocated(error)) return
+      call check_values(f, at, slab, 0, fill, has_missing, missing, .true., error)
+      if (allocated(error)) return
+      field%pressure_profile = factor*slab(1, 1, :)
+    else
+      allocate (slab(f%n(1), f%n(2), 1))
+      do iz = 1, f%n(3)
+        call get_layer(f, p_id, iz, slab, at, error)
+        if (allocated(error)) return
+        call check_values(f, at, slab, iz - 1, fill, has_missing, missing, .true., error)
+        if (allocated(error)) return
+        field%pressure_profile(iz) = factor*sum(slab)/real(size(slab), wp)
+      end do
+      field%pressure_averaged = .true.
+    end if
+    call get_text_att(f, p_id, p_name, 'units', units, found, error)
+    if (allocated(error)) return
+    field%notes = field%notes//'"'//p_name//'" ['//units//']'
+    if (profile) then
+      field%notes = field%notes//' profile'
+    else
+      field%notes = field%notes//' 3-D, averaged over the columns of each layer'
+    end if
+    if (f%tdim >= 0) field%notes = field%notes//', '//trim(f%tname)//' '//str(f%itime)// &
+                                   ' of '//str(f%nt)
+    field%notes = field%notes//NL
+    field%used%pressure = p_name
+  end subroutine read_pressure_profile
+
+  !> Layer iz of a 3-D variable (of the chosen time step, if it has a time dimension).
+  subroutine get_layer(f, varid, iz, slab, at, error)
+    type(les_file_t), intent(in) :: f
+    integer, intent(in) :: varid, iz
+    real(wp), intent(out) :: slab(:, :, :)
+    character(len=*), intent(in) :: at
+    type(error_t), allocatable, intent(out) :: error
+    if (f%tdim >= 0) then
+      call nc_check(nf90_get_var(f%ncid, varid, slab, start=[1, 1, iz, f%itime], &
+                                 count=[f%n(1), f%n(2), 1, 1]), at, error)
+    else
+      call nc_check(nf90_get_var(f%ncid, varid, slab, start=[1, 1, iz], &
+                                 count=[f%n(1), f%n(2), 1]), at, error)
+    end if
+  end subroutine get_layer
 
   !> Type, packing, units (factor to kumo's unit), fill and missing values of a real variable.
   subroutine real_var_attrs(f, varid, name, xtype, quantity, factor, per_air, fill, has_missing, &
@@ -823,10 +947,11 @@ contains
   end subroutine real_var_attrs
 
   !> Finite, not the fill or missing value, >= 0 (> 0 if `positive`); the error names the index.
-  subroutine check_values(f, at, values, fill, has_missing, missing, positive, error)
+  subroutine check_values(f, at, values, k0, fill, has_missing, missing, positive, error)
     type(les_file_t), intent(in) :: f
     character(len=*), intent(in) :: at
     real(wp), intent(in) :: values(:, :, :)
+    integer, intent(in) :: k0                 !! layers of the field before values(:, :, 1)
     real(wp), intent(in) :: fill, missing
     logical, intent(in) :: has_missing, positive
     type(error_t), allocatable, intent(out) :: error
@@ -857,9 +982,9 @@ contains
           end if
           if (size(values, 1) == 1 .and. size(values, 2) == 1 .and. &
               (f%n(1) /= 1 .or. f%n(2) /= 1)) then
-            place = ' at (z) = ('//str(iz)//')'
+            place = ' at (z) = ('//str(k0 + iz)//')'
           else
-            place = ' at (x,y,z) = ('//str(ix)//','//str(iy)//','//str(iz)//')'
+            place = ' at (x,y,z) = ('//str(ix)//','//str(iy)//','//str(k0 + iz)//')'
           end if
           if (f%tdim >= 0) place = place//', time step '//str(f%itime)
           call set_error(error, at//': value '//str(v)//place//' '//problem)
@@ -871,14 +996,14 @@ contains
 
   !> values(i, j, k) *= rho(i or 1, j or 1, k) for a 3-D or profile density.
   subroutine scale_by(values, rho)
-    real(wp), intent(inout) :: values(:, :, :)
-    real(wp), intent(in) :: rho(:, :, :)
+    real(vp), intent(inout) :: values(:, :, :)
+    real(vp), intent(in) :: rho(:, :, :)
     integer :: ix, iy, iz
     do iz = 1, size(values, 3)
       do iy = 1, size(values, 2)
         do ix = 1, size(values, 1)
-          values(ix, iy, iz) = values(ix, iy, iz)* &
-                               rho(min(ix, size(rho, 1)), min(iy, size(rho, 2)), iz)
+          values(ix, iy, iz) = real(real(values(ix, iy, iz), wp)* &
+                                    rho(min(ix, size(rho, 1)), min(iy, size(rho, 2)), iz), vp)
         end do
       end do
     end do
@@ -886,16 +1011,16 @@ contains
 
   !> values *= p / (R_d T), the ideal-gas density of dry air [kg m-3]; p and T 3-D or profiles.
   subroutine scale_by_ideal_gas(values, p, t)
-    real(wp), intent(inout) :: values(:, :, :)
-    real(wp), intent(in) :: p(:, :, :), t(:, :, :)
+    real(vp), intent(inout) :: values(:, :, :)
+    real(vp), intent(in) :: p(:, :, :), t(:, :, :)
     real(wp) :: rho
     integer :: ix, iy, iz
     do iz = 1, size(values, 3)
       do iy = 1, size(values, 2)
         do ix = 1, size(values, 1)
-          rho = p(min(ix, size(p, 1)), min(iy, size(p, 2)), iz)/ &
+          rho = real(p(min(ix, size(p, 1)), min(iy, size(p, 2)), iz), wp)/ &
                 (R_DRY_AIR*t(min(ix, size(t, 1)), min(iy, size(t, 2)), iz))
-          values(ix, iy, iz) = values(ix, iy, iz)*rho
+          values(ix, iy, iz) = real(values(ix, iy, iz)*rho, vp)
         end do
       end do
     end do
@@ -907,8 +1032,8 @@ contains
     type(les_file_t), intent(in) :: f
     character(len=*), intent(in) :: lwc_name, num_name
     real(wp), intent(in) :: k
-    real(wp), intent(in) :: lwc(:, :, :)
-    real(wp), intent(inout) :: reff(:, :, :)
+    real(vp), intent(in) :: lwc(:, :, :)
+    real(vp), intent(inout) :: reff(:, :, :)
     type(error_t), allocatable, intent(out) :: error
     real(wp), parameter :: M_TO_UM = 1.0e6_wp
     real(wp) :: c
@@ -920,15 +1045,17 @@ contains
         do ix = 1, size(lwc, 1)
           if (lwc(ix, iy, iz) > 0.0_wp) then
             if (reff(ix, iy, iz) > 0.0_wp) then
-              reff(ix, iy, iz) = M_TO_UM*(c*lwc(ix, iy, iz)/reff(ix, iy, iz))**(1.0_wp/3.0_wp)
+              reff(ix, iy, iz) = real(M_TO_UM*(c*real(lwc(ix, iy, iz), wp)/ &
+                                               reff(ix, iy, iz))**(1.0_wp/3.0_wp), vp)
             else
               call set_error(error, at_text(f, num_name)//': droplet number is 0 at (x,y,z) = ('// &
                              str(ix)//','//str(iy)//','//str(iz)//') where "'//lwc_name// &
-                             '" = '//str(lwc(ix, iy, iz))//' g m-3 > 0: no effective radius')
+                             '" = '//str(real(lwc(ix, iy, iz), wp))//' g m-3 > 0: '// &
+                             'no effective radius')
               return
             end if
           else
-            reff(ix, iy, iz) = 0.0_wp
+            reff(ix, iy, iz) = 0.0_vp
           end if
         end do
       end do
@@ -1053,6 +1180,8 @@ contains
     field%has_ice = .false.
     field%has_temperature = .false.
     field%has_pressure = .false.
+    if (allocated(field%pressure_profile)) deallocate (field%pressure_profile)
+    field%pressure_averaged = .false.
     field%reff_computed = .false.
   end subroutine clear_field
 

@@ -93,7 +93,7 @@ contains
     integer(i8), intent(in) :: n_photons
     type(tally_t), intent(inout) :: tal
     integer(i8) :: ip, n_events, n_steps
-    real(wp) :: x, y, z, ux, uy, uz, w, tau, d, zb, e, wn, albedo, mu, cphi, sphi, omega, ps
+    real(wp) :: x, y, z, ux, uy, uz, w, tau, d, zb, e, wn, albedo, mu, cphi, sphi, omega, ps, wb
     real(wp) :: inv_cf, uxi, uyi, uzi, u_out(3)
     integer :: iz, order, cls, ev, ix, iy, kr, ic, iph, nc, lev, n_pending, kb, ns, s_cell
     integer(i8) :: s_first
@@ -309,6 +309,14 @@ contains
                 iph = atm%iph3(ic, ix, iy, kr)
               else
                 iph = atm%iph3_const(ic)
+              end if
+              if (allocated(atm%wph3)) then
+                ! a blend of tables iph and iph + 1: the photon takes table iph + 1 with
+                ! probability w, which samples (1 - w) P(iph) + w P(iph + 1) exactly
+                wb = atm%wph3(ic, ix, iy, kr)
+                if (wb > 0.0_wp) then
+                  if (rng_uniform(rng) < wb) iph = iph + 1
+                end if
               end if
             else
               nc = atm%ncomp1

@@ -163,9 +163,13 @@ contains
     integer :: iph(NX, NY, NZ, 2), i, j, kk, n, i1, u, ia
     character(len=:), allocatable :: nml, phases
     real(dp) :: ra, sa
+    real(dp), allocatable :: va(:), ea(:), vb(:), eb(:)
+    character(len=*), parameter :: RADIANCE = '&kumo_radiance rad_mu = 1.0, rad_phi_deg = 0.0, '// &
+                                              'rad_levels = 5, radiance_maps = .false. /'
     call write_les('cloud_les_test.nc')
+    ! the nadir radiance at the top as well: local estimates with the voxels' phase functions
     call run_namelist('cloud_les_test.nml', common_groups(1, 'cloud_les_out.nc')// &
-                      cloud_group('cloud_les_test.nc', 'les'), a, error)
+                      cloud_group('cloud_les_test.nc', 'les')//RADIANCE, a, error)
     if (allocated(error)) return
     call get_scalar(a, 'reflectance', ra, sa, error)
     if (allocated(error)) return
@@ -218,10 +222,17 @@ contains
           '&kumo_atmosphere nz = 5, z_levels = 0.0, 500.0, 600.0, 750.0, 850.0, 1000.0, '// &
           'lx = 600.0, ly = 600.0, scene_file = ''cloud_optics_test.nc'', k3d_bottom = 2, '// &
           'nx = 6, ny = 5, nz3 = 4, n_components_3d = 2 /'//new_line('a')// &
-          '&kumo_phase n_phase = '//str(n)//new_line('a')//phases//'/'
+          '&kumo_phase n_phase = '//str(n)//new_line('a')//phases//'/'//new_line('a')//RADIANCE
     call run_namelist('cloud_optics_test.nml', nml, b, error)
     if (allocated(error)) return
     call compare_runs(a, b, error)
+    call get_array(a, 'radiance', va, ea, error)
+    call get_array(b, 'radiance', vb, eb, error)
+    if (allocated(error)) return
+    do i = 1, size(va)
+      call check_sigma(error, va(i) - vb(i), 0.0_dp, sqrt(ea(i)**2 + eb(i)**2), K, &
+                       'radiance('//str(i)//')')
+    end do
   end subroutine test_les_vs_optics
 
   subroutine test_text_formats(error)

@@ -5,7 +5,8 @@
 !> * A small MCARaTS atmosphere and phase-function file written here (binary, two components,
 !>   two k-terms): every kind of apf code (isotropic, Rayleigh, Henyey-Greenstein, tables with
 !>   and without a fractional blend), a gas-absorption perturbation with negative values and
-!>   temperatures kumo must ignore. The voxel components kumo builds are checked value by value
+!>   temperatures kumo must ignore. The atmosphere kumo builds (every voxel's extinction,
+!>   albedo, scattering fractions, phase indices and blend weights) is checked value by value
 !>   against the MCARaTS rules evaluated here, and the run is compared with the same scene
 !>   written by the test in kumo's own route (a netCDF scene file whose components the test
 !>   computes: the blend as the two tables' shares (1 - r) ext and r ext, the total gas
@@ -14,23 +15,26 @@
 !>   transmittance, absorptance and the layer absorption agree within K = 4 standard errors of
 !>   the difference.
 !> * The shipped MCARaTS example (data/mcarats/les05_0213.atm + .sca, through their .ctl and as
-!>   binary files with the sizes in the namelist): grid, phase functions, voxel values against
-!>   the file's float32 values (read with numpy), the same optics by both routes, and a short
-!>   run whose energy budget closes.
+!>   binary files with the sizes in the namelist): grid, phase functions, every voxel of the
+!>   atmosphere against the file's float32 records read here as raw bytes, the same atmosphere
+!>   by both routes, and a short run whose energy budget closes.
 !> * The surface: an MCARaTS Lambert map gives exactly the run of the same map as kumo's
 !>   netCDF albedo_file, and a map of mixed kinds exactly that of kumo's netCDF brdf_file (same
 !>   seed; kumo represents both); a kind the namelist does not enable, or wrong pixel counts,
 !>   are rejected with the file and the rule in the message.
 module test_mcarats_input_suite
   use, intrinsic :: iso_fortran_env, only: real32
-  use kumo_kinds, only: wp, dp
+  use kumo_kinds, only: wp, dp, vp
   use kumo_testing, only: error_t, unittest_t, new_unittest, check, check_close, check_sigma
   use kumo_config, only: config_t, read_config
   use kumo_results, only: result_set_t
   use kumo_test_scenes, only: run_config, get_scalar, get_array
   use kumo_test_text, only: shared_dir
   use kumo_netcdf, only: write_scene_3d, BRDF_MAP_VARS
-  use kumo_cloud_scene, only: cloud_optics_t, build_cloud_optics
+  use kumo_cloud_scene, only: build_cloud_atmosphere
+  use kumo_atmosphere, only: atmosphere_t, atmosphere_options_t
+  use kumo_phase, only: phase_t, new_phase_isotropic, PHASE_ISOTROPIC, PHASE_RAYLEIGH, PHASE_HG, &
+                        PHASE_TABLE
   use kumo_brdf, only: BRDF_NPAR
   use kumo_error, only: str
   use netcdf, only: nf90_create, nf90_def_dim, nf90_def_var, nf90_enddef, nf90_put_var, &
@@ -47,6 +51,12 @@ module test_mcarats_input_suite
   !> float32 values converted to double are compared exactly, apart from products formed in
   !> a different order (one rounding of a double)
   real(dp), parameter :: TIGHT = 1.0e-14_dp
+  !> The atmosphere keeps voxel optics in single precision (vp): each value is a sum of up to
+  !> four terms rounded to vp after every addition, or a ratio of two such sums rounded once
+  !> more, so at most 7 roundings of 2**-24 relative each (partial sums stay within 10 % of
+  !> the total here); 8 epsilon(vp) = 16 * 2**-24 bounds that with room. An error in a
+  !> component (a missing perturbation, a wrong albedo) is 1e-3 or more.
+  real(dp), parameter :: REL_VP = 8*real(epsilon(1.0_vp), dp)
 
   ! The small scene: 4 x 3 columns of 100 m, 3 layers of the 5-layer column form the 3-D region.
   integer, parameter :: NX = 4, NY = 3, NZ3 = 3, NKD = 2, NP3D = 2, NANG = 181, NPF = 3
@@ -186,10 +196,12 @@ contains
            ' mcarats_phase_file = ''mca_small.sca'', mcarats_nang = 181, mcarats_npf = 3 /'
   end function small_mcarats_nml
 
-  !> The voxel components kumo must build (its order: component 1; component 2 at (1 - r) and
-  !> at r; absorption), with phase indices in kumo's order after the namelist's Rayleigh:
-  !> isotropic 2, Rayleigh 3, HG g = -0.4, 0.7 (sorted: 4, 5), tables 6..8. Built here from
-  !> the MCARaTS rules of docs/mcarats-interface.md section 3.2.
+  !> The same scene as voxel components of kumo's own scene-file route (test_small_run), with
+  !> phase indices in the order of its &kumo_phase: Rayleigh 1 (the 1-D molecules), isotropic
+  !> 2, Rayleigh 3, HG g = -0.4, 0.7 (4, 5), tables 6..8; component 1; component 2 as two
+  !> components at (1 - r) ext and r ext with tables int(apf) and int(apf) + 1 (a photon
+  !> chooses them by their share of the scattering, which is the blend); absorption. Built
+  !> here from the MCARaTS rules of docs/mcarats-interface.md section 3.2.
   subroutine expected_components(ext, ssa, iph)
     real(wp), intent(out) :: ext(NX, NY, NZ3, 4), ssa(NX, NY, NZ3, 4)
     integer, intent(out) :: iph(NX, NY, NZ3, 4)
@@ -229,13 +241,22 @@ contains
     end do
   end subroutine expected_components
 
-  !> The voxel components and phase functions kumo builds from the small files.
+  !> The atmosphere kumo builds from the small files: every voxel's total extinction, mixture
+  !> albedo, cumulative scattering fractions, phase indices and blend weights against the
+  !> MCARaTS rules (docs/mcarats-interface.md section 3.2) applied here to the float32 values
+  !> the test wrote. Components: the 1-D absorber (ABS1D in the 3-D layers), MCARaTS
+  !> components 1 and 2, the gas-absorption perturbation of k-term 2. Phase functions after
+  !> NOFF placeholders: isotropic, Rayleigh, HG g = -0.4, 0.7 (sorted), tables 1..3.
   subroutine test_small_components(error)
     type(error_t), allocatable, intent(out) :: error
+    integer, parameter :: NOFF = 3
     type(config_t) :: cfg
-    type(cloud_optics_t) :: opt
-    real(wp) :: ext(NX, NY, NZ3, 4), ssa(NX, NY, NZ3, 4)
-    integer :: iph(NX, NY, NZ3, 4), i, j, kk, ic
+    type(atmosphere_t) :: atm
+    character(len=:), allocatable :: notes
+    real(real32) :: e(NX, NY, NZ3, NP3D), w(NX, NY, NZ3, NP3D), a(NX, NY, NZ3, NP3D)
+    real(real32) :: absg(NX, NY, NZ3, NKD), tmp(NX, NY, NZ3 + 1)
+    real(dp) :: ext, sca, sca1, code, r
+    integer :: i, j, kk, ipf, iph(4), iph_exp(4)
     call write_small_files()
     call write_text('mca_small.nml', small_mcarats_nml(1, 'mca_small_out.nc', ABS1D))
     call read_config('mca_small.nml', cfg, error)
@@ -244,41 +265,86 @@ contains
                abs(cfg%cloud%grid%dx - 100.0_wp) < 1.0e-12_wp .and. cfg%atm%k3d_bottom == K3D, &
                'grid of the region from the namelist')
     if (allocated(error)) return
-    call build_cloud_optics(cfg%cloud, 0.0_wp, 500, 1, opt, error)
+    call build_atm(cfg, NOFF, ABS1D, 500, atm, notes, error)
     if (allocated(error)) return
-    call check(error, size(opt%phases) == 7 .and. size(opt%ext, 4) == 4, 'phase functions '// &
-               str(size(opt%phases))//' (expected 7: isotropic, Rayleigh, 2 HG, 3 tables), '// &
-               'components '//str(size(opt%ext, 4))//' (expected 4)')
+    call check(error, size(atm%phases) == NOFF + 7 .and. atm%ncomp == 4 .and. &
+               atm%k3_lo == K3D .and. atm%n3 == NZ3, 'phase functions '//str(size(atm%phases))// &
+               ' (expected '//str(NOFF)//' + 7: isotropic, Rayleigh, 2 HG, 3 tables), '// &
+               'components '//str(atm%ncomp)//' (expected 4), 3-D layers '//str(atm%k3_lo)// &
+               '..'//str(atm%k3_hi)//' (expected '//str(K3D)//'..'//str(K3D + NZ3 - 1)//')')
     if (allocated(error)) return
-    call check(error, opt%phases(1)%kind == 1 .and. opt%phases(2)%kind == 2 .and. &
-               opt%phases(3)%kind == 3 .and. opt%phases(6)%kind == 4, 'phase-function kinds')
-    call check_close(error, opt%phases(3)%g, real(-0.4_real32, dp), rel_tol=0.0_dp, &
+    call check(error, atm%phases(NOFF + 1)%kind == PHASE_ISOTROPIC .and. &
+               atm%phases(NOFF + 2)%kind == PHASE_RAYLEIGH .and. &
+               atm%phases(NOFF + 3)%kind == PHASE_HG .and. &
+               atm%phases(NOFF + 4)%kind == PHASE_HG .and. &
+               all(atm%phases(NOFF + 5:NOFF + 7)%kind == PHASE_TABLE), 'phase-function kinds')
+    call check_close(error, atm%phases(NOFF + 3)%g, real(-0.4_real32, dp), rel_tol=0.0_dp, &
                      label='first HG g (sorted)')
-    ! the phase list after the namelist's Rayleigh (offset 1), so iph = 2 is isotropic; a
-    ! table's g from kumo's quadrature of the sampled HG 0.85 (1-degree steps)
-    call check_close(error, opt%phases(5)%g, GTAB(1), abs_tol=2.0e-3_dp, label='table 1 g')
-    call expected_components(ext, ssa, iph)
-    do ic = 1, 4
-      do kk = 1, NZ3
-        do j = 1, NY
-          do i = 1, NX
-            call check_close(error, opt%ext(i, j, kk, ic), ext(i, j, kk, ic), abs_tol=0.0_dp, &
-                             rel_tol=TIGHT, label='ext comp. '//str(ic)//' voxel '//str(i)// &
-                             ','//str(j)//','//str(kk))
-            call check_close(error, opt%ssa(i, j, kk, ic), ssa(i, j, kk, ic), abs_tol=0.0_dp, &
-                             rel_tol=0.0_dp, label='ssa comp. '//str(ic))
-            call check(error, opt%iph(i, j, kk, ic) == iph(i, j, kk, ic), 'phase index '// &
-                       'comp. '//str(ic)//' voxel '//str(i)//','//str(j)//','//str(kk)//': '// &
-                       str(opt%iph(i, j, kk, ic))//', expected '//str(iph(i, j, kk, ic)))
-            if (allocated(error)) return
-          end do
+    call check_close(error, atm%phases(NOFF + 4)%g, real(0.7_real32, dp), rel_tol=0.0_dp, &
+                     label='second HG g')
+    ! a table's g from kumo's quadrature of the sampled HG (1-degree steps): the tables keep
+    ! their file order
+    do ipf = 1, NPF
+      call check_close(error, atm%phases(NOFF + 4 + ipf)%g, GTAB(ipf), abs_tol=2.0e-3_dp, &
+                       label='table '//str(ipf)//' g')
+    end do
+    call check(error, allocated(atm%wph3) .and. allocated(atm%csca3), 'blend weights and '// &
+               'scattering fractions are stored')
+    if (allocated(error)) return
+
+    call small_fields(e, w, a, absg, tmp)
+    do kk = 1, NZ3
+      do j = 1, NY
+        do i = 1, NX
+          ! the MCARaTS rules: apf <= -2 isotropic, <= -1 Rayleigh, < 1 HG, else tables
+          code = real(a(i, j, kk, 1), dp)
+          if (code <= -2.0_dp) then
+            iph_exp(2) = NOFF + 1
+          else if (code <= -1.0_dp) then
+            iph_exp(2) = NOFF + 2
+          else if (code < 0.0_dp) then
+            iph_exp(2) = NOFF + 3
+          else
+            iph_exp(2) = NOFF + 4
+          end if
+          code = real(a(i, j, kk, 2), dp)
+          ipf = int(code)
+          r = code - ipf
+          iph_exp(1) = 1
+          iph_exp(3) = NOFF + 4 + ipf
+          iph_exp(4) = NOFF + 1
+          ext = ABS1D + real(e(i, j, kk, 1), dp) + real(e(i, j, kk, 2), dp) + &
+                real(absg(i, j, kk, 2), dp)
+          sca1 = real(e(i, j, kk, 1), dp)*real(w(i, j, kk, 1), dp)
+          sca = sca1 + real(e(i, j, kk, 2), dp)*real(w(i, j, kk, 2), dp)
+          call check_close(error, real(atm%ext3(i, j, kk), dp), ext, rel_tol=REL_VP, &
+                           label='ext3'//at(i, j, kk))
+          call check_close(error, real(atm%omg3(i, j, kk), dp), sca/ext, rel_tol=REL_VP, &
+                           label='omg3'//at(i, j, kk))
+          call check_close(error, real(atm%csca3(1, i, j, kk), dp), 0.0_dp, abs_tol=0.0_dp, &
+                           label='csca3(1) (1-D absorber)'//at(i, j, kk))
+          call check_close(error, real(atm%csca3(2, i, j, kk), dp), sca1/sca, rel_tol=REL_VP, &
+                           label='csca3(2)'//at(i, j, kk))
+          call check_close(error, real(atm%csca3(3, i, j, kk), dp), 1.0_dp, rel_tol=REL_VP, &
+                           label='csca3(3)'//at(i, j, kk))
+          call voxel_phases(atm, i, j, kk, iph)
+          call check(error, all(iph == iph_exp), 'phase indices'//at(i, j, kk)//': '// &
+                     str(iph(1))//', '//str(iph(2))//', '//str(iph(3))//', '//str(iph(4))// &
+                     ', expected '//str(iph_exp(1))//', '//str(iph_exp(2))//', '// &
+                     str(iph_exp(3))//', '//str(iph_exp(4)))
+          call check_close(error, real(atm%wph3(3, i, j, kk), dp), r, abs_tol=REL_VP, &
+                           label='blend weight of component 2'//at(i, j, kk))
+          call check(error, atm%wph3(1, i, j, kk) == 0.0_vp .and. &
+                     atm%wph3(2, i, j, kk) == 0.0_vp .and. atm%wph3(4, i, j, kk) == 0.0_vp, &
+                     'blend weights of the other components'//at(i, j, kk))
+          if (allocated(error)) return
         end do
       end do
     end do
     ! 23 of the 36 codes of component 2 are fractional (1.2, 2.7, 1.4)
-    call check(error, index(opt%notes, '23 blending two tables') > 0 .and. &
-               index(opt%notes, 'not used: kumo computes solar radiation only') > 0, &
-               'notes: '//opt%notes)
+    call check(error, index(notes, '23 blending two tables') > 0 .and. &
+               index(notes, 'not used: kumo computes solar radiation only') > 0, &
+               'notes: '//notes)
   end subroutine test_small_components
 
   !> The small scene through the namelist, against kumo's own scene-file route.
@@ -355,75 +421,137 @@ contains
            '&kumo_phase n_table = 1000 /'//new_line('a')
   end function les05_cloud
 
+  !> The shipped example through its .ctl files: the grid from the namelist and the .ctl, and
+  !> every voxel of the atmosphere kumo builds against the file's float32 records read here
+  !> byte by byte (GrADS layout of the .ctl: 22 records tmpa3d, then 21 each of abst3d,
+  !> extp3d, omgp3d, apfp3d, each nx x ny values, x fastest). Components: the namelist's 1-D
+  !> absorber, the one MCARaTS component, the gas-absorption perturbation. Then the binary
+  !> files with the sizes in the namelist give the same atmosphere, and a short run closes its
+  !> energy budget.
   subroutine test_les05(error)
     type(error_t), allocatable, intent(out) :: error
+    integer, parameter :: NOFF = 1, LX = 60, LY = 60, LZ = 21, NREC = 22 + 4*LZ, LNPF = 60
+    real(wp), parameter :: ABS_M1 = 1.2e-5_wp
     type(config_t) :: cfg, cfg_bin
-    type(cloud_optics_t) :: opt, opt_bin
+    type(atmosphere_t) :: atm, atm_bin
     type(result_set_t) :: res
-    real(dp) :: m, s, r, sr
-    character(len=:), allocatable :: nml
-    integer, parameter :: OFFSET = 1
-    call write_text('mca_les05.nml', les05_atmosphere(1.2e-5_wp, '')// &
+    character(len=:), allocatable :: nml, notes
+    real(real32), allocatable :: rec(:, :, :)
+    real(dp) :: m, s, r, sr, e, om, g, ext, sca
+    logical :: used(LNPF)
+    integer :: u, i, j, kk, ipf, iph(3), iph_exp(3), n_bad
+    call write_text('mca_les05.nml', les05_atmosphere(ABS_M1, '')// &
                     les05_cloud('les05_0213.atm.ctl', 'les05_0213.sca.ctl', ''))
     call read_config('mca_les05.nml', cfg, error)
     if (allocated(error)) return
     ! the .ctl: XDEF 60, YDEF 60, 21 layers; the namelist: 30 m columns from layer 10 (250 m)
-    call check(error, cfg%atm%nx == 60 .and. cfg%atm%ny == 60 .and. cfg%atm%nz3 == 21 .and. &
-               cfg%cloud%grid%nz == 21, 'sizes from the .ctl')
+    call check(error, cfg%atm%nx == LX .and. cfg%atm%ny == LY .and. cfg%atm%nz3 == LZ .and. &
+               cfg%cloud%grid%nz == LZ, 'sizes from the .ctl')
     call check_close(error, cfg%cloud%grid%dx, 30.0_dp, rel_tol=TIGHT, label='dx')
     call check_close(error, cfg%cloud%grid%z(0), 250.0_dp, rel_tol=TIGHT, label='region bottom')
     call check_close(error, cfg%cloud%grid%z(21), 460.0_dp, rel_tol=TIGHT, label='region top')
     if (allocated(error)) return
-    call build_cloud_optics(cfg%cloud, 0.0_wp, 1000, OFFSET, opt, error)
+    call build_atm(cfg, NOFF, ABS_M1, 1000, atm, notes, error)
     if (allocated(error)) return
-    ! numpy: the apf codes are 1 and 32..60, all whole numbers: 30 tables, no blend; one cloud
-    ! component and the absorption perturbation (non-zero everywhere)
-    call check(error, size(opt%phases) == 30 .and. size(opt%ext, 4) == 2, 'phases '// &
-               str(size(opt%phases))//' (expected 30), components '//str(size(opt%ext, 4))// &
-               ' (expected 2)')
+
+    ! the raw file
+    allocate (rec(LX, LY, NREC))
+    open (newunit=u, file=shared_dir//'/data/mcarats/les05_0213.atm', access='stream', &
+          form='unformatted', status='old', action='read')
+    read (u) rec
+    close (u)
+    ! the tables the apf codes name: numpy found 1 and 32..60, all whole numbers (no blend)
+    used = .false.
+    n_bad = 0
+    do kk = 1, LZ
+      do j = 1, LY
+        do i = 1, LX
+          g = real(rec(i, j, 22 + 3*LZ + kk), dp)
+          if (g >= 1.0_dp .and. g <= LNPF .and. g == aint(g)) then
+            used(int(g)) = .true.
+          else
+            n_bad = n_bad + 1
+          end if
+        end do
+      end do
+    end do
+    call check(error, n_bad == 0 .and. count(used) == 30, str(n_bad)//' apf codes are not '// &
+               'whole table numbers, '//str(count(used))//' tables used (expected 0, 30)')
     if (allocated(error)) return
-    ! numpy, np.fromfile(..., '<f4').reshape(106, 60, 60) as [record, iy, ix]: largest
-    ! extinction at ix=5, iy=36, layer 19: 0.19806351 m-1, omg 0.97181225, apf 60 (the last
-    ! table, so the last phase function); absg3d there 1.1904604e-06 m-1; at (1,1,1) ext 1e-35,
-    ! apf 1 (the first table), absg3d 1.4205398e-07; at (60,60,21) absg3d -4.651156e-09
-    call check_close(error, opt%ext(5, 36, 19, 1), real(0.19806351_real32, dp), rel_tol=TIGHT, &
-                     label='ext(5,36,19)')
-    call check_close(error, opt%ssa(5, 36, 19, 1), real(0.97181225_real32, dp), rel_tol=TIGHT, &
-                     label='ssa(5,36,19)')
-    call check(error, opt%iph(5, 36, 19, 1) == OFFSET + 30 .and. &
-               opt%iph(1, 1, 1, 1) == OFFSET + 1, 'phase indices of tables 60 and 1')
-    call check_close(error, opt%ext(5, 36, 19, 2), real(1.1904604e-06_real32, dp), rel_tol=TIGHT, &
-                     label='absg3d(5,36,19)')
-    call check_close(error, opt%ext(1, 1, 1, 2), real(1.4205398e-07_real32, dp), rel_tol=TIGHT, &
-                     label='absg3d(1,1,1)')
-    call check_close(error, opt%ext(60, 60, 21, 2), real(-4.651156e-09_real32, dp), &
-                     rel_tol=TIGHT, label='absg3d(60,60,21)')
-    call check(error, all(opt%ssa(:, :, :, 2) == 0.0_wp), 'absorption component albedo 0')
-    ! the last phase function is table 60: its forward/backward ratio is the file's (numpy:
-    ! P(0) = 1092.2446, P(180) = 0.47431436 as float32), whatever the normalisation
-    associate (p => opt%phases(30)%p_tab)
-      call check_close(error, p(size(p))/p(1), real(1092.2446_real32, dp)/ &
-                       real(0.47431436_real32, dp), rel_tol=TIGHT, label='P(0)/P(180) of table 60')
+    ! isotropic, Rayleigh, no HG, the 30 tables; the 1-D absorber, the cloud, the perturbation
+    ! (non-zero somewhere)
+    call check(error, size(atm%phases) == NOFF + 2 + 30 .and. atm%ncomp == 3 .and. &
+               .not. allocated(atm%wph3), 'phases '//str(size(atm%phases))//' (expected '// &
+               str(NOFF + 32)//'), components '//str(atm%ncomp)//' (expected 3), no blend')
+    if (allocated(error)) return
+    do kk = 1, LZ
+      do j = 1, LY
+        do i = 1, LX
+          g = real(rec(i, j, 22 + kk), dp)            ! abst3d
+          e = real(rec(i, j, 22 + LZ + kk), dp)       ! extp3d
+          om = real(rec(i, j, 22 + 2*LZ + kk), dp)    ! omgp3d
+          ipf = int(rec(i, j, 22 + 3*LZ + kk))        ! apfp3d
+          ext = ABS_M1 + e + g
+          sca = e*om
+          call check_close(error, real(atm%ext3(i, j, kk), dp), ext, rel_tol=REL_VP, &
+                           label='ext3'//at(i, j, kk))
+          call check_close(error, real(atm%omg3(i, j, kk), dp), sca/ext, rel_tol=REL_VP, &
+                           label='omg3'//at(i, j, kk))
+          if (sca > 0.0_dp) then   ! the cloud scatters all; else equal fractions
+            call check(error, atm%csca3(1, i, j, kk) == 0.0_vp .and. &
+                       atm%csca3(2, i, j, kk) == 1.0_vp, 'csca3'//at(i, j, kk))
+          else
+            call check(error, abs(real(atm%csca3(1, i, j, kk), dp) - 1.0_dp/3) < REL_VP .and. &
+                       abs(real(atm%csca3(2, i, j, kk), dp) - 2.0_dp/3) < REL_VP, &
+                       'csca3'//at(i, j, kk))
+          end if
+          ! table ipf is the count(used(1:ipf))-th table after isotropic and Rayleigh
+          iph_exp = [1, NOFF + 2 + count(used(1:ipf)), NOFF + 1]
+          call voxel_phases(atm, i, j, kk, iph)
+          call check(error, all(iph == iph_exp), 'phase indices'//at(i, j, kk)//': '// &
+                     str(iph(2))//', '//str(iph(3))//', expected '//str(iph_exp(2))//', '// &
+                     str(iph_exp(3)))
+          if (allocated(error)) return
+        end do
+      end do
+    end do
+    ! the last phase function is table 60: its forward/backward ratio is the file's
+    ! (les05_0213.sca: a record of the 203 angles 0 ... 180 deg, then the 60 tables),
+    ! whatever the normalisation
+    deallocate (rec)
+    allocate (rec(203, 1, 1 + LNPF))
+    open (newunit=u, file=shared_dir//'/data/mcarats/les05_0213.sca', access='stream', &
+          form='unformatted', status='old', action='read')
+    read (u) rec
+    close (u)
+    call check(error, rec(1, 1, 1) == 0.0 .and. rec(203, 1, 1) == 180.0, 'angles of '// &
+               'les05_0213.sca: '//str(real(rec(1, 1, 1), dp))//' ... '// &
+               str(real(rec(203, 1, 1), dp))//', expected 0 ... 180')
+    associate (p => atm%phases(NOFF + 32)%p_tab)
+      call check_close(error, p(size(p))/p(1), real(rec(1, 1, 1 + LNPF), dp)/ &
+                       real(rec(203, 1, 1 + LNPF), dp), rel_tol=TIGHT, &
+                       label='P(0)/P(180) of table 60')
     end associate
     if (allocated(error)) return
 
     ! the same files as binaries, with the sizes in the namelist (conf_hr0213: Atm_nx, Atm_ny,
-    ! Atm_nz3, Atm_mtprof; Sca_nangi, Sca_npf): the same optics
-    nml = les05_atmosphere(1.2e-5_wp, ', nx = 60, ny = 60, nz3 = 21')// &
+    ! Atm_nz3, Atm_mtprof; Sca_nangi, Sca_npf): the same atmosphere
+    nml = les05_atmosphere(ABS_M1, ', nx = 60, ny = 60, nz3 = 21')// &
           les05_cloud('les05_0213.atm', 'les05_0213.sca', &
                       ', mcarats_mtprof = 1, mcarats_nang = 203, mcarats_npf = 60')
     call write_text('mca_les05_bin.nml', nml)
     call read_config('mca_les05_bin.nml', cfg_bin, error)
     if (allocated(error)) return
-    call build_cloud_optics(cfg_bin%cloud, 0.0_wp, 1000, OFFSET, opt_bin, error)
+    call build_atm(cfg_bin, NOFF, ABS_M1, 1000, atm_bin, notes, error)
     if (allocated(error)) return
-    call check(error, all(opt_bin%ext == opt%ext) .and. all(opt_bin%ssa == opt%ssa) .and. &
-               all(opt_bin%iph == opt%iph) .and. size(opt_bin%phases) == size(opt%phases), &
-               'binary files with namelist sizes give other optics than the .ctl route')
+    call check(error, all(atm_bin%ext3 == atm%ext3) .and. all(atm_bin%omg3 == atm%omg3) .and. &
+               all(atm_bin%csca3 == atm%csca3) .and. all(atm_bin%iph3 == atm%iph3) .and. &
+               size(atm_bin%phases) == size(atm%phases), &
+               'binary files with namelist sizes give another atmosphere than the .ctl route')
     if (allocated(error)) return
 
     ! a short run: the budget closes in every batch, and the cloud reflects
-    call write_text('mca_les05_run.nml', les05_atmosphere(1.2e-5_wp, '')// &
+    call write_text('mca_les05_run.nml', les05_atmosphere(ABS_M1, '')// &
                     les05_cloud('les05_0213.atm.ctl', 'les05_0213.sca.ctl', '')// &
                     '&kumo_control n_photons_per_batch = 400, n_batches = 3, verbose = 0 /'// &
                     new_line('a')//'&kumo_surface albedo = 0.2 /'//new_line('a')// &
@@ -446,7 +574,8 @@ contains
   subroutine test_les05_negative(error)
     type(error_t), allocatable, intent(out) :: error
     type(config_t) :: cfg
-    type(cloud_optics_t) :: opt
+    type(atmosphere_t) :: atm
+    character(len=:), allocatable :: notes
     type(error_t), allocatable :: err
     ! the smallest perturbation is -1.1268867e-06 m-1 (numpy); 1e-6 m-1 of 1-D absorption
     ! leaves some voxels negative
@@ -454,7 +583,7 @@ contains
                     les05_cloud('les05_0213.atm.ctl', 'les05_0213.sca.ctl', ''))
     call read_config('mca_les05_neg.nml', cfg, error)
     if (allocated(error)) return
-    call build_cloud_optics(cfg%cloud, 0.0_wp, 1000, 0, opt, err)
+    call build_atm(cfg, 1, 1.0e-6_wp, 1000, atm, notes, err)
     call expect_error(error, err, [character(len=60) :: 'les05_0213.atm.ctl: absg3d k-term 1', &
                                    'makes the absorption coefficient of the voxel', &
                                    '1-D absorption 1E-06 m-1', 'ext1d with ssa1d < 1'])
@@ -629,6 +758,56 @@ contains
   ! ------------------------------------------------------------------------------------------
   ! Helpers
   ! ------------------------------------------------------------------------------------------
+
+  !> The atmosphere kumo builds from the cloud file of `cfg` at table size `n_table`, with
+  !> `noff` isotropic phase functions standing for the scene's own before the cloud's and one
+  !> 1-D component in every layer: an absorber of `abs_m1` [m-1] (albedo 0), the 1-D gas
+  !> absorption of these tests' namelists in the 3-D layers.
+  subroutine build_atm(cfg, noff, abs_m1, n_table, atm, notes, error)
+    type(config_t), intent(in) :: cfg
+    integer, intent(in) :: noff, n_table
+    real(wp), intent(in) :: abs_m1
+    type(atmosphere_t), intent(out) :: atm
+    character(len=:), allocatable, intent(out) :: notes
+    type(error_t), allocatable, intent(out) :: error
+    type(phase_t), allocatable :: phases(:)
+    type(atmosphere_options_t) :: aopts
+    real(wp), allocatable :: ext1d(:, :), ssa1d(:, :)
+    integer, allocatable :: iph1d(:, :)
+    character(len=:), allocatable :: warnings
+    integer :: i, nz
+    nz = cfg%atm%nz
+    allocate (phases(noff), ext1d(nz, 1), ssa1d(nz, 1), iph1d(nz, 1))
+    do i = 1, noff
+      phases(i) = new_phase_isotropic()
+    end do
+    ext1d = abs_m1
+    ssa1d = 0.0_wp
+    iph1d = 1
+    call build_cloud_atmosphere(cfg%cloud, 0.0_wp, n_table, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, &
+                                cfg%atm%k3d_bottom, ext1d, ssa1d, iph1d, phases, aopts, atm, &
+                                notes, warnings, error)
+  end subroutine build_atm
+
+  !> The phase indices of the components of voxel (i, j) of 3-D layer kr (iph3 is dropped
+  !> when every voxel has the same).
+  subroutine voxel_phases(atm, i, j, kr, iph)
+    type(atmosphere_t), intent(in) :: atm
+    integer, intent(in) :: i, j, kr
+    integer, intent(out) :: iph(:)
+    if (allocated(atm%iph3)) then
+      iph = atm%iph3(:, i, j, kr)
+    else
+      iph = atm%iph3_const
+    end if
+  end subroutine voxel_phases
+
+  !> " at (i,j,k)" for messages.
+  function at(i, j, k) result(s)
+    integer, intent(in) :: i, j, k
+    character(len=:), allocatable :: s
+    s = ' at ('//str(i)//','//str(j)//','//str(k)//')'
+  end function at
 
   !> A real with 17 significant digits: read back, it is the same double.
   function r17(x) result(s)

@@ -3,10 +3,11 @@
 !> uniform fields merge into one block, clear blocks have a zero majorant, and the merge stops
 !> where the MCARaTS rule says it must.
 module test_supervoxel_suite
-  use kumo_kinds, only: wp
+  use kumo_kinds, only: wp, vp
   use kumo_testing, only: error_t, unittest_t, new_unittest, check, check_close
   use kumo_supervoxel, only: supervoxel_grid_t, supervoxel_options_t, build_supervoxels
   use kumo_atmosphere, only: atmosphere_t, atmosphere_options_t, atmosphere_init, &
+                             atmosphere_begin, atmosphere_put_layer, atmosphere_end, &
                              LAYER_CLEAR, LAYER_ABSORBING, LAYER_SCATTERING, LAYER_3D
   use kumo_phase, only: phase_t, new_phase_isotropic
   implicit none
@@ -23,17 +24,18 @@ contains
              new_unittest('thick_contrasted_field_stays_fine', test_thick), &
              new_unittest('disabled_means_one_global_majorant', test_disabled), &
              new_unittest('layer_classes', test_classes), &
-             new_unittest('component_mixing', test_mixing)]
+             new_unittest('component_mixing', test_mixing), &
+             new_unittest('voxels_put_by_layer_with_blends', test_put_layers)]
   end function collect_supervoxel
 
   function field(nx, ny, nz) result(ext)
     integer, intent(in) :: nx, ny, nz
-    real(wp) :: ext(nx, ny, nz)
+    real(vp) :: ext(nx, ny, nz)
     integer :: i, j, k
     do k = 1, nz
       do j = 1, ny
         do i = 1, nx
-          ext(i, j, k) = max(0.0_wp, 1.0e-3_wp*(sin(0.9_wp*i) + cos(1.7_wp*j) + 0.2_wp*k))
+          ext(i, j, k) = real(max(0.0_wp, 1.0e-3_wp*(sin(0.9_wp*i) + cos(1.7_wp*j) + 0.2_wp*k)), vp)
         end do
       end do
     end do
@@ -43,7 +45,7 @@ contains
     type(error_t), allocatable, intent(out) :: error
     type(supervoxel_grid_t) :: sv
     type(supervoxel_options_t) :: opts
-    real(wp) :: ext(13, 7, 5)
+    real(vp) :: ext(13, 7, 5)
     integer :: s, i, j, k, jx, jy
     ext = field(13, 7, 5)
     call build_supervoxels(ext, 50.0_wp, 50.0_wp, [100.0_wp, 100.0_wp, 50.0_wp, 200.0_wp, &
@@ -69,20 +71,20 @@ contains
     type(error_t), allocatable, intent(out) :: error
     type(supervoxel_grid_t) :: sv
     type(supervoxel_options_t) :: opts
-    real(wp) :: ext(16, 16, 4)
-    ext = 0.05_wp   ! optically thick voxels, but uniform: real/majorant = 1 everywhere
+    real(vp) :: ext(16, 16, 4)
+    ext = 0.05_vp   ! optically thick voxels, but uniform: real/majorant = 1 everywhere
     call build_supervoxels(ext, 100.0_wp, 100.0_wp, [100.0_wp, 100.0_wp, 100.0_wp, 100.0_wp], &
                            opts, sv)
     call check(error, sv%ns == 1, 'uniform layers merge into one super-layer')
     call check(error, sv%nbx(1) == 1 .and. sv%nby(1) == 1, 'uniform field merges into one block')
-    call check_close(error, sv%maj(1), 0.05_wp, label='majorant of the uniform field')
+    call check_close(error, sv%maj(1), real(0.05_vp, wp), label='majorant of the uniform field')
   end subroutine test_uniform
 
   subroutine test_clear(error)
     type(error_t), allocatable, intent(out) :: error
     type(supervoxel_grid_t) :: sv
     type(supervoxel_options_t) :: opts
-    real(wp) :: ext(8, 8, 1)
+    real(vp) :: ext(8, 8, 1)
     ext = 0.0_wp
     ext(1:2, 1:2, 1) = 5.0_wp    ! a tiny, very dense cloud in one corner
     ext(2, 2, 1) = 0.5_wp
@@ -95,7 +97,7 @@ contains
     type(error_t), allocatable, intent(out) :: error
     type(supervoxel_grid_t) :: sv
     type(supervoxel_options_t) :: opts
-    real(wp) :: ext(8, 8, 1)
+    real(vp) :: ext(8, 8, 1)
     integer :: i
     ! alternate thick and thin columns: merging would make optically thick blocks whose
     ! real/majorant ratio is 0.5 -> both criteria fail, so voxels stay single
@@ -110,13 +112,13 @@ contains
     type(error_t), allocatable, intent(out) :: error
     type(supervoxel_grid_t) :: sv
     type(supervoxel_options_t) :: opts
-    real(wp) :: ext(13, 7, 5)
+    real(vp) :: ext(13, 7, 5)
     ext = field(13, 7, 5)
     opts%enabled = .false.
     call build_supervoxels(ext, 50.0_wp, 50.0_wp, [100.0_wp, 100.0_wp, 100.0_wp, 100.0_wp, 100.0_wp], &
                            opts, sv)
     call check(error, sv%ns == 1 .and. size(sv%maj) == 1, 'one block')
-    call check_close(error, sv%maj(1), maxval(ext), label='global majorant')
+    call check_close(error, sv%maj(1), real(maxval(ext), wp), label='global majorant')
   end subroutine test_disabled
 
   subroutine test_classes(error)
@@ -173,6 +175,94 @@ contains
     call check_close(error, atm%csca1(1, 1), 0.4_wp, label='scattering fraction of component 1')
     call check_close(error, atm%csca1(2, 1), 1.0_wp, label='cumulative fraction ends at 1')
   end subroutine test_mixing
+
+  !> Voxels put layer by layer: a 1-D background (molecules) under two 3-D components, one of
+  !> them blending two phase tables. Totals, albedo and the cumulative fraction follow from the
+  !> component values by hand; blend weights are kept per component; storage for what does
+  !> not vary is dropped; bad weights and a blend past the last table are rejected.
+  subroutine test_put_layers(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(atmosphere_t) :: atm
+    type(atmosphere_options_t) :: opts
+    type(phase_t), allocatable :: ph(:)
+    real(wp) :: ext1(3, 1), ssa1(3, 1), e(2, 1), s(2, 1), w(2, 1), sca
+    integer :: iph1(3, 1), ip(2, 1), i
+    ph = [(new_phase_isotropic(), i=1, 4)]
+    ext1(:, 1) = [1.0e-5_wp, 2.0e-5_wp, 0.0_wp]   ! layer 3 (above the region) is clear
+    ssa1 = 1.0_wp
+    iph1 = 1
+    call atmosphere_begin(atm, [0.0_wp, 100.0_wp, 200.0_wp, 300.0_wp], 20.0_wp, 10.0_wp, ext1, &
+                          ssa1, iph1, ph, opts, error, k3_lo=1, nx=2, ny=1, n3f=2, nc3=2, &
+                          blend=.true.)
+    if (allocated(error)) return
+    call check(error, .not. allocated(ph), 'the phase functions move into the atmosphere')
+    call check(error, atm%ncomp == 3, 'background + 2 components')
+    ! component 1: droplets blending tables 2 and 3; component 2: table 4, no blend
+    e(:, 1) = [1.0e-2_wp, 0.0_wp]
+    s(:, 1) = [0.9_wp, 1.0_wp]
+    ip(:, 1) = [2, 2]
+    w(:, 1) = [0.25_wp, 0.0_wp]
+    call atmosphere_put_layer(atm, 1, 1, e, s, ip, w)
+    call atmosphere_put_layer(atm, 1, 2, e, s, ip, w)
+    e(:, 1) = [3.0e-3_wp, 4.0e-3_wp]
+    s(:, 1) = [0.5_wp, 0.5_wp]
+    ip = 4
+    call atmosphere_put_layer(atm, 2, 1, e, s, ip)
+    call atmosphere_put_layer(atm, 2, 2, 0.0_wp*e, s, ip)
+    call atmosphere_end(atm, opts, error)
+    if (allocated(error)) return
+    ! voxel (1, 1, 1): sigma = 1e-5 + 1e-2 + 3e-3, sigma_s = 1e-5 + 9e-3 + 1.5e-3
+    sca = 1.0e-5_wp + 9.0e-3_wp + 1.5e-3_wp
+    call check_close(error, real(atm%ext3(1, 1, 1), wp), 1.301e-2_wp, rel_tol=1.0e-6_wp, &
+                     label='total extinction')
+    call check_close(error, real(atm%omg3(1, 1, 1), wp), sca/1.301e-2_wp, rel_tol=1.0e-6_wp, &
+                     label='mixture albedo')
+    call check_close(error, real(atm%csca3(1, 1, 1, 1), wp), 1.0e-5_wp/sca, rel_tol=1.0e-5_wp, &
+                     label='fraction of the background')
+    call check_close(error, real(atm%csca3(2, 1, 1, 1), wp), (1.0e-5_wp + 9.0e-3_wp)/sca, &
+                     rel_tol=1.0e-6_wp, label='cumulative fraction up to the droplets')
+    call check(error, size(atm%csca3, 1) == 2, 'one fraction fewer than components')
+    ! voxel (2, 1, 2): only the background and component 2 (empty): all scattering by molecules
+    call check_close(error, real(atm%ext3(2, 1, 2), wp), 2.0e-5_wp + 4.0e-3_wp*0.0_wp, &
+                     rel_tol=1.0e-6_wp, label='extinction of the background-only voxel')
+    call check(error, allocated(atm%wph3), 'blend weights kept')
+    if (allocated(error)) return
+    call check_close(error, real(atm%wph3(2, 1, 1, 1), wp), 0.25_wp, rel_tol=1.0e-7_wp, &
+                     label='blend weight of the droplet component')
+    call check(error, atm%iph3(2, 1, 1, 1) == 2 .and. atm%iph3(3, 2, 1, 2) == 4, &
+               'phase indices per component')
+    ! without blends or varying indices nothing per-voxel is kept
+    e(:, 1) = [1.0e-2_wp, 2.0e-2_wp]
+    call one_layer(3, 0.0_wp)
+    if (allocated(error)) return
+    call check(error, .not. allocated(atm%wph3) .and. .not. allocated(atm%iph3) .and. &
+               all(atm%iph3_const == [1, 3]), 'constant phase and no blend stored once')
+    ! a blend past the last table, and a weight above 1
+    call one_layer(4, 0.5_wp)
+    call check(error, allocated(error), 'a blend with table 5 of 4 is rejected')
+    if (.not. allocated(error)) return
+    if (index(error%message, 'iph + 1') == 0) return
+    deallocate (error)
+    call one_layer(2, 1.5_wp)
+    call check(error, allocated(error), 'a blend weight of 1.5 is rejected')
+    if (.not. allocated(error)) return
+    if (index(error%message, 'outside 0..1') > 0) deallocate (error)
+  contains
+    !> One 3-D layer (layer 2) of one component with phase index iph_all and blend weight w_all.
+    subroutine one_layer(iph_all, w_all)
+      integer, intent(in) :: iph_all
+      real(wp), intent(in) :: w_all
+      ph = [(new_phase_isotropic(), i=1, 4)]
+      call atmosphere_begin(atm, [0.0_wp, 100.0_wp, 200.0_wp, 300.0_wp], 20.0_wp, 10.0_wp, &
+                            ext1, ssa1, iph1, ph, opts, error, k3_lo=2, nx=2, ny=1, n3f=1, &
+                            nc3=1, blend=.true.)
+      if (allocated(error)) return
+      ip = iph_all
+      w = w_all
+      call atmosphere_put_layer(atm, 1, 1, e, s, ip, w)
+      call atmosphere_end(atm, opts, error)
+    end subroutine one_layer
+  end subroutine test_put_layers
 end module test_supervoxel_suite
 
 program test_supervoxel

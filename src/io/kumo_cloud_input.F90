@@ -66,7 +66,7 @@ module kumo_cloud_input
     real(wp), allocatable :: z(:)              !! layer edges z(0:nz), bottom first [m]
     !> values on nz + 1 planes (the third dimension of the arrays); layer k mixes planes k, k+1
     logical :: points = .false.
-    integer :: content = CLOUD_WATER           !! CLOUD_WATER, CLOUD_EXT_REFF or CLOUD_OPTICS
+    integer :: content = CLOUD_WATER           !! CLOUD_WATER, _EXT_REFF, _OPTICS or _MCARATS
     ! Fields are kept in the voxel precision (vp), as the atmosphere stores them.
     real(vp), allocatable :: lwc(:, :, :)      !! liquid water content [g m-3] (CLOUD_WATER)
     real(vp), allocatable :: reff(:, :, :)     !! droplet effective radius [um], 0 where empty

@@ -21,17 +21,22 @@
 !> * Ice water (LES files) uses an optics table in the Mie-table layout named by
 !>   `ice_optics_file`; kumo has no ice-crystal optics of its own. It is read after the liquid
 !>   water has been put into the atmosphere.
+!> * MCARaTS 3-D atmospheres: one component per MCARaTS component with its phase-function
+!>   code turned into a kumo phase function (fractional table codes as blends), and one for the
+!>   gas-absorption perturbation (`mcarats_phases`, `mcarats_voxels`).
 module kumo_cloud_scene
   use kumo_kinds, only: wp, vp
   use kumo_error, only: error_t, set_error, str
-  use kumo_phase, only: phase_t, phase_from_table, new_phase_hg, phase_from_legendre
+  use kumo_phase, only: phase_t, phase_from_table, new_phase_hg, phase_from_legendre, &
+                        new_phase_isotropic, new_phase_rayleigh
   use kumo_mie, only: mie_table_t, mie_table_build, mie_table_bracket, dist_kind_from_name
   use kumo_water_index, only: water_index
   use kumo_mie_table, only: mie_table_cached, read_mie_table
   use kumo_rayleigh, only: rayleigh_extinction
   use kumo_std_atmosphere, only: std_atmosphere_profile
   use kumo_cloud_input, only: cloud_input_t, read_cloud_input, CLOUD_WATER, CLOUD_EXT_REFF, &
-                              CLOUD_OPTICS
+                              CLOUD_OPTICS, CLOUD_MCARATS
+  use kumo_mcarats_files, only: mcarats_request_t
   use kumo_atmosphere, only: atmosphere_t, atmosphere_options_t, atmosphere_begin, &
                              atmosphere_put_layer, atmosphere_end
   use kumo_config, only: cloud_cfg_t
@@ -70,6 +75,8 @@ contains
     type(mie_table_t) :: liq, ice
     type(phase_t), allocatable :: more(:)
     integer :: nplanes, nspecies, nneg, i, n_out_liq, n_out_ice, offset, offset_ice
+    integer, allocatable :: slot(:)
+    logical :: blend, has_abs
     character(len=:), allocatable :: action
 
     call read_cloud_input(ccfg%req, c, error, part='liquid')
@@ -146,6 +153,16 @@ contains
                             c%nx, c%ny, c%nz, nplanes)
       if (allocated(error)) return
       call optics_voxels(c, offset, atm)
+    case (CLOUD_MCARATS)
+      call mcarats_phases(c, ccfg%req%path, n_table, more, slot, blend, notes, error)
+      if (allocated(error)) return
+      call mcarats_absorption(c, ccfg%req%mcarats, ccfg%req%path, has_abs, notes, error)
+      if (allocated(error)) return
+      phases = [phases, more]
+      call atmosphere_begin(atm, z, lx, ly, ext1d, ssa1d, iph1d, phases, aopts, error, k3_lo, &
+                            c%nx, c%ny, c%nz, c%mca_atm%np3d + merge(1, 0, has_abs), blend=blend)
+      if (allocated(error)) return
+      call mcarats_voxels(c, ccfg%req%mcarats%ikd, offset, slot, has_abs, atm, notes)
     case default
       call set_error(error, ccfg%req%path//': unknown kind of cloud content '//str(c%content))
       return
@@ -301,6 +318,241 @@ contains
       end do
     end do
   end subroutine mie_voxels
+
+  !> The phase functions of an MCARaTS 3-D atmosphere (Iwabuchi, MCARaTS 0.10 `mcarAtm`,
+  !> `mcarSca`), in the order its voxels refer to them after the scene's list: 1 isotropic,
+  !> 2 Rayleigh (no depolarisation), 2 + i Henyey-Greenstein with g = c%hg_g(i), then the
+  !> tables of the phase-function file that some voxel uses, in file order; slot(ipf) is the
+  !> position of table ipf (0: unused). A code apf >= 1 with a fraction, r = apf - int(apf) > 0,
+  !> blends table int(apf) with table int(apf) + 1, so both are then used and stand next to
+  !> each other: slot(ipf + 1) = slot(ipf) + 1, as the atmosphere's blend of iph and iph + 1
+  !> needs. `blend`: some code has a fraction.
+  subroutine mcarats_phases(c, path, n_table, more, slot, blend, notes, error)
+    type(cloud_input_t), intent(in) :: c       !! the file read (content CLOUD_MCARATS)
+    character(len=*), intent(in) :: path       !! the atmosphere file, for messages
+    integer, intent(in) :: n_table             !! inverse-CDF table size of the tables
+    type(phase_t), allocatable, intent(out) :: more(:)
+    integer, allocatable, intent(out) :: slot(:)
+    logical, intent(out) :: blend
+    character(len=:), allocatable, intent(inout) :: notes
+    type(error_t), allocatable, intent(out) :: error
+    logical, allocatable :: used(:)
+    integer :: npf, n_hg, nph, ip, k, ix, iy, ipf, j
+    real(wp) :: apf
+
+    associate (a => c%mca_atm, pf => c%mca_phase)
+      npf = pf%npf
+      allocate (used(npf), slot(npf))
+      used = .false.
+      blend = .false.
+      do ip = 1, a%np3d
+        do k = 1, a%nz3
+          do iy = 1, a%ny
+            do ix = 1, a%nx
+              apf = a%apf(ix, iy, k, ip)
+              if (apf < 1.0_wp) cycle
+              ipf = int(apf)
+              used(ipf) = .true.
+              if (apf > ipf) then   ! then ipf < npf: the reader keeps apf <= npf
+                used(ipf + 1) = .true.
+                blend = .true.
+              end if
+            end do
+          end do
+        end do
+      end do
+      n_hg = size(c%hg_g)
+      nph = 2 + n_hg
+      slot = 0
+      do ipf = 1, npf
+        if (.not. used(ipf)) cycle
+        nph = nph + 1
+        slot(ipf) = nph
+      end do
+      allocate (more(nph))
+      more(1) = new_phase_isotropic()
+      more(2) = new_phase_rayleigh()
+      do j = 1, n_hg
+        more(2 + j) = new_phase_hg(c%hg_g(j), error)
+        if (allocated(error)) then
+          error%message = path//': apf = '//str(c%hg_g(j))//': '//error%message
+          return
+        end if
+      end do
+      do ipf = 1, npf
+        if (slot(ipf) == 0) cycle
+        more(slot(ipf)) = phase_from_table(pf%angle_deg, pf%p(:, ipf), n_table, error)
+        if (allocated(error)) then
+          error%message = 'phase function '//str(ipf)//' of the MCARaTS '// &
+                          'phase-function file: '//error%message
+          return
+        end if
+      end do
+      notes = notes//'MCARaTS phase functions: isotropic, Rayleigh, '//str(n_hg)// &
+              ' Henyey-Greenstein, '//str(count(used))//' of the '//str(npf)//' tables'//NL
+    end associate
+  end subroutine mcarats_phases
+
+  !> The gas-absorption perturbation of k-term `m%ikd` (absg3d): `has_abs` when it is not zero
+  !> everywhere; it then becomes one more voxel component with albedo 0 (`mcarats_voxels`).
+  !> MCARaTS adds it to the 1-D gas absorption (Atm_abs1d), which kumo takes from the 1-D
+  !> components of the region's layers, added to every voxel (`m%abs1d`): so the perturbation
+  !> may be negative where the voxel's absorption coefficient stays >= 0; a voxel where it
+  !> would not is an error, not clamped.
+  subroutine mcarats_absorption(c, m, path, has_abs, notes, error)
+    type(cloud_input_t), intent(in) :: c           !! the file read (content CLOUD_MCARATS)
+    type(mcarats_request_t), intent(in) :: m       !! the namelist's request (k-term, abs1d)
+    character(len=*), intent(in) :: path           !! the atmosphere file, for messages
+    logical, intent(out) :: has_abs
+    character(len=:), allocatable, intent(inout) :: notes
+    type(error_t), allocatable, intent(out) :: error
+    integer :: k, ix, iy
+    real(wp) :: tot, a1d, amin
+
+    associate (a => c%mca_atm)
+      has_abs = any(a%absg(:, :, :, m%ikd) /= 0.0_wp)
+      if (.not. has_abs) then
+        notes = notes//'gas absorption perturbation (absg3d) of k-term '//str(m%ikd)// &
+                ': 0 everywhere'//NL
+        return
+      end if
+      amin = huge(1.0_wp)
+      do k = 1, a%nz3
+        a1d = 0.0_wp
+        if (allocated(m%abs1d)) a1d = m%abs1d(k)
+        do iy = 1, a%ny
+          do ix = 1, a%nx
+            tot = a1d + a%absg(ix, iy, k, m%ikd) + &
+                  sum(a%ext(ix, iy, k, :)*(1.0_wp - a%omg(ix, iy, k, :)))
+            amin = min(amin, tot)
+            if (tot >= 0.0_wp) cycle
+            call set_error(error, path//': absg3d k-term '//str(m%ikd)//' layer '//str(k)// &
+                           ' (kumo layer '//str(m%k3d_bottom + k - 1)//'), ix = '//str(ix)// &
+                           ', iy = '//str(iy)//': the perturbation '// &
+                           str(a%absg(ix, iy, k, m%ikd))//' m-1 makes the absorption '// &
+                           'coefficient of the voxel '//str(tot)//' m-1 < 0 (1-D absorption '// &
+                           str(a1d)//' m-1). MCARaTS adds absg3d to Atm_abs1d; kumo takes '// &
+                           'that from the absorbing 1-D components of &kumo_atmosphere '// &
+                           '(ext1d with ssa1d < 1) in the 3-D layers: give it there')
+            return
+          end do
+        end do
+      end do
+      notes = notes//'gas absorption perturbation (absg3d) of k-term '//str(m%ikd)// &
+              ': '//str(minval(a%absg(:, :, :, m%ikd)))//' ... '// &
+              str(maxval(a%absg(:, :, :, m%ikd)))//' m-1, one more component (albedo 0) '// &
+              'added to the 1-D absorption of the layers; smallest absorption coefficient '// &
+              'of a voxel '//str(amin)//' m-1'//NL
+    end associate
+  end subroutine mcarats_absorption
+
+  !> Put the voxels of an MCARaTS atmosphere into the atmosphere: component ip of kumo is
+  !> MCARaTS component ip with its extinction and albedo, and the phase function its code
+  !> names (`mcarats_code`): (-3, -2] isotropic, (-2, -1] Rayleigh, (-1, 1) Henyey-Greenstein
+  !> with g = apf, >= 1 table ipf = int(apf) blended with table ipf + 1 as
+  !> P = (1 - r) P_ipf + r P_ipf+1, r = apf - ipf (the atmosphere's weight of table iph + 1).
+  !> With `has_abs`, component np3d + 1 is the perturbation of k-term `ikd`, albedo 0,
+  !> isotropic. Phase indices are `offset` + the positions of `mcarats_phases`.
+  subroutine mcarats_voxels(c, ikd, offset, slot, has_abs, atm, notes)
+    type(cloud_input_t), intent(in) :: c           !! the file read (content CLOUD_MCARATS)
+    integer, intent(in) :: ikd                     !! k-term of the absorption perturbation
+    integer, intent(in) :: offset                  !! phase functions before the MCARaTS ones
+    integer, intent(in) :: slot(:)                 !! positions of the tables (mcarats_phases)
+    logical, intent(in) :: has_abs
+    type(atmosphere_t), intent(inout) :: atm
+    character(len=:), allocatable, intent(inout) :: notes
+    integer :: ip, k, ix, iy, j, n_hg, n_iso, n_ray, n_gs, n_tab, n_blend
+    integer, allocatable :: iph(:, :)
+    real(wp), allocatable :: wph(:, :)
+    real(wp) :: r
+
+    associate (a => c%mca_atm)
+      allocate (iph(a%nx, a%ny), wph(a%nx, a%ny))
+      n_hg = size(c%hg_g)
+      n_iso = 0
+      n_ray = 0
+      n_gs = 0
+      n_tab = 0
+      n_blend = 0
+      do ip = 1, a%np3d
+        do k = 1, a%nz3
+          do iy = 1, a%ny
+            do ix = 1, a%nx
+              call mcarats_code(a%apf(ix, iy, k, ip), c%hg_g, slot, j, r)
+              iph(ix, iy) = offset + j
+              wph(ix, iy) = r
+              if (.not. a%ext(ix, iy, k, ip) > 0.0_wp) cycle
+              if (j == 1) then
+                n_iso = n_iso + 1
+              else if (j == 2) then
+                n_ray = n_ray + 1
+              else if (j <= 2 + n_hg) then
+                n_gs = n_gs + 1
+              else
+                n_tab = n_tab + 1
+                if (r > 0.0_wp) n_blend = n_blend + 1
+              end if
+            end do
+          end do
+          call atmosphere_put_layer(atm, ip, k, a%ext(:, :, k, ip), a%omg(:, :, k, ip), iph, wph)
+        end do
+      end do
+      notes = notes//'apf codes of the voxel values with extinction > 0: '//str(n_iso)// &
+              ' isotropic, '//str(n_ray)//' Rayleigh, '//str(n_gs)//' Henyey-Greenstein ('// &
+              str(n_hg)//' distinct g), '//str(n_tab)//' tabulated ('//str(n_blend)// &
+              ' blending two tables)'//NL
+      if (n_blend > 0) then
+        notes = notes//'a blended code takes table int(apf) + 1 with probability '// &
+                'r = apf - int(apf) and table int(apf) otherwise'//NL
+      end if
+      if (.not. has_abs) return
+      iph = offset + 1
+      wph = 0.0_wp
+      do k = 1, a%nz3
+        call atmosphere_put_layer(atm, a%np3d + 1, k, a%absg(:, :, k, ikd), wph, iph)
+      end do
+    end associate
+  end subroutine mcarats_voxels
+
+  !> Position j (in the order of `mcarats_phases`) of the phase function named by the MCARaTS
+  !> code `apf`, and the weight r of the next table (0 unless a table code has a fraction).
+  pure subroutine mcarats_code(apf, gs, slot, j, r)
+    real(wp), intent(in) :: apf        !! the code, within [-3, npf] (checked by the reader)
+    real(wp), intent(in) :: gs(:)      !! the distinct Henyey-Greenstein g, sorted
+    integer, intent(in) :: slot(:)     !! positions of the tables
+    integer, intent(out) :: j
+    real(wp), intent(out) :: r
+    integer :: ipf
+    r = 0.0_wp
+    if (apf <= -2.0_wp) then
+      j = 1
+    else if (apf <= -1.0_wp) then
+      j = 2
+    else if (apf < 1.0_wp) then
+      j = 2 + hg_slot(gs, apf)
+    else
+      ipf = int(apf)
+      r = apf - ipf
+      j = slot(ipf)
+    end if
+  end subroutine mcarats_code
+
+  !> Position of g in the sorted, distinct list gs (g must be in it).
+  pure integer function hg_slot(gs, g) result(i)
+    real(wp), intent(in) :: gs(:), g
+    integer :: lo, hi
+    lo = 1
+    hi = size(gs)
+    do while (lo < hi)
+      i = (lo + hi)/2
+      if (gs(i) < g) then
+        lo = i + 1
+      else
+        hi = i
+      end if
+    end do
+    i = lo
+  end function hg_slot
 
   !> Rayleigh extinction of dry air in every layer [m-1], the layers' air density [kg m-3]
   !> (mass per area (p_bottom - p_top)/g0 over the thickness) and a note saying where the

@@ -31,6 +31,8 @@ module kumo_driver
   use kumo_textio, only: read_two_columns, read_whole_file
   use kumo_netcdf, only: write_results, check_writable, read_scene_3d, read_albedo_map, &
                          read_brdf_map
+  use kumo_mcarats_files, only: mcarats_surface_t, read_mcarats_surface, mcarats_surface_npsfc, &
+                                mcarats_surface_brdf
   use kumo_parallel, only: par_rank, par_size, par_is_root, par_sum_to_root, &
                            par_allreduce_sum, par_wtime, par_bcast_int, par_bcast_real, PAR_IS_MPI
   implicit none
@@ -129,6 +131,7 @@ contains
     character(len=:), allocatable :: ray_notes
     real(wp) :: depol
     character(len=:), allocatable :: cloud_notes, cloud_warnings
+    character(len=:), allocatable :: sfc_notes
 
     nml_path = ''
     if (allocated(cfg%path)) nml_path = cfg%path
@@ -234,7 +237,14 @@ contains
       allocate (alb(1, 1))
       alb = cfg%surface%albedo
     end if
-    if (len_trim(cfg%surface%brdf_file) > 0) then
+    if (len_trim(cfg%surface%surface_file) > 0) then
+      call mcarats_surface_on_root(cfg, resolve_path(cfg%surface%surface_file, nml_path), bmap, &
+                                   sfc_notes, error)
+      if (allocated(error)) return
+      call surface_init_brdf_map(scene%sfc, bmap, cfg%atm%lx, cfg%atm%ly, error)
+      call add_context(error, trim(cfg%surface%surface_file))
+      scene%notes = scene%notes//sfc_notes
+    else if (len_trim(cfg%surface%brdf_file) > 0) then
       call brdf_map_on_root(resolve_path(cfg%surface%brdf_file, nml_path), cfg%surface%model%kind, &
                             bmap, error)
       if (allocated(error)) return
@@ -498,6 +508,71 @@ contains
       end do
     end do
   end subroutine brdf_map_on_root
+
+  !> Rank 0 reads an MCARaTS surface file (&kumo_surface surface_file, binary, pixel counts
+  !> and enabled models from the namelist) and broadcasts kumo's BRDF map of it; the notes
+  !> (rank 0 only) say what the file held and what was taken from the namelist.
+  subroutine mcarats_surface_on_root(cfg, path, bmap, notes, error)
+    type(config_t), intent(in) :: cfg
+    character(len=*), intent(in) :: path
+    type(brdf_params_t), allocatable, intent(out) :: bmap(:, :)
+    character(len=:), allocatable, intent(out) :: notes
+    type(error_t), allocatable, intent(out) :: error
+    type(mcarats_surface_t) :: sfc
+    integer :: status(1), i, j, nxb, nyb, it
+    integer, allocatable :: kind(:, :)
+    real(wp), allocatable :: c(:, :, :)
+    real(dp), allocatable :: buf(:)
+    character(len=*), parameter :: KIND_NAMES(0:4) = &
+      [character(len=7) :: 'black', 'Lambert', 'DSM', 'RPV', 'LSRT']
+    nxb = cfg%surface%surface_nxb
+    nyb = cfg%surface%surface_nyb
+    notes = ''
+    status = 0
+    if (par_is_root()) then
+      call read_mcarats_surface(path, nxb, nyb, mcarats_surface_npsfc(cfg%surface%surface_mbrdf), &
+                                sfc, error, cfg%surface%surface_idread)
+      if (.not. allocated(error)) call mcarats_surface_brdf(sfc, cfg%surface%surface_mbrdf, path, &
+                                                            bmap, error)
+      if (allocated(error)) status = 1
+    end if
+    call share_read_status(status, path, error)
+    if (allocated(error)) return
+    if (par_is_root()) then
+      notes = 'surface file '//path//' (MCARaTS): dataset '//str(sfc%idread)//' of '// &
+              str(sfc%ndatasets)//', '//str(nxb)//' x '//str(nyb)//' pixels:'
+      do it = 0, 4
+        if (any(sfc%brdf_type == it)) notes = notes//' '//trim(KIND_NAMES(it))//' '// &
+                                              str(count(sfc%brdf_type == it))
+      end do
+      notes = notes//'; its temperatures are not used (solar radiation only)'//new_line('a')// &
+              'the file does not give its pixel counts (surface_nxb, surface_nyb) and the '// &
+              'extent they cover (the domain lx x ly = '//str(cfg%atm%lx)//' x '// &
+              str(cfg%atm%ly)//' m); taken from the namelist'//new_line('a')
+    end if
+    if (par_size() == 1) return
+    allocate (kind(nxb, nyb), c(BRDF_NPAR, nxb, nyb))
+    if (par_is_root()) then
+      do j = 1, nyb
+        do i = 1, nxb
+          kind(i, j) = bmap(i, j)%kind
+          c(:, i, j) = bmap(i, j)%c
+        end do
+      end do
+    else
+      allocate (bmap(nxb, nyb))
+    end if
+    buf = [real(reshape(kind, [size(kind)]), dp), reshape(c, [size(c)])]
+    call par_bcast_real(buf)
+    kind = reshape(nint(buf(1:size(kind))), shape(kind))
+    c = reshape(buf(size(kind) + 1:), shape(c))
+    do j = 1, nyb
+      do i = 1, nxb
+        bmap(i, j)%kind = kind(i, j)
+        bmap(i, j)%c = c(:, i, j)
+      end do
+    end do
+  end subroutine mcarats_surface_on_root
 
   !> Rank 0 reads the albedo map and broadcasts it.
   subroutine read_albedo_on_root(path, varname, alb, error)

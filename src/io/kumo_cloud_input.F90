@@ -12,6 +12,10 @@
 !> boundaries) keep their nz planes; layer k of the region lies between planes k and k + 1 and
 !> is the equal mixture of the two (`points`), which keeps SHDOM's column optical depth of a
 !> property varying linearly between the planes.
+!>
+!> An MCARaTS 3-D atmosphere (`from_mcarats`, kumo_mcarats_files) keeps its own form
+!> (`CLOUD_MCARATS`: several components per voxel, each with an MCARaTS phase-function code, and
+!> the tabulated phase functions); kumo_cloud_scene turns it into voxel components.
 module kumo_cloud_input
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use kumo_kinds, only: wp, vp
@@ -21,18 +25,23 @@ module kumo_cloud_input
                               set_reff_from_droplet_number
   use kumo_mystic_file, only: mystic_cloud_t, read_mystic_file, MYSTIC_EXT_G_SSA, &
                               MYSTIC_EXT_REFF, MYSTIC_LWC_REFF
+  use kumo_mcarats_files, only: mcarats_request_t, mcarats_atm_t, mcarats_phase_t, &
+                                grads_ctl_t, read_mcarats_atm, read_mcarats_atm_ctl, &
+                                read_mcarats_phase, read_mcarats_phase_ctl, &
+                                mcarats_atm_ctl_sizes, mcarats_phase_ctl_sizes, is_ctl_path
   implicit none
   private
   public :: cloud_input_t, cloud_request_t, read_cloud_input, cloud_format_check
-  public :: CLOUD_FORMAT_NAMES, CLOUD_WATER, CLOUD_EXT_REFF, CLOUD_OPTICS
+  public :: CLOUD_FORMAT_NAMES, CLOUD_WATER, CLOUD_EXT_REFF, CLOUD_OPTICS, CLOUD_MCARATS
 
   !> Formats, as named in the namelist (`&kumo_cloud cloud_format`).
-  character(len=8), parameter :: CLOUD_FORMAT_NAMES(4) = &
-    [character(len=8) :: 'les', 'lwc', 'prp', 'mystic']
+  character(len=8), parameter :: CLOUD_FORMAT_NAMES(5) = &
+    [character(len=8) :: 'les', 'lwc', 'prp', 'mystic', 'mcarats']
 
   integer, parameter :: CLOUD_WATER = 1     !! lwc [g m-3] and reff [um]
   integer, parameter :: CLOUD_EXT_REFF = 2  !! ext [m-1] and reff [um] (MYSTIC flag 2)
   integer, parameter :: CLOUD_OPTICS = 3    !! ext [m-1], ssa and a phase-function index
+  integer, parameter :: CLOUD_MCARATS = 4   !! MCARaTS components (ext, omg, apf code), absg
 
   !> What to read and the facts a file may lack.
   type :: cloud_request_t
@@ -45,6 +54,7 @@ module kumo_cloud_input
     real(wp) :: droplet_number_cm3 = 0.0_wp      !! 1-parameter LWC files: N [cm-3]
     !> LES grid-only reads: also the pressure of every layer (required; `cloud_input_t%pressure`)
     logical :: pressure_profile = .false.
+    type(mcarats_request_t) :: mcarats           !! MCARaTS files: sizes and grid from the namelist
   end type cloud_request_t
 
   !> A cloud field on the voxels of the 3-D region.
@@ -56,7 +66,7 @@ module kumo_cloud_input
     real(wp), allocatable :: z(:)              !! layer edges z(0:nz), bottom first [m]
     !> values on nz + 1 planes (the third dimension of the arrays); layer k mixes planes k, k+1
     logical :: points = .false.
-    integer :: content = CLOUD_WATER           !! CLOUD_WATER, CLOUD_EXT_REFF or CLOUD_OPTICS
+    integer :: content = CLOUD_WATER           !! CLOUD_WATER, _EXT_REFF, _OPTICS or _MCARATS
     ! Fields are kept in the voxel precision (vp), as the atmosphere stores them.
     real(vp), allocatable :: lwc(:, :, :)      !! liquid water content [g m-3] (CLOUD_WATER)
     real(vp), allocatable :: reff(:, :, :)     !! droplet effective radius [um], 0 where empty
@@ -74,6 +84,8 @@ module kumo_cloud_input
     !> in double precision; a 3-D variable is averaged over the columns of each layer
     real(wp), allocatable :: pressure(:)
     character(len=:), allocatable :: pressure_source !! variable and whether it was averaged
+    type(mcarats_atm_t) :: mca_atm             !! CLOUD_MCARATS: the dataset read
+    type(mcarats_phase_t) :: mca_phase         !! CLOUD_MCARATS: its tables (npf = 0: none)
     character(len=:), allocatable :: notes     !! how the file was read, for the run log
     character(len=:), allocatable :: missing   !! what the file does not give
   end type cloud_input_t
@@ -94,7 +106,7 @@ contains
     end do
     call set_error(error, 'cloud_format = "'//trim(name)//'" must be one of les (LES/CRM '// &
                    'netCDF), lwc (SHDOM/I3RC LWC file), prp (SHDOM property file), mystic '// &
-                   '(MYSTIC wc_file 3D)')
+                   '(MYSTIC wc_file 3D), mcarats (MCARaTS 3-D atmosphere file)')
   end subroutine cloud_format_check
 
   !> Read a cloud file. With `grid_only`, only the grid (nx, ny, nz, dx, dy, z) is guaranteed
@@ -122,6 +134,8 @@ contains
       call from_prp(req, cloud, error)
     case ('mystic')
       call from_mystic(req, cloud, error)
+    case ('mcarats')
+      call from_mcarats(req, grid, cloud, error)
     case default
       call set_error(error, 'cloud_format "'//trim(req%format)//'" is unknown')
     end select
@@ -255,6 +269,161 @@ contains
       cloud%missing = 'the wavelength and the droplet optics'
     end select
   end subroutine from_mystic
+
+  !> An MCARaTS 3-D atmosphere (`req%path`: the binary file or its `.ctl`) and its phase
+  !> functions (`req%mcarats%phase_path`). With a `.ctl` the sizes come from it and sizes given
+  !> in the namelist must agree; a binary file takes them from the namelist (`req%mcarats`).
+  !> The grid (column widths, layer edges) always comes from the namelist. With `grid_only`,
+  !> the descriptors are checked and the sizes they give set (nx = ny = nz = 0 for a binary
+  !> file: they are the namelist's); nothing else is read. Codes apf >= 1 need the phase file.
+  subroutine from_mcarats(req, grid, cloud, error)
+    type(cloud_request_t), intent(in) :: req
+    logical, intent(in) :: grid
+    type(cloud_input_t), intent(inout) :: cloud
+    type(error_t), allocatable, intent(out) :: error
+    type(grads_ctl_t) :: ctl
+    integer :: nz3, mtprof, nkd, np3d, nang, npf, ip, k, loc(2), n
+    logical :: atm_ctl, has_phase
+    real(wp), allocatable :: gs(:)
+    character(len=:), allocatable :: src
+
+    associate (m => req%mcarats)
+      atm_ctl = is_ctl_path(req%path)
+      has_phase = .false.
+      if (allocated(m%phase_path)) has_phase = len_trim(m%phase_path) > 0
+      cloud%content = CLOUD_MCARATS
+      if (atm_ctl) then
+        call mcarats_atm_ctl_sizes(req%path, ctl, nz3, mtprof, nkd, np3d, error)
+        if (allocated(error)) return
+        call agree('mcarats_np3d', m%np3d, np3d, req%path, 'np3d')
+        call agree('mcarats_nkd', m%nkd, nkd, req%path, 'nkd')
+        call agree('mcarats_mtprof', m%mtprof, mtprof, req%path, 'mtprof')
+        if (allocated(error)) return
+        cloud%nx = ctl%nx
+        cloud%ny = ctl%ny
+        cloud%nz = nz3
+      else
+        nkd = m%nkd
+      end if
+      if (m%ikd > nkd) then
+        call set_error(error, 'mcarats_ikd = '//str(m%ikd)//' must be within 1..nkd = '// &
+                       str(nkd)//' (k-terms of '//req%path//')')
+        return
+      end if
+      if (has_phase) then
+        if (is_ctl_path(m%phase_path)) then
+          call mcarats_phase_ctl_sizes(m%phase_path, ctl, nang, npf, error)
+          if (allocated(error)) return
+          call agree('mcarats_nang', m%nang, nang, m%phase_path, 'nang')
+          call agree('mcarats_npf', m%npf, npf, m%phase_path, 'npf')
+          if (allocated(error)) return
+        end if
+      end if
+      if (grid) return
+
+      ! the phase functions first: their number bounds the apf codes
+      if (has_phase) then
+        if (is_ctl_path(m%phase_path)) then
+          call read_mcarats_phase_ctl(m%phase_path, cloud%mca_phase, error)
+        else
+          call read_mcarats_phase(m%phase_path, m%nang, m%npf, cloud%mca_phase, error)
+        end if
+        if (allocated(error)) return
+        npf = cloud%mca_phase%npf
+      end if
+      if (atm_ctl) then
+        if (has_phase) then
+          call read_mcarats_atm_ctl(req%path, cloud%mca_atm, error, m%idread, npf)
+        else
+          call read_mcarats_atm_ctl(req%path, cloud%mca_atm, error, m%idread)
+        end if
+      else
+        if (has_phase) then
+          call read_mcarats_atm(req%path, m%nx, m%ny, m%nz3, m%mtprof, m%nkd, m%np3d, &
+                                cloud%mca_atm, error, m%idread, npf=npf)
+        else
+          call read_mcarats_atm(req%path, m%nx, m%ny, m%nz3, m%mtprof, m%nkd, m%np3d, &
+                                cloud%mca_atm, error, m%idread)
+        end if
+      end if
+      if (allocated(error)) return
+      associate (a => cloud%mca_atm)
+        if ((m%nx > 0 .and. m%nx /= a%nx) .or. (m%ny > 0 .and. m%ny /= a%ny) .or. &
+            (m%nz3 > 0 .and. m%nz3 /= a%nz3)) then
+          call set_error(error, req%path//': '//str(a%nx)//' x '//str(a%ny)//' x '// &
+                         str(a%nz3)//' voxels; the namelist has nx, ny, nz3 = '//str(m%nx)// &
+                         ', '//str(m%ny)//', '//str(m%nz3))
+          return
+        end if
+        if (.not. allocated(m%z)) then
+          call set_error(error, req%path//': the heights of the 3-D region are not known '// &
+                         '(&kumo_atmosphere z_levels and k3d_bottom)')
+          return
+        end if
+        if (size(m%z) /= a%nz3 + 1) then
+          call set_error(error, req%path//': '//str(a%nz3)//' layers but '//str(size(m%z))// &
+                         ' layer edges from the namelist')
+          return
+        end if
+        if (.not. has_phase) then
+          do ip = 1, a%np3d
+            do k = 1, a%nz3
+              if (all(a%apf(:, :, k, ip) < 1.0_wp)) cycle
+              loc = maxloc(a%apf(:, :, k, ip))
+              call set_error(error, req%path//': apfp3d comp. '//str(ip)//' layer '//str(k)// &
+                             ', ix = '//str(loc(1))//', iy = '//str(loc(2))//': apf = '// &
+                             str(a%apf(loc(1), loc(2), k, ip))//' names a tabulated phase '// &
+                             'function, but no phase-function file is given (&kumo_cloud '// &
+                             'mcarats_phase_file)')
+              return
+            end do
+          end do
+        end if
+        call set_grid(cloud, a%nx, a%ny, a%nz3, m%dx, m%dy, m%z, .false.)
+        cloud%content = CLOUD_MCARATS
+        ! one Henyey-Greenstein phase function per distinct g = apf in (-1, 1), as for MYSTIC
+        gs = pack(a%apf, a%apf > -1.0_wp .and. a%apf < 1.0_wp)
+        call sort_unique_exact(gs, n)
+        cloud%hg_g = gs(1:n)
+        src = 'binary, sizes from the namelist'
+        if (atm_ctl) src = 'sizes from its .ctl'
+        cloud%notes = 'MCARaTS 3-D atmosphere ('//src//'): dataset '//str(a%idread)// &
+                      ' of '//str(a%ndatasets)//', '//str(a%nx)//' x '//str(a%ny)//' x '// &
+                      str(a%nz3)//' voxels, '//str(a%np3d)//' component(s), '//str(a%nkd)// &
+                      ' k-term(s) (absorption perturbation of k-term '//str(m%ikd)// &
+                      ' used), mtprof = '//str(a%mtprof)//NL// &
+                      'its temperatures (tmpa3d) are not used: kumo computes solar '// &
+                      'radiation only'
+        if (has_phase) then
+          cloud%notes = cloud%notes//NL//'phase functions '//m%phase_path//': '// &
+                        str(cloud%mca_phase%npf)//' tables of '//str(cloud%mca_phase%nang)// &
+                        ' angles'
+        end if
+        cloud%missing = 'the column widths '//str(m%dx)//' x '//str(m%dy)// &
+                        ' m (lx/nx, ly/ny) and the layer edges '//str(m%z(lbound(m%z, 1)))// &
+                        ' ... '//str(m%z(ubound(m%z, 1)))//' m (z_levels of layers '// &
+                        str(m%k3d_bottom)//'..'//str(m%k3d_bottom + a%nz3 - 1)// &
+                        ', k3d_bottom = Atm_iz3l)'
+        if (.not. atm_ctl) then
+          cloud%missing = cloud%missing//', its sizes (nx, ny, nz3; mcarats_np3d, '// &
+                          'mcarats_nkd, mcarats_mtprof)'
+        end if
+        if (has_phase .and. .not. is_ctl_path(m%phase_path)) then
+          cloud%missing = cloud%missing//', the phase file''s sizes (mcarats_nang, mcarats_npf)'
+        end if
+      end associate
+    end associate
+
+  contains
+    !> A size given in the namelist (>= 0) must equal the descriptor's.
+    subroutine agree(name, given, found, path, what)
+      character(len=*), intent(in) :: name, path, what
+      integer, intent(in) :: given, found
+      if (allocated(error) .or. given < 0 .or. given == found) return
+      call set_error(error, name//' = '//str(given)//' disagrees with '//path//', which '// &
+                     'gives '//what//' = '//str(found)//' (leave '//name//' out to take it)')
+    end subroutine agree
+  end subroutine from_mcarats
 
   !> Move a field read in working precision into the cloud's voxel precision.
   subroutine take(from, to)

@@ -20,7 +20,8 @@ module kumo_config
   use kumo_std_atmosphere, only: std_atmosphere_kind_from_name, STD_ATMOSPHERE_NAMES
   use kumo_les_netcdf, only: LES_NAME_LEN
   use kumo_cloud_input, only: cloud_input_t, cloud_request_t, read_cloud_input, &
-                              cloud_format_check, CLOUD_OPTICS
+                              cloud_format_check, CLOUD_OPTICS, CLOUD_MCARATS
+  use kumo_mcarats_files, only: is_ctl_path, mcarats_request_t
   implicit none
   private
   public :: config_t, control_cfg_t, atmosphere_cfg_t, phase_cfg_t, surface_cfg_t, &
@@ -119,6 +120,8 @@ module kumo_config
     integer :: n_reff = 40                         !! table radii (geometric spacing)
     character(len=PATH_LEN) :: mie_cache = ''      !! netCDF Mie-table cache ('' = none)
     character(len=PATH_LEN) :: ice_optics_file = '' !! ice optics table (Mie-table layout)
+    !> MCARaTS phase-function file as written in the namelist (resolved: req%mcarats)
+    character(len=PATH_LEN) :: mcarats_phase_file = ''
     type(cloud_input_t) :: grid                    !! the file's grid (no field data)
   end type cloud_cfg_t
 
@@ -141,6 +144,11 @@ module kumo_config
     character(len=PATH_LEN) :: brdf_file = ''      !! netCDF 2-D BRDF map
     real(wp) :: brdf_param(BRDF_NPAR) = 0.0_wp     !! BRDF parameters in the MCARaTS order
     real(wp) :: wind_speed = -1.0_wp               !! DSM: sets the slope variance (< 0: unused)
+    character(len=PATH_LEN) :: surface_file = ''   !! surface file of another code (kinds, params)
+    character(len=16) :: surface_format = 'mcarats' !! its format: 'mcarats' (binary Sfc_inpfile)
+    integer :: surface_nxb = 0, surface_nyb = 0    !! its pixels (Sfc_nxb, Sfc_nyb); 0: not given
+    integer :: surface_mbrdf(4) = 1                !! models that may appear (Sfc_mbrdf)
+    integer :: surface_idread = 1                  !! dataset read (Sfc_idread)
     type(brdf_params_t) :: model                   !! the BRDF after validation
   end type surface_cfg_t
 
@@ -411,9 +419,9 @@ contains
     phase1d = IUNSET
     scene_file = ''
     k3d_bottom = 0
-    nx = 1
-    ny = 1
-    nz3 = 0
+    nx = IUNSET     ! (1, 1, 0 when not given; unset is told apart for MCARaTS files)
+    ny = IUNSET
+    nz3 = IUNSET
     n_components_3d = 1
     phase3d = 1
     air_density = UNSET
@@ -443,7 +451,15 @@ contains
     cfg%co2_ppm = co2_ppm
     cfg%latitude_deg = latitude_deg
     cfg%rayleigh_depol = rayleigh_depol
-    if (cloud%enabled) then
+    if (cloud%enabled .and. cloud%req%format == 'mcarats') then
+      call mcarats_region_sizes(cloud, lx, ly, scene_file, nx, ny, nz3, error)
+      if (allocated(error)) return
+    else
+      if (nx == IUNSET) nx = 1
+      if (ny == IUNSET) ny = 1
+      if (nz3 == IUNSET) nz3 = 0
+    end if
+    if (cloud%enabled .and. cloud%req%format /= 'mcarats') then
       call levels_with_cloud(cloud, nz, z_levels, lx, ly, scene_file, k3d_bottom, nz3, ext1d, &
                              ssa1d, phase1d, error)
       if (allocated(error)) return
@@ -534,6 +550,14 @@ contains
                        ' must be within 1..'//str(MAX_COMP))
         return
       end if
+    else if (cloud%enabled .and. cloud%req%format == 'mcarats') then
+      if (k3d_bottom < 1 .or. k3d_bottom + nz3 - 1 > nz) then
+        call set_error(error, '&kumo_atmosphere: the 3-D region of the MCARaTS file, layers '// &
+                       'k3d_bottom = '//str(k3d_bottom)//' .. k3d_bottom + nz3 - 1 = '// &
+                       str(k3d_bottom + nz3 - 1)//', must lie within layers 1..nz = '//str(nz)// &
+                       ' (k3d_bottom is MCARaTS''s Atm_iz3l)')
+        return
+      end if
     else if ((k3d_bottom /= 0 .or. nz3 /= 0) .and. .not. cloud%enabled) then
       call set_error(error, '&kumo_atmosphere: k3d_bottom/nz3 are set but scene_file is empty')
       return
@@ -572,6 +596,48 @@ contains
     cfg%cp_air = cp_air
     call rayleigh_pressure(pressure_levels_hpa, cloud, cfg, error)
   end subroutine read_atmosphere
+
+  !> The 3-D region of an MCARaTS atmosphere (cloud_format = 'mcarats'). As in MCARaTS, the
+  !> levels, the region's first layer and the domain come from the namelist (z_levels,
+  !> k3d_bottom, lx, ly: the binary file has no grid). Its sizes come from the `.ctl`, where
+  !> nx, ny, nz3 given in the namelist must agree with it, or, for a binary file, from nx, ny,
+  !> nz3, which are then required.
+  subroutine mcarats_region_sizes(cloud, lx, ly, scene_file, nx, ny, nz3, error)
+    type(cloud_cfg_t), intent(in) :: cloud
+    real(wp), intent(in) :: lx, ly
+    character(len=*), intent(in) :: scene_file
+    integer, intent(inout) :: nx, ny, nz3
+    type(error_t), allocatable, intent(out) :: error
+    character(len=*), parameter :: CTX = '&kumo_atmosphere with an MCARaTS cloud file: '
+    if (len_trim(scene_file) > 0) then
+      call set_error(error, CTX//'scene_file must not be set: the 3-D region is the MCARaTS file')
+    else if (lx == UNSET .or. ly == UNSET) then
+      call set_error(error, CTX//'lx and ly are required: the MCARaTS file has no horizontal '// &
+                     'grid (lx = nx Atm_dx, ly = ny Atm_dy)')
+    else if (cloud%grid%nx > 0) then
+      call agree('nx', nx, cloud%grid%nx, 'XDEF')
+      call agree('ny', ny, cloud%grid%ny, 'YDEF')
+      call agree('nz3', nz3, cloud%grid%nz, 'levels of extp3d')
+    else if (nx == IUNSET .or. ny == IUNSET .or. nz3 == IUNSET) then
+      call set_error(error, CTX//'nx, ny and nz3 are required with a binary MCARaTS file '// &
+                     '(its sizes Atm_nx, Atm_ny, Atm_nz3), or name its .ctl in cloud_file')
+    else if (nx < 1 .or. ny < 1 .or. nz3 < 1) then
+      call set_error(error, CTX//'nx = '//str(nx)//', ny = '//str(ny)//' and nz3 = '//str(nz3)// &
+                     ' must be >= 1')
+    end if
+  contains
+    subroutine agree(name, given, found, what)
+      character(len=*), intent(in) :: name, what
+      integer, intent(inout) :: given
+      integer, intent(in) :: found
+      if (allocated(error)) return
+      if (given /= IUNSET .and. given /= found) then
+        call set_error(error, CTX//name//' = '//str(given)//' disagrees with '//cloud%req%path// &
+                       ' ('//what//' '//str(found)//'); leave it out to take the file''s')
+      end if
+      given = found
+    end subroutine agree
+  end subroutine mcarats_region_sizes
 
   !> A Rayleigh profile name: a named standard atmosphere, RAYLEIGH_LEVELS or RAYLEIGH_CLOUD_FILE.
   subroutine rayleigh_profile_check(name, error)
@@ -772,12 +838,14 @@ contains
     character(len=*), intent(in) :: nml_path
     type(cloud_cfg_t), intent(inout) :: cfg
     type(error_t), allocatable, intent(out) :: error
-    character(len=PATH_LEN) :: cloud_file, mie_cache, ice_optics_file
+    character(len=PATH_LEN) :: cloud_file, mie_cache, ice_optics_file, mcarats_phase_file
     character(len=16) :: cloud_format, size_distribution
     character(len=LES_NAME_LEN) :: les_lwc, les_reff, les_number, les_iwc, les_reff_ice, &
                                    les_temperature, les_pressure, les_air_density, les_x, les_y, &
                                    les_z, les_x_edges, les_y_edges, les_z_edges
     integer :: les_time_index, n_reff, ios, dist
+    integer :: mcarats_np3d, mcarats_nkd, mcarats_mtprof, mcarats_idread, mcarats_ikd, &
+               mcarats_nang, mcarats_npf
     real(wp) :: les_k_factor, droplet_number_cm3, v_eff, reff_min_um, reff_max_um
     logical :: les_z_edges_from_midpoints
     character(len=512) :: msg
@@ -785,7 +853,8 @@ contains
       les_number, les_iwc, les_reff_ice, les_temperature, les_pressure, les_air_density, &
       les_x, les_y, les_z, les_x_edges, les_y_edges, les_z_edges, les_k_factor, &
       les_z_edges_from_midpoints, droplet_number_cm3, size_distribution, v_eff, reff_min_um, &
-      reff_max_um, n_reff, mie_cache, ice_optics_file
+      reff_max_um, n_reff, mie_cache, ice_optics_file, mcarats_np3d, mcarats_nkd, mcarats_mtprof, &
+      mcarats_idread, mcarats_ikd, mcarats_phase_file, mcarats_nang, mcarats_npf
     if (.not. present) return
     cloud_file = ''
     cloud_format = 'les'
@@ -814,6 +883,15 @@ contains
     n_reff = cfg%n_reff
     mie_cache = ''
     ice_optics_file = ''
+    ! MCARaTS sizes: 0 (mtprof: -1) = not given, i.e. from the .ctl or MCARaTS's default
+    mcarats_np3d = 0
+    mcarats_nkd = 0
+    mcarats_mtprof = -1
+    mcarats_idread = 1
+    mcarats_ikd = 1
+    mcarats_phase_file = ''
+    mcarats_nang = 0
+    mcarats_npf = 0
     rewind (unit)
     msg = ''
     read (unit, nml=kumo_cloud, iostat=ios, iomsg=msg)
@@ -848,6 +926,11 @@ contains
       error%message = '&kumo_cloud: '//error%message
       return
     end if
+    call mcarats_cloud_settings(cfg%req%format, cloud_file, mcarats_np3d, mcarats_nkd, &
+                                mcarats_mtprof, mcarats_idread, mcarats_ikd, mcarats_phase_file, &
+                                mcarats_nang, mcarats_npf, nml_path, cfg%req%mcarats, error)
+    if (allocated(error)) return
+    cfg%mcarats_phase_file = mcarats_phase_file
     if (len_trim(cloud_file) == 0) return   ! no cloud file: the group's settings are unused
     cfg%enabled = .true.
     cfg%file = cloud_file
@@ -892,6 +975,78 @@ contains
     if (allocated(cfg%grid%ssa)) deallocate (cfg%grid%ssa)
     if (allocated(cfg%grid%iphase)) deallocate (cfg%grid%iphase)
   end subroutine read_cloud
+
+  !> &kumo_cloud mcarats_*: checks, and the request for `from_mcarats`. They apply to
+  !> cloud_format = 'mcarats' only. A binary atmosphere file takes the sizes not given from
+  !> MCARaTS's defaults (Atm_np3d = 1, Atm_nkd = 1, Atm_mtprof = 0), as MCARaTS itself does; a
+  !> `.ctl` gives them (sizes given must agree, checked when it is read). A binary phase file
+  !> needs mcarats_nang and mcarats_npf; there is no default to fall back on.
+  subroutine mcarats_cloud_settings(fmt, cloud_file, np3d, nkd, mtprof, idread, ikd, phase_file, &
+                                    nang, npf, nml_path, req, error)
+    character(len=*), intent(in) :: fmt, cloud_file, phase_file, nml_path
+    integer, intent(in) :: np3d, nkd, mtprof, idread, ikd, nang, npf
+    type(mcarats_request_t), intent(inout) :: req
+    type(error_t), allocatable, intent(out) :: error
+    character(len=*), parameter :: CTX = '&kumo_cloud: '
+    logical :: atm_ctl, phase_ctl
+    if (trim(fmt) /= 'mcarats') then
+      if (np3d /= 0 .or. nkd /= 0 .or. mtprof /= -1 .or. idread /= 1 .or. ikd /= 1 .or. &
+          len_trim(phase_file) > 0 .or. nang /= 0 .or. npf /= 0) then
+        call set_error(error, CTX//'the mcarats_* settings apply to cloud_format = '// &
+                       '''mcarats'' only (cloud_format is '''//trim(fmt)//''')')
+      end if
+      return
+    end if
+    if (np3d < 0 .or. nkd < 0 .or. npf < 0 .or. nang < 0) then
+      call set_error(error, CTX//'mcarats_np3d = '//str(np3d)//', mcarats_nkd = '//str(nkd)// &
+                     ', mcarats_nang = '//str(nang)//' and mcarats_npf = '//str(npf)// &
+                     ' must be >= 0 (0 = not given)')
+    else if (mtprof < -1 .or. mtprof > 1) then
+      call set_error(error, CTX//'mcarats_mtprof = '//str(mtprof)//' must be 0 (temperatures '// &
+                     'per layer), 1 (per level) or -1 (not given)')
+    else if (idread < 1) then
+      call set_error(error, CTX//'mcarats_idread = '//str(idread)//' must be >= 1')
+    else if (ikd < 1) then
+      call set_error(error, CTX//'mcarats_ikd = '//str(ikd)//' must be >= 1')
+    else if (nang == 1) then
+      call set_error(error, CTX//'mcarats_nang = 1 must be >= 2 (angles per phase function)')
+    end if
+    if (allocated(error)) return
+    atm_ctl = is_ctl_path(cloud_file)
+    phase_ctl = is_ctl_path(phase_file)
+    req%np3d = merge(np3d, -1, np3d > 0)
+    req%nkd = merge(nkd, -1, nkd > 0)
+    req%mtprof = mtprof
+    req%nang = merge(nang, -1, nang > 0)
+    req%npf = merge(npf, -1, npf > 0)
+    if (.not. atm_ctl) then
+      ! a binary file: MCARaTS's defaults for the sizes not given
+      if (req%np3d < 0) req%np3d = 1
+      if (req%nkd < 0) req%nkd = 1
+      if (req%mtprof < 0) req%mtprof = 0
+      if (ikd > req%nkd) then
+        call set_error(error, CTX//'mcarats_ikd = '//str(ikd)//' must be within 1..'// &
+                       'mcarats_nkd = '//str(req%nkd))
+        return
+      end if
+    end if
+    if (len_trim(phase_file) == 0) then
+      if (nang /= 0 .or. npf /= 0) then
+        call set_error(error, CTX//'mcarats_nang and mcarats_npf describe mcarats_phase_file, '// &
+                       'which is not given')
+        return
+      end if
+    else if (.not. phase_ctl .and. (nang == 0 .or. npf == 0)) then
+      call set_error(error, CTX//'mcarats_phase_file '''//trim(phase_file)//''' is a binary '// &
+                     'file: give its sizes mcarats_nang (angles, Sca_nangi) and mcarats_npf '// &
+                     '(tables, Sca_npf), or name its .ctl')
+      return
+    end if
+    req%idread = idread
+    req%ikd = ikd
+    req%phase_path = ''
+    if (len_trim(phase_file) > 0) req%phase_path = resolve_path(phase_file, nml_path)
+  end subroutine mcarats_cloud_settings
 
   !> A path from the namelist: relative paths are relative to the namelist's folder.
   function resolve_path(path, nml_path) result(full)
@@ -965,13 +1120,15 @@ contains
     type(surface_cfg_t), intent(inout) :: cfg
     type(error_t), allocatable, intent(out) :: error
     real(wp) :: albedo, brdf_param(BRDF_NPAR), wind_speed
-    character(len=PATH_LEN) :: albedo_file, brdf_file
+    character(len=PATH_LEN) :: albedo_file, brdf_file, surface_file
     character(len=64) :: albedo_var
+    character(len=16) :: surface_format
     character(len=8) :: brdf
-    integer :: ios, kind
+    integer :: ios, kind, surface_nxb, surface_nyb, surface_mbrdf(4), surface_idread
     character(len=512) :: msg
     namelist /kumo_surface/ albedo, albedo_file, albedo_var, brdf, brdf_param, wind_speed, &
-      brdf_file
+      brdf_file, surface_file, surface_format, surface_nxb, surface_nyb, surface_mbrdf, &
+      surface_idread
     albedo = cfg%albedo
     albedo_file = cfg%albedo_file
     brdf_file = cfg%brdf_file
@@ -979,11 +1136,27 @@ contains
     brdf = cfg%brdf
     brdf_param = cfg%brdf_param
     wind_speed = cfg%wind_speed
+    surface_file = cfg%surface_file
+    surface_format = cfg%surface_format
+    surface_nxb = cfg%surface_nxb
+    surface_nyb = cfg%surface_nyb
+    surface_mbrdf = cfg%surface_mbrdf
+    surface_idread = cfg%surface_idread
     rewind (unit)
     msg = ''
     read (unit, nml=kumo_surface, iostat=ios, iomsg=msg)
     call check_read('kumo_surface', present, ios, msg, error)
     if (allocated(error)) return
+    call surface_file_settings(surface_file, surface_format, surface_nxb, surface_nyb, &
+                               surface_mbrdf, surface_idread, albedo, albedo_file, brdf, &
+                               brdf_file, brdf_param, wind_speed, error)
+    if (allocated(error)) return
+    cfg%surface_file = surface_file
+    cfg%surface_format = to_lower(adjustl(surface_format))
+    cfg%surface_nxb = surface_nxb
+    cfg%surface_nyb = surface_nyb
+    cfg%surface_mbrdf = surface_mbrdf
+    cfg%surface_idread = surface_idread
     if (.not. within(albedo, 0.0_wp, 1.0_wp)) then
       call set_error(error, '&kumo_surface: albedo = '//str(albedo)//' must be within [0, 1]')
       return
@@ -1039,6 +1212,48 @@ contains
     cfg%brdf_param = brdf_param
     cfg%wind_speed = wind_speed
   end subroutine read_surface
+
+  !> &kumo_surface surface_file: a surface file of another code gives the kind and parameters
+  !> of every pixel, so no other surface setting may be given with it; its sizes, which the
+  !> binary file does not hold, must be.
+  subroutine surface_file_settings(surface_file, surface_format, nxb, nyb, mbrdf, idread, &
+                                   albedo, albedo_file, brdf, brdf_file, brdf_param, wind_speed, &
+                                   error)
+    character(len=*), intent(in) :: surface_file, surface_format, albedo_file, brdf, brdf_file
+    integer, intent(in) :: nxb, nyb, mbrdf(4), idread
+    real(wp), intent(in) :: albedo, brdf_param(:), wind_speed
+    type(error_t), allocatable, intent(out) :: error
+    character(len=*), parameter :: CTX = '&kumo_surface: '
+    if (trim(to_lower(adjustl(surface_format))) /= 'mcarats') then
+      call set_error(error, CTX//'surface_format = "'//trim(surface_format)//'" must be '// &
+                     '''mcarats'' (the MCARaTS binary surface file, Sfc_inpfile)')
+      return
+    end if
+    if (len_trim(surface_file) == 0) then
+      if (nxb /= 0 .or. nyb /= 0 .or. any(mbrdf /= 1) .or. idread /= 1) then
+        call set_error(error, CTX//'surface_nxb, surface_nyb, surface_mbrdf and '// &
+                       'surface_idread describe surface_file, which is not given')
+      end if
+      return
+    end if
+    if (len_trim(albedo_file) > 0 .or. len_trim(brdf_file) > 0 .or. albedo /= 0.0_wp .or. &
+        trim(to_lower(adjustl(brdf))) /= 'lambert' .or. any(brdf_param /= 0.0_wp) .or. &
+        wind_speed >= 0.0_wp) then
+      call set_error(error, CTX//'surface_file gives the kind and parameters of every pixel: '// &
+                     'albedo, albedo_file, brdf, brdf_file, brdf_param and wind_speed must '// &
+                     'not be set with it')
+    else if (nxb < 1 .or. nyb < 1) then
+      call set_error(error, CTX//'surface_nxb = '//str(nxb)//' and surface_nyb = '//str(nyb)// &
+                     ' must be given and >= 1: the pixels of '//trim(surface_file)// &
+                     ' (MCARaTS Sfc_nxb, Sfc_nyb)')
+    else if (any(mbrdf /= 0 .and. mbrdf /= 1)) then
+      call set_error(error, CTX//'surface_mbrdf = '//str(mbrdf(1))//', '//str(mbrdf(2))//', '// &
+                     str(mbrdf(3))//', '//str(mbrdf(4))//' must be 0 or 1 each (Lambert, DSM, '// &
+                     'RPV, LSRT may appear)')
+    else if (idread < 1) then
+      call set_error(error, CTX//'surface_idread = '//str(idread)//' must be >= 1')
+    end if
+  end subroutine surface_file_settings
 
   subroutine read_source(unit, present, cfg, error)
     integer, intent(in) :: unit
@@ -1390,6 +1605,9 @@ contains
     type(config_t), intent(inout) :: cfg
     type(error_t), allocatable, intent(out) :: error
     integer :: np
+    if (cfg%cloud%enabled .and. cfg%cloud%req%format == 'mcarats') then
+      call complete_mcarats(cfg%atm, cfg%cloud)
+    end if
     np = cfg%phase%n_phase
     if (any(cfg%atm%phase1d < 1) .or. any(cfg%atm%phase1d > np)) then
       call set_error(error, '&kumo_atmosphere: phase1d values must be within 1..n_phase = '// &
@@ -1404,12 +1622,49 @@ contains
       call set_error(error, '&kumo_atmosphere: rayleigh = .true. needs the wavelength '// &
                      '(&kumo_source wavelength_um)')
     else if (cfg%cloud%enabled .and. cfg%source%wavelength_um <= 0.0_wp .and. &
-             cfg%cloud%grid%content /= CLOUD_OPTICS) then
+             cfg%cloud%grid%content /= CLOUD_OPTICS .and. &
+             cfg%cloud%grid%content /= CLOUD_MCARATS) then
       call set_error(error, '&kumo_cloud: the cloud file ('//trim(cfg%cloud%req%format)// &
                      ') gives no optical properties; kumo computes them for the wavelength '// &
                      'in &kumo_source wavelength_um, which is not given')
     end if
   end subroutine consolidate
+
+  !> The grid of an MCARaTS 3-D region, which the binary file lacks, from &kumo_atmosphere:
+  !> column widths lx/nx, ly/ny, the layer edges of layers k3d_bottom .. k3d_bottom + nz3 - 1,
+  !> and the absorption of the 1-D components there (the gas absorption the file's perturbation
+  !> is added to).
+  subroutine complete_mcarats(atm, cloud)
+    type(atmosphere_cfg_t), intent(in) :: atm
+    type(cloud_cfg_t), intent(inout) :: cloud
+    integer :: k0, k
+    k0 = atm%k3d_bottom
+    associate (m => cloud%req%mcarats)
+      m%nx = atm%nx
+      m%ny = atm%ny
+      m%nz3 = atm%nz3
+      m%dx = atm%lx/atm%nx
+      m%dy = atm%ly/atm%ny
+      m%k3d_bottom = k0
+      ! atm%z(1:nz+1) holds levels 0..nz
+      if (allocated(m%z)) deallocate (m%z)
+      allocate (m%z(0:atm%nz3))
+      m%z(:) = atm%z(k0:k0 + atm%nz3)
+      if (allocated(m%abs1d)) deallocate (m%abs1d)
+      allocate (m%abs1d(atm%nz3))
+      do k = 1, atm%nz3
+        m%abs1d(k) = sum(atm%ext1d(k0 + k - 1, :)*(1.0_wp - atm%ssa1d(k0 + k - 1, :)))
+      end do
+      cloud%grid%nx = m%nx
+      cloud%grid%ny = m%ny
+      cloud%grid%nz = m%nz3
+      cloud%grid%dx = m%dx
+      cloud%grid%dy = m%dy
+      if (allocated(cloud%grid%z)) deallocate (cloud%grid%z)
+      allocate (cloud%grid%z(0:m%nz3))
+      cloud%grid%z(:) = m%z
+    end associate
+  end subroutine complete_mcarats
 
   !> The effective configuration as 'group.name = value' lines, for the log and the output file.
   function config_echo(cfg) result(text)
@@ -1469,6 +1724,18 @@ contains
       'kumo_cloud.n_reff = '//str(cfg%cloud%n_reff)//nl// &
       'kumo_cloud.mie_cache = '//trim(cfg%cloud%mie_cache)//nl// &
       'kumo_cloud.ice_optics_file = '//trim(cfg%cloud%ice_optics_file)//nl
+    if (cfg%cloud%enabled .and. cfg%cloud%req%format == 'mcarats') then
+      associate (m => cfg%cloud%req%mcarats)
+        text = text//'kumo_cloud.mcarats_np3d = '//given(m%np3d, 0)//nl// &
+               'kumo_cloud.mcarats_nkd = '//given(m%nkd, 0)//nl// &
+               'kumo_cloud.mcarats_mtprof = '//given(m%mtprof, -1)//nl// &
+               'kumo_cloud.mcarats_idread = '//str(m%idread)//nl// &
+               'kumo_cloud.mcarats_ikd = '//str(m%ikd)//nl// &
+               'kumo_cloud.mcarats_phase_file = '//trim(cfg%cloud%mcarats_phase_file)//nl// &
+               'kumo_cloud.mcarats_nang = '//given(m%nang, 0)//nl// &
+               'kumo_cloud.mcarats_npf = '//given(m%npf, 0)//nl
+      end associate
+    end if
     text = text//'kumo_atmosphere.cp_air = '//str(cfg%atm%cp_air)//nl// &
            'kumo_phase.n_phase = '//str(cfg%phase%n_phase)//nl
     do i = 1, cfg%phase%n_phase
@@ -1487,6 +1754,12 @@ contains
            str(cfg%surface%brdf_param(2))//', '//str(cfg%surface%brdf_param(3))//', '// &
            str(cfg%surface%brdf_param(4))//', '//str(cfg%surface%brdf_param(5))//nl// &
            'kumo_surface.wind_speed = '//str(cfg%surface%wind_speed)//nl// &
+           'kumo_surface.surface_file = '//trim(cfg%surface%surface_file)//nl// &
+           'kumo_surface.surface_format = '//trim(cfg%surface%surface_format)//nl// &
+           'kumo_surface.surface_nxb = '//str(cfg%surface%surface_nxb)//nl// &
+           'kumo_surface.surface_nyb = '//str(cfg%surface%surface_nyb)//nl// &
+           'kumo_surface.surface_mbrdf = '//join_int(cfg%surface%surface_mbrdf)//nl// &
+           'kumo_surface.surface_idread = '//str(cfg%surface%surface_idread)//nl// &
            'kumo_source.sza_deg = '//str(cfg%source%sza_deg)//nl// &
            'kumo_source.phi0_deg = '//str(cfg%source%phi0_deg)//nl// &
            'kumo_source.solar_flux = '//str(cfg%source%solar_flux)//nl// &
@@ -1528,6 +1801,18 @@ contains
     end do
   end function config_echo
 
+
+  !> A size of the MCARaTS request as the namelist writes it, or `unset` and "from the .ctl"
+  !> when it was not given (the request keeps -1 then).
+  pure function given(n, unset) result(s)
+    integer, intent(in) :: n, unset
+    character(len=:), allocatable :: s
+    if (n < 0) then
+      s = str(unset)//' (from the .ctl)'
+    else
+      s = str(n)
+    end if
+  end function given
 
   pure function join(names) result(s)
     character(len=*), intent(in) :: names(:)

@@ -14,17 +14,25 @@
 !> tmpa3d (nz3 + mtprof records, temperature perturbations [K]), absg3d (nkd x nz3, gas
 !> absorption perturbations [m-1], k outer), then per 3-D component extp3d [m-1], omgp3d and
 !> apfp3d (nz3 records each). A field is stored x fastest, then y.
+!>
+!> For a run (`&kumo_cloud cloud_format = 'mcarats'`, `&kumo_surface surface_format =
+!> 'mcarats'`), `mcarats_request_t` carries what kumo's namelist supplies in place of
+!> MCARaTS's own, and `mcarats_surface_brdf` turns a surface file into kumo's BRDF map.
 module kumo_mcarats_files
   use, intrinsic :: iso_fortran_env, only: int8, int32, int64, real32
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use kumo_kinds, only: wp
   use kumo_error, only: error_t, set_error, str, to_lower
+  use kumo_brdf, only: brdf_params_t, brdf_params, BRDF_BLACK, BRDF_LAMBERT, BRDF_DSM, BRDF_RPV, &
+                       BRDF_LSRT
   implicit none
   private
   public :: grads_ctl_t, grads_var_t, read_grads_ctl
   public :: mcarats_atm_t, read_mcarats_atm, read_mcarats_atm_ctl
   public :: mcarats_phase_t, read_mcarats_phase, read_mcarats_phase_ctl
   public :: mcarats_surface_t, read_mcarats_surface
+  public :: mcarats_request_t, mcarats_atm_ctl_sizes, mcarats_phase_ctl_sizes, is_ctl_path
+  public :: mcarats_surface_npsfc, mcarats_surface_brdf
   public :: BYTE_ORDER_NATIVE, BYTE_ORDER_LITTLE, BYTE_ORDER_BIG
 
   integer, parameter :: BYTE_ORDER_NATIVE = 0  !! as written on this machine (MCARaTS default)
@@ -82,10 +90,33 @@ module kumo_mcarats_files
     real(wp), allocatable :: p(:, :)
   end type mcarats_phase_t
 
+  !> What kumo's namelist supplies to read an MCARaTS atmosphere and its phase functions for a
+  !> run: the sizes MCARaTS takes from its own namelist (`Atm_np3d`, ..., `Sca_npf`) and the
+  !> grid of the 3-D region, which the binary file does not hold. A size of -1 is "not given"
+  !> (taken from the `.ctl`); nx, ny, nz3 = 0 are "not known yet".
+  type :: mcarats_request_t
+    integer :: nx = 0, ny = 0, nz3 = 0  !! voxels of the region (&kumo_atmosphere nx, ny, nz3)
+    integer :: np3d = -1                !! 3-D components (Atm_np3d)
+    integer :: nkd = -1                 !! correlated-k terms (Atm_nkd)
+    integer :: mtprof = -1              !! 0: temperatures per layer, 1: per level (Atm_mtprof)
+    integer :: idread = 1               !! dataset read (Atm_idread)
+    integer :: ikd = 1                  !! k-term whose absorption perturbation is used
+    character(len=:), allocatable :: phase_path  !! phase-function file (.ctl or binary), or ''
+    integer :: nang = -1, npf = -1      !! binary phase file: angles, tables (Sca_nangi, Sca_npf)
+    real(wp) :: dx = 0.0_wp, dy = 0.0_wp  !! column widths [m] (lx/nx, ly/ny)
+    integer :: k3d_bottom = 0           !! kumo layer of the region's first layer (Atm_iz3l)
+    real(wp), allocatable :: z(:)       !! layer edges of the region, z(0:nz3) [m]
+    !> absorption coefficient of the 1-D components in the region's layers (nz3) [m-1]: the
+    !> 1-D gas absorption the perturbation absg3d is added to (MCARaTS Atm_abs1d)
+    real(wp), allocatable :: abs1d(:)
+  end type mcarats_request_t
+
   !> One dataset of an MCARaTS surface file, arrays (nxb, nyb[, npsfc]).
   type :: mcarats_surface_t
     integer :: nxb = 0, nyb = 0          !! surface pixels
     integer :: npsfc = 0                 !! parameter fields per dataset
+    integer :: idread = 0                !! dataset read (1-based)
+    integer :: ndatasets = 0             !! datasets in the file
     real(wp), allocatable :: temperature(:, :)  !! [K]
     integer, allocatable :: brdf_type(:, :)     !! 0 black, 1 Lambert, 2 DSM, 3 RPV, 4 LSRT
     real(wp), allocatable :: params(:, :, :)    !! BRDF parameters in MCARaTS order
@@ -360,10 +391,8 @@ contains
     end subroutine check_field
   end subroutine read_mcarats_atm
 
-  !> Read an MCARaTS 3-D atmosphere through its `.ctl` descriptor. Sizes come from it: nx, ny
-  !> from XDEF, YDEF; nz3 from the levels of the extinction variable; mtprof = levels of the
-  !> first (temperature) variable - nz3; nkd = levels of the second (absorption) / nz3; np3d
-  !> from the remaining variables, three (ext, omg, apf) per component.
+  !> Read an MCARaTS 3-D atmosphere through its `.ctl` descriptor. Sizes come from it (see
+  !> `mcarats_atm_ctl_sizes`).
   subroutine read_mcarats_atm_ctl(ctl_path, atm, error, idread, npf)
     character(len=*), intent(in) :: ctl_path          !! the .ctl file
     type(mcarats_atm_t), intent(out) :: atm           !! the dataset read
@@ -371,7 +400,39 @@ contains
     integer, intent(in), optional :: idread           !! dataset, 1-based (default 1)
     integer, intent(in), optional :: npf              !! number of tabulated phase functions
     type(grads_ctl_t) :: ctl
-    integer :: nv, nz3, mtprof, nkd, np3d, ip, ids
+    integer :: nz3, mtprof, nkd, np3d, ids
+    call mcarats_atm_ctl_sizes(ctl_path, ctl, nz3, mtprof, nkd, np3d, error)
+    if (allocated(error)) return
+    ids = 1
+    if (present(idread)) ids = idread
+    if (ids < 1 .or. ids > ctl%nt) then
+      call set_error(error, trim(ctl_path)//': idread = '//str(ids)//' must be within [1, '// &
+                     'TDEF = '//str(ctl%nt)//']')
+      return
+    end if
+    call read_mcarats_atm(ctl%dset, ctl%nx, ctl%ny, nz3, mtprof, nkd, np3d, atm, error, &
+                          idread=ids, byte_order=ctl%byte_order, npf=npf)
+    if (allocated(error)) return
+    if (atm%ndatasets /= ctl%nt) then
+      call set_error(error, ctl%dset//': holds '//str(atm%ndatasets)//' datasets but '// &
+                     trim(ctl_path)//' says TDEF = '//str(ctl%nt))
+    end if
+  end subroutine read_mcarats_atm_ctl
+
+  !> Sizes of an MCARaTS 3-D atmosphere from its `.ctl` descriptor, without reading the data:
+  !> nx, ny from XDEF, YDEF (in `ctl`); nz3 from the levels of the extinction variable;
+  !> mtprof = levels of the first (temperature) variable - nz3; nkd = levels of the second
+  !> (absorption) / nz3; np3d from the remaining variables, three (ext, omg, apf) per component.
+  subroutine mcarats_atm_ctl_sizes(ctl_path, ctl, nz3, mtprof, nkd, np3d, error)
+    character(len=*), intent(in) :: ctl_path          !! the .ctl file
+    type(grads_ctl_t), intent(out) :: ctl             !! the descriptor
+    integer, intent(out) :: nz3, mtprof, nkd, np3d    !! the MCARaTS sizes
+    type(error_t), allocatable, intent(out) :: error  !! unallocated on success
+    integer :: nv, ip
+    nz3 = 0
+    mtprof = 0
+    nkd = 0
+    np3d = 0
     call read_grads_ctl(ctl_path, ctl, error)
     if (allocated(error)) return
     nv = size(ctl%vars)
@@ -402,21 +463,7 @@ contains
       return
     end if
     nkd = ctl%vars(2)%nlev/nz3
-    ids = 1
-    if (present(idread)) ids = idread
-    if (ids < 1 .or. ids > ctl%nt) then
-      call set_error(error, trim(ctl_path)//': idread = '//str(ids)//' must be within [1, '// &
-                     'TDEF = '//str(ctl%nt)//']')
-      return
-    end if
-    call read_mcarats_atm(ctl%dset, ctl%nx, ctl%ny, nz3, mtprof, nkd, np3d, atm, error, &
-                          idread=ids, byte_order=ctl%byte_order, npf=npf)
-    if (allocated(error)) return
-    if (atm%ndatasets /= ctl%nt) then
-      call set_error(error, ctl%dset//': holds '//str(atm%ndatasets)//' datasets but '// &
-                     trim(ctl_path)//' says TDEF = '//str(ctl%nt))
-    end if
-  end subroutine read_mcarats_atm_ctl
+  end subroutine mcarats_atm_ctl_sizes
 
   ! ------------------------------------------------------------------------------------------
   ! Phase functions
@@ -513,13 +560,27 @@ contains
     end do
   end subroutine read_mcarats_phase
 
-  !> Read an MCARaTS phase-function file through its `.ctl`: nang from XDEF, npf from the
-  !> levels of the second variable (the first holds the angles).
+  !> Read an MCARaTS phase-function file through its `.ctl` (sizes: `mcarats_phase_ctl_sizes`).
   subroutine read_mcarats_phase_ctl(ctl_path, pf, error)
     character(len=*), intent(in) :: ctl_path          !! the .ctl file
     type(mcarats_phase_t), intent(out) :: pf          !! the tables read
     type(error_t), allocatable, intent(out) :: error  !! unallocated on success
     type(grads_ctl_t) :: ctl
+    integer :: nang, npf
+    call mcarats_phase_ctl_sizes(ctl_path, ctl, nang, npf, error)
+    if (allocated(error)) return
+    call read_mcarats_phase(ctl%dset, nang, npf, pf, error, byte_order=ctl%byte_order)
+  end subroutine read_mcarats_phase_ctl
+
+  !> Sizes of an MCARaTS phase-function file from its `.ctl`: nang from XDEF, npf from the
+  !> levels of the second variable (the first holds the angles).
+  subroutine mcarats_phase_ctl_sizes(ctl_path, ctl, nang, npf, error)
+    character(len=*), intent(in) :: ctl_path          !! the .ctl file
+    type(grads_ctl_t), intent(out) :: ctl             !! the descriptor
+    integer, intent(out) :: nang, npf                 !! angles per table, tables
+    type(error_t), allocatable, intent(out) :: error  !! unallocated on success
+    nang = 0
+    npf = 0
     call read_grads_ctl(ctl_path, ctl, error)
     if (allocated(error)) return
     if (size(ctl%vars) /= 2 .or. ctl%ny /= 1) then
@@ -532,9 +593,18 @@ contains
                      str(ctl%vars(1)%nlev)//' levels; expected 1')
       return
     end if
-    call read_mcarats_phase(ctl%dset, ctl%nx, ctl%vars(2)%nlev, pf, error, &
-                            byte_order=ctl%byte_order)
-  end subroutine read_mcarats_phase_ctl
+    nang = ctl%nx
+    npf = ctl%vars(2)%nlev
+  end subroutine mcarats_phase_ctl_sizes
+
+  !> A file name ending in `.ctl` (any case) names a GrADS descriptor.
+  pure logical function is_ctl_path(path)
+    character(len=*), intent(in) :: path
+    integer :: n
+    n = len_trim(path)
+    is_ctl_path = .false.
+    if (n >= 4) is_ctl_path = to_lower(path(n - 3:n)) == '.ctl'
+  end function is_ctl_path
 
   ! ------------------------------------------------------------------------------------------
   ! Surface
@@ -579,6 +649,8 @@ contains
     call read_f32_records(path, nxb*nyb, 2 + npsfc, ids, bo, names, f, nd, error)
     if (allocated(error)) return
     irec0 = (ids - 1)*(2 + npsfc)
+    sfc%idread = ids
+    sfc%ndatasets = nd
     sfc%nxb = nxb
     sfc%nyb = nyb
     sfc%npsfc = npsfc
@@ -650,6 +722,49 @@ contains
     sfc%missing = 'the surface extent the nxb x nyb pixels are mapped onto (the atmosphere '// &
                   'domain) and the wavelength'
   end subroutine read_mcarats_surface
+
+  !> Parameter fields per pixel of an MCARaTS surface file whose enabled BRDF models are
+  !> `mbrdf` (MCARaTS `Sfc_mbrdf`: Lambert, DSM, RPV, LSRT; non-zero = may appear): the largest
+  !> parameter count among them (1, 5, 4, 3), 0 when none is enabled (black pixels only).
+  pure integer function mcarats_surface_npsfc(mbrdf) result(npsfc)
+    integer, intent(in) :: mbrdf(4)
+    integer :: i
+    npsfc = 0
+    do i = 1, 4
+      if (mbrdf(i) /= 0) npsfc = max(npsfc, SFC_NPAR(i))
+    end do
+  end function mcarats_surface_npsfc
+
+  !> kumo's BRDF parameter set of every pixel of an MCARaTS surface: black, Lambert (albedo),
+  !> DSM, RPV and LSRT with their parameters in the MCARaTS order, which is kumo's
+  !> (`brdf_params_t`). Pixels of different kinds may be mixed; a pixel whose kind `mbrdf` does
+  !> not enable (MCARaTS would not have read its parameters) is an error naming the file and
+  !> the pixel. Ranges are checked by kumo's BRDF setup.
+  subroutine mcarats_surface_brdf(sfc, mbrdf, path, params, error)
+    type(mcarats_surface_t), intent(in) :: sfc        !! the surface read
+    integer, intent(in) :: mbrdf(4)                   !! enabled models (Sfc_mbrdf)
+    character(len=*), intent(in) :: path              !! the file, for messages
+    type(brdf_params_t), allocatable, intent(out) :: params(:, :)  !! (nxb, nyb)
+    type(error_t), allocatable, intent(out) :: error  !! unallocated on success
+    integer, parameter :: KUMO_KIND(0:4) = [BRDF_BLACK, BRDF_LAMBERT, BRDF_DSM, BRDF_RPV, BRDF_LSRT]
+    integer :: ix, iy, it
+    allocate (params(sfc%nxb, sfc%nyb))
+    do iy = 1, sfc%nyb
+      do ix = 1, sfc%nxb
+        it = sfc%brdf_type(ix, iy)
+        if (it > 0) then
+          if (mbrdf(it) == 0) then
+            call set_error(error, trim(path)//': pixel (ix='//str(ix)//', iy='//str(iy)// &
+                           '), BRDF type '//str(it)//' ('//trim(SFC_NAMES(it))//') is not '// &
+                           'enabled by mbrdf = '//str(mbrdf(1))//', '//str(mbrdf(2))//', '// &
+                           str(mbrdf(3))//', '//str(mbrdf(4))//' (MCARaTS Sfc_mbrdf)')
+            return
+          end if
+        end if
+        params(ix, iy) = brdf_params(KUMO_KIND(it), sfc%params(ix, iy, 1:SFC_NPAR(it)))
+      end do
+    end do
+  end subroutine mcarats_surface_brdf
 
   ! ------------------------------------------------------------------------------------------
   ! Binary records

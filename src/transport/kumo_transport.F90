@@ -542,11 +542,12 @@ contains
     ev = 0
     ix = 0
     iy = 0
-    ! path length per unit of x, y and z travelled (huge along an axis the photon does not move)
-    rux = huge(1.0_wp)
-    ruy = huge(1.0_wp)
-    if (abs(ux) >= tiny(1.0_wp)) rux = 1.0_wp/abs(ux)
-    if (abs(uy) >= tiny(1.0_wp)) ruy = 1.0_wp/abs(uy)
+    ! path length per unit of x, y and z travelled (unused along an axis the photon does not
+    ! move: that face distance is huge)
+    rux = 0.0_wp
+    ruy = 0.0_wp
+    if (abs(ux) > 0.0_wp) rux = 1.0_wp/abs(ux)
+    if (abs(uy) > 0.0_wp) ruy = 1.0_wp/abs(uy)
     ruz = 1.0_wp/abs(uz)
     kr = iz - atm%k3_lo + 1
     if (uz > 0.0_wp) then
@@ -571,13 +572,17 @@ contains
       ylo = (jy - 1)*bdy
       if (ux > 0.0_wp) then
         dxf = max(0.0_wp, (min(atm%lx, xlo + bdx) - x)*rux)
-      else
+      else if (ux < 0.0_wp) then
         dxf = max(0.0_wp, (x - xlo)*rux)
+      else
+        dxf = huge(1.0_wp)
       end if
       if (uy > 0.0_wp) then
         dyf = max(0.0_wp, (min(atm%ly, ylo + bdy) - y)*ruy)
-      else
+      else if (uy < 0.0_wp) then
         dyf = max(0.0_wp, (y - ylo)*ruy)
+      else
+        dyf = huge(1.0_wp)
       end if
       smax = atm%sv%maj(off + jx + (jy - 1)*nbx)
 

@@ -34,8 +34,8 @@ module kumo_cloud_scene
   use kumo_mie_table, only: mie_table_cached, read_mie_table
   use kumo_rayleigh, only: rayleigh_extinction
   use kumo_std_atmosphere, only: std_atmosphere_profile
-  use kumo_cloud_input, only: cloud_input_t, read_cloud_input, CLOUD_WATER, CLOUD_EXT_REFF, &
-                              CLOUD_OPTICS, CLOUD_MCARATS
+  use kumo_cloud_input, only: cloud_input_t, read_cloud_input, locate, CLOUD_WATER, &
+                              CLOUD_EXT_REFF, CLOUD_OPTICS, CLOUD_MCARATS
   use kumo_mcarats_files, only: mcarats_request_t
   use kumo_atmosphere, only: atmosphere_t, atmosphere_options_t, atmosphere_begin, &
                              atmosphere_put_layer, atmosphere_end
@@ -529,30 +529,13 @@ contains
     else if (apf <= -1.0_wp) then
       j = 2
     else if (apf < 1.0_wp) then
-      j = 2 + hg_slot(gs, apf)
+      j = 2 + locate(gs, apf)
     else
       ipf = int(apf)
       r = apf - ipf
       j = slot(ipf)
     end if
   end subroutine mcarats_code
-
-  !> Position of g in the sorted, distinct list gs (g must be in it).
-  pure integer function hg_slot(gs, g) result(i)
-    real(wp), intent(in) :: gs(:), g
-    integer :: lo, hi
-    lo = 1
-    hi = size(gs)
-    do while (lo < hi)
-      i = (lo + hi)/2
-      if (gs(i) < g) then
-        lo = i + 1
-      else
-        hi = i
-      end if
-    end do
-    i = lo
-  end function hg_slot
 
   !> Rayleigh extinction of dry air in every layer [m-1], the layers' air density [kg m-3]
   !> (mass per area (p_bottom - p_top)/g0 over the thickness) and a note saying where the

@@ -31,7 +31,7 @@ module kumo_cloud_input
                                 mcarats_atm_ctl_sizes, mcarats_phase_ctl_sizes, is_ctl_path
   implicit none
   private
-  public :: cloud_input_t, cloud_request_t, read_cloud_input, cloud_format_check
+  public :: cloud_input_t, cloud_request_t, read_cloud_input, cloud_format_check, locate
   public :: CLOUD_FORMAT_NAMES, CLOUD_WATER, CLOUD_EXT_REFF, CLOUD_OPTICS, CLOUD_MCARATS
 
   !> Formats, as named in the namelist (`&kumo_cloud cloud_format`).

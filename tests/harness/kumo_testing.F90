@@ -17,7 +17,7 @@ module kumo_testing
   implicit none
   private
   public :: error_t, test_proc, unittest_t, new_unittest, run_unittests
-  public :: check, check_close, check_sigma
+  public :: check, check_close, check_sigma, check_error_words
 
   !> Interface of a test procedure.
   abstract interface
@@ -273,4 +273,22 @@ contains
       if (len_trim(label) > 0) prefix = trim(label)//': '
     end if
   end function label_of
+  !> The call under test must have failed (`err` allocated) with a message holding every one of
+  !> `words`; records a failure in `error` otherwise (nothing is checked once `error` is set).
+  subroutine check_error_words(error, err, words)
+    type(error_t), allocatable, intent(inout) :: error
+    type(error_t), allocatable, intent(in) :: err
+    character(len=*), intent(in) :: words(:)
+    integer :: i
+    if (allocated(error)) return
+    if (.not. allocated(err)) then
+      call check(error, .false., 'no error; expected one with "'//trim(words(1))//'"')
+      return
+    end if
+    do i = 1, size(words)
+      call check(error, index(err%message, trim(words(i))) > 0, 'message "'//err%message// &
+                 '" lacks "'//trim(words(i))//'"')
+    end do
+  end subroutine check_error_words
+
 end module kumo_testing

@@ -18,7 +18,8 @@ module test_kumo_formats
   use kumo_mcarats_files, only: mcarats_atm_t, mcarats_phase_t, mcarats_surface_t, &
                                 read_mcarats_atm, read_mcarats_atm_ctl, read_mcarats_phase, &
                                 read_mcarats_phase_ctl, read_mcarats_surface
-  use kumo_testing, only: error_t, unittest_t, new_unittest, check, check_close
+  use kumo_testing, only: error_t, unittest_t, new_unittest, check, check_close, &
+                          check_error_words
   use kumo_test_text, only: shared_dir
   implicit none
   private
@@ -188,7 +189,7 @@ contains
     call check(error, f%reff(2, 1, 2) == 0.0_wp, 'no droplets, no radius')
     call check(error, index(f%missing, 'droplet number') == 0, 'droplet number now known')
     call set_reff_from_droplet_number(f, -5.0_dp, err)
-    call expect_error(error, err, ['droplet number = -5', 'must be > 0        '])
+    call check_error_words(error, err, ['droplet number = -5', 'must be > 0        '])
   end subroutine test_lwc_one_param
 
   subroutine test_lwc_bad(error)
@@ -201,46 +202,46 @@ contains
     ! truncated inside the header
     call write_text(FILE, '2 parameter LWC file'//NL//'2 2 1'//NL//'0.1 0.1'//NL)
     call read_lwc_file(FILE, f, err)
-    call expect_error(error, err, [character(len=40) :: FILE, 'ends after line 3', 'header'])
+    call check_error_words(error, err, [character(len=40) :: FILE, 'ends after line 3', 'header'])
     ! heights: neither nz nor nz+1
     call write_text(FILE, '2'//NL//'2 2 1'//NL//'0.1 0.1'//NL//'0.5 0.6 0.7'//NL//'1 2 3'//NL)
     call read_lwc_file(FILE, f, err)
-    call expect_error(error, err, [character(len=40) :: 'line 4', 'holds 3 heights'])
+    call check_error_words(error, err, [character(len=40) :: 'line 4', 'holds 3 heights'])
     ! wrong count of values on a point line (truncated line)
     call write_text(FILE, HEAD//'1 1 1 0.1 8'//NL//'2 1 1 0.2'//NL)
     call read_lwc_file(FILE, f, err)
-    call expect_error(error, err, [character(len=40) :: 'line 7', 'holds 4 values', &
+    call check_error_words(error, err, [character(len=40) :: 'line 7', 'holds 4 values', &
                                    'expected 5 (ix iy iz lwc reff)'])
     ! negative water
     call write_text(FILE, HEAD//'1 1 1 -0.1 8'//NL)
     call read_lwc_file(FILE, f, err)
-    call expect_error(error, err, [character(len=40) :: FILE//' line 6', 'lwc = -0.1 g m-3', &
+    call check_error_words(error, err, [character(len=40) :: FILE//' line 6', 'lwc = -0.1 g m-3', &
                                    'must be >= 0'])
     ! NaN
     call write_text(FILE, HEAD//'1 1 1 0.1 8'//NL//'1 2 1 NaN 8'//NL)
     call read_lwc_file(FILE, f, err)
-    call expect_error(error, err, [character(len=40) :: 'line 7', 'lwc = NaN', 'must be finite'])
+    call check_error_words(error, err, [character(len=40) :: 'line 7', 'lwc = NaN', 'must be finite'])
     ! index out of range
     call write_text(FILE, HEAD//'3 1 1 0.1 8'//NL)
     call read_lwc_file(FILE, f, err)
-    call expect_error(error, err, [character(len=40) :: 'line 6', 'ix = 3', &
+    call check_error_words(error, err, [character(len=40) :: 'line 6', 'ix = 3', &
                                    'must be within [1, nx = 2]'])
     ! duplicate point
     call write_text(FILE, HEAD//'1 1 1 0.1 8'//NL//'2 2 1 0.1 8'//NL//'1 1 1 0.2 9'//NL)
     call read_lwc_file(FILE, f, err)
-    call expect_error(error, err, [character(len=40) :: 'line 8', 'point (1, 1, 1)', &
+    call check_error_words(error, err, [character(len=40) :: 'line 8', 'point (1, 1, 1)', &
                                    'listed twice (first on line 6)'])
     ! water without a radius
     call write_text(FILE, HEAD//'1 1 1 0.1 0'//NL)
     call read_lwc_file(FILE, f, err)
-    call expect_error(error, err, [character(len=40) :: 'reff = 0', 'must be > 0 where lwc > 0'])
+    call check_error_words(error, err, [character(len=40) :: 'reff = 0', 'must be > 0 where lwc > 0'])
     ! multi-component particle files are not LWC files
     call write_text(FILE, '3'//NL//'2 2 1'//NL)
     call read_lwc_file(FILE, f, err)
-    call expect_error(error, err, [character(len=40) :: 'line 1', 'format type = 3'])
+    call check_error_words(error, err, [character(len=40) :: 'line 1', 'format type = 3'])
     ! the file itself must exist
     call read_lwc_file('formats_no_such_file.lwc', f, err)
-    call expect_error(error, err, [character(len=40) :: 'cannot open', 'formats_no_such_file'])
+    call check_error_words(error, err, [character(len=40) :: 'cannot open', 'formats_no_such_file'])
   end subroutine test_lwc_bad
 
   subroutine test_prp_bad(error)
@@ -265,55 +266,55 @@ contains
     ! a point missing
     call write_text(FILE, head//pts)
     call read_prp_file(FILE, p, err)
-    call expect_error(error, err, [character(len=40) :: 'lists 3 of nx*ny*nz = 4', &
+    call check_error_words(error, err, [character(len=40) :: 'lists 3 of nx*ny*nz = 4', &
                                    'first missing is (2, 1, 2)'])
     ! phase-function index out of range
     call write_text(FILE, head//pts//'2 1 2 270 0.0 0.0 3'//NL)
     call read_prp_file(FILE, p, err)
-    call expect_error(error, err, [character(len=40) :: 'line 11', 'iphase = 3', &
+    call check_error_words(error, err, [character(len=40) :: 'line 11', 'iphase = 3', &
                                    'within [1, numphase = 2]'])
     ! NaN extinction, negative extinction, ssa above one
     call write_text(FILE, head//pts//'2 1 2 270 nan 0.0 1'//NL)
     call read_prp_file(FILE, p, err)
-    call expect_error(error, err, [character(len=40) :: 'line 11', 'ext = NaN', 'finite'])
+    call check_error_words(error, err, [character(len=40) :: 'line 11', 'ext = NaN', 'finite'])
     call write_text(FILE, head//pts//'2 1 2 270 -1.0 0.0 1'//NL)
     call read_prp_file(FILE, p, err)
-    call expect_error(error, err, [character(len=40) :: 'line 11', 'ext = -1 km-1', '>= 0'])
+    call check_error_words(error, err, [character(len=40) :: 'line 11', 'ext = -1 km-1', '>= 0'])
     call write_text(FILE, head//pts//'2 1 2 270 1.0 1.5 1'//NL)
     call read_prp_file(FILE, p, err)
-    call expect_error(error, err, [character(len=40) :: 'ssa = 1.5', 'within [0, 1]'])
+    call check_error_words(error, err, [character(len=40) :: 'ssa = 1.5', 'within [0, 1]'])
     ! duplicate point
     call write_text(FILE, head//pts//'2 1 1 270 1.0 0.5 1'//NL)
     call read_prp_file(FILE, p, err)
-    call expect_error(error, err, [character(len=40) :: 'line 11', 'point (2, 1, 1)', &
+    call check_error_words(error, err, [character(len=40) :: 'line 11', 'point (2, 1, 1)', &
                                    'listed twice (first on line 9)'])
     ! trailing value on a point line
     call write_text(FILE, head//pts//'2 1 2 270 1.0 0.5 1 7'//NL)
     call read_prp_file(FILE, p, err)
-    call expect_error(error, err, [character(len=40) :: 'line 11', 'holds 8 values', &
+    call check_error_words(error, err, [character(len=40) :: 'line 11', 'holds 8 values', &
                                    'expected 7'])
     ! numphase too small: the next coefficients are left over
     call write_text(FILE, 'T'//NL//'2 1 2'//NL//'0.5 0.5 0.0 1.0'//NL//'1'//NL//'1 1.5 1.25'//NL)
     call read_prp_file(FILE, p, err)
-    call expect_error(error, err, [character(len=40) :: 'line 5', 'unexpected "1.25"', &
+    call check_error_words(error, err, [character(len=40) :: 'line 5', 'unexpected "1.25"', &
                                    'numphase too small'])
     ! |chi_1| > 1, i.e. a_1 > 3
     call write_text(FILE, 'T'//NL//'2 1 2'//NL//'0.5 0.5 0.0 1.0'//NL//'1'//NL//'1 3.3'//NL)
     call read_prp_file(FILE, p, err)
-    call expect_error(error, err, [character(len=40) :: 'line 5', '|chi_1| = 1.1 > 1'])
+    call check_error_words(error, err, [character(len=40) :: 'line 5', '|chi_1| = 1.1 > 1'])
     ! truncated inside the phase table
     call write_text(FILE, 'T'//NL//'2 1 2'//NL//'0.5 0.5 0.0 1.0'//NL//'2'//NL//'3 1.5'//NL)
     call read_prp_file(FILE, p, err)
-    call expect_error(error, err, [character(len=40) :: 'ends after line 5', &
+    call check_error_words(error, err, [character(len=40) :: 'ends after line 5', &
                                    'phase-function table'])
     ! another SHDOM property format
     call write_text(FILE, 'E'//NL//'2 1 2'//NL)
     call read_prp_file(FILE, p, err)
-    call expect_error(error, err, [character(len=40) :: 'line 1', 'does not begin with ''T'''])
+    call check_error_words(error, err, [character(len=40) :: 'line 1', 'does not begin with ''T'''])
     ! levels must increase
     call write_text(FILE, 'T'//NL//'2 1 2'//NL//'0.5 0.5 1.0 1.0'//NL)
     call read_prp_file(FILE, p, err)
-    call expect_error(error, err, [character(len=40) :: 'line 3', 'heights must increase'])
+    call check_error_words(error, err, [character(len=40) :: 'line 3', 'heights must increase'])
   end subroutine test_prp_bad
 
   subroutine test_mystic(error)
@@ -360,34 +361,34 @@ contains
     character(len=*), parameter :: HEAD3 = '2 1 1 3'//NL//'1 1 0 1'//NL
     call write_text(FILE, HEAD3//'1 1 1 -0.3 9.0'//NL)
     call read_mystic_file(FILE, c, err)
-    call expect_error(error, err, [character(len=40) :: 'line 3', 'lwc = -0.3 g m-3', '>= 0'])
+    call check_error_words(error, err, [character(len=40) :: 'line 3', 'lwc = -0.3 g m-3', '>= 0'])
     call write_text(FILE, HEAD3//'1 1 1 0.3 9.0'//NL//'1 1 1 0.2 8.0'//NL)
     call read_mystic_file(FILE, c, err)
-    call expect_error(error, err, [character(len=40) :: 'line 4', 'cell (1, 1, 1)', &
+    call check_error_words(error, err, [character(len=40) :: 'line 4', 'cell (1, 1, 1)', &
                                    'listed twice (first on line 3)'])
     call write_text(FILE, HEAD3//'1 1 1 0.3'//NL)
     call read_mystic_file(FILE, c, err)
-    call expect_error(error, err, [character(len=40) :: 'line 3', 'holds 4 values', &
+    call check_error_words(error, err, [character(len=40) :: 'line 3', 'holds 4 values', &
                                    'expected 5 (ix iy iz lwc reff)'])
     call write_text(FILE, HEAD3//'1 1 2 0.3 9.0'//NL)
     call read_mystic_file(FILE, c, err)
-    call expect_error(error, err, [character(len=40) :: 'line 3', 'iz = 2', '[1, nz = 1]'])
+    call check_error_words(error, err, [character(len=40) :: 'line 3', 'iz = 2', '[1, nz = 1]'])
     call write_text(FILE, HEAD3//'1 1 1 inf 9.0'//NL)
     call read_mystic_file(FILE, c, err)
-    call expect_error(error, err, [character(len=40) :: 'line 3', 'lwc = Inf', 'finite'])
+    call check_error_words(error, err, [character(len=40) :: 'line 3', 'lwc = Inf', 'finite'])
     call write_text(FILE, '1 1 1 1'//NL//'1 1 0 1'//NL//'1 1 1 5.0 1.0 0.9'//NL)
     call read_mystic_file(FILE, c, err)
-    call expect_error(error, err, [character(len=40) :: 'line 3', 'g = 1', '|g| < 1'])
+    call check_error_words(error, err, [character(len=40) :: 'line 3', 'g = 1', '|g| < 1'])
     call write_text(FILE, '1 1 1 4'//NL//'1 1 0 1'//NL)
     call read_mystic_file(FILE, c, err)
-    call expect_error(error, err, [character(len=40) :: 'line 1', 'flag = 4'])
+    call check_error_words(error, err, [character(len=40) :: 'line 1', 'flag = 4'])
     call write_text(FILE, '1 1 2 3'//NL//'1 1 0 1'//NL)
     call read_mystic_file(FILE, c, err)
-    call expect_error(error, err, [character(len=40) :: 'line 2', 'holds 4 values', &
+    call check_error_words(error, err, [character(len=40) :: 'line 2', 'holds 4 values', &
                                    'nz+1 = 3 layer boundaries'])
     call write_text(FILE, '1 1 2 3'//NL)
     call read_mystic_file(FILE, c, err)
-    call expect_error(error, err, [character(len=40) :: 'ends after line 1', 'truncated'])
+    call check_error_words(error, err, [character(len=40) :: 'ends after line 1', 'truncated'])
   end subroutine test_mystic_bad
 
   ! ------------------------------------------------------------------------------------------
@@ -427,11 +428,11 @@ contains
     call no_error(error, err)
     ! wrong sizes (mtprof = 0) do not fit the file size: rejected, not guessed
     call read_mcarats_atm(shared_dir//MCA//'les05_0213.atm', 60, 60, 21, 0, 1, 1, a, err)
-    call expect_error(error, err, [character(len=48) :: '1526400 bytes', &
+    call check_error_words(error, err, [character(len=48) :: '1526400 bytes', &
                                    'not a whole number of datasets'])
     ! fewer tabulated phase functions than the apf codes use
     call read_mcarats_atm_ctl(shared_dir//MCA//'les05_0213.atm.ctl', a, err, npf=59)
-    call expect_error(error, err, [character(len=48) :: 'apfp3d comp. 1 layer', &
+    call check_error_words(error, err, [character(len=48) :: 'apfp3d comp. 1 layer', &
                                    'must be within (-3, npf = 59]'])
   end subroutine test_mcarats_atm
 
@@ -492,37 +493,37 @@ contains
     bad(2, 3) = nan32
     call write_f32(FILE, bad)
     call read_mcarats_atm(FILE, 2, 1, 1, 0, 1, 1, a, err)
-    call expect_error(error, err, [character(len=40) :: FILE//': record 3', &
+    call check_error_words(error, err, [character(len=40) :: FILE//': record 3', &
                                    '(extp3d comp. 1 layer 1)', 'value 2 is NaN'])
     ! negative extinction
     bad = good
     bad(1, 3) = -0.25
     call write_f32(FILE, bad)
     call read_mcarats_atm(FILE, 2, 1, 1, 0, 1, 1, a, err)
-    call expect_error(error, err, [character(len=40) :: 'record 3 (extp3d', 'ix = 1, iy = 1', &
+    call check_error_words(error, err, [character(len=40) :: 'record 3 (extp3d', 'ix = 1, iy = 1', &
                                    'extp3d = -0.25', 'must be within [0, Inf)'])
     ! single-scattering albedo above one
     bad = good
     bad(2, 4) = 1.25
     call write_f32(FILE, bad)
     call read_mcarats_atm(FILE, 2, 1, 1, 0, 1, 1, a, err)
-    call expect_error(error, err, [character(len=40) :: 'record 4 (omgp3d', 'omgp3d = 1.25', &
+    call check_error_words(error, err, [character(len=40) :: 'record 4 (omgp3d', 'omgp3d = 1.25', &
                                    'within [0, 1]'])
     ! apf index beyond the phase-function table
     bad = good
     bad(1, 5) = 3.0
     call write_f32(FILE, bad)
     call read_mcarats_atm(FILE, 2, 1, 1, 0, 1, 1, a, err, npf=2)
-    call expect_error(error, err, [character(len=40) :: 'record 5 (apfp3d', 'apfp3d = 3', &
+    call check_error_words(error, err, [character(len=40) :: 'record 5 (apfp3d', 'apfp3d = 3', &
                                    'npf = 2]'])
     ! truncated and trailing data
     call write_f32(FILE, reshape(good(:, 1:4), [2, 4]))
     call read_mcarats_atm(FILE, 2, 1, 1, 0, 1, 1, a, err)
-    call expect_error(error, err, [character(len=40) :: '32 bytes', 'fewer than one dataset', &
+    call check_error_words(error, err, [character(len=40) :: '32 bytes', 'fewer than one dataset', &
                                    'truncated'])
     call write_f32(FILE, reshape([good, [real(real32) :: 7.0, 7.0, 7.0]], [13, 1]))
     call read_mcarats_atm(FILE, 2, 1, 1, 0, 1, 1, a, err)
-    call expect_error(error, err, [character(len=40) :: '52 bytes', &
+    call check_error_words(error, err, [character(len=40) :: '52 bytes', &
                                    'not a whole number of datasets', 'trailing data'])
     ! phase functions: decreasing angles are reversed; a duplicate angle is rejected
     ang = [real(real32) :: 180, 120, 60, 0]
@@ -538,13 +539,13 @@ contains
     ang = [real(real32) :: 0, 60, 60, 180]
     call write_f32(PFILE, reshape([ang, ph], [4, 3]))
     call read_mcarats_phase(PFILE, 4, 2, p, err)
-    call expect_error(error, err, [character(len=40) :: 'record 1 (angles)', 'angle 3 = 60', &
+    call check_error_words(error, err, [character(len=40) :: 'record 1 (angles)', 'angle 3 = 60', &
                                    'duplicate or unsorted'])
     ang = [real(real32) :: 0, 60, 120, 180]
     ph(2, 2) = -0.5
     call write_f32(PFILE, reshape([ang, ph], [4, 3]))
     call read_mcarats_phase(PFILE, 4, 2, p, err)
-    call expect_error(error, err, [character(len=40) :: 'record 3 (phase function 2)', &
+    call check_error_words(error, err, [character(len=40) :: 'record 3 (phase function 2)', &
                                    'value 2 = -0.5', 'must be >= 0'])
   end subroutine test_mcarats_bad
 
@@ -573,22 +574,22 @@ contains
     bad(1, 2) = 7.0
     call write_f32(FILE, bad)
     call read_mcarats_surface(FILE, 3, 1, 5, s, err)
-    call expect_error(error, err, [character(len=40) :: 'pixel (ix=1, iy=1)', &
+    call check_error_words(error, err, [character(len=40) :: 'pixel (ix=1, iy=1)', &
                                    'record 2 (BRDF type) = 7'])
     bad = rec
     bad(1, 3) = 1.5
     call write_f32(FILE, bad)
     call read_mcarats_surface(FILE, 3, 1, 5, s, err)
-    call expect_error(error, err, [character(len=40) :: 'Lambert albedo', '= 1.5', '[0, 1]'])
+    call check_error_words(error, err, [character(len=40) :: 'Lambert albedo', '= 1.5', '[0, 1]'])
     ! DSM needs five parameters
     call write_f32(FILE, rec(:, 1:5))
     call read_mcarats_surface(FILE, 3, 1, 3, s, err)
-    call expect_error(error, err, [character(len=40) :: 'pixel (ix=2, iy=1)', 'DSM needs 5', &
+    call check_error_words(error, err, [character(len=40) :: 'pixel (ix=2, iy=1)', 'DSM needs 5', &
                                    'npsfc = 3'])
     ! truncated
     call write_f32(FILE, rec(:, 1:6))
     call read_mcarats_surface(FILE, 3, 1, 5, s, err)
-    call expect_error(error, err, [character(len=40) :: 'fewer than one dataset'])
+    call check_error_words(error, err, [character(len=40) :: 'fewer than one dataset'])
   end subroutine test_mcarats_surface
 
   ! ------------------------------------------------------------------------------------------
@@ -601,23 +602,6 @@ contains
     type(error_t), allocatable, intent(in) :: err
     if (allocated(err)) call check(error, .false., 'unexpected error: '//err%message)
   end subroutine no_error
-
-  !> The reader must have failed with a message holding every one of `words`.
-  subroutine expect_error(error, err, words)
-    type(error_t), allocatable, intent(inout) :: error
-    type(error_t), allocatable, intent(in) :: err
-    character(len=*), intent(in) :: words(:)
-    integer :: i
-    if (allocated(error)) return
-    if (.not. allocated(err)) then
-      call check(error, .false., 'no error; expected one with "'//trim(words(1))//'"')
-      return
-    end if
-    do i = 1, size(words)
-      call check(error, index(err%message, trim(words(i))) > 0, 'message "'//err%message// &
-                 '" lacks "'//trim(words(i))//'"')
-    end do
-  end subroutine expect_error
 
   subroutine write_text(path, text)
     character(len=*), intent(in) :: path, text

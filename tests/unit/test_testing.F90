@@ -4,7 +4,9 @@
 module test_kumo_testing
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_positive_inf
   use kumo_kinds, only: sp, dp
-  use kumo_testing, only: error_t, unittest_t, new_unittest, check, check_close, check_sigma
+  use kumo_testing, only: error_t, unittest_t, new_unittest, check, check_close, check_sigma, &
+                          check_error_words
+  use kumo_error, only: set_error
   implicit none
   private
   public :: collect_testing
@@ -24,7 +26,8 @@ contains
              new_unittest('check_close_single_precision', test_close_sp), &
              new_unittest('check_sigma_limits', test_sigma_limits), &
              new_unittest('check_sigma_message', test_sigma_message), &
-             new_unittest('check_sigma_invalid_sigma', test_sigma_invalid)]
+             new_unittest('check_sigma_invalid_sigma', test_sigma_invalid), &
+             new_unittest('check_error_words', test_error_words)]
   end function collect_testing
 
   !> Fail `error` unless `probe` holds a failure whose message contains `part`; then clear
@@ -197,6 +200,19 @@ contains
     call check_sigma(probe, nan, 1.0_dp, 1.0_dp)
     call expect_failure(error, probe, 'NaN', 'NaN estimate')
   end subroutine test_sigma_invalid
+  !> An error holding every word passes; no error, or one that lacks a word, fails and says which.
+  subroutine test_error_words(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(error_t), allocatable :: probe, err
+    call check_error_words(probe, err, ['lwc'])
+    call expect_failure(error, probe, 'no error; expected one with "lwc"', 'no error')
+    call set_error(err, 'file.nc: variable lwc: negative value at (1, 2, 3)')
+    call check_error_words(probe, err, [character(len=8) :: 'lwc', 'negative'])
+    call expect_pass(error, probe, 'all words present')
+    call check_error_words(probe, err, [character(len=8) :: 'lwc', 'reff'])
+    call expect_failure(error, probe, 'lacks "reff"', 'a word missing')
+  end subroutine test_error_words
+
 end module test_kumo_testing
 
 program test_testing

@@ -732,9 +732,9 @@ contains
     real(wp), intent(in) :: r, r_max
     real(wp) :: theta
     integer, parameter :: MAX_ITER = 100
-    real(wp) :: h, s, lo, hi, g0, gh, a, d, res, part, dpart, step, tol, curv
+    real(wp) :: h, s, lo, hi, g0, gh, a, d, res, part, dpart, step, tol, curv, sin_min
     integer :: iter
-    logical :: newton
+    logical :: newton, early
 
     h = ph%theta_tab(i) - ph%theta_tab(i + 1)
     if (r >= r_max) then
@@ -749,17 +749,19 @@ contains
     gh = 0.5_wp*ph%p_tab(i + 1)*sw_next
     a = 0.5_wp*(gh - g0)/h
     d = g0*g0 + 4.0_wp*a*r
-    if (d >= 0.0_wp .and. g0 + sqrt(d) > 0.0_wp) then
-      s = 2.0_wp*r/(g0 + sqrt(d))
-    else
-      s = h*(r/r_max)
+    s = h*(r/r_max)
+    if (d >= 0.0_wp) then       ! (nested: Fortran may evaluate sqrt(d) with d < 0 otherwise)
+      if (g0 + sqrt(d) > 0.0_wp) s = 2.0_wp*r/(g0 + sqrt(d))
     end if
     s = min(h, max(0.0_wp, s))
     tol = 4.0_wp*epsilon(1.0_wp)*h
     ! G'(s) = P sin(t)/2, t = theta_tab(i) - s: |G''/G'| = |beta + cot t| <= |beta| + 1/sin t,
-    ! and sin t >= min of its end values on the interval (t within 0 ... pi)
+    ! and sin t >= min of its end values on the interval (t within 0 ... pi); no such bound
+    ! (and no early exit) on the intervals that end at 0 or 180 deg
+    sin_min = min(sw, sw_next)
+    early = sin_min > epsilon(1.0_wp)
     curv = abs((ph%lp_tab(i + 1) - ph%lp_tab(i))*ph%inv_dth(i)) + &
-           1.0_wp/max(min(sw, sw_next), tiny(1.0_wp))
+           1.0_wp/max(sin_min, epsilon(1.0_wp))
     lo = 0.0_wp
     hi = h
     do iter = 1, MAX_ITER
@@ -775,7 +777,8 @@ contains
       newton = dpart > 0.0_wp
       if (newton) then
         step = -res/dpart
-        newton = s + step > lo .and. s + step < hi
+        ! (a step below the rounding of s lands on the bracket end s itself: still Newton)
+        newton = s + step >= lo .and. s + step <= hi
       end if
       if (.not. newton) step = 0.5_wp*(lo + hi) - s
       s = s + step
@@ -783,7 +786,9 @@ contains
       if (abs(step) <= tol .or. hi - lo <= tol .or. abs(res) <= 4.0_wp*epsilon(1.0_wp)*r_max) exit
       ! a Newton step leaves an error of about |G''/(2 G')| step^2 <= curv step^2/2: stop when
       ! that is below tol, which saves the evaluation that would only confirm it
-      if (newton .and. 0.5_wp*curv*step*step <= tol) exit
+      if (newton .and. early) then
+        if (0.5_wp*curv*step*step <= tol) exit
+      end if
     end do
     theta = ph%theta_tab(i) - s
   end function loglin_invert
@@ -827,7 +832,7 @@ contains
       slope = 0.5_wp*table_interp(ph, i, theta)*sin(theta)
       if (slope > 0.0_wp) then
         step = res/slope
-        if (theta + step <= lo .or. theta + step >= hi) step = 0.5_wp*(lo + hi) - theta
+        if (theta + step < lo .or. theta + step > hi) step = 0.5_wp*(lo + hi) - theta
       else
         step = 0.5_wp*(lo + hi) - theta
       end if

@@ -18,10 +18,14 @@
 !> interpolated linearly in the scattering angle of log P where both neighbouring values are
 !> positive (exact for an exponential decay of the forward peak; keeps P > 0 between positive
 !> nodes) and linearly in angle otherwise. The CDF of that interpolant is integrated in Theta,
-!> not in mu, on sub-intervals of at most 0.01 deg with 5-point Gauss-Legendre quadrature, so a
-!> forward peak such as the Deirmendjian C.1 cloud (P(0) ~ 1700) is resolved; the inverse is
-!> then solved to rounding within each sub-interval. `phase_eval` uses the same interpolant,
-!> so sampling and evaluation describe the same function.
+!> not in mu, so a forward peak such as the Deirmendjian C.1 cloud (P(0) ~ 1700) is resolved:
+!> on a log-linear interval, P sin(Theta) and P sin(Theta) cos(Theta) are an exponential times
+!> a sine, whose integrals have closed forms (see `loglin_piece`); the rarer linear intervals,
+!> next to zero values, are integrated with 5-point Gauss-Legendre quadrature on pieces of at
+!> most LIN_STEP_DEG. The CDF is thus exact (to rounding) at the input angles, and each point
+!> of the inverse table is solved to rounding inside the one interval that brackets it.
+!> `phase_eval` uses the same interpolant, so sampling and evaluation describe the same
+!> function.
 !>
 !> A Legendre series P(mu) = sum_l (2l+1) chi_l P_l(mu), as listed by SHDOM property files and
 !> Mie codes, is summed once on a grid of angles (`phase_from_legendre`) and handed to the
@@ -57,8 +61,22 @@ module kumo_phase
 
   !> Input angles 0 and 180 deg may be off by this much [deg].
   real(wp), parameter :: ANGLE_TOL_DEG = 1.0e-6_wp
-  !> Largest quadrature sub-interval for tabulated phase functions [deg].
-  real(wp), parameter :: SUB_STEP_DEG = 0.01_wp
+  !> Largest quadrature piece of a linearly interpolated table interval [deg]. On a piece of
+  !> width h the integrand (a + c Theta) sin(Theta) cos(Theta)^m has a 10th derivative of at
+  !> most ~ 2^10 (|a + c Theta| + 10 |c|), so the 5-point Gauss-Legendre remainder,
+  !> h^11 (5!)^4/(11 (10!)^3) f^(10) = 3.9e-13 h^11 f^(10), is below 1e-26 of the largest value
+  !> times the piece for h = 1 deg (0.0175 rad): exact to rounding.
+  real(wp), parameter :: LIN_STEP_DEG = 1.0_wp
+  !> `loglin_piece` sums the power series of (e^w - 1)/w for |w| <= this, w = (beta + i omega) s;
+  !> beyond it the closed form (e^w - 1)/w loses at most a factor ~4 to cancellation.
+  real(wp), parameter :: SERIES_W_MAX = 0.5_wp
+  !> Terms of that series (w^0 ... w^(K-1)) for |w|^2 <= SERIES_W2(m): K = SERIES_TERMS(m), the
+  !> fewest for which the first term left out, |w|^K/(K+1)!, is below 5e-17 (1/2 ulp of the sum,
+  !> which is >= 0.78 for |w| <= 1/2): 0.5^15/16! = 1.5e-18, 0.25^12/13! = 9.6e-18,
+  !> 0.125^10/11! = 2.3e-17, 0.0625^9/10! = 4.0e-18, (1/32)^8/9! = 2.5e-18.
+  real(wp), parameter :: SERIES_W2(5) = [SERIES_W_MAX**2, 0.25_wp**2, 0.125_wp**2, &
+                                         0.0625_wp**2, 0.03125_wp**2]
+  integer, parameter :: SERIES_TERMS(5) = [15, 12, 10, 9, 8]
 
   ! Angle grid of `phase_from_legendre` for a series of highest degree L. A polynomial of degree
   ! L in mu = cos(Theta) is a trigonometric polynomial of degree L in Theta: its narrowest
@@ -269,8 +287,8 @@ contains
   !>
   !> The input need not be normalised: it is multiplied by `norm_factor` so that
   !> (1/2) Int P sin(Theta) dTheta = 1 for the interpolant described in the module header.
-  !> The asymmetry parameter g = (1/2) Int P cos(Theta) sin(Theta) dTheta is computed with the
-  !> same quadrature.
+  !> The asymmetry parameter g = (1/2) Int P cos(Theta) sin(Theta) dTheta is computed in the
+  !> same way (closed form on log-linear intervals, quadrature on linear ones).
   function phase_from_table(angle_deg, value, n_inv, error) result(ph)
     !> scattering angles [deg], strictly increasing, first 0 and last 180 (within 1e-6 deg)
     real(wp), intent(in) :: angle_deg(:)
@@ -281,9 +299,10 @@ contains
     type(phase_t) :: ph  !! the phase function (the default, isotropic, on error)
 
     character(len=*), parameter :: CTX = 'phase_from_table: '
-    real(wp), allocatable :: th_f(:), cum(:)
+    real(wp), allocatable :: th_f(:), cum(:), sin_tab(:), cos_tab(:)
     integer, allocatable :: nsub(:), itab(:)
-    real(wp) :: total, moment1, xi
+    logical, allocatable :: loglin(:)
+    real(wp) :: total, moment1, xi, part, dpart, theta
     integer :: n, ninv, nfine, i, j, k, m
     logical :: bad
 
@@ -364,13 +383,22 @@ contains
     ph%lp_tab = log(max(ph%p_tab, tiny(1.0_wp)))
     ph%inv_dth = 1.0_wp/(ph%theta_tab(2:n) - ph%theta_tab(1:n - 1))
 
-    ! --- CDF from mu = -1 on sub-intervals in Theta -----------------------------------------
-    ! Sub-interval k runs from th_f(k-1) down to th_f(k) (mu ascending) inside the evaluation
-    ! table interval itab(k), i.e. between theta_tab(itab(k)) and theta_tab(itab(k) + 1).
-    allocate (nsub(n - 1))
+    ! --- CDF from mu = -1 at the ends of the pieces -------------------------------------------
+    ! Piece k runs from th_f(k-1) down to th_f(k) (mu ascending) inside the evaluation-table
+    ! interval itab(k), between theta_tab(itab(k)) and theta_tab(itab(k) + 1). A log-linear
+    ! interval is one piece, integrated in closed form; a linear one is cut into pieces of at
+    ! most LIN_STEP_DEG for the quadrature.
+    allocate (loglin(n - 1), nsub(n - 1))
     do i = 1, n - 1
-      nsub(i) = max(1, ceiling((ph%theta_tab(i) - ph%theta_tab(i + 1))/(SUB_STEP_DEG*DEG2RAD)))
+      loglin(i) = ph%p_tab(i) > 0.0_wp .and. ph%p_tab(i + 1) > 0.0_wp
+      if (loglin(i)) then
+        nsub(i) = 1
+      else
+        nsub(i) = max(1, ceiling((ph%theta_tab(i) - ph%theta_tab(i + 1))/(LIN_STEP_DEG*DEG2RAD)))
+      end if
     end do
+    sin_tab = sin(ph%theta_tab)
+    cos_tab = cos(ph%theta_tab)
     nfine = sum(nsub)
     allocate (th_f(0:nfine), cum(0:nfine), itab(nfine))
     th_f(0) = PI
@@ -378,6 +406,20 @@ contains
     moment1 = 0.0_wp
     k = 0
     do i = 1, n - 1
+      if (loglin(i)) then
+        k = k + 1
+        itab(k) = i
+        th_f(k) = ph%theta_tab(i + 1)
+        call loglin_piece(ph, i, 1.0_wp, sin_tab(i), cos_tab(i), th_f(k - 1) - th_f(k), part, &
+                          dpart)
+        cum(k) = cum(k - 1) + part
+        ! sin(t) cos(t) = sin(2t)/2
+        call loglin_piece(ph, i, 2.0_wp, 2.0_wp*sin_tab(i)*cos_tab(i), &
+                          (cos_tab(i) - sin_tab(i))*(cos_tab(i) + sin_tab(i)), &
+                          th_f(k - 1) - th_f(k), part, dpart)
+        moment1 = moment1 + 0.5_wp*part
+        cycle
+      end if
       do m = 1, nsub(i)
         k = k + 1
         itab(k) = i
@@ -399,6 +441,7 @@ contains
     cum(nfine) = 1.0_wp
 
     ! --- inverse CDF on xi_j = (j-1)/(ninv-1) -----------------------------------------------
+    ! One walk through the pieces; each xi_j is solved inside the piece that brackets it.
     allocate (ph%mu_inv(ninv))
     k = 1
     do while (cum(k) <= 0.0_wp .and. k < nfine)   ! F = 0 up to th_f(k-1): largest such mu
@@ -414,9 +457,14 @@ contains
       do while (cum(k) < xi .and. k < nfine)
         k = k + 1
       end do
-      ph%mu_inv(j) = cos(table_invert(ph, itab(k), th_f(k), th_f(k - 1), xi - cum(k - 1), &
-                                      cum(k) - cum(k - 1)))
-      ph%mu_inv(j) = max(ph%mu_inv(j), ph%mu_inv(j - 1))
+      i = itab(k)
+      if (loglin(i)) then
+        theta = loglin_invert(ph, i, sin_tab(i), cos_tab(i), sin_tab(i + 1), xi - cum(k - 1), &
+                              cum(k) - cum(k - 1))
+      else
+        theta = table_invert(ph, i, th_f(k), th_f(k - 1), xi - cum(k - 1), cum(k) - cum(k - 1))
+      end if
+      ph%mu_inv(j) = max(cos(theta), ph%mu_inv(j - 1))
     end do
     ph%mu_inv(1) = max(ph%mu_inv(1), -1.0_wp)
     ph%mu_inv(ninv) = min(ph%mu_inv(ninv), 1.0_wp)
@@ -617,13 +665,141 @@ contains
     s = 0.5_wp*half*s
   end function table_partial
 
+  !> Partial integral of a log-linear interval i (p_tab(i) > 0 and p_tab(i+1) > 0) from its
+  !> larger angle t_i = theta_tab(i) down by s:
+  !>
+  !>     part(s) = (1/2) Int_{t_i - s}^{t_i} P(t) sin(omega t) dt,   dpart = (1/2) P sin(omega t)
+  !>
+  !> at t = t_i - s. With P(t_i - x) = P_i e^(beta x), beta = (ln P_(i+1) - ln P_i)/h and
+  !> sin(omega (t_i - x)) = sin(omega t_i) cos(omega x) - cos(omega t_i) sin(omega x),
+  !>
+  !>     part(s) = (1/2) P_i [sin(omega t_i) Re Phi - cos(omega t_i) Im Phi],
+  !>     Phi = Int_0^s e^(z x) dx = s (e^w - 1)/w,   z = beta + i omega,  w = z s
+  !>
+  !> (Int e^(b t) sin t dt = e^(b t) (b sin t - cos t)/(1 + b^2) in complex form), and dpart
+  !> the same with e^w for Phi. For |w| <= SERIES_W_MAX, (e^w - 1)/w = 1 + w/2 (1 + w/3 (...))
+  !> is summed as a series: no cancellation, no exponential. Beyond, e^w - 1 is formed with
+  !> P_i e^(beta s) = exp(ln P_i + beta s), which never exceeds the larger end value (no
+  !> overflow for steep peaks); the relative error of Im Phi is then at most
+  !> ~ 2 |beta|/(s |z|^2) eps <= 4 eps/|w| <= 8 eps, and that of e^w - 1 ~ eps/|w| <= 2 eps.
+  !> The combination with sin(omega t_i), cos(omega t_i) cancels by at most a factor 2 for
+  !> omega = 1 (t_i >= s), so the piece is accurate to a few rounding errors relative to its
+  !> value. (For omega = 2, used for g, sin(2t) changes sign at 90 deg: absolute accuracy.)
+  pure subroutine loglin_piece(ph, i, omega, sw, cw, s, part, dpart)
+    type(phase_t), intent(in) :: ph
+    integer, intent(in) :: i
+    real(wp), intent(in) :: omega   !! 1 (normalisation, CDF) or 2 (first moment)
+    real(wp), intent(in) :: sw, cw  !! sin(omega theta_tab(i)), cos(omega theta_tab(i))
+    real(wp), intent(in) :: s       !! 0 <= s <= theta_tab(i) - theta_tab(i+1) [rad]
+    real(wp), intent(out) :: part, dpart
+    complex(wp) :: z, w, phi, p_int, p_end
+    real(wp) :: beta, p0, w2
+    integer :: k, nterm
+    p0 = ph%p_tab(i)
+    beta = -(ph%lp_tab(i + 1) - ph%lp_tab(i))*ph%inv_dth(i)
+    z = cmplx(beta, omega, wp)
+    w2 = (beta*beta + omega*omega)*s*s
+    if (w2 <= SERIES_W2(1)) then
+      nterm = SERIES_TERMS(1)
+      do k = 2, size(SERIES_W2)
+        if (w2 > SERIES_W2(k)) exit
+        nterm = SERIES_TERMS(k)
+      end do
+      w = z*s
+      phi = (1.0_wp, 0.0_wp)
+      do k = nterm, 2, -1
+        phi = 1.0_wp + phi*(w*(1.0_wp/real(k, wp)))   ! real factor: no complex division
+      end do
+      p_int = (p0*s)*phi
+      p_end = p0 + p0*(w*phi)
+    else
+      p_end = exp(ph%lp_tab(i) + beta*s)*cmplx(cos(omega*s), sin(omega*s), wp)
+      p_int = (p_end - p0)*conjg(z)/(beta*beta + omega*omega)   ! / z
+    end if
+    part = 0.5_wp*(sw*real(p_int, wp) - cw*aimag(p_int))
+    dpart = 0.5_wp*(sw*real(p_end, wp) - cw*aimag(p_end))
+  end subroutine loglin_piece
+
+  !> Angle theta in log-linear interval i with (1/2) Int_theta^theta_tab(i) P sin dtheta' = r,
+  !> 0 <= r <= r_max = the integral over the whole interval: safeguarded Newton iteration on
+  !> s = theta_tab(i) - theta with the closed form of `loglin_piece` (bisection when a step
+  !> leaves the bracket), started from the root for an integrand linear in s.
+  pure function loglin_invert(ph, i, sw, cw, sw_next, r, r_max) result(theta)
+    type(phase_t), intent(in) :: ph
+    integer, intent(in) :: i
+    real(wp), intent(in) :: sw, cw     !! sin and cos of theta_tab(i)
+    real(wp), intent(in) :: sw_next    !! sin of theta_tab(i+1)
+    real(wp), intent(in) :: r, r_max
+    real(wp) :: theta
+    integer, parameter :: MAX_ITER = 100
+    real(wp) :: h, s, lo, hi, g0, gh, a, d, res, part, dpart, step, tol, curv, sin_min
+    integer :: iter
+    logical :: newton, early
+
+    h = ph%theta_tab(i) - ph%theta_tab(i + 1)
+    if (r >= r_max) then
+      theta = ph%theta_tab(i + 1)
+      return
+    else if (r <= 0.0_wp) then
+      theta = ph%theta_tab(i)
+      return
+    end if
+    ! integrand 0.5 P sin at both ends; g0 s + a s^2 = r with a = (gh - g0)/(2h)
+    g0 = 0.5_wp*ph%p_tab(i)*sw
+    gh = 0.5_wp*ph%p_tab(i + 1)*sw_next
+    a = 0.5_wp*(gh - g0)/h
+    d = g0*g0 + 4.0_wp*a*r
+    s = h*(r/r_max)
+    if (d >= 0.0_wp) then       ! (nested: Fortran may evaluate sqrt(d) with d < 0 otherwise)
+      if (g0 + sqrt(d) > 0.0_wp) s = 2.0_wp*r/(g0 + sqrt(d))
+    end if
+    s = min(h, max(0.0_wp, s))
+    tol = 4.0_wp*epsilon(1.0_wp)*h
+    ! G'(s) = P sin(t)/2, t = theta_tab(i) - s: |G''/G'| = |beta + cot t| <= |beta| + 1/sin t,
+    ! and sin t >= min of its end values on the interval (t within 0 ... pi); no such bound
+    ! (and no early exit) on the intervals that end at 0 or 180 deg
+    sin_min = min(sw, sw_next)
+    early = sin_min > epsilon(1.0_wp)
+    curv = abs((ph%lp_tab(i + 1) - ph%lp_tab(i))*ph%inv_dth(i)) + &
+           1.0_wp/max(sin_min, epsilon(1.0_wp))
+    lo = 0.0_wp
+    hi = h
+    do iter = 1, MAX_ITER
+      call loglin_piece(ph, i, 1.0_wp, sw, cw, s, part, dpart)
+      res = part - r                ! increases with s
+      if (res < 0.0_wp) then
+        lo = s
+      else if (res > 0.0_wp) then
+        hi = s
+      else
+        exit
+      end if
+      newton = dpart > 0.0_wp
+      if (newton) then
+        step = -res/dpart
+        ! (a step below the rounding of s lands on the bracket end s itself: still Newton)
+        newton = s + step >= lo .and. s + step <= hi
+      end if
+      if (.not. newton) step = 0.5_wp*(lo + hi) - s
+      s = s + step
+      ! converged to rounding of s, or the residual is at the rounding level of the integral
+      if (abs(step) <= tol .or. hi - lo <= tol .or. abs(res) <= 4.0_wp*epsilon(1.0_wp)*r_max) exit
+      ! a Newton step leaves an error of about |G''/(2 G')| step^2 <= curv step^2/2: stop when
+      ! that is below tol, which saves the evaluation that would only confirm it
+      if (newton .and. early) then
+        if (0.5_wp*curv*step*step <= tol) exit
+      end if
+    end do
+    theta = ph%theta_tab(i) - s
+  end function loglin_invert
+
   !> Angle theta in [t_lo, t_hi] with (1/2) Int_theta^t_hi P sin dtheta' = r, where
-  !> 0 <= r <= r_max = the integral over the whole sub-interval (safeguarded Newton iteration,
+  !> 0 <= r <= r_max = the integral over the whole piece (safeguarded Newton iteration,
   !> bisection when a Newton step leaves the bracket).
   pure function table_invert(ph, i, t_lo, t_hi, r, r_max) result(theta)
     type(phase_t), intent(in) :: ph
     integer, intent(in) :: i
-    real(wp), intent(in) :: t_lo, t_hi  !! sub-interval [rad], inside table interval i
+    real(wp), intent(in) :: t_lo, t_hi  !! piece [rad], inside table interval i
     real(wp), intent(in) :: r, r_max
     real(wp) :: theta
     integer, parameter :: MAX_ITER = 100
@@ -637,7 +813,7 @@ contains
       theta = t_hi
       return
     end if
-    ! start from the linear-in-mu guess (P constant on the sub-interval)
+    ! start from the linear-in-mu guess (P constant on the piece)
     mu_lo = cos(t_hi)
     mu_hi = cos(t_lo)
     theta = acos(min(1.0_wp, mu_lo + (r/r_max)*(mu_hi - mu_lo)))
@@ -656,7 +832,7 @@ contains
       slope = 0.5_wp*table_interp(ph, i, theta)*sin(theta)
       if (slope > 0.0_wp) then
         step = res/slope
-        if (theta + step <= lo .or. theta + step >= hi) step = 0.5_wp*(lo + hi) - theta
+        if (theta + step < lo .or. theta + step > hi) step = 0.5_wp*(lo + hi) - theta
       else
         step = 0.5_wp*(lo + hi) - theta
       end if

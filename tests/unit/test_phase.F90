@@ -6,6 +6,8 @@
 !> The C.1 table (I3RC Phase 1 file `C.1_PF`) is read from the path given as the first
 !> command-line argument; CTest passes `${KUMO_SHARED_DIR}/data/i3rc/phase1_inputs/C.1_PF`.
 !> The C.1 Legendre moments (`C.1_leg_coef`, 300 values chi_l) are read from the same folder.
+!> The 490-term Legendre series of the I3RC SHDOM property file `les_stcu_w213.prp` is read
+!> from the sibling folder `les_examples`.
 !> Sampling formulas are tested with stratified deviates u = (i - 1/2)/n, no generator.
 module test_kumo_phase
   use, intrinsic :: iso_fortran_env, only: real128
@@ -66,7 +68,10 @@ contains
              new_unittest('rayleigh_depol_closed_form', test_rayleigh_depol), &
              new_unittest('rayleigh_depol_zero_is_plain', test_rayleigh_depol_zero), &
              new_unittest('rayleigh_depol_rejects_bad_rho', test_rayleigh_depol_errors), &
-             new_unittest('samples_within_bounds', test_bounds)]
+             new_unittest('samples_within_bounds', test_bounds), &
+             new_unittest('table_brute_force_hg_peak', test_brute_hg_peak), &
+             new_unittest('table_brute_force_zeros', test_brute_zeros), &
+             new_unittest('table_brute_force_prp_490_terms', test_brute_prp)]
   end function collect_phase
 
   ! ------------------------------------------------------------------------------------------
@@ -215,6 +220,111 @@ contains
     b = 3.0_wp*(1.0_wp - gam)/(4.0_wp*(1.0_wp + 2.0_wp*gam))
   end subroutine depol_coefficients
 
+  ! ------------------------------------------------------------------------------------------
+  ! Brute-force reference of a table construction
+  ! ------------------------------------------------------------------------------------------
+
+  !> The table interpolant written out here: at theta in cell j (t(j) <= theta <= t(j+1),
+  !> angles ascending [rad]), v(j)^(1-f) v(j+1)^f if both values are > 0, else
+  !> (1-f) v(j) + f v(j+1), f = (theta - t(j))/(t(j+1) - t(j)).
+  pure function interp_cell(t, v, j, theta) result(p)
+    real(wp), intent(in) :: t(:), v(:)
+    integer, intent(in) :: j
+    real(wp), intent(in) :: theta
+    real(wp) :: p, f
+    f = (theta - t(j))/(t(j + 1) - t(j))
+    if (v(j) > 0.0_wp .and. v(j + 1) > 0.0_wp) then
+      p = exp((1.0_wp - f)*log(v(j)) + f*log(v(j + 1)))
+    else
+      p = (1.0_wp - f)*v(j) + f*v(j + 1)
+    end if
+  end function interp_cell
+
+  !> (1/2) Int_a^b P sin(t) cos(t)^moment dt inside cell j by Simpson's rule on one panel.
+  pure function simpson_panel(t, v, j, a, b, moment) result(s)
+    real(wp), intent(in) :: t(:), v(:)
+    integer, intent(in) :: j, moment
+    real(wp), intent(in) :: a, b
+    real(wp) :: s, m
+    m = 0.5_wp*(a + b)
+    s = (b - a)/12.0_wp*(integrand(a) + 4.0_wp*integrand(m) + integrand(b))
+  contains
+    pure real(wp) function integrand(x)
+      real(wp), intent(in) :: x
+      integrand = interp_cell(t, v, j, x)*sin(x)*cos(x)**moment
+    end function integrand
+  end function simpson_panel
+
+  !> Compare a phase_t built from the table (t ascending from 0 to pi [rad], v >= 0, any scale)
+  !> with composite Simpson quadrature of the interpolant on `m_panels` panels per table cell:
+  !> norm_factor = 1/T with T = (1/2) Int P sin, g = (1/2) Int P sin cos / T, and every
+  !> `stride`-th mu_inv(j) from j = 2 against the root of F(theta) = xi_j T, F integrated
+  !> from 180 deg, found by bisection inside the panel that brackets it.
+  subroutine check_brute_force(error, what, t, v, ph, m_panels, stride, tol)
+    type(error_t), allocatable, intent(inout) :: error
+    character(len=*), intent(in) :: what
+    real(wp), intent(in) :: t(:), v(:)
+    type(phase_t), intent(in) :: ph
+    integer, intent(in) :: m_panels, stride
+    real(wp), intent(in) :: tol  !! on norm_factor (relative), g and mu_inv (absolute)
+    real(wp), allocatable :: node(:), c(:)
+    integer, allocatable :: cell(:)
+    real(wp) :: total, first, target, lo, hi, mid, f_mid, mu_ref, max_err, h
+    integer :: n, np, j, m, k, it, n_inv, n_cmp
+    if (allocated(error)) return
+    n = size(t)
+    np = (n - 1)*m_panels
+    allocate (node(0:np), c(0:np), cell(np))
+    node(0) = t(1)
+    do j = 1, n - 1
+      h = (t(j + 1) - t(j))/m_panels
+      do m = 1, m_panels
+        k = (j - 1)*m_panels + m
+        cell(k) = j
+        node(k) = t(j) + m*h
+      end do
+      node(j*m_panels) = t(j + 1)
+    end do
+    c(np) = 0.0_wp          ! c(k) = (1/2) Int_node(k)^pi P sin
+    first = 0.0_wp
+    do k = np, 1, -1
+      c(k - 1) = c(k) + simpson_panel(t, v, cell(k), node(k - 1), node(k), 0)
+      first = first + simpson_panel(t, v, cell(k), node(k - 1), node(k), 1)
+    end do
+    total = c(0)
+    call check_close(error, ph%norm_factor*total, 1.0_wp, rel_tol=tol, &
+                     label=what//': norm_factor against 1/(Simpson integral)')
+    call check_close(error, ph%g, first/total, abs_tol=tol, label=what//': g against Simpson')
+    if (allocated(error)) return
+    n_inv = size(ph%mu_inv)
+    max_err = 0.0_wp
+    n_cmp = 0
+    k = np
+    do j = 2, n_inv - 1, stride   ! the ends are the ends of zero ranges, not roots
+      target = real(j - 1, wp)/real(n_inv - 1, wp)*total
+      ! panel k (node(k-1) ... node(k)) with c(k) <= target <= c(k-1); as j ascends, k descends
+      do while (c(k - 1) < target .and. k > 1)
+        k = k - 1
+      end do
+      lo = node(k - 1)      ! F(lo) >= target >= F(hi)
+      hi = node(k)
+      do it = 1, 60
+        mid = 0.5_wp*(lo + hi)
+        f_mid = c(k) + simpson_panel(t, v, cell(k), mid, node(k), 0)
+        if (f_mid >= target) then
+          lo = mid
+        else
+          hi = mid
+        end if
+      end do
+      mu_ref = cos(0.5_wp*(lo + hi))
+      max_err = max(max_err, abs(ph%mu_inv(j) - mu_ref))
+      n_cmp = n_cmp + 1
+    end do
+    call check(error, n_cmp >= 100, what//': fewer than 100 mu_inv entries compared')
+    call check_close(error, max_err, 0.0_wp, abs_tol=tol, &
+                     label=what//': max |mu_inv - Simpson root| over sampled entries')
+  end subroutine check_brute_force
 
   !> Fail unless `err` is allocated and its message contains every string in `parts`.
   subroutine expect_error(error, err, parts, what)
@@ -978,6 +1088,115 @@ contains
                        label='mu(u = 1)')
     end do
   end subroutine test_bounds
+  !> Forward-peaked HG g = 0.95 tabulated on 0.1 deg steps to 10 deg and on 1 deg steps beyond
+  !> (steep narrow log-linear intervals and wide ones) against the brute-force Simpson
+  !> reference. Tolerance 1e-10: Simpson's error per panel of width h is (h^5/2880) max|f''''|
+  !> with f = P sin; on a log-linear cell |f''''| <= (|b| + 1)^4 P, b = d ln P/dtheta, at most
+  !> 1.5 sqrt(g)/(1 - g) = 29 rad^-1 for this HG, so with 64 panels per cell (h <= 2.7e-4 rad)
+  !> the relative error of T and g is below 1e-13; rounding in the 2e4 panel sums adds ~1e-13.
+  subroutine test_brute_hg_peak(error)
+    type(error_t), allocatable, intent(out) :: error
+    real(wp), parameter :: g = 0.95_wp
+    type(error_t), allocatable :: err
+    type(phase_t) :: ph
+    real(wp), allocatable :: angle(:), value(:)
+    integer :: i
+    angle = [[(0.1_wp*i, i=0, 99)], [(1.0_wp*i, i=10, 180)]]
+    value = 7.0_wp*hg_eval(g, cos(angle*DEG2RAD))
+    ph = phase_from_table(angle, value, PHASE_N_INV_DEFAULT, err)
+    call check(error, .not. allocated(err), 'phase_from_table failed')
+    if (allocated(error)) return
+    call check_brute_force(error, 'HG 0.95', angle*DEG2RAD, value, ph, 64, 7, 1.0e-10_wp)
+  end subroutine test_brute_hg_peak
+
+  !> A table with zero values (linear pieces next to them, a zero range inside, P(0) = 0) and
+  !> constant and log-linear cells of 10 to 60 deg, against the brute-force Simpson reference
+  !> of `test_brute_hg_peak`. On the linear cells |f''''| of (a + c t) sin t is at most
+  !> |a + c t| + 4 |c|; on the log-linear cells |b| <= ln 4/(10 deg) = 8 rad^-1; with 2000
+  !> panels per cell (h <= 5.2e-4 rad) Simpson's relative error is below 1e-15: tolerance 1e-10
+  !> as there.
+  subroutine test_brute_zeros(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(error_t), allocatable :: err
+    type(phase_t) :: ph
+    real(wp), parameter :: angle(9) = [0.0_wp, 5.0_wp, 30.0_wp, 90.0_wp, 100.0_wp, 120.0_wp, &
+                                       150.0_wp, 160.0_wp, 180.0_wp]
+    real(wp), parameter :: value(9) = [0.0_wp, 3.0_wp, 1.0_wp, 0.0_wp, 0.0_wp, 0.5_wp, &
+                                       0.5_wp, 2.0_wp, 0.5_wp]
+    ph = phase_from_table(angle, value, 5000, err)
+    call check(error, .not. allocated(err), 'phase_from_table failed')
+    if (allocated(error)) return
+    call check_brute_force(error, 'zeros', angle*DEG2RAD, value, ph, 2000, 3, 1.0e-10_wp)
+  end subroutine test_brute_zeros
+
+  !> The 490-term series of `les_stcu_w213.prp` (cloud droplets at 2.13 um, I3RC): the angles
+  !> of the built table (ph%theta_tab) carry the series summed here independently (upward
+  !> Legendre recurrence, negative sums set to 0), and the construction is compared with the
+  !> brute-force Simpson reference of that table. Tolerance 1e-10: on the 2537-angle grid
+  !> (steps 180/(16*490) deg = 4e-4 rad near 0) the forward peak has |b| < 300 rad^-1, so with
+  !> 8 panels per cell (h <= 5e-5 rad, |b| h <= 0.015) Simpson's relative error per cell is
+  !> below (|b| h)^4/2880 ~ 2e-11, far less where |b| is smaller; the two series sums differ
+  !> by rounding (~1e-14 relative).
+  subroutine test_brute_prp(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(error_t), allocatable :: err
+    type(phase_t) :: ph
+    character(len=:), allocatable :: path
+    character(len=512) :: line
+    real(wp), allocatable :: a(:), chi(:), t(:), v(:), p_prev(:), p_cur(:), p_next(:), x(:)
+    integer :: unit, stat, nphase, ip, nleg, l, n
+    path = c1_path()
+    call check(error, len(path) > 0, 'no path of C.1_PF on the command line (CTest passes '// &
+               '${KUMO_SHARED_DIR}/data/i3rc/phase1_inputs/C.1_PF)')
+    if (allocated(error)) return
+    path = path(1:index(path, '/phase1_inputs/', back=.true.))//'les_examples/les_stcu_w213.prp'
+    open (newunit=unit, file=path, status='old', action='read', iostat=stat)
+    call check(error, stat == 0, 'cannot open '//path)
+    if (allocated(error)) return
+    ! title, grid size, grid spacing and levels, the number of phase functions, then each as
+    ! nleg and (2l+1) chi_l, l = 1 ... nleg (SHDOM's tabulated property format); the last one
+    ! has 490 terms
+    read (unit, '(a)', iostat=stat) line
+    if (stat == 0) read (unit, '(a)', iostat=stat) line
+    if (stat == 0) read (unit, '(a)', iostat=stat) line
+    if (stat == 0) read (unit, *, iostat=stat) nphase
+    nleg = 0
+    do ip = 1, nphase
+      if (stat /= 0) exit
+      read (unit, *, iostat=stat) nleg
+      if (stat /= 0) exit
+      backspace (unit)
+      if (allocated(a)) deallocate (a)
+      allocate (a(nleg))
+      read (unit, *, iostat=stat) nleg, a
+    end do
+    close (unit)
+    call check(error, stat == 0 .and. nleg == 490, 'cannot read the 490-term series of '//path)
+    if (allocated(error)) return
+    allocate (chi(0:nleg))
+    chi(0) = 1.0_wp
+    chi(1:) = [(a(l)/real(2*l + 1, wp), l=1, nleg)]
+    ph = phase_from_legendre(chi, PHASE_N_INV_DEFAULT, err)
+    call check(error, .not. allocated(err), 'phase_from_legendre failed')
+    if (allocated(error)) return
+    call check(error, ph%kind == PHASE_TABLE, 'the series did not give a table')
+    if (allocated(error)) return
+    n = size(ph%theta_tab)
+    t = ph%theta_tab(n:1:-1)          ! ascending, 0 ... pi
+    x = cos(t)
+    p_prev = [(1.0_wp, l=1, n)]
+    p_cur = x
+    v = 1.0_wp + 3.0_wp*chi(1)*x
+    do l = 1, nleg - 1
+      p_next = (real(2*l + 1, wp)*x*p_cur - real(l, wp)*p_prev)/real(l + 1, wp)
+      v = v + real(2*l + 3, wp)*chi(l + 1)*p_next
+      p_prev = p_cur
+      p_cur = p_next
+    end do
+    v = max(v, 0.0_wp)
+    call check_brute_force(error, 'prp 490 terms', t, v, ph, 8, 11, 1.0e-10_wp)
+  end subroutine test_brute_prp
+
 end module test_kumo_phase
 
 program test_phase

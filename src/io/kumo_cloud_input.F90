@@ -110,9 +110,10 @@ contains
   end subroutine cloud_format_check
 
   !> Read a cloud file. With `grid_only`, only the grid (nx, ny, nz, dx, dy, z) is guaranteed
-  !> (the LES reader then reads coordinates only; text files are read whole). `part` ('liquid'
-  !> or 'ice') reads one species of an LES file (`has_ice` still tells whether there is ice);
-  !> the other formats have liquid water only and ignore it.
+  !> (the LES reader then reads coordinates only, the property-file reader its header; the
+  !> other text files are read whole). `part` ('liquid' or 'ice') reads one species of an LES
+  !> file (`has_ice` still tells whether there is ice); the other formats have liquid water only
+  !> and ignore it.
   subroutine read_cloud_input(req, cloud, error, grid_only, part)
     type(cloud_request_t), intent(in) :: req
     type(cloud_input_t), intent(out) :: cloud
@@ -131,7 +132,7 @@ contains
     case ('lwc')
       call from_lwc(req, cloud, error)
     case ('prp')
-      call from_prp(req, cloud, error)
+      call from_prp(req, grid, cloud, error)
     case ('mystic')
       call from_mystic(req, cloud, error)
     case ('mcarats')
@@ -205,15 +206,18 @@ contains
     cloud%missing = 'the wavelength and the droplet optics'
   end subroutine from_lwc
 
-  subroutine from_prp(req, cloud, error)
+  subroutine from_prp(req, grid, cloud, error)
     type(cloud_request_t), intent(in) :: req
+    logical, intent(in) :: grid
     type(cloud_input_t), intent(inout) :: cloud
     type(error_t), allocatable, intent(out) :: error
     type(prp_field_t) :: f
-    call read_prp_file(req%path, f, error)
+    call read_prp_file(req%path, f, error, grid_only=grid)
     if (allocated(error)) return
     call set_grid(cloud, f%nx, f%ny, f%nz, f%dx, f%dy, f%z, .not. f%z_are_boundaries)
     cloud%content = CLOUD_OPTICS
+    cloud%missing = 'the wavelength'
+    if (grid) return
     call take(f%extinction, cloud%ext)
     call take(f%ssa, cloud%ssa)
     call move_alloc(f%iphase, cloud%iphase)

@@ -318,25 +318,31 @@ contains
   !> The file lists a_l = (2l+1) chi_l, so a_1 = 3g, with a_0 = 1 left out (SHDOM: "Chi1 is 3
   !> times the asymmetry parameter", "Chi0 (which is not listed) is always 1"); kumo stores
   !> chi_l = a_l/(2l+1). Every |chi_l| must be <= 1, as for any non-negative phase function.
-  subroutine read_prp_file(path, prp, error, length_unit)
+  subroutine read_prp_file(path, prp, error, length_unit, grid_only)
     character(len=*), intent(in) :: path                !! file name
     type(prp_field_t), intent(out) :: prp               !! the field read
     type(error_t), allocatable, intent(out) :: error    !! unallocated on success
     real(wp), intent(in), optional :: length_unit       !! file length unit [m] (default 1000)
+    !> read the grid only (nx, ny, nz, dx, dy, z): the header, not the points
+    logical, intent(in), optional :: grid_only
     type(text_file_t) :: tf
     real(wp) :: unit_m
+    logical :: grid
 
     unit_m = KM
     if (present(length_unit)) unit_m = length_unit
+    grid = .false.
+    if (present(grid_only)) grid = grid_only
     call text_open(path, tf, error)
     if (allocated(error)) return
-    call prp_body(tf, unit_m, prp, error)
+    call prp_body(tf, unit_m, grid, prp, error)
     call text_close(tf)
   end subroutine read_prp_file
 
-  subroutine prp_body(tf, unit_m, prp, error)
+  subroutine prp_body(tf, unit_m, grid, prp, error)
     type(text_file_t), intent(inout) :: tf
     real(wp), intent(in) :: unit_m
+    logical, intent(in) :: grid   !! stop after the grid
     type(prp_field_t), intent(inout) :: prp
     type(error_t), allocatable, intent(out) :: error
     real(wp) :: v(3), a
@@ -394,6 +400,7 @@ contains
     prp%dx = head(1)*unit_m
     prp%dy = head(2)*unit_m
     prp%z = head(3:)*unit_m
+    if (grid) return
     call header_ints(tf, 1, n(1:1), 'numphase', WHO, error)
     if (allocated(error)) return
     if (n(1) < 1) then

@@ -536,7 +536,7 @@ contains
     integer(i8), intent(in) :: max_steps
     real(wp), intent(in) :: inv_cf  !! 1/(collision-forcing factor)
     integer, intent(out) :: ev, ix, iy, kr
-    integer :: s, jx, jy, bx, by, nbx, nby, off, ixlo, ixhi, iylo, iyhi
+    integer :: s, jx, jy, bx, by, nbx, nby, off, ixlo, ixhi, iylo, iyhi, face
     real(wp) :: dxf, dyf, dzf, d, smax, bdx, bdy, xlo, ylo, rux, ruy, ruz, e
 
     ev = 0
@@ -591,8 +591,13 @@ contains
         if (n_steps > max_steps) return   ! the caller's step check stops the photon
         if (dzf <= dxf .and. dzf <= dyf) then
           d = dzf
+          face = 3
+        else if (dxf <= dyf) then
+          d = dxf
+          face = 1
         else
-          d = min(dxf, dyf)
+          d = dyf
+          face = 2
         end if
 
         if (smax*d > tau) then
@@ -632,7 +637,7 @@ contains
 
         ! cross the nearest face
         tau = tau - smax*d
-        if (dzf <= dxf .and. dzf <= dyf) then
+        if (face == 3) then
           ! a level: tally it; leave the region, or go on in the next layer
           x = x + ux*d
           y = y + uy*d
@@ -650,7 +655,7 @@ contains
           dzf = (atm%z(iz) - atm%z(iz - 1))*ruz
           kr = iz - atm%k3_lo + 1
           if (atm%sv%sl_of_layer(kr) /= s) cycle superlayer
-        else if (dxf <= dyf) then
+        else if (face == 1) then
           ! an x face: the next block in x, across the periodic boundary if need be
           y = y + uy*d
           z = z + uz*d

@@ -13,6 +13,10 @@
 !>   answer to rounding with the same seed: only the reader differs.
 !> * Henyey-Greenstein optics as a MYSTIC flag-1 file (analytic HG) and as an SHDOM property
 !>   file (Legendre moments g^l summed into a table) agree within 4 sigma with different seeds.
+!> * A Mie phase function of the I3RC LES stratocumulus (`les_stcu_w213.prp`, its 14th table:
+!>   230 Legendre moments, g = 0.8517) in a homogeneous slab written as a property file gives
+!>   the reflectance and transmittance of an independent discrete-ordinates solution within
+!>   4 sigma, at SZA 0 and 60.
 module test_cloud_input_suite
   use kumo_kinds, only: wp, dp
   use kumo_testing, only: error_t, unittest_t, new_unittest, check, check_sigma
@@ -23,6 +27,8 @@ module test_cloud_input_suite
   use kumo_mie_table, only: read_mie_table
   use kumo_netcdf, only: write_scene_3d
   use kumo_error, only: str
+  use kumo_shdom_files, only: prp_field_t, read_prp_file
+  use kumo_test_text, only: shared_dir
   use netcdf, only: nf90_create, nf90_def_dim, nf90_def_var, nf90_enddef, nf90_put_var, &
                     nf90_close, nf90_put_att, nf90_clobber, nf90_double, NF90_GLOBAL
   implicit none
@@ -41,7 +47,8 @@ contains
     type(unittest_t), allocatable :: tests(:)
     tests = [new_unittest('les_equals_optical_property_file', test_les_vs_optics), &
              new_unittest('mystic_and_lwc_files_equal_les', test_text_formats), &
-             new_unittest('hg_as_legendre_equals_hg', test_hg_routes)]
+             new_unittest('hg_as_legendre_equals_hg', test_hg_routes), &
+             new_unittest('mie_slab_from_property_file_equals_disort', test_mie_slab_disort)]
   end function collect_cloud_input
 
   !> The test cloud: LWC [g m-3] and r_eff [um]; some voxels clear, radii across the table.
@@ -333,16 +340,63 @@ contains
     call compare_runs(a, b, error)
   end subroutine test_hg_routes
 
+  !> A slab of optical depth 7.6 and albedo 0.976 (the domain means of les_stcu_w213.prp) with
+  !> the file's 14th phase function, 0.4 km thick over a black surface, as a one-column
+  !> property file whose moments are those read from the shipped file. References: the
+  !> discrete-ordinates solver PythonicDISORT 1.8 (D. J. X. Ho, J. Open Source Softw. 9, 6442,
+  !> 2024), 128 streams with delta-M scaling; 32, 64 and 128 streams agree to 6e-6, so the
+  !> references are exact next to the Monte Carlo error. They were computed from the moments
+  !> in the text of the file, so a misread moment shows here too.
+  subroutine test_mie_slab_disort(error)
+    type(error_t), allocatable, intent(out) :: error
+    real(dp), parameter :: SZA(2) = [0.0_dp, 60.0_dp]
+    real(dp), parameter :: R_REF(2) = [0.2421156_dp, 0.4012363_dp]
+    real(dp), parameter :: T_REF(2) = [0.4968688_dp, 0.3010482_dp]
+    integer, parameter :: TABLE = 14
+    type(prp_field_t) :: prp
+    type(result_set_t) :: set
+    type(error_t), allocatable :: err
+    real(dp) :: r, sr, t, st
+    integer :: u, l, n, i
+    call read_prp_file(shared_dir//'/data/i3rc/les_examples/les_stcu_w213.prp', prp, err)
+    if (allocated(err)) then
+      call check(error, .false., 'les_stcu_w213.prp: '//err%message)
+      return
+    end if
+    n = prp%nleg(TABLE)
+    call check(error, n == 230, 'table 14 has '//str(n)//' moments, not 230')
+    if (allocated(error)) return
+    open (newunit=u, file='cloud_mie_slab.prp', status='replace', action='write')
+    write (u, '(a)') 'Tabulated phase function property file'
+    write (u, '(a)') '1 1 1'
+    write (u, '(a)') '0.0550 0.0550 0.0 0.4'
+    write (u, '(a)') '1'
+    write (u, '(i5, *(1x, es22.14))') n, [((2*l + 1)*prp%chi(l, TABLE), l=1, n)]
+    write (u, '(a)') '1 1 1 280.0 19.0 0.976 1'     ! 19 km-1 over 0.4 km: tau = 7.6
+    close (u)
+    do i = 1, 2
+      call run_namelist('cloud_mie_slab.nml', '&kumo_control n_photons_per_batch = 10000, '// &
+                        'n_batches = 20, seed = '//str(20 + i)//', verbose = 0 /'// &
+                        new_line('a')//'&kumo_source sza_deg = '//str(SZA(i))//' /'// &
+                        new_line('a')//'&kumo_output file = ''cloud_mie_slab.nc'' /'// &
+                        new_line('a')//'&kumo_cloud cloud_file = ''cloud_mie_slab.prp'', '// &
+                        'cloud_format = ''prp'' /', set, error)
+      if (allocated(error)) return
+      call get_scalar(set, 'reflectance', r, sr, error)
+      call get_scalar(set, 'transmittance', t, st, error)
+      if (allocated(error)) return
+      call check_sigma(error, r, R_REF(i), sr, K, 'R at SZA '//str(SZA(i)))
+      call check_sigma(error, t, T_REF(i), st, K, 'T at SZA '//str(SZA(i)))
+      if (allocated(error)) return
+    end do
+  end subroutine test_mie_slab_disort
+
 end module test_cloud_input_suite
 
 program test_cloud_input
   use test_cloud_input_suite, only: collect_cloud_input
-  use kumo_testing, only: run_unittests
-  use kumo_parallel, only: par_init, par_finalize
+  use kumo_test_text, only: run_shared_suite
   implicit none
-  integer :: n_failed
-  call par_init()
-  call run_unittests('cloud files in whole runs', collect_cloud_input(), n_failed)
-  call par_finalize()
-  if (n_failed > 0) error stop 1
+  call run_shared_suite('test_cloud_input', 'data/i3rc/les_examples', &
+                        'cloud files in whole runs', collect_cloud_input())
 end program test_cloud_input

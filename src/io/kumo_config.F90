@@ -327,6 +327,7 @@ contains
     character(len=16) :: target_output
     character(len=8) :: mode_3d
     character(len=512) :: msg
+    character(len=*), parameter :: CTX = '&kumo_control: '
     namelist /kumo_control/ n_photons_per_batch, n_batches, seed, target_rel_error, &
       target_output, max_photons, max_events, verbose, mode_3d, p3d_orders
     n_photons_per_batch = cfg%n_photons_per_batch
@@ -354,30 +355,20 @@ contains
     cfg%verbose = verbose
     cfg%mode_3d = to_lower(mode_3d)
     cfg%p3d_orders = p3d_orders
-    if (n_photons_per_batch < 1) then
-      call set_error(error, '&kumo_control: n_photons_per_batch = '//str(n_photons_per_batch)// &
-                     ' must be >= 1')
-    else if (n_batches < 2) then
-      call set_error(error, '&kumo_control: n_batches = '//str(n_batches)// &
-                     ' must be >= 2 (batches give the standard error)')
-    else if (seed < 0) then
-      call set_error(error, '&kumo_control: seed = '//str(seed)//' must be >= 0')
-    else if (.not. within(target_rel_error, 0.0_wp, BIG)) then
-      call set_error(error, '&kumo_control: target_rel_error = '//str(target_rel_error)// &
-                     ' must be >= 0 (0 = fixed photon budget)')
-    else if (findloc(TARGET_NAMES, cfg%target_output, 1) == 0) then
-      call set_error(error, '&kumo_control: target_output = "'//trim(target_output)// &
-                     '" must be one of '//join(TARGET_NAMES))
-    else if (max_photons < 1) then
-      call set_error(error, '&kumo_control: max_photons = '//str(max_photons)//' must be >= 1')
-    else if (max_events < 1) then
-      call set_error(error, '&kumo_control: max_events = '//str(max_events)//' must be >= 1')
-    else if (findloc(MODE_NAMES, cfg%mode_3d, 1) == 0) then
-      call set_error(error, '&kumo_control: mode_3d = "'//trim(mode_3d)// &
-                     '" must be one of '//join(MODE_NAMES))
-    else if (p3d_orders < 0) then
-      call set_error(error, '&kumo_control: p3d_orders = '//str(p3d_orders)//' must be >= 0')
-    end if
+    call require(n_photons_per_batch >= 1, CTX, 'n_photons_per_batch', n_photons_per_batch, &
+                 'must be >= 1', error)
+    call require(n_batches >= 2, CTX, 'n_batches', n_batches, &
+                 'must be >= 2 (batches give the standard error)', error)
+    call require(seed >= 0, CTX, 'seed', seed, 'must be >= 0', error)
+    call require(within(target_rel_error, 0.0_wp, BIG), CTX, 'target_rel_error', &
+                 target_rel_error, 'must be >= 0 (0 = fixed photon budget)', error)
+    call require(findloc(TARGET_NAMES, cfg%target_output, 1) > 0, CTX, 'target_output', &
+                 target_output, 'must be one of '//join(TARGET_NAMES), error)
+    call require(max_photons >= 1, CTX, 'max_photons', max_photons, 'must be >= 1', error)
+    call require(max_events >= 1, CTX, 'max_events', max_events, 'must be >= 1', error)
+    call require(findloc(MODE_NAMES, cfg%mode_3d, 1) > 0, CTX, 'mode_3d', mode_3d, &
+                 'must be one of '//join(MODE_NAMES), error)
+    call require(p3d_orders >= 0, CTX, 'p3d_orders', p3d_orders, 'must be >= 0', error)
   end subroutine read_control
 
   subroutine read_atmosphere(unit, present, cloud, cfg, error)
@@ -395,6 +386,7 @@ contains
     integer :: phase1d(MAX_LAYERS, MAX_COMP), phase3d(MAX_COMP)
     character(len=PATH_LEN) :: scene_file
     character(len=512) :: msg
+    character(len=*), parameter :: CTX = '&kumo_atmosphere: '
     namelist /kumo_atmosphere/ nz, z_levels, lx, ly, n_components, ext1d, ssa1d, phase1d, &
       scene_file, k3d_bottom, nx, ny, nz3, n_components_3d, phase3d, air_density, cp_air, &
       rayleigh, rayleigh_profile, co2_ppm, latitude_deg, rayleigh_depol, pressure_levels_hpa
@@ -434,17 +426,14 @@ contains
     if (rayleigh) then
       call rayleigh_profile_check(rayleigh_profile, error)
       if (allocated(error)) return
-      if (.not. (within(co2_ppm, 0.0_wp, 2000.0_wp) .and. within(latitude_deg, -90.0_wp, &
-                                                                  90.0_wp))) then
-        call set_error(error, '&kumo_atmosphere: co2_ppm = '//str(co2_ppm)//' must be within '// &
-                       '[0, 2000] and latitude_deg = '//str(latitude_deg)//' within [-90, 90]')
-        return
-      end if
-      if (.not. rayleigh_depol < 6.0_wp/7.0_wp .or. .not. ieee_is_finite(rayleigh_depol)) then
-        call set_error(error, '&kumo_atmosphere: rayleigh_depol = '//str(rayleigh_depol)// &
-                       ' must be < 6/7 (a value < 0 takes the Bodhaine et al. value)')
-        return
-      end if
+      call require(within(co2_ppm, 0.0_wp, 2000.0_wp) .and. within(latitude_deg, -90.0_wp, &
+                                                                   90.0_wp), CTX, 'co2_ppm', &
+                   co2_ppm, 'must be within [0, 2000] and latitude_deg = '//str(latitude_deg)// &
+                   ' within [-90, 90]', error)
+      call require(rayleigh_depol < 6.0_wp/7.0_wp .and. ieee_is_finite(rayleigh_depol), CTX, &
+                   'rayleigh_depol', rayleigh_depol, &
+                   'must be < 6/7 (a value < 0 takes the Bodhaine et al. value)', error)
+      if (allocated(error)) return
     end if
     cfg%rayleigh = rayleigh
     cfg%rayleigh_profile = to_lower(adjustl(rayleigh_profile))
@@ -470,45 +459,33 @@ contains
     end if
     if (lx == UNSET) lx = cfg%lx
     if (ly == UNSET) ly = cfg%ly
-    if (nz < 1 .or. nz > MAX_LAYERS) then
-      call set_error(error, '&kumo_atmosphere: nz = '//str(nz)//' must be within 1..'// &
-                     str(MAX_LAYERS))
-      return
-    end if
-    if (n_components < 1 .or. n_components > MAX_COMP) then
-      call set_error(error, '&kumo_atmosphere: n_components = '//str(n_components)// &
-                     ' must be within 1..'//str(MAX_COMP))
-      return
-    end if
-    if (any(z_levels(0:nz) == UNSET)) then
-      call set_error(error, '&kumo_atmosphere: z_levels needs nz + 1 = '//str(nz + 1)// &
-                     ' values (levels 0..nz, bottom first) [m]')
-      return
-    end if
-    if (any(z_levels(nz + 1:) /= UNSET)) then
-      call set_error(error, '&kumo_atmosphere: z_levels has more than nz + 1 = '// &
-                     str(nz + 1)//' values')
-      return
-    end if
+    call require(nz >= 1 .and. nz <= MAX_LAYERS, CTX, 'nz', nz, &
+                 'must be within 1..'//str(MAX_LAYERS), error)
+    call require(n_components >= 1 .and. n_components <= MAX_COMP, CTX, 'n_components', &
+                 n_components, 'must be within 1..'//str(MAX_COMP), error)
+    if (allocated(error)) return
+    call require(all(z_levels(0:nz) /= UNSET), CTX, 'z_levels', rule='needs nz + 1 = '// &
+                 str(nz + 1)//' values (levels 0..nz, bottom first) [m]', error=error)
+    call require(all(z_levels(nz + 1:) == UNSET), CTX, 'z_levels', rule='has more than '// &
+                 'nz + 1 = '//str(nz + 1)//' values', error=error)
+    if (allocated(error)) return
     do k = 0, nz
       if (.not. ieee_is_finite(z_levels(k))) then
-        call set_error(error, '&kumo_atmosphere: z_levels('//str(k)//') is not finite')
+        call set_error(error, CTX//'z_levels('//str(k)//') is not finite')
         return
       end if
       if (k > 0) then
         if (.not. z_levels(k) > z_levels(k - 1)) then
-          call set_error(error, '&kumo_atmosphere: z_levels must increase strictly, but z_levels('// &
+          call set_error(error, CTX//'z_levels must increase strictly, but z_levels('// &
                          str(k)//') = '//str(z_levels(k))//' <= z_levels('//str(k - 1)//') = '// &
                          str(z_levels(k - 1)))
           return
         end if
       end if
     end do
-    if (.not. (within(lx, SMALL, BIG) .and. within(ly, SMALL, BIG))) then
-      call set_error(error, '&kumo_atmosphere: lx = '//str(lx)//' and ly = '//str(ly)// &
-                     ' must be > 0 [m]')
-      return
-    end if
+    call require(within(lx, SMALL, BIG) .and. within(ly, SMALL, BIG), CTX, 'lx', lx, &
+                 'and ly = '//str(ly)//' must be > 0 [m]', error)
+    if (allocated(error)) return
     if (any(ext1d(nz + 1:, :) /= UNSET) .or. any(ext1d(:, n_components + 1:) /= UNSET) .or. &
         any(ssa1d(nz + 1:, :) /= UNSET) .or. any(ssa1d(:, n_components + 1:) /= UNSET) .or. &
         any(phase1d(nz + 1:, :) /= IUNSET) .or. any(phase1d(:, n_components + 1:) /= IUNSET)) then
@@ -521,16 +498,11 @@ contains
         if (ext1d(k, ic) == UNSET) ext1d(k, ic) = 0.0_wp
         if (ssa1d(k, ic) == UNSET) ssa1d(k, ic) = 1.0_wp
         if (phase1d(k, ic) == IUNSET) phase1d(k, ic) = 1
-        if (.not. within(ext1d(k, ic), 0.0_wp, BIG)) then
-          call set_error(error, '&kumo_atmosphere: ext1d('//str(k)//','//str(ic)//') = '// &
-                         str(ext1d(k, ic))//' must be finite and >= 0 [m-1]')
-          return
-        end if
-        if (.not. within(ssa1d(k, ic), 0.0_wp, 1.0_wp)) then
-          call set_error(error, '&kumo_atmosphere: ssa1d('//str(k)//','//str(ic)//') = '// &
-                         str(ssa1d(k, ic))//' must be within [0, 1]')
-          return
-        end if
+        call require(within(ext1d(k, ic), 0.0_wp, BIG), CTX, 'ext1d('//str(k)//','//str(ic)//')', &
+                     ext1d(k, ic), 'must be finite and >= 0 [m-1]', error)
+        call require(within(ssa1d(k, ic), 0.0_wp, 1.0_wp), CTX, 'ssa1d('//str(k)//','//str(ic)// &
+                     ')', ssa1d(k, ic), 'must be within [0, 1]', error)
+        if (allocated(error)) return
       end do
     end do
     if (len_trim(scene_file) > 0) then
@@ -540,16 +512,11 @@ contains
                        ' must lie within layers 1..nz = '//str(nz))
         return
       end if
-      if (nx < 1 .or. ny < 1) then
-        call set_error(error, '&kumo_atmosphere: nx = '//str(nx)//' and ny = '//str(ny)// &
-                       ' must be >= 1')
-        return
-      end if
-      if (n_components_3d < 1 .or. n_components_3d > MAX_COMP) then
-        call set_error(error, '&kumo_atmosphere: n_components_3d = '//str(n_components_3d)// &
-                       ' must be within 1..'//str(MAX_COMP))
-        return
-      end if
+      call require(nx >= 1 .and. ny >= 1, CTX, 'nx', nx, 'and ny = '//str(ny)//' must be >= 1', &
+                   error)
+      call require(n_components_3d >= 1 .and. n_components_3d <= MAX_COMP, CTX, &
+                   'n_components_3d', n_components_3d, 'must be within 1..'//str(MAX_COMP), error)
+      if (allocated(error)) return
     else if (cloud%enabled .and. cloud%req%format == 'mcarats') then
       if (k3d_bottom < 1 .or. k3d_bottom + nz3 - 1 > nz) then
         call set_error(error, '&kumo_atmosphere: the 3-D region of the MCARaTS file, layers '// &
@@ -562,20 +529,15 @@ contains
       call set_error(error, '&kumo_atmosphere: k3d_bottom/nz3 are set but scene_file is empty')
       return
     end if
-    if (.not. within(cp_air, SMALL, BIG)) then
-      call set_error(error, '&kumo_atmosphere: cp_air = '//str(cp_air)//' must be > 0')
-      return
-    end if
+    call require(within(cp_air, SMALL, BIG), CTX, 'cp_air', cp_air, 'must be > 0', error)
+    if (allocated(error)) return
     if (any(air_density(1:nz) /= UNSET)) then
-      if (any(air_density(1:nz) == UNSET) .or. any(air_density(nz + 1:) /= UNSET)) then
-        call set_error(error, '&kumo_atmosphere: air_density needs exactly nz = '//str(nz)// &
-                       ' values [kg m-3]')
-        return
-      end if
-      if (.not. all(within(air_density(1:nz), SMALL, BIG))) then
-        call set_error(error, '&kumo_atmosphere: air_density values must be finite and > 0')
-        return
-      end if
+      call require(all(air_density(1:nz) /= UNSET) .and. all(air_density(nz + 1:) == UNSET), &
+                   CTX, 'air_density', rule='needs exactly nz = '//str(nz)//' values [kg m-3]', &
+                   error=error)
+      call require(all(within(air_density(1:nz), SMALL, BIG)), CTX, 'air_density values', &
+                   rule='must be finite and > 0', error=error)
+      if (allocated(error)) return
       cfg%air_density = air_density(1:nz)
     end if
     cfg%nz = nz
@@ -849,6 +811,7 @@ contains
     real(wp) :: les_k_factor, droplet_number_cm3, v_eff, reff_min_um, reff_max_um
     logical :: les_z_edges_from_midpoints
     character(len=512) :: msg
+    character(len=*), parameter :: CTX = '&kumo_cloud: '
     namelist /kumo_cloud/ cloud_file, cloud_format, les_time_index, les_lwc, les_reff, &
       les_number, les_iwc, les_reff_ice, les_temperature, les_pressure, les_air_density, &
       les_x, les_y, les_z, les_x_edges, les_y_edges, les_z_edges, les_k_factor, &
@@ -902,23 +865,18 @@ contains
       error%message = '&kumo_cloud: '//error%message
       return
     end if
-    if (les_time_index == 0 .or. les_time_index < -1) then
-      call set_error(error, '&kumo_cloud: les_time_index = '//str(les_time_index)// &
-                     ' must be >= 1, or -1 for a file without a time dimension')
-    else if (.not. (les_k_factor > 0.0_wp .and. les_k_factor <= 1.0_wp)) then
-      call set_error(error, '&kumo_cloud: les_k_factor = '//str(les_k_factor)// &
-                     ' must satisfy 0 < les_k_factor <= 1')
-    else if (.not. within(droplet_number_cm3, 0.0_wp, BIG)) then
-      call set_error(error, '&kumo_cloud: droplet_number_cm3 = '//str(droplet_number_cm3)// &
-                     ' must be finite and >= 0 (0 = not given)')
-    else if (n_reff < 2 .or. n_reff > 1000) then
-      call set_error(error, '&kumo_cloud: n_reff = '//str(n_reff)//' must be within 2..1000')
-    else if (.not. (within(reff_min_um, 0.01_wp, 1000.0_wp) .and. &
-                    within(reff_max_um, 0.01_wp, 1000.0_wp) .and. reff_max_um > reff_min_um)) then
-      call set_error(error, '&kumo_cloud: reff_min_um = '//str(reff_min_um)// &
-                     ' and reff_max_um = '//str(reff_max_um)//' must satisfy 0.01 <= '// &
-                     'reff_min_um < reff_max_um <= 1000 [um]')
-    end if
+    call require(les_time_index >= 1 .or. les_time_index == -1, CTX, 'les_time_index', &
+                 les_time_index, 'must be >= 1, or -1 for a file without a time dimension', error)
+    call require(les_k_factor > 0.0_wp .and. les_k_factor <= 1.0_wp, CTX, 'les_k_factor', &
+                 les_k_factor, 'must satisfy 0 < les_k_factor <= 1', error)
+    call require(within(droplet_number_cm3, 0.0_wp, BIG), CTX, 'droplet_number_cm3', &
+                 droplet_number_cm3, 'must be finite and >= 0 (0 = not given)', error)
+    call require(n_reff >= 2 .and. n_reff <= 1000, CTX, 'n_reff', n_reff, &
+                 'must be within 2..1000', error)
+    call require(within(reff_min_um, 0.01_wp, 1000.0_wp) .and. &
+                 within(reff_max_um, 0.01_wp, 1000.0_wp) .and. reff_max_um > reff_min_um, CTX, &
+                 'reff_min_um', reff_min_um, 'and reff_max_um = '//str(reff_max_um)// &
+                 ' must satisfy 0.01 <= reff_min_um < reff_max_um <= 1000 [um]', error)
     if (allocated(error)) return
     call dist_kind_from_name(size_distribution, dist, error)
     if (.not. allocated(error)) call size_dist_validate(dist, reff_min_um, v_eff, error)
@@ -1001,16 +959,14 @@ contains
       call set_error(error, CTX//'mcarats_np3d = '//str(np3d)//', mcarats_nkd = '//str(nkd)// &
                      ', mcarats_nang = '//str(nang)//' and mcarats_npf = '//str(npf)// &
                      ' must be >= 0 (0 = not given)')
-    else if (mtprof < -1 .or. mtprof > 1) then
-      call set_error(error, CTX//'mcarats_mtprof = '//str(mtprof)//' must be 0 (temperatures '// &
-                     'per layer), 1 (per level) or -1 (not given)')
-    else if (idread < 1) then
-      call set_error(error, CTX//'mcarats_idread = '//str(idread)//' must be >= 1')
-    else if (ikd < 1) then
-      call set_error(error, CTX//'mcarats_ikd = '//str(ikd)//' must be >= 1')
-    else if (nang == 1) then
-      call set_error(error, CTX//'mcarats_nang = 1 must be >= 2 (angles per phase function)')
+      return
     end if
+    call require(mtprof >= -1 .and. mtprof <= 1, CTX, 'mcarats_mtprof', mtprof, &
+                 'must be 0 (temperatures per layer), 1 (per level) or -1 (not given)', error)
+    call require(idread >= 1, CTX, 'mcarats_idread', idread, 'must be >= 1', error)
+    call require(ikd >= 1, CTX, 'mcarats_ikd', ikd, 'must be >= 1', error)
+    call require(nang /= 1, CTX, 'mcarats_nang', nang, &
+                 'must be >= 2 (angles per phase function)', error)
     if (allocated(error)) return
     atm_ctl = is_ctl_path(cloud_file)
     phase_ctl = is_ctl_path(phase_file)
@@ -1070,6 +1026,7 @@ contains
     real(wp) :: phase_g(MAX_PHASE)
     character(len=PATH_LEN) :: phase_file(MAX_PHASE)
     character(len=512) :: msg
+    character(len=*), parameter :: CTX = '&kumo_phase: '
     namelist /kumo_phase/ n_phase, phase_kind, phase_g, phase_file, n_table
     n_phase = 1
     phase_kind = 'isotropic'
@@ -1081,15 +1038,10 @@ contains
     read (unit, nml=kumo_phase, iostat=ios, iomsg=msg)
     call check_read('kumo_phase', present, ios, msg, error)
     if (allocated(error)) return
-    if (n_phase < 1 .or. n_phase > MAX_PHASE) then
-      call set_error(error, '&kumo_phase: n_phase = '//str(n_phase)//' must be within 1..'// &
-                     str(MAX_PHASE))
-      return
-    end if
-    if (n_table < 100) then
-      call set_error(error, '&kumo_phase: n_table = '//str(n_table)//' must be >= 100')
-      return
-    end if
+    call require(n_phase >= 1 .and. n_phase <= MAX_PHASE, CTX, 'n_phase', n_phase, &
+                 'must be within 1..'//str(MAX_PHASE), error)
+    call require(n_table >= 100, CTX, 'n_table', n_table, 'must be >= 100', error)
+    if (allocated(error)) return
     allocate (cfg%kind(n_phase))
     do i = 1, n_phase
       call phase_kind_from_name(phase_kind(i), cfg%kind(i), error)
@@ -1097,15 +1049,11 @@ contains
         error%message = '&kumo_phase: phase_kind('//str(i)//'): '//error%message
         return
       end if
-      if (.not. within(phase_g(i), nearest(-1.0_wp, 1.0_wp), nearest(1.0_wp, -1.0_wp))) then
-        call set_error(error, '&kumo_phase: phase_g('//str(i)//') = '//str(phase_g(i))// &
-                       ' must satisfy |g| < 1')
-        return
-      end if
-      if (trim(to_lower(phase_kind(i))) == 'table' .and. len_trim(phase_file(i)) == 0) then
-        call set_error(error, '&kumo_phase: phase_file('//str(i)//') is needed for a table')
-        return
-      end if
+      call require(within(phase_g(i), nearest(-1.0_wp, 1.0_wp), nearest(1.0_wp, -1.0_wp)), CTX, &
+                   'phase_g('//str(i)//')', phase_g(i), 'must satisfy |g| < 1', error)
+      call require(trim(to_lower(phase_kind(i))) /= 'table' .or. len_trim(phase_file(i)) > 0, &
+                   CTX, 'phase_file('//str(i)//')', rule='is needed for a table', error=error)
+      if (allocated(error)) return
     end do
     cfg%n_phase = n_phase
     cfg%kind_name = phase_kind(1:n_phase)
@@ -1157,10 +1105,9 @@ contains
     cfg%surface_nyb = surface_nyb
     cfg%surface_mbrdf = surface_mbrdf
     cfg%surface_idread = surface_idread
-    if (.not. within(albedo, 0.0_wp, 1.0_wp)) then
-      call set_error(error, '&kumo_surface: albedo = '//str(albedo)//' must be within [0, 1]')
-      return
-    end if
+    call require(within(albedo, 0.0_wp, 1.0_wp), '&kumo_surface: ', 'albedo', albedo, &
+                 'must be within [0, 1]', error)
+    if (allocated(error)) return
     call brdf_kind_from_name(brdf, kind, error)
     call add_context(error, '&kumo_surface')
     if (allocated(error)) return
@@ -1224,11 +1171,10 @@ contains
     real(wp), intent(in) :: albedo, brdf_param(:), wind_speed
     type(error_t), allocatable, intent(out) :: error
     character(len=*), parameter :: CTX = '&kumo_surface: '
-    if (trim(to_lower(adjustl(surface_format))) /= 'mcarats') then
-      call set_error(error, CTX//'surface_format = "'//trim(surface_format)//'" must be '// &
-                     '''mcarats'' (the MCARaTS binary surface file, Sfc_inpfile)')
-      return
-    end if
+    call require(trim(to_lower(adjustl(surface_format))) == 'mcarats', CTX, 'surface_format', &
+                 surface_format, 'must be ''mcarats'' (the MCARaTS binary surface file, '// &
+                 'Sfc_inpfile)', error)
+    if (allocated(error)) return
     if (len_trim(surface_file) == 0) then
       if (nxb /= 0 .or. nyb /= 0 .or. any(mbrdf /= 1) .or. idread /= 1) then
         call set_error(error, CTX//'surface_nxb, surface_nyb, surface_mbrdf and '// &
@@ -1250,9 +1196,8 @@ contains
       call set_error(error, CTX//'surface_mbrdf = '//str(mbrdf(1))//', '//str(mbrdf(2))//', '// &
                      str(mbrdf(3))//', '//str(mbrdf(4))//' must be 0 or 1 each (Lambert, DSM, '// &
                      'RPV, LSRT may appear)')
-    else if (idread < 1) then
-      call set_error(error, CTX//'surface_idread = '//str(idread)//' must be >= 1')
     end if
+    call require(idread >= 1, CTX, 'surface_idread', idread, 'must be >= 1', error)
   end subroutine surface_file_settings
 
   subroutine read_source(unit, present, cfg, error)
@@ -1263,6 +1208,7 @@ contains
     real(wp) :: sza_deg, phi0_deg, solar_flux, wavelength_um
     integer :: ios
     character(len=512) :: msg
+    character(len=*), parameter :: CTX = '&kumo_source: '
     namelist /kumo_source/ sza_deg, phi0_deg, solar_flux, wavelength_um
     wavelength_um = cfg%wavelength_um
     sza_deg = cfg%sza_deg
@@ -1273,18 +1219,13 @@ contains
     read (unit, nml=kumo_source, iostat=ios, iomsg=msg)
     call check_read('kumo_source', present, ios, msg, error)
     if (allocated(error)) return
-    if (.not. within(sza_deg, 0.0_wp, nearest(90.0_wp, -1.0_wp))) then
-      call set_error(error, '&kumo_source: sza_deg = '//str(sza_deg)// &
-                     ' must satisfy 0 <= sza_deg < 90')
-    else if (.not. ieee_is_finite(phi0_deg)) then
-      call set_error(error, '&kumo_source: phi0_deg = '//str(phi0_deg)//' must be finite')
-    else if (.not. within(solar_flux, 0.0_wp, BIG)) then
-      call set_error(error, '&kumo_source: solar_flux = '//str(solar_flux)// &
-                     ' must be >= 0 [W m-2] (0 = normalised output only)')
-    else if (.not. within(wavelength_um, 0.0_wp, BIG)) then
-      call set_error(error, '&kumo_source: wavelength_um = '//str(wavelength_um)// &
-                     ' must be finite and >= 0 [um] (0 = not given)')
-    end if
+    call require(within(sza_deg, 0.0_wp, nearest(90.0_wp, -1.0_wp)), CTX, 'sza_deg', sza_deg, &
+                 'must satisfy 0 <= sza_deg < 90', error)
+    call require(ieee_is_finite(phi0_deg), CTX, 'phi0_deg', phi0_deg, 'must be finite', error)
+    call require(within(solar_flux, 0.0_wp, BIG), CTX, 'solar_flux', solar_flux, &
+                 'must be >= 0 [W m-2] (0 = normalised output only)', error)
+    call require(within(wavelength_um, 0.0_wp, BIG), CTX, 'wavelength_um', wavelength_um, &
+                 'must be finite and >= 0 [um] (0 = not given)', error)
     cfg%wavelength_um = wavelength_um
     cfg%sza_deg = sza_deg
     cfg%phi0_deg = phi0_deg
@@ -1298,7 +1239,7 @@ contains
     type(output_cfg_t), intent(inout) :: cfg
     type(error_t), allocatable, intent(out) :: error
     character(len=PATH_LEN) :: file
-    integer :: flux_levels(MAX_LAYERS + 1), ios, n, i
+    integer :: flux_levels(MAX_LAYERS + 1), ios, i
     logical :: column_fluxes, voxel_absorption
     character(len=512) :: msg
     namelist /kumo_output/ file, flux_levels, column_fluxes, voxel_absorption
@@ -1311,33 +1252,12 @@ contains
     read (unit, nml=kumo_output, iostat=ios, iomsg=msg)
     call check_read('kumo_output', present, ios, msg, error)
     if (allocated(error)) return
-    if (len_trim(file) == 0) then
-      call set_error(error, '&kumo_output: file must not be empty')
-      return
-    end if
-    n = count(flux_levels /= IUNSET)
-    if (n == 0) then
-      cfg%flux_levels = [(i, i=0, nz)]
-    else
-      if (any(flux_levels(n + 1:) /= IUNSET)) then
-        call set_error(error, '&kumo_output: flux_levels must be a list without gaps')
-        return
-      end if
-      cfg%flux_levels = flux_levels(1:n)
-      do i = 1, n
-        if (cfg%flux_levels(i) < 0 .or. cfg%flux_levels(i) > nz) then
-          call set_error(error, '&kumo_output: flux_levels('//str(i)//') = '// &
-                         str(cfg%flux_levels(i))//' must be within 0..nz = '//str(nz))
-          return
-        end if
-        if (i > 1) then
-          if (cfg%flux_levels(i) <= cfg%flux_levels(i - 1)) then
-            call set_error(error, '&kumo_output: flux_levels must increase strictly')
-            return
-          end if
-        end if
-      end do
-    end if
+    call require(len_trim(file) > 0, '&kumo_output: ', 'file', rule='must not be empty', &
+                 error=error)
+    if (allocated(error)) return
+    call level_list('kumo_output', 'flux_levels', flux_levels, nz, [(i, i=0, nz)], &
+                    cfg%flux_levels, error)
+    if (allocated(error)) return
     cfg%file = file
     cfg%column_fluxes = column_fluxes
     cfg%voxel_absorption = voxel_absorption
@@ -1355,6 +1275,7 @@ contains
     real(wp) :: zeta_min, trunc_theta_max_deg, trunc_peak, cf_tau_min, diffusion, ddis_eps
     integer :: trunc_levels, diffusion_max
     character(len=512) :: msg
+    character(len=*), parameter :: CTX = '&kumo_vr: '
     namelist /kumo_vr/ rr_threshold, rr_weight, use_supervoxels, sv_fsupg, sv_fsupi, &
       sv_max_layers, use_1d_layers, use_absorbing_layers, vr_preset, zeta_min, &
       trunc_theta_max_deg, trunc_levels, trunc_peak, cf_tau_min, diffusion, diffusion_max, &
@@ -1384,11 +1305,8 @@ contains
     if (allocated(error)) return
     ! The preset gives every technique a value; a variable set in the namelist overrides it.
     ip = findloc(PRESET_NAMES, to_lower(adjustl(vr_preset)), 1)
-    if (ip == 0) then
-      call set_error(error, '&kumo_vr: vr_preset = "'//trim(vr_preset)//'" must be one of '// &
-                     join(PRESET_NAMES))
-      return
-    end if
+    call require(ip > 0, CTX, 'vr_preset', vr_preset, 'must be one of '//join(PRESET_NAMES), error)
+    if (allocated(error)) return
     cfg%preset = PRESET_NAMES(ip)
     if (zeta_min == UNSET) zeta_min = PRESET_ZETA(ip)
     if (trunc_theta_max_deg == UNSET) trunc_theta_max_deg = PRESET_TRUNC_DEG(ip)
@@ -1396,37 +1314,23 @@ contains
     if (cf_tau_min == UNSET) cf_tau_min = PRESET_CF_TAU(ip)
     if (diffusion == UNSET) diffusion = PRESET_DIFF(ip)
     if (ddis_eps == UNSET) ddis_eps = PRESET_DDIS(ip)
-    if (.not. within(zeta_min, 0.0_wp, BIG)) then
-      call set_error(error, '&kumo_vr: zeta_min = '//str(zeta_min)//' must be >= 0 (0 = off)')
-      return
-    else if (.not. within(trunc_theta_max_deg, 0.0_wp, 89.0_wp)) then
-      call set_error(error, '&kumo_vr: trunc_theta_max_deg = '//str(trunc_theta_max_deg)// &
-                     ' must be within [0, 89] (0 = no truncation)')
-      return
-    else if (trunc_levels < 1 .or. trunc_levels > 16) then
-      call set_error(error, '&kumo_vr: trunc_levels = '//str(trunc_levels)// &
-                     ' must be within 1..16 (1 = no truncation)')
-      return
-    else if (.not. within(trunc_peak, SMALL, BIG)) then
-      call set_error(error, '&kumo_vr: trunc_peak = '//str(trunc_peak)//' must be > 0')
-      return
-    else if (.not. within(cf_tau_min, 0.0_wp, 1.0e6_wp)) then
-      call set_error(error, '&kumo_vr: cf_tau_min = '//str(cf_tau_min)// &
-                     ' must be within [0, 1e6] (0 = no collision forcing)')
-      return
-    else if (.not. within(diffusion, 0.0_wp, 1.0e6_wp)) then
-      call set_error(error, '&kumo_vr: diffusion = '//str(diffusion)// &
-                     ' must be within [0, 1e6] (0 = no numerical diffusion)')
-      return
-    else if (.not. within(ddis_eps, 0.0_wp, 0.9_wp)) then
-      call set_error(error, '&kumo_vr: ddis_eps = '//str(ddis_eps)// &
-                     ' must be within [0, 0.9] (0 = no directional importance sampling)')
-      return
-    else if (diffusion_max < 0 .or. diffusion_max > 1000) then
-      call set_error(error, '&kumo_vr: diffusion_max = '//str(diffusion_max)// &
-                     ' must be within 0..1000 [columns]')
-      return
-    end if
+    call require(within(zeta_min, 0.0_wp, BIG), CTX, 'zeta_min', zeta_min, &
+                 'must be >= 0 (0 = off)', error)
+    call require(within(trunc_theta_max_deg, 0.0_wp, 89.0_wp), CTX, 'trunc_theta_max_deg', &
+                 trunc_theta_max_deg, 'must be within [0, 89] (0 = no truncation)', error)
+    call require(trunc_levels >= 1 .and. trunc_levels <= 16, CTX, 'trunc_levels', trunc_levels, &
+                 'must be within 1..16 (1 = no truncation)', error)
+    call require(within(trunc_peak, SMALL, BIG), CTX, 'trunc_peak', trunc_peak, 'must be > 0', &
+                 error)
+    call require(within(cf_tau_min, 0.0_wp, 1.0e6_wp), CTX, 'cf_tau_min', cf_tau_min, &
+                 'must be within [0, 1e6] (0 = no collision forcing)', error)
+    call require(within(diffusion, 0.0_wp, 1.0e6_wp), CTX, 'diffusion', diffusion, &
+                 'must be within [0, 1e6] (0 = no numerical diffusion)', error)
+    call require(within(ddis_eps, 0.0_wp, 0.9_wp), CTX, 'ddis_eps', ddis_eps, &
+                 'must be within [0, 0.9] (0 = no directional importance sampling)', error)
+    call require(diffusion_max >= 0 .and. diffusion_max <= 1000, CTX, 'diffusion_max', &
+                 diffusion_max, 'must be within 0..1000 [columns]', error)
+    if (allocated(error)) return
     if (trunc_levels == 1 .or. trunc_theta_max_deg == 0.0_wp) then
       trunc_levels = 1
       trunc_theta_max_deg = 0.0_wp
@@ -1439,16 +1343,12 @@ contains
     cfg%diffusion = diffusion
     cfg%diffusion_max = diffusion_max
     cfg%ddis_eps = ddis_eps
-    if (.not. within(rr_weight, SMALL, BIG)) then
-      call set_error(error, '&kumo_vr: rr_weight = '//str(rr_weight)//' must be > 0')
-    else if (.not. within(rr_threshold, 0.0_wp, rr_weight)) then
-      call set_error(error, '&kumo_vr: rr_threshold = '//str(rr_threshold)// &
-                     ' must be within [0, rr_weight = '//str(rr_weight)//']')
-    else if (.not. (within(sv_fsupg, SMALL, BIG) .and. within(sv_fsupi, SMALL, BIG))) then
-      call set_error(error, '&kumo_vr: sv_fsupg and sv_fsupi must be > 0')
-    else if (sv_max_layers < 1) then
-      call set_error(error, '&kumo_vr: sv_max_layers = '//str(sv_max_layers)//' must be >= 1')
-    end if
+    call require(within(rr_weight, SMALL, BIG), CTX, 'rr_weight', rr_weight, 'must be > 0', error)
+    call require(within(rr_threshold, 0.0_wp, rr_weight), CTX, 'rr_threshold', rr_threshold, &
+                 'must be within [0, rr_weight = '//str(rr_weight)//']', error)
+    call require(within(sv_fsupg, SMALL, BIG) .and. within(sv_fsupi, SMALL, BIG), CTX, &
+                 'sv_fsupg and sv_fsupi', rule='must be > 0', error=error)
+    call require(sv_max_layers >= 1, CTX, 'sv_max_layers', sv_max_layers, 'must be >= 1', error)
     cfg%rr_threshold = rr_threshold
     cfg%rr_weight = rr_weight
     cfg%use_supervoxels = use_supervoxels
@@ -1467,9 +1367,10 @@ contains
     type(radiance_cfg_t), intent(inout) :: cfg
     type(error_t), allocatable, intent(out) :: error
     real(wp) :: rad_mu(MAX_DIR), rad_phi_deg(MAX_DIR)
-    integer :: rad_levels(MAX_LAYERS + 1), ios, n, nl, i
+    integer :: rad_levels(MAX_LAYERS + 1), ios, n, i
     logical :: radiance_maps
     character(len=512) :: msg
+    character(len=*), parameter :: CTX = '&kumo_radiance: '
     namelist /kumo_radiance/ rad_mu, rad_phi_deg, rad_levels, radiance_maps
     rad_mu = UNSET
     rad_phi_deg = UNSET
@@ -1481,50 +1382,23 @@ contains
     call check_read('kumo_radiance', present, ios, msg, error)
     if (allocated(error)) return
     n = count(rad_mu /= UNSET)
-    if (any(rad_mu(n + 1:) /= UNSET)) then
-      call set_error(error, '&kumo_radiance: rad_mu must be a list without gaps')
-      return
-    end if
-    if (any(rad_phi_deg(n + 1:) /= UNSET)) then
-      call set_error(error, '&kumo_radiance: rad_phi_deg has more entries than rad_mu ('// &
-                     str(n)//')')
-      return
-    end if
+    call require(all(rad_mu(n + 1:) == UNSET), CTX, 'rad_mu', rule='must be a list without gaps', &
+                 error=error)
+    call require(all(rad_phi_deg(n + 1:) == UNSET), CTX, 'rad_phi_deg', &
+                 rule='has more entries than rad_mu ('//str(n)//')', error=error)
+    if (allocated(error)) return
     do i = 1, n
-      if (.not. within(abs(rad_mu(i)), 1.0e-6_wp, 1.0_wp)) then
-        call set_error(error, '&kumo_radiance: rad_mu('//str(i)//') = '//str(rad_mu(i))// &
-                       ' must satisfy 1e-6 <= |rad_mu| <= 1 (> 0: upward, < 0: downward)')
-        return
-      end if
+      call require(within(abs(rad_mu(i)), 1.0e-6_wp, 1.0_wp), CTX, 'rad_mu('//str(i)//')', &
+                   rad_mu(i), 'must satisfy 1e-6 <= |rad_mu| <= 1 (> 0: upward, < 0: downward)', &
+                   error)
+      if (allocated(error)) return
       if (rad_phi_deg(i) == UNSET) rad_phi_deg(i) = 0.0_wp
-      if (.not. ieee_is_finite(rad_phi_deg(i))) then
-        call set_error(error, '&kumo_radiance: rad_phi_deg('//str(i)//') must be finite')
-        return
-      end if
+      call require(ieee_is_finite(rad_phi_deg(i)), CTX, 'rad_phi_deg('//str(i)//')', &
+                   rule='must be finite', error=error)
+      if (allocated(error)) return
     end do
-    nl = count(rad_levels /= IUNSET)
-    if (any(rad_levels(nl + 1:) /= IUNSET)) then
-      call set_error(error, '&kumo_radiance: rad_levels must be a list without gaps')
-      return
-    end if
-    if (nl == 0) then
-      cfg%levels = [0, nz]
-    else
-      cfg%levels = rad_levels(1:nl)
-      do i = 1, nl
-        if (cfg%levels(i) < 0 .or. cfg%levels(i) > nz) then
-          call set_error(error, '&kumo_radiance: rad_levels('//str(i)//') = '// &
-                         str(cfg%levels(i))//' must be within 0..nz = '//str(nz))
-          return
-        end if
-        if (i > 1) then
-          if (cfg%levels(i) <= cfg%levels(i - 1)) then
-            call set_error(error, '&kumo_radiance: rad_levels must increase strictly')
-            return
-          end if
-        end if
-      end do
-    end if
+    call level_list('kumo_radiance', 'rad_levels', rad_levels, nz, [0, nz], cfg%levels, error)
+    if (allocated(error)) return
     cfg%mu = rad_mu(1:n)
     cfg%phi_deg = rad_phi_deg(1:n)
     cfg%maps = radiance_maps
@@ -1542,6 +1416,7 @@ contains
     real(wp) :: cam_x(M), cam_y(M), cam_z(M), cam_look_zenith_deg(M), cam_look_azimuth_deg(M)
     real(wp) :: cam_roll_deg(M), cam_fov_deg(M), cam_width(M)
     character(len=512) :: msg
+    character(len=*), parameter :: CTX = '&kumo_camera: '
     namelist /kumo_camera/ n_cameras, cam_kind, cam_x, cam_y, cam_z, cam_look_zenith_deg, &
       cam_look_azimuth_deg, cam_roll_deg, cam_fov_deg, cam_width, cam_npx, cam_npy
     n_cameras = 0
@@ -1561,25 +1436,20 @@ contains
     read (unit, nml=kumo_camera, iostat=ios, iomsg=msg)
     call check_read('kumo_camera', present, ios, msg, error)
     if (allocated(error)) return
-    if (n_cameras < 0 .or. n_cameras > M) then
-      call set_error(error, '&kumo_camera: n_cameras = '//str(n_cameras)// &
-                     ' must be within 0..'//str(M))
-      return
-    end if
+    call require(n_cameras >= 0 .and. n_cameras <= M, CTX, 'n_cameras', n_cameras, &
+                 'must be within 0..'//str(M), error)
+    if (allocated(error)) return
     do i = 1, n_cameras
       cam_kind(i) = to_lower(adjustl(cam_kind(i)))
-      if (cam_kind(i) /= 'pinhole' .and. cam_kind(i) /= 'orthographic') then
-        call set_error(error, '&kumo_camera: cam_kind('//str(i)//') = "'//trim(cam_kind(i))// &
-                       '" must be "pinhole" or "orthographic"')
-        return
-      end if
-      if (cam_z(i) == UNSET) then
-        call set_error(error, '&kumo_camera: cam_z('//str(i)//') must be given [m]')
-        return
-      end if
+      call require(cam_kind(i) == 'pinhole' .or. cam_kind(i) == 'orthographic', CTX, &
+                   'cam_kind('//str(i)//')', cam_kind(i), 'must be "pinhole" or "orthographic"', &
+                   error)
+      call require(cam_z(i) /= UNSET, CTX, 'cam_z('//str(i)//')', rule='must be given [m]', &
+                   error=error)
+      if (allocated(error)) return
       if (cam_npx(i) < 1 .or. cam_npy(i) < 1 .or. &
           int(cam_npx(i), i8)*cam_npy(i) > 16777216_i8) then
-        call set_error(error, '&kumo_camera: cam_npx('//str(i)//') and cam_npy('//str(i)// &
+        call set_error(error, CTX//'cam_npx('//str(i)//') and cam_npy('//str(i)// &
                        ') must be >= 1, with at most 16777216 pixels')
         return
       end if
@@ -1609,13 +1479,14 @@ contains
       call complete_mcarats(cfg%atm, cfg%cloud)
     end if
     np = cfg%phase%n_phase
-    if (any(cfg%atm%phase1d < 1) .or. any(cfg%atm%phase1d > np)) then
-      call set_error(error, '&kumo_atmosphere: phase1d values must be within 1..n_phase = '// &
-                     str(np)//' (&kumo_phase)')
-    else if (any(cfg%atm%phase3d < 1) .or. any(cfg%atm%phase3d > np)) then
-      call set_error(error, '&kumo_atmosphere: phase3d values must be within 1..n_phase = '// &
-                     str(np)//' (&kumo_phase)')
-    else if (allocated(cfg%atm%air_density) .and. cfg%source%solar_flux <= 0.0_wp) then
+    call require(all(cfg%atm%phase1d >= 1 .and. cfg%atm%phase1d <= np), '&kumo_atmosphere: ', &
+                 'phase1d values', rule='must be within 1..n_phase = '//str(np)//' (&kumo_phase)', &
+                 error=error)
+    call require(all(cfg%atm%phase3d >= 1 .and. cfg%atm%phase3d <= np), '&kumo_atmosphere: ', &
+                 'phase3d values', rule='must be within 1..n_phase = '//str(np)//' (&kumo_phase)', &
+                 error=error)
+    if (allocated(error)) return
+    if (allocated(cfg%atm%air_density) .and. cfg%source%solar_flux <= 0.0_wp) then
       call set_error(error, '&kumo_atmosphere: air_density is given but &kumo_source: '// &
                      'solar_flux is not; heating rates in K/day need both')
     else if (cfg%atm%rayleigh .and. cfg%source%wavelength_um <= 0.0_wp) then
@@ -1800,6 +1671,64 @@ contains
              str(cfg%cam%npx(i))//' x '//str(cfg%cam%npy(i))//nl
     end do
   end function config_echo
+
+  !> One validation rule of a namelist variable. Unless an earlier check has failed (`error`
+  !> allocated), `ok` false gives the error "<ctx><name> = <value> <rule>", or
+  !> "<ctx><name> <rule>" without a value; a character value is shown in double quotes.
+  !> Checks written as a sequence of calls report the first rule broken, as an if/else chain.
+  subroutine require(ok, ctx, name, value, rule, error)
+    logical, intent(in) :: ok
+    character(len=*), intent(in) :: ctx    !! group prefix, e.g. '&kumo_vr: '
+    character(len=*), intent(in) :: name   !! the variable, e.g. 'phase_g(2)'
+    class(*), intent(in), optional :: value
+    character(len=*), intent(in) :: rule   !! e.g. 'must be >= 1'
+    type(error_t), allocatable, intent(inout) :: error
+    character(len=:), allocatable :: shown
+    if (allocated(error) .or. ok) return
+    shown = ' '
+    if (present(value)) then
+      select type (value)
+      type is (integer)
+        shown = ' = '//str(value)//' '
+      type is (integer(i8))
+        shown = ' = '//str(value)//' '
+      type is (real(wp))
+        shown = ' = '//str(value)//' '
+      type is (character(len=*))
+        shown = ' = "'//trim(value)//'" '
+      end select
+    end if
+    call set_error(error, ctx//name//shown//rule)
+  end subroutine require
+
+  !> A list of levels from the namelist (`given`, IUNSET where not set): `default` when no
+  !> value is given, else the values given, which must stand without gaps, lie within 0..nz
+  !> and increase strictly.
+  subroutine level_list(group, name, given, nz, default, levels, error)
+    character(len=*), intent(in) :: group, name  !! e.g. 'kumo_output', 'flux_levels'
+    integer, intent(in) :: given(:), nz, default(:)
+    integer, allocatable, intent(out) :: levels(:)
+    type(error_t), allocatable, intent(out) :: error
+    character(len=:), allocatable :: ctx
+    integer :: n, i
+    ctx = '&'//group//': '
+    n = count(given /= IUNSET)
+    call require(all(given(n + 1:) == IUNSET), ctx, name, rule='must be a list without gaps', &
+                 error=error)
+    if (allocated(error)) return
+    if (n == 0) then
+      levels = default
+      return
+    end if
+    levels = given(1:n)
+    do i = 1, n
+      call require(levels(i) >= 0 .and. levels(i) <= nz, ctx, name//'('//str(i)//')', &
+                   levels(i), 'must be within 0..nz = '//str(nz), error)
+      if (i > 1) call require(levels(i) > levels(i - 1), ctx, name, &
+                              rule='must increase strictly', error=error)
+      if (allocated(error)) return
+    end do
+  end subroutine level_list
 
 
   !> A size of the MCARaTS request as the namelist writes it, or `unset` and "from the .ctl"

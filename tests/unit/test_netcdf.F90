@@ -7,7 +7,7 @@
 module test_kumo_netcdf
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_positive_inf
   use kumo_kinds, only: wp, dp
-  use kumo_error, only: error_t
+  use kumo_error, only: error_t, str
   use kumo_results, only: result_set_t, add_dim, add_var, add_attr
   use kumo_netcdf, only: write_results, check_writable, read_scene_3d, write_scene_3d, &
                          read_albedo_map, read_var_1d, read_text_attr
@@ -22,6 +22,13 @@ module test_kumo_netcdf
   !> netCDF's default fill value for doubles (missing data).
   real(dp), parameter :: FILL_DOUBLE = 9.9692099683868690e+36_dp
   character(len=*), parameter :: NO_DIMS(0) = [character(len=1) ::]
+
+  !> A scene as written by write_scene_3d and as read back by read_scene_3d.
+  type :: scene_t
+    real(wp), allocatable :: ext(:, :, :, :), ssa(:, :, :, :)
+    integer, allocatable :: phase(:, :, :, :)   !! phase_index; not allocated: none
+    logical :: has_phase = .false.
+  end type scene_t
 
 contains
 
@@ -63,24 +70,21 @@ contains
     type(result_set_t) :: set
     type(error_t), allocatable :: err
     real(dp), allocatable :: values(:)
-    character(len=:), allocatable :: text
 
-    call remove_file(PATH)
     call sample_set(set)
-    call write_results(PATH, set, err)
-    call check_no_error(error, err, 'write_results')
+    call write_set(error, PATH, set)
     call check(error, file_exists(PATH), 'output file missing after write_results')
     call check(error, .not. file_exists(PATH//'.tmp'), 'temporary file left after success')
     if (allocated(error)) return
 
-    call read_and_compare('x', [500.0_dp, 1500.0_dp, 2500.0_dp])
-    call read_and_compare('albedo_mean', [0.3_dp])
-    call read_and_compare('albedo_mean_stderr', [0.01_dp])
-    call read_and_compare('n_photons', [1.0e6_dp])
-    call read_and_compare('flux_up', set%vars(3)%mean)
-    call read_and_compare('flux_up_stderr', set%vars(3)%stderr)
-    call read_and_compare('heating', set%vars(4)%mean)
-    call read_and_compare('heating_stderr', set%vars(4)%stderr)
+    call read_and_compare(error, PATH, 'x', [500.0_dp, 1500.0_dp, 2500.0_dp])
+    call read_and_compare(error, PATH, 'albedo_mean', [0.3_dp])
+    call read_and_compare(error, PATH, 'albedo_mean_stderr', [0.01_dp])
+    call read_and_compare(error, PATH, 'n_photons', [1.0e6_dp])
+    call read_and_compare(error, PATH, 'flux_up', set%vars(3)%mean)
+    call read_and_compare(error, PATH, 'flux_up_stderr', set%vars(3)%stderr)
+    call read_and_compare(error, PATH, 'heating', set%vars(4)%mean)
+    call read_and_compare(error, PATH, 'heating_stderr', set%vars(4)%stderr)
     if (allocated(error)) return
 
     ! No companion for a variable without standard error; no coordinate for `level`.
@@ -89,30 +93,10 @@ contains
     call read_var_1d(PATH, 'level', values, err)
     call check_message(error, err, ['level'], 'level has no coordinate variable')
 
-    call read_text_attr(PATH, 'Conventions', text, err)
-    call check_no_error(error, err, 'read_text_attr Conventions')
-    if (allocated(error)) return
-    call check(error, text == 'CF-1.8', 'Conventions = "'//text//'", expected "CF-1.8"')
-    call read_text_attr(PATH, 'title', text, err)
-    call check_no_error(error, err, 'read_text_attr title')
-    if (allocated(error)) return
-    call check(error, text == 'kumo unit test', 'title = "'//text//'"')
-    call read_text_attr(PATH, 'comment', text, err)
-    call check_no_error(error, err, 'read_text_attr comment')
-    if (allocated(error)) return
-    call check(error, len(text) == 0, 'empty attribute read back as "'//text//'"')
+    call check_text_attr(error, PATH, 'Conventions', 'CF-1.8')
+    call check_text_attr(error, PATH, 'title', 'kumo unit test')
+    call check_text_attr(error, PATH, 'comment', '')
     call remove_file(PATH)
-
-  contains
-
-    subroutine read_and_compare(name, expected)
-      character(len=*), intent(in) :: name
-      real(dp), intent(in) :: expected(:)
-      call read_var_1d(PATH, name, values, err)
-      call check_no_error(error, err, 'read_var_1d '//name)
-      if (allocated(error)) return
-      call check_values(error, values, expected, 0.0_dp, name)
-    end subroutine read_and_compare
   end subroutine test_results_round_trip
 
   !> A variable on (xs, ys) reads back with read_albedo_map, which insists on albedo(ys, xs) in
@@ -120,26 +104,10 @@ contains
   subroutine test_results_dim_order(error)
     type(error_t), allocatable, intent(out) :: error
     character(len=*), parameter :: PATH = 'test_netcdf_order.nc'
-    type(result_set_t) :: set
-    type(error_t), allocatable :: err
     real(wp), allocatable :: albedo(:, :)
-    real(dp) :: flat(6)
-    integer :: nxs, nys, i
+    integer :: i
 
-    call remove_file(PATH)
-    flat = [(0.1_dp*i, i=1, 6)]
-    call add_dim(set, 'xs', 3)
-    call add_dim(set, 'ys', 2)
-    call add_var(set, 'albedo', 'surface albedo', '1', [character(len=2) :: 'xs', 'ys'], flat)
-    call write_results(PATH, set, err)
-    call check_no_error(error, err, 'write_results')
-    if (allocated(error)) return
-    call read_albedo_map(PATH, 'albedo', nxs, nys, albedo, err)
-    call check_no_error(error, err, 'read_albedo_map')
-    if (allocated(error)) return
-    call check(error, nxs == 3 .and. nys == 2, 'map size is not (3, 2)')
-    if (allocated(error)) return
-    call check_values(error, reshape(albedo, [6]), flat, 0.0_dp, 'albedo')
+    call albedo_round_trip(error, PATH, 'albedo', 3, 2, [(0.1_dp*i, i=1, 6)], albedo)
     call remove_file(PATH)
   end subroutine test_results_dim_order
 
@@ -189,12 +157,9 @@ contains
     character(len=*), parameter :: PATH = 'test_netcdf_keep.nc'
     type(result_set_t) :: good, bad
     type(error_t), allocatable :: err
-    real(dp), allocatable :: values(:)
 
-    call remove_file(PATH)
     call sample_set(good)
-    call write_results(PATH, good, err)
-    call check_no_error(error, err, 'first write_results')
+    call write_set(error, PATH, good)
     if (allocated(error)) return
 
     ! Fails validation: no file is created at all.
@@ -213,14 +178,9 @@ contains
     call check(error, .not. file_exists(PATH//'.tmp'), 'temporary file left after a failure')
     if (allocated(error)) return
 
-    call read_var_1d(PATH, 'flux_up', values, err)
-    call check_no_error(error, err, 'read_var_1d of the old file')
-    if (allocated(error)) return
-    call check_values(error, values, good%vars(3)%mean, 0.0_dp, 'flux_up of the old file')
-    call read_var_1d(PATH, 'x', values, err)
-    call check_no_error(error, err, 'read_var_1d x of the old file')
-    if (allocated(error)) return
-    call check_values(error, values, good%dims(1)%coord, 0.0_dp, 'x of the old file')
+    call read_and_compare(error, PATH, 'flux_up', good%vars(3)%mean, &
+                          label='flux_up of the old file')
+    call read_and_compare(error, PATH, 'x', good%dims(1)%coord, label='x of the old file')
     call remove_file(PATH)
   end subroutine test_results_keeps_old_file
 
@@ -282,115 +242,82 @@ contains
   subroutine test_scene_round_trip(error)
     type(error_t), allocatable, intent(out) :: error
     character(len=*), parameter :: PATH = 'test_netcdf_scene.nc'
-    real(wp) :: ext(NX, NY, NZ, NC), ssa(NX, NY, NZ, NC)
-    integer :: phase(NX, NY, NZ, NC)
-    real(wp), allocatable :: ext_in(:, :, :, :), ssa_in(:, :, :, :)
-    integer, allocatable :: phase_in(:, :, :, :)
-    real(dp), allocatable :: values(:)
-    logical :: has_phase
-    type(error_t), allocatable :: err
+    type(scene_t) :: scene, got
 
-    call remove_file(PATH)
-    call sample_scene(ext, ssa, phase)
-    call write_scene_3d(PATH, ext, ssa, phase, err)
-    call check_no_error(error, err, 'write_scene_3d')
+    call sample_scene(scene)
+    call write_scene(error, PATH, scene, 'write_scene_3d')
     call check(error, .not. file_exists(PATH//'.tmp'), 'temporary file left after success')
     if (allocated(error)) return
 
-    call read_scene_3d(PATH, NX, NY, NZ, NC, ext_in, ssa_in, phase_in, has_phase, err)
-    call check_no_error(error, err, 'read_scene_3d')
+    call read_scene(error, PATH, got, 'read_scene_3d')
     if (allocated(error)) return
-    call check(error, has_phase .and. allocated(phase_in), 'phase_index not read')
+    call check(error, got%has_phase .and. allocated(got%phase), 'phase_index not read')
     if (allocated(error)) return
-    call check(error, all(shape(ext_in) == [NX, NY, NZ, NC]), 'extinction has the wrong shape')
-    call check(error, all(shape(ssa_in) == [NX, NY, NZ, NC]), 'ssa has the wrong shape')
-    call check(error, all(shape(phase_in) == [NX, NY, NZ, NC]), 'phase_index has the wrong shape')
+    call check(error, all(shape(got%ext) == [NX, NY, NZ, NC]), 'extinction has the wrong shape')
+    call check(error, all(shape(got%ssa) == [NX, NY, NZ, NC]), 'ssa has the wrong shape')
+    call check(error, all(shape(got%phase) == [NX, NY, NZ, NC]), 'phase_index has the wrong shape')
     if (allocated(error)) return
-    call check_values(error, reshape(ext_in, [size(ext_in)]), reshape(ext, [size(ext)]), &
-                      0.0_dp, 'extinction')
-    call check_values(error, reshape(ssa_in, [size(ssa_in)]), reshape(ssa, [size(ssa)]), &
-                      0.0_dp, 'ssa')
-    call check(error, all(phase_in == phase), 'phase_index differs after the round trip')
+    call check_values(error, flat(got%ext), flat(scene%ext), 0.0_dp, 'extinction')
+    call check_values(error, flat(got%ssa), flat(scene%ssa), 0.0_dp, 'ssa')
+    call check(error, all(got%phase == scene%phase), 'phase_index differs after the round trip')
 
     ! The file holds the values in Fortran order of (x, y, z, component).
-    call read_var_1d(PATH, 'extinction', values, err)
-    call check_no_error(error, err, 'read_var_1d extinction')
-    if (allocated(error)) return
-    call check_values(error, values, reshape(ext, [size(ext)]), 0.0_dp, 'extinction (flat)')
+    call read_and_compare(error, PATH, 'extinction', flat(scene%ext), label='extinction (flat)')
     call remove_file(PATH)
   end subroutine test_scene_round_trip
 
   subroutine test_scene_no_phase_index(error)
     type(error_t), allocatable, intent(out) :: error
     character(len=*), parameter :: PATH = 'test_netcdf_scene_nophase.nc'
-    real(wp) :: ext(NX, NY, NZ, NC), ssa(NX, NY, NZ, NC)
-    integer :: phase(NX, NY, NZ, NC)
-    real(wp), allocatable :: ext_in(:, :, :, :), ssa_in(:, :, :, :)
-    integer, allocatable :: phase_in(:, :, :, :)
-    logical :: has_phase
-    type(error_t), allocatable :: err
+    type(scene_t) :: scene, got
 
-    call remove_file(PATH)
-    call sample_scene(ext, ssa, phase)
-    call write_scene_3d(PATH, ext, ssa, error=err)
-    call check_no_error(error, err, 'write_scene_3d without phase_index')
+    call sample_scene(scene)
+    deallocate (scene%phase)                  ! written without phase_index
+    call write_scene(error, PATH, scene, 'write_scene_3d without phase_index')
     if (allocated(error)) return
-    call read_scene_3d(PATH, NX, NY, NZ, NC, ext_in, ssa_in, phase_in, has_phase, err)
-    call check_no_error(error, err, 'read_scene_3d')
-    call check(error, .not. has_phase, 'has_phase_index is true for a file without it')
-    call check(error, .not. allocated(phase_in), 'phase_index allocated for a file without it')
+    call read_scene(error, PATH, got, 'read_scene_3d')
+    call check(error, .not. got%has_phase, 'has_phase_index is true for a file without it')
+    call check(error, .not. allocated(got%phase), 'phase_index allocated for a file without it')
     call remove_file(PATH)
   end subroutine test_scene_no_phase_index
 
   subroutine test_scene_km_units(error)
     type(error_t), allocatable, intent(out) :: error
     character(len=*), parameter :: PATH = 'test_netcdf_scene_km.nc'
-    real(wp) :: ext(NX, NY, NZ, NC), ssa(NX, NY, NZ, NC)
-    integer :: phase(NX, NY, NZ, NC)
-    real(wp), allocatable :: ext_in(:, :, :, :), ssa_in(:, :, :, :)
-    integer, allocatable :: phase_in(:, :, :, :)
-    real(dp), allocatable :: values(:)
-    logical :: has_phase
-    type(error_t), allocatable :: err
+    type(scene_t) :: scene, got
 
-    call remove_file(PATH)
-    call sample_scene(ext, ssa, phase)
-    call write_scene_3d(PATH, ext, ssa, phase, err, ext_units='km-1')
-    call check_no_error(error, err, 'write_scene_3d in km-1')
+    call sample_scene(scene)
+    call write_scene(error, PATH, scene, 'write_scene_3d in km-1', ext_units='km-1')
     if (allocated(error)) return
     ! The file holds km-1 values, 1000 times the m-1 values.
-    call read_var_1d(PATH, 'extinction', values, err)
-    call check_no_error(error, err, 'read_var_1d extinction')
+    call read_and_compare(error, PATH, 'extinction', 1000.0_dp*flat(scene%ext), 1.0e-15_dp, &
+                          'extinction in the file [km-1]')
     if (allocated(error)) return
-    call check_values(error, values, 1000.0_dp*reshape(ext, [size(ext)]), 1.0e-15_dp, &
-                      'extinction in the file [km-1]')
     ! The reader converts back to m-1.
-    call read_scene_3d(PATH, NX, NY, NZ, NC, ext_in, ssa_in, phase_in, has_phase, err)
-    call check_no_error(error, err, 'read_scene_3d of a km-1 file')
+    call read_scene(error, PATH, got, 'read_scene_3d of a km-1 file')
     if (allocated(error)) return
-    call check_values(error, reshape(ext_in, [size(ext_in)]), reshape(ext, [size(ext)]), &
-                      1.0e-15_dp, 'extinction read from km-1 [m-1]')
+    call check_values(error, flat(got%ext), flat(scene%ext), 1.0e-15_dp, &
+                      'extinction read from km-1 [m-1]')
     call remove_file(PATH)
   end subroutine test_scene_km_units
 
   subroutine test_scene_writer_validates(error)
     type(error_t), allocatable, intent(out) :: error
     character(len=*), parameter :: PATH = 'test_netcdf_scene_bad.nc'
-    real(wp) :: ext(NX, NY, NZ, NC), ssa(NX, NY, NZ, NC)
-    integer :: phase(NX, NY, NZ, NC)
+    type(scene_t) :: scene
     type(error_t), allocatable :: err
 
     call remove_file(PATH)
-    call sample_scene(ext, ssa, phase)
-    phase(1, 2, 1, 1) = 0
-    call write_scene_3d(PATH, ext, ssa, phase, err)
+    call sample_scene(scene)
+    scene%phase(1, 2, 1, 1) = 0
+    call write_scene_3d(PATH, scene%ext, scene%ssa, scene%phase, err)
     call check_message(error, err, [character(len=80) :: 'write_scene_3d('//PATH//':phase_index)', &
                                     'value 0', '(x,y,z,component) = (1,2,1,1)', 'must be >= 1'], &
                        'phase_index 0')
-    call sample_scene(ext, ssa, phase)
-    call write_scene_3d(PATH, ext, ssa(:, :, 1:2, :), error=err)
+    call sample_scene(scene)
+    call write_scene_3d(PATH, scene%ext, scene%ssa(:, :, 1:2, :), error=err)
     call check_message(error, err, [character(len=80) :: ':ssa)', 'shape'], 'ssa shape mismatch')
-    call write_scene_3d(PATH, ext, ssa, error=err, ext_units='1/km')
+    call write_scene_3d(PATH, scene%ext, scene%ssa, error=err, ext_units='1/km')
     call check_message(error, err, [character(len=80) :: '"1/km"'], 'unknown ext_units')
     call check(error, .not. file_exists(PATH), 'invalid scene created a file')
     call check(error, .not. file_exists(PATH//'.tmp'), 'invalid scene left a temporary file')
@@ -399,14 +326,10 @@ contains
   subroutine test_scene_bad_dim_size(error)
     type(error_t), allocatable, intent(out) :: error
     character(len=*), parameter :: PATH = 'test_netcdf_scene_dims.nc'
-    real(wp) :: ext(NX, NY, NZ, NC), ssa(NX, NY, NZ, NC)
-    integer :: phase(NX, NY, NZ, NC)
-    type(error_t), allocatable :: err
+    type(scene_t) :: scene
 
-    call remove_file(PATH)
-    call sample_scene(ext, ssa, phase)
-    call write_scene_3d(PATH, ext, ssa, phase, err)
-    call check_no_error(error, err, 'write_scene_3d')
+    call sample_scene(scene)
+    call write_scene(error, PATH, scene, 'write_scene_3d')
     if (allocated(error)) return
     call expect_scene_error(error, PATH, NZ + 1, [character(len=80) :: &
                             'read_scene_3d('//PATH//':z)', 'size 4', 'nz3 = 5'], &
@@ -418,138 +341,81 @@ contains
     type(error_t), allocatable, intent(out) :: error
     character(len=*), parameter :: PATH = 'test_netcdf_scene_nossa.nc'
     type(result_set_t) :: set
-    type(error_t), allocatable :: err
 
-    call remove_file(PATH)
     call scene_like_set(set, 'm-1', with_ssa=.false.)
-    call write_results(PATH, set, err)
-    call check_no_error(error, err, 'write_results')
-    if (allocated(error)) return
-    call expect_scene_error(error, PATH, NZ, [character(len=80) :: &
-                            'read_scene_3d('//PATH//':ssa)', &
-                            'not found'], 'missing ssa')
-    call remove_file(PATH)
+    call expect_written_scene_error(error, PATH, set, [character(len=80) :: &
+                                    'read_scene_3d('//PATH//':ssa)', 'not found'], 'missing ssa')
   end subroutine test_scene_missing_var
 
   subroutine test_scene_bad_units(error)
     type(error_t), allocatable, intent(out) :: error
     character(len=*), parameter :: PATH = 'test_netcdf_scene_units.nc'
     type(result_set_t) :: set
-    type(error_t), allocatable :: err
 
-    call remove_file(PATH)
     call scene_like_set(set, 'm')
-    call write_results(PATH, set, err)
-    call check_no_error(error, err, 'write_results')
-    if (allocated(error)) return
-    call expect_scene_error(error, PATH, NZ, [character(len=80) :: ':extinction)', 'units "m"', &
-                            '"m-1"', '"km-1"'], 'extinction in m')
+    call expect_written_scene_error(error, PATH, set, [character(len=80) :: ':extinction)', &
+                                    'units "m"', '"m-1"', '"km-1"'], 'extinction in m')
     if (allocated(error)) return
 
     call scene_like_set(set, '')          ! a blank units string is not written at all
-    call write_results(PATH, set, err)
-    call check_no_error(error, err, 'write_results')
-    if (allocated(error)) return
-    call expect_scene_error(error, PATH, NZ, [character(len=80) :: ':extinction)', &
-                            'units attribute missing', '"m-1"'], 'extinction without units')
+    call expect_written_scene_error(error, PATH, set, [character(len=80) :: ':extinction)', &
+                                    'units attribute missing', '"m-1"'], &
+                                    'extinction without units')
     if (allocated(error)) return
 
     call scene_like_set(set, 'm-1', ssa_units='%')
-    call write_results(PATH, set, err)
-    call check_no_error(error, err, 'write_results')
-    if (allocated(error)) return
-    call expect_scene_error(error, PATH, NZ, [character(len=80) :: ':ssa)', 'units "%"', &
-                            '"1" or absent'], 'ssa in percent')
-    call remove_file(PATH)
+    call expect_written_scene_error(error, PATH, set, [character(len=80) :: ':ssa)', &
+                                    'units "%"', '"1" or absent'], 'ssa in percent')
   end subroutine test_scene_bad_units
 
   subroutine test_scene_negative_ext(error)
     type(error_t), allocatable, intent(out) :: error
     character(len=*), parameter :: PATH = 'test_netcdf_scene_negext.nc'
-    type(result_set_t) :: set
-    type(error_t), allocatable :: err
-
-    call remove_file(PATH)
-    call scene_like_set(set, 'm-1')
-    set%vars(1)%mean(flat_index(2, 1, 3, 1)) = -2.5_dp
-    call write_results(PATH, set, err)
-    call check_no_error(error, err, 'write_results')
-    if (allocated(error)) return
-    call expect_scene_error(error, PATH, NZ, [character(len=80) :: &
-                            'read_scene_3d('//PATH//':extinction)', 'value -2.5', &
-                            '(x,y,z,component) = (2,1,3,1)', 'must be >= 0'], 'negative extinction')
-    call remove_file(PATH)
+    call expect_bad_scene_value(error, PATH, 'm-1', 1, [2, 1, 3, 1], -2.5_dp, &
+                                [character(len=80) :: 'read_scene_3d('//PATH//':extinction)', &
+                                 'value -2.5', '(x,y,z,component) = (2,1,3,1)', 'must be >= 0'], &
+                                'negative extinction')
   end subroutine test_scene_negative_ext
 
   subroutine test_scene_ssa_above_one(error)
     type(error_t), allocatable, intent(out) :: error
     character(len=*), parameter :: PATH = 'test_netcdf_scene_ssa.nc'
-    type(result_set_t) :: set
-    type(error_t), allocatable :: err
-
-    call remove_file(PATH)
-    call scene_like_set(set, 'km-1')
-    set%vars(2)%mean(flat_index(3, 2, 4, 2)) = 1.25_dp
-    call write_results(PATH, set, err)
-    call check_no_error(error, err, 'write_results')
-    if (allocated(error)) return
-    call expect_scene_error(error, PATH, NZ, [character(len=80) :: &
-                            'read_scene_3d('//PATH//':ssa)', 'value 1.25', &
-                            '(x,y,z,component) = (3,2,4,2)', 'must be <= 1'], 'ssa above 1')
-    call remove_file(PATH)
+    call expect_bad_scene_value(error, PATH, 'km-1', 2, [3, 2, 4, 2], 1.25_dp, &
+                                [character(len=80) :: 'read_scene_3d('//PATH//':ssa)', &
+                                 'value 1.25', '(x,y,z,component) = (3,2,4,2)', 'must be <= 1'], &
+                                'ssa above 1')
   end subroutine test_scene_ssa_above_one
 
   subroutine test_scene_fill_value(error)
     type(error_t), allocatable, intent(out) :: error
     character(len=*), parameter :: PATH = 'test_netcdf_scene_fill.nc'
-    type(result_set_t) :: set
-    type(error_t), allocatable :: err
-
-    call remove_file(PATH)
-    call scene_like_set(set, 'm-1')
-    set%vars(1)%mean(flat_index(1, 2, 2, 1)) = FILL_DOUBLE
-    call write_results(PATH, set, err)
-    call check_no_error(error, err, 'write_results')
-    if (allocated(error)) return
-    call expect_scene_error(error, PATH, NZ, [character(len=80) :: ':extinction)', &
-                            '(x,y,z,component) = (1,2,2,1)', 'fill value'], 'fill value')
-    call remove_file(PATH)
+    call expect_bad_scene_value(error, PATH, 'm-1', 1, [1, 2, 2, 1], FILL_DOUBLE, &
+                                [character(len=80) :: ':extinction)', &
+                                 '(x,y,z,component) = (1,2,2,1)', 'fill value'], 'fill value')
   end subroutine test_scene_fill_value
 
   subroutine test_scene_dim_order(error)
     type(error_t), allocatable, intent(out) :: error
     character(len=*), parameter :: PATH = 'test_netcdf_scene_order.nc'
     type(result_set_t) :: set
-    type(error_t), allocatable :: err
 
-    call remove_file(PATH)
     call scene_like_set(set, 'm-1', reversed=.true.)
-    call write_results(PATH, set, err)
-    call check_no_error(error, err, 'write_results')
-    if (allocated(error)) return
-    call expect_scene_error(error, PATH, NZ, [character(len=80) :: ':extinction)', &
-                            '(x, y, z, component) in ncdump order', &
-                            'expected (component, z, y, x)'], 'transposed extinction')
-    call remove_file(PATH)
+    call expect_written_scene_error(error, PATH, set, [character(len=80) :: ':extinction)', &
+                                    '(x, y, z, component) in ncdump order', &
+                                    'expected (component, z, y, x)'], 'transposed extinction')
   end subroutine test_scene_dim_order
 
   subroutine test_scene_phase_index_type(error)
     type(error_t), allocatable, intent(out) :: error
     character(len=*), parameter :: PATH = 'test_netcdf_scene_ptype.nc'
     type(result_set_t) :: set
-    type(error_t), allocatable :: err
 
-    call remove_file(PATH)
     call scene_like_set(set, 'm-1')
     call add_var(set, 'phase_index', 'stored as double', '', &
                  [character(len=9) :: 'x', 'y', 'z', 'component'], &
                  spread(1.0_dp, 1, NX*NY*NZ*NC))
-    call write_results(PATH, set, err)
-    call check_no_error(error, err, 'write_results')
-    if (allocated(error)) return
-    call expect_scene_error(error, PATH, NZ, [character(len=80) :: ':phase_index)', &
-                            'integer type'], 'double phase_index')
-    call remove_file(PATH)
+    call expect_written_scene_error(error, PATH, set, [character(len=80) :: ':phase_index)', &
+                                    'integer type'], 'double phase_index')
   end subroutine test_scene_phase_index_type
 
   subroutine test_scene_missing_file(error)
@@ -567,27 +433,14 @@ contains
   subroutine test_albedo_round_trip(error)
     type(error_t), allocatable, intent(out) :: error
     character(len=*), parameter :: PATH = 'test_netcdf_albedo.nc'
-    type(result_set_t) :: set
     type(error_t), allocatable :: err
     real(wp), allocatable :: albedo(:, :)
-    real(dp) :: flat(20)
     integer :: nxs, nys, i
 
-    call remove_file(PATH)
-    flat = [(real(i - 1, dp)/19.0_dp, i=1, 20)]          ! includes exactly 0 and 1
-    call add_dim(set, 'xs', 5)
-    call add_dim(set, 'ys', 4)
-    call add_var(set, 'sfc_albedo', 'surface albedo', '1', [character(len=2) :: 'xs', 'ys'], flat)
-    call write_results(PATH, set, err)
-    call check_no_error(error, err, 'write_results')
+    ! includes exactly 0 and 1
+    call albedo_round_trip(error, PATH, 'sfc_albedo', 5, 4, [(real(i - 1, dp)/19.0_dp, i=1, 20)], &
+                           albedo)
     if (allocated(error)) return
-    call read_albedo_map(PATH, 'sfc_albedo', nxs, nys, albedo, err)
-    call check_no_error(error, err, 'read_albedo_map')
-    if (allocated(error)) return
-    call check(error, nxs == 5 .and. nys == 4, 'map size is not (5, 4)')
-    call check(error, all(shape(albedo) == [5, 4]), 'albedo has the wrong shape')
-    if (allocated(error)) return
-    call check_values(error, reshape(albedo, [20]), flat, 0.0_dp, 'albedo')
 
     ! A blank name means the default "albedo", absent here.
     call read_albedo_map(PATH, '', nxs, nys, albedo, err)
@@ -600,20 +453,14 @@ contains
   subroutine test_albedo_errors(error)
     type(error_t), allocatable, intent(out) :: error
     character(len=*), parameter :: PATH = 'test_netcdf_albedo_bad.nc'
-    type(result_set_t) :: set
     type(error_t), allocatable :: err
     real(wp), allocatable :: albedo(:, :)
-    real(dp) :: flat(6)
+    real(dp) :: values(6)
     integer :: nxs, nys
 
-    call remove_file(PATH)
-    flat = 0.2_dp
-    flat(2) = 1.5_dp                                      ! (xs, ys) = (2, 1)
-    call add_dim(set, 'xs', 3)
-    call add_dim(set, 'ys', 2)
-    call add_var(set, 'albedo', 'surface albedo', '1', [character(len=2) :: 'xs', 'ys'], flat)
-    call write_results(PATH, set, err)
-    call check_no_error(error, err, 'write_results')
+    values = 0.2_dp
+    values(2) = 1.5_dp                                    ! (xs, ys) = (2, 1)
+    call write_albedo_map(error, PATH, 'albedo', 3, 2, values)
     if (allocated(error)) return
     call read_albedo_map(PATH, 'albedo', nxs, nys, albedo, err)
     call check_message(error, err, [character(len=80) :: 'read_albedo_map('//PATH//':albedo)', &
@@ -632,10 +479,8 @@ contains
     type(error_t), allocatable :: err
     character(len=:), allocatable :: text
 
-    call remove_file(PATH)
     call sample_set(set)
-    call write_results(PATH, set, err)
-    call check_no_error(error, err, 'write_results')
+    call write_set(error, PATH, set)
     if (allocated(error)) return
     call read_text_attr(PATH, 'no_such_attribute', text, err)
     call check_message(error, err, [character(len=80) :: PATH//':no_such_attribute)', &
@@ -671,24 +516,26 @@ contains
     call add_attr(set, 'comment', '')
   end subroutine sample_set
 
-  !> A small scene whose values depend on every index, so any transposition shows.
-  subroutine sample_scene(ext, ssa, phase)
-    real(wp), intent(out) :: ext(NX, NY, NZ, NC), ssa(NX, NY, NZ, NC)
-    integer, intent(out) :: phase(NX, NY, NZ, NC)
+  !> A small (NX, NY, NZ, NC) scene whose values depend on every index, so any transposition
+  !> shows.
+  subroutine sample_scene(scene)
+    type(scene_t), intent(out) :: scene
     integer :: ix, iy, iz, ic
+    allocate (scene%ext(NX, NY, NZ, NC), scene%ssa(NX, NY, NZ, NC), scene%phase(NX, NY, NZ, NC))
     do ic = 1, NC
       do iz = 1, NZ
         do iy = 1, NY
           do ix = 1, NX
-            ext(ix, iy, iz, ic) = 1.0e-4_wp*(ix + 10*iy + 100*iz + 1000*ic)
-            ssa(ix, iy, iz, ic) = real(ix + NX*(iy - 1), wp)/real(NX*NY, wp)  ! 1/6 .. 1
-            phase(ix, iy, iz, ic) = ic + NC*(iz - 1)
+            scene%ext(ix, iy, iz, ic) = 1.0e-4_wp*(ix + 10*iy + 100*iz + 1000*ic)
+            scene%ssa(ix, iy, iz, ic) = real(ix + NX*(iy - 1), wp)/real(NX*NY, wp)  ! 1/6 .. 1
+            scene%phase(ix, iy, iz, ic) = ic + NC*(iz - 1)
           end do
         end do
       end do
     end do
-    ext(1, 1, 1, 1) = 0.0_wp                             ! a clear voxel
-    ssa(1, 1, 1, 2) = 0.0_wp                             ! a purely absorbing component
+    scene%ext(1, 1, 1, 1) = 0.0_wp                       ! a clear voxel
+    scene%ssa(1, 1, 1, 2) = 0.0_wp                       ! a purely absorbing component
+    scene%has_phase = .true.
   end subroutine sample_scene
 
   !> A scene-like file made through write_results (which checks nothing scene-specific), to
@@ -699,12 +546,11 @@ contains
     logical, intent(in), optional :: with_ssa
     character(len=*), intent(in), optional :: ssa_units
     logical, intent(in), optional :: reversed
-    real(wp) :: ext(NX, NY, NZ, NC), ssa(NX, NY, NZ, NC)
-    integer :: phase(NX, NY, NZ, NC)
+    type(scene_t) :: scene
     character(len=9) :: names(4)
     logical :: add_ssa
 
-    call sample_scene(ext, ssa, phase)
+    call sample_scene(scene)
     names = [character(len=9) :: 'x', 'y', 'z', 'component']
     if (present(reversed)) then
       if (reversed) names = names(4:1:-1)
@@ -716,13 +562,12 @@ contains
     call add_dim(set, 'z', NZ)
     call add_dim(set, 'component', NC)
     call add_var(set, 'extinction', 'volume extinction coefficient', ext_units, names, &
-                 reshape(ext, [size(ext)]))
+                 flat(scene%ext))
     if (add_ssa) then
       if (present(ssa_units)) then
-        call add_var(set, 'ssa', 'single-scattering albedo', ssa_units, names, &
-                     reshape(ssa, [size(ssa)]))
+        call add_var(set, 'ssa', 'single-scattering albedo', ssa_units, names, flat(scene%ssa))
       else
-        call add_var(set, 'ssa', 'single-scattering albedo', '1', names, reshape(ssa, [size(ssa)]))
+        call add_var(set, 'ssa', 'single-scattering albedo', '1', names, flat(scene%ssa))
       end if
     end if
   end subroutine scene_like_set
@@ -733,6 +578,85 @@ contains
     flat_index = ix + NX*((iy - 1) + NY*((iz - 1) + NZ*(ic - 1)))
   end function flat_index
 
+  !> The values of a 4-D field in Fortran (file) order.
+  pure function flat(field) result(values)
+    real(wp), intent(in) :: field(:, :, :, :)
+    real(wp) :: values(size(field))
+    values = reshape(field, [size(field)])
+  end function flat
+
+  !> write_results of `set` to `path` (an old file removed first) must succeed.
+  subroutine write_set(error, path, set)
+    type(error_t), allocatable, intent(inout) :: error
+    character(len=*), intent(in) :: path
+    type(result_set_t), intent(in) :: set
+    type(error_t), allocatable :: err
+    call remove_file(path)
+    call write_results(path, set, err)
+    call check_no_error(error, err, 'write_results')
+  end subroutine write_set
+
+  !> write_scene_3d of `scene` to `path` (an old file removed first; without phase_index when
+  !> scene%phase is not allocated) must succeed; `what` names the call in the message.
+  subroutine write_scene(error, path, scene, what, ext_units)
+    type(error_t), allocatable, intent(inout) :: error
+    character(len=*), intent(in) :: path
+    type(scene_t), intent(in) :: scene
+    character(len=*), intent(in) :: what
+    character(len=*), intent(in), optional :: ext_units
+    type(error_t), allocatable :: err
+    call remove_file(path)
+    call write_scene_3d(path, scene%ext, scene%ssa, scene%phase, err, ext_units)
+    call check_no_error(error, err, what)
+  end subroutine write_scene
+
+  !> read_scene_3d of an (NX, NY, NZ, NC) scene must succeed; `what` names the call.
+  subroutine read_scene(error, path, scene, what)
+    type(error_t), allocatable, intent(inout) :: error
+    character(len=*), intent(in) :: path
+    type(scene_t), intent(out) :: scene
+    character(len=*), intent(in) :: what
+    type(error_t), allocatable :: err
+    call read_scene_3d(path, NX, NY, NZ, NC, scene%ext, scene%ssa, scene%phase, &
+                       scene%has_phase, err)
+    call check_no_error(error, err, what)
+  end subroutine read_scene
+
+  !> read_var_1d of `name` must succeed and give `expected` to within `rel_tol` (default 0).
+  subroutine read_and_compare(error, path, name, expected, rel_tol, label)
+    type(error_t), allocatable, intent(inout) :: error
+    character(len=*), intent(in) :: path, name
+    real(dp), intent(in) :: expected(:)
+    real(dp), intent(in), optional :: rel_tol
+    character(len=*), intent(in), optional :: label  !! in the message; default `name`
+    real(dp), allocatable :: values(:)
+    type(error_t), allocatable :: err
+    real(dp) :: tol
+    tol = 0.0_dp
+    if (present(rel_tol)) tol = rel_tol
+    call read_var_1d(path, name, values, err)
+    call check_no_error(error, err, 'read_var_1d '//name)
+    if (allocated(error)) return
+    if (present(label)) then
+      call check_values(error, values, expected, tol, label)
+    else
+      call check_values(error, values, expected, tol, name)
+    end if
+  end subroutine read_and_compare
+
+  !> The global text attribute `name` must read back as exactly `expected` (same length too).
+  subroutine check_text_attr(error, path, name, expected)
+    type(error_t), allocatable, intent(inout) :: error
+    character(len=*), intent(in) :: path, name, expected
+    character(len=:), allocatable :: text
+    type(error_t), allocatable :: err
+    call read_text_attr(path, name, text, err)
+    call check_no_error(error, err, 'read_text_attr '//name)
+    if (allocated(error)) return
+    call check(error, text == expected .and. len(text) == len(expected), &
+               name//' = "'//text//'", expected "'//expected//'"')
+  end subroutine check_text_attr
+
   !> read_scene_3d must fail with a message containing every piece, and leave nothing allocated.
   subroutine expect_scene_error(error, path, nz3, pieces, what)
     type(error_t), allocatable, intent(inout) :: error
@@ -740,16 +664,81 @@ contains
     integer, intent(in) :: nz3
     character(len=*), intent(in) :: pieces(:)
     character(len=*), intent(in) :: what
-    real(wp), allocatable :: ext(:, :, :, :), ssa(:, :, :, :)
-    integer, allocatable :: phase(:, :, :, :)
-    logical :: has_phase
+    type(scene_t) :: scene
     type(error_t), allocatable :: err
 
-    call read_scene_3d(path, NX, NY, nz3, NC, ext, ssa, phase, has_phase, err)
+    call read_scene_3d(path, NX, NY, nz3, NC, scene%ext, scene%ssa, scene%phase, &
+                       scene%has_phase, err)
     call check_message(error, err, pieces, what)
-    call check(error, .not. (allocated(ext) .or. allocated(ssa) .or. allocated(phase) .or. &
-                             has_phase), what//': outputs left allocated after an error')
+    call check(error, .not. (allocated(scene%ext) .or. allocated(scene%ssa) .or. &
+                             allocated(scene%phase) .or. scene%has_phase), &
+               what//': outputs left allocated after an error')
   end subroutine expect_scene_error
+
+  !> `set` written to `path` with write_results (which must succeed) is a scene file that
+  !> read_scene_3d must reject as expect_scene_error says; the file is removed afterwards.
+  subroutine expect_written_scene_error(error, path, set, pieces, what)
+    type(error_t), allocatable, intent(inout) :: error
+    character(len=*), intent(in) :: path
+    type(result_set_t), intent(in) :: set
+    character(len=*), intent(in) :: pieces(:)
+    character(len=*), intent(in) :: what
+    call write_set(error, path, set)
+    if (allocated(error)) return
+    call expect_scene_error(error, path, NZ, pieces, what)
+    call remove_file(path)
+  end subroutine expect_written_scene_error
+
+  !> A scene-like file whose variable `ivar` (1 extinction, 2 ssa) holds `value` at voxel
+  !> `at` = (x, y, z, component) must be rejected as expect_scene_error says.
+  subroutine expect_bad_scene_value(error, path, ext_units, ivar, at, value, pieces, what)
+    type(error_t), allocatable, intent(inout) :: error
+    character(len=*), intent(in) :: path, ext_units
+    integer, intent(in) :: ivar, at(4)
+    real(dp), intent(in) :: value
+    character(len=*), intent(in) :: pieces(:)
+    character(len=*), intent(in) :: what
+    type(result_set_t) :: set
+    call scene_like_set(set, ext_units)
+    set%vars(ivar)%mean(flat_index(at(1), at(2), at(3), at(4))) = value
+    call expect_written_scene_error(error, path, set, pieces, what)
+  end subroutine expect_bad_scene_value
+
+  !> An albedo map `name` on (xs, ys) of sizes (nxs, nys), values in Fortran order, written with
+  !> write_results (which must succeed).
+  subroutine write_albedo_map(error, path, name, nxs, nys, values)
+    type(error_t), allocatable, intent(inout) :: error
+    character(len=*), intent(in) :: path, name
+    integer, intent(in) :: nxs, nys
+    real(dp), intent(in) :: values(:)
+    type(result_set_t) :: set
+    call add_dim(set, 'xs', nxs)
+    call add_dim(set, 'ys', nys)
+    call add_var(set, name, 'surface albedo', '1', [character(len=2) :: 'xs', 'ys'], values)
+    call write_set(error, path, set)
+  end subroutine write_albedo_map
+
+  !> The map written by write_albedo_map must read back with read_albedo_map with its sizes,
+  !> shape and values unchanged.
+  subroutine albedo_round_trip(error, path, name, nxs, nys, values, albedo)
+    type(error_t), allocatable, intent(inout) :: error
+    character(len=*), intent(in) :: path, name
+    integer, intent(in) :: nxs, nys
+    real(dp), intent(in) :: values(:)
+    real(wp), allocatable, intent(out) :: albedo(:, :)
+    type(error_t), allocatable :: err
+    integer :: nxs_in, nys_in
+    call write_albedo_map(error, path, name, nxs, nys, values)
+    if (allocated(error)) return
+    call read_albedo_map(path, name, nxs_in, nys_in, albedo, err)
+    call check_no_error(error, err, 'read_albedo_map')
+    if (allocated(error)) return
+    call check(error, nxs_in == nxs .and. nys_in == nys, 'map size is not ('// &
+               str(nxs)//', '//str(nys)//')')
+    call check(error, all(shape(albedo) == [nxs, nys]), 'albedo has the wrong shape')
+    if (allocated(error)) return
+    call check_values(error, reshape(albedo, [size(albedo)]), values, 0.0_dp, 'albedo')
+  end subroutine albedo_round_trip
 
   !> `err` must be unallocated; otherwise fail with its message.
   subroutine check_no_error(error, err, what)

@@ -514,8 +514,6 @@ contains
       end if
       call require(nx >= 1 .and. ny >= 1, CTX, 'nx', nx, 'and ny = '//str(ny)//' must be >= 1', &
                    error)
-      call require(n_components_3d >= 1 .and. n_components_3d <= MAX_COMP, CTX, &
-                   'n_components_3d', n_components_3d, 'must be within 1..'//str(MAX_COMP), error)
       if (allocated(error)) return
     else if (cloud%enabled .and. cloud%req%format == 'mcarats') then
       if (k3d_bottom < 1 .or. k3d_bottom + nz3 - 1 > nz) then
@@ -529,6 +527,9 @@ contains
       call set_error(error, '&kumo_atmosphere: k3d_bottom/nz3 are set but scene_file is empty')
       return
     end if
+    ! checked with or without a scene file: phase3d(1:n_components_3d) is kept below
+    call require(n_components_3d >= 1 .and. n_components_3d <= MAX_COMP, CTX, &
+                 'n_components_3d', n_components_3d, 'must be within 1..'//str(MAX_COMP), error)
     call require(within(cp_air, SMALL, BIG), CTX, 'cp_air', cp_air, 'must be > 0', error)
     if (allocated(error)) return
     if (any(air_density(1:nz) /= UNSET)) then

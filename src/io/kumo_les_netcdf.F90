@@ -117,10 +117,10 @@ module kumo_les_netcdf
     logical :: has_ice = .false.                      !! iwc and reff_ice present
     real(vp), allocatable :: iwc(:, :, :)             !! ice water content (nx, ny, nz) [g m-3]
     real(vp), allocatable :: reff_ice(:, :, :)        !! ice effective radius [um]
-    logical :: has_temperature = .false.              !! temperature present
+    logical :: has_temperature = .false.              !! temperature read (needed and present)
     !> temperature [K]: shape (nx, ny, nz), or (1, 1, nz) for a profile
     real(vp), allocatable :: temperature(:, :, :)
-    logical :: has_pressure = .false.                 !! pressure present
+    logical :: has_pressure = .false.                 !! pressure read (needed and present)
     !> pressure [Pa]: shape (nx, ny, nz), or (1, 1, nz) for a profile
     real(vp), allocatable :: pressure(:, :, :)
     !> grid-only reads with `pressure_profile`: the pressure of each layer [Pa] in double
@@ -157,9 +157,9 @@ contains
   !>   r_e = (3 LWC / (4 pi rho_w k N))^(1/3) (Martin et al. 1994, eq. 11, with k = `k_factor`,
   !>   default K_MARITIME) where N is read instead; `reff` is 0 where LWC = 0;
   !> * `iwc`, `reff_ice` if the file has an ice water variable (then `reff_ice` is required);
-  !> * temperature [K] and pressure [Pa] if present, as 3-D fields or profiles over z;
   !> * air density for mixing ratios from a density variable, else from p and T by the ideal gas
-  !>   law rho = p / (R_d T), else an error saying what is missing.
+  !>   law rho = p / (R_d T), else an error saying what is missing; temperature [K] and pressure
+  !>   [Pa] (3-D fields or profiles over z) are read only then, and kept.
   !>
   !> Coordinates: the x, y, z dimensions are found by name (names%x or DEFAULT_X, ...). Each axis
   !> is taken from an edges variable with n + 1 values if there is one (names%x_edges or
@@ -292,26 +292,13 @@ contains
       end if
     end if
 
-    ! Temperature and pressure (optional; needed for mixing ratios without a density variable).
+    ! Temperature and pressure (optional): found here, read only for mixing ratios without a
+    ! density variable (below), so that a model's T and p cost no memory otherwise.
     call find_var(f, 'temperature', names%temperature, DEFAULT_TEMPERATURE, .false., t_id, &
                   t_name, error)
     if (allocated(error)) return
-    if (t_id >= 0) then
-      call read_field(f, t_id, t_name, QTY_TEMPERATURE, .true., .true., field%temperature, &
-                      dummy, field%notes, error)
-      if (allocated(error)) return
-      field%has_temperature = .true.
-      field%used%temperature = t_name
-    end if
     call find_var(f, 'pressure', names%pressure, DEFAULT_PRESSURE, .false., p_id, p_name, error)
     if (allocated(error)) return
-    if (p_id >= 0) then
-      call read_field(f, p_id, p_name, QTY_PRESSURE, .true., .true., field%pressure, dummy, &
-                      field%notes, error)
-      if (allocated(error)) return
-      field%has_pressure = .true.
-      field%used%pressure = p_name
-    end if
 
     ! Liquid water and its effective radius, or droplet number.
     lwc_per_air = .false.
@@ -391,7 +378,17 @@ contains
         if (iwc_per_air) call scale_by(field%iwc, rho)
         deallocate (rho)
         field%notes = field%notes//'mixing ratios times air density "'//rho_name//'"'//NL
-      else if (field%has_temperature .and. field%has_pressure) then
+      else if (t_id >= 0 .and. p_id >= 0) then
+        call read_field(f, t_id, t_name, QTY_TEMPERATURE, .true., .true., field%temperature, &
+                        dummy, field%notes, error)
+        if (allocated(error)) return
+        field%has_temperature = .true.
+        field%used%temperature = t_name
+        call read_field(f, p_id, p_name, QTY_PRESSURE, .true., .true., field%pressure, dummy, &
+                        field%notes, error)
+        if (allocated(error)) return
+        field%has_pressure = .true.
+        field%used%pressure = p_name
         if (lwc_per_air) call scale_by_ideal_gas(field%lwc, field%pressure, field%temperature)
         if (num_per_air) call scale_by_ideal_gas(field%reff, field%pressure, field%temperature)
         if (iwc_per_air) call scale_by_ideal_gas(field%iwc, field%pressure, field%temperature)
@@ -404,7 +401,7 @@ contains
         call set_error(error, PROC//'('//f%path//'): '//text// &
                        ' the air density: no density variable (tried '// &
                        tried(names%air_density, DEFAULT_AIR_DENSITY)//')'// &
-                       missing_pt(field%has_pressure, field%has_temperature, names))
+                       missing_pt(p_id >= 0, t_id >= 0, names))
         return
       end if
     end if

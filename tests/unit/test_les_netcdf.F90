@@ -49,6 +49,7 @@ contains
              new_unittest('gm3_um_centres_km', test_gm3_um_centres_km), &
              new_unittest('kgm3_m_edges_time_step_2', test_kgm3_edges_time), &
              new_unittest('mixing_ratio_with_p_and_t', test_mixing_ratio_pt), &
+             new_unittest('p_and_t_unread_when_unneeded', test_pt_unread_when_unneeded), &
              new_unittest('droplet_number_gives_reff', test_droplet_number), &
              new_unittest('number_per_kg_with_density', test_number_per_kg_density), &
              new_unittest('stretched_z_centres', test_stretched_z), &
@@ -206,8 +207,8 @@ contains
     call remove_file(PATH)
   end subroutine test_gm3_um_centres_km
 
-  !> kg m-3, radius in m, edges in m (stretched z), time dimension of 3, step 2 chosen, and a
-  !> temperature profile over (time, z).
+  !> kg m-3, radius in m, edges in m (stretched z), time dimension of 3, step 2 chosen, an ice
+  !> mixing ratio, and temperature and pressure profiles over (time, z) for its air density.
   subroutine test_kgm3_edges_time(error)
     type(error_t), allocatable, intent(out) :: error
     character(len=*), parameter :: PATH = 'test_les_b.nc'
@@ -216,14 +217,21 @@ contains
     type(les_names_t) :: names
     type(error_t), allocatable :: err
     integer :: ncid, dx_, dy_, dz_, dt_, dxe, dye, dze, it, k
-    real(dp) :: lwc4(NX, NY, NZ, NT), reff4(NX, NY, NZ, NT), t2(NZ, NT)
+    real(dp) :: lwc4(NX, NY, NZ, NT), reff4(NX, NY, NZ, NT), t2(NZ, NT), p2(NZ, NT)
+    real(dp) :: iwc_ref(NX, NY, NZ)
 
     do it = 1, NT                  ! each step different, so the wrong step shows
       lwc4(:, :, :, it) = 1.0e-3_dp*it*lwc_ref(1)     ! kg m-3
       reff4(:, :, :, it) = 1.0e-6_dp*(reff_ref() + it) ! m
       do k = 1, NZ
         t2(k, it) = 290.0_dp - 6.5e-3_dp*(k*100.0_dp) + it
+        p2(k, it) = 1.0e5_dp - 1.1e3_dp*k - 10.0_dp*it               ! Pa
       end do
+    end do
+    ! ice (qi in kg kg-1 = 2e-4 kg kg-1 times the liquid pattern) times rho = p / (R_d T) at
+    ! step 2, in g m-3
+    do k = 1, NZ
+      iwc_ref(:, :, k) = 1.0e3_dp*0.2_dp*lwc4(:, :, k, 2)*p2(k, 2)/(R_D_TEST*t2(k, 2))
     end do
     call nc_create(PATH, ncid, error)
     call nc_dim(ncid, 'time', NT, dt_, error)
@@ -244,6 +252,11 @@ contains
                 NF90_DOUBLE, error)
     call nc_var(ncid, 'temperature', [dz_, dt_], reshape(t2, [size(t2)]), 'K', NF90_DOUBLE, &
                 error)
+    call nc_var(ncid, 'pressure', [dz_, dt_], reshape(p2, [size(p2)]), 'Pa', NF90_DOUBLE, error)
+    call nc_var(ncid, 'qi', [dx_, dy_, dz_, dt_], reshape(0.2_dp*lwc4, [size(lwc4)]), &
+                'kg kg-1', NF90_DOUBLE, error)
+    call nc_var(ncid, 'rei', [dx_, dy_, dz_, dt_], reshape(reff4, [size(reff4)]), 'm', &
+                NF90_DOUBLE, error)
     call nc_close(ncid, error)
     if (allocated(error)) return
 
@@ -262,9 +275,46 @@ contains
     if (allocated(error)) return
     call check_array(error, real(fld%temperature(1, 1, :), dp), t2(:, 2), TOL_STORED, &
                      'temperature')
-    call check(error, .not. fld%has_ice, 'ice invented')
+    call check(error, fld%has_pressure, 'pressure profile not read')
+    if (allocated(error)) return
+    call check_array(error, real(fld%pressure(1, 1, :), dp), p2(:, 2), TOL_STORED, 'pressure')
+    call check(error, fld%has_ice, 'ice not found')
+    if (allocated(error)) return
+    ! 4e-5: the two R_d values (1.9e-5 apart) and float storage, as in test_mixing_ratio_pt
+    call check_field(error, fld%iwc, iwc_ref, 1.0_dp, 4.0e-5_dp, 'iwc')
     call remove_file(PATH)
   end subroutine test_kgm3_edges_time
+
+  !> A model's 3-D temperature and pressure next to water contents per volume are not needed
+  !> (no mixing ratio): they are not read, so they cost no memory; the water is read as usual.
+  subroutine test_pt_unread_when_unneeded(error)
+    type(error_t), allocatable, intent(out) :: error
+    character(len=*), parameter :: PATH = 'test_les_pt.nc'
+    type(les_field_t) :: fld
+    type(les_names_t) :: names
+    type(error_t), allocatable :: err
+    integer :: ncid, d(3)
+    real(dp) :: t(NX, NY, NZ), p(NX, NY, NZ)
+    t = 280.0_dp
+    p = 9.0e4_dp
+    call basic_grid(PATH, ncid, d, error)
+    call nc_var(ncid, 'lwc', d, flat(lwc_ref(1)), 'g m-3', NF90_FLOAT, error)
+    call nc_var(ncid, 'reff', d, flat(reff_ref()), 'um', NF90_FLOAT, error)
+    call nc_var(ncid, 'TABS', d, flat(t), 'K', NF90_FLOAT, error)
+    call nc_var(ncid, 'p', d, flat(p), 'Pa', NF90_FLOAT, error)
+    call nc_close(ncid, error)
+    if (allocated(error)) return
+    call read_les_field(PATH, names, -1, fld, err)
+    call no_error(error, err)
+    if (allocated(error)) return
+    call check_field(error, fld%lwc, lwc_ref(1), 1.0_dp, TOL_FLOAT, 'lwc')
+    call check(error, .not. (fld%has_temperature .or. fld%has_pressure .or. &
+                             allocated(fld%temperature) .or. allocated(fld%pressure)), &
+               'temperature or pressure read although nothing needs them')
+    call check(error, len_trim(fld%used%temperature) == 0 .and. &
+               len_trim(fld%used%pressure) == 0, 'T or p reported as used')
+    call remove_file(PATH)
+  end subroutine test_pt_unread_when_unneeded
 
   !> Mixing ratios (kg kg-1 liquid, g/kg ice) with a pressure profile in hPa and 3-D T.
   subroutine test_mixing_ratio_pt(error)

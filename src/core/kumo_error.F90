@@ -8,12 +8,19 @@ module kumo_error
   use, intrinsic :: ieee_arithmetic, only: ieee_is_nan
   implicit none
   private
-  public :: error_t, set_error, add_context, stop_on_error, str, to_lower
+  public :: error_t, set_error, add_context, stop_on_error, str, to_lower, join
 
   !> Text of a number for messages: `str(3)` is '3', `str(0.25d0)` is '0.25'.
   interface str
     module procedure str_int, str_int64, str_real
   end interface str
+
+  !> A list for messages: `join(['a', 'b'])` is 'a, b', `join([2, 1], ',', '()')` is '(2,1)'.
+  !> Items are separated by `sep` (default ', '); character items lose their trailing blanks,
+  !> numbers are written as by `str`. `brackets`, two characters, enclose the list if given.
+  interface join
+    module procedure join_char, join_int, join_real
+  end interface join
 
   !> An error with its message.
   type :: error_t
@@ -104,6 +111,57 @@ contains
       if (t(len(t):len(t)) == '.') t = t(1:len(t) - 1)
     end subroutine strip_zeros
   end function str_real
+
+  pure function join_char(items, sep, brackets) result(s)
+    character(len=*), intent(in) :: items(:)
+    character(len=*), intent(in), optional :: sep
+    character(len=2), intent(in), optional :: brackets
+    character(len=:), allocatable :: s
+    integer :: i
+    s = ''
+    do i = 1, size(items)
+      if (i > 1) s = s//separator(sep)
+      s = s//trim(items(i))
+    end do
+    if (present(brackets)) s = brackets(1:1)//s//brackets(2:2)
+  end function join_char
+
+  pure function join_int(items, sep, brackets) result(s)
+    integer, intent(in) :: items(:)
+    character(len=*), intent(in), optional :: sep
+    character(len=2), intent(in), optional :: brackets
+    character(len=:), allocatable :: s
+    character(len=24) :: texts(size(items))
+    integer :: i
+    do i = 1, size(items)
+      texts(i) = str_int(items(i))
+    end do
+    s = join_char(texts, sep, brackets)
+  end function join_int
+
+  pure function join_real(items, sep, brackets) result(s)
+    real(real64), intent(in) :: items(:)
+    character(len=*), intent(in), optional :: sep
+    character(len=2), intent(in), optional :: brackets
+    character(len=:), allocatable :: s
+    character(len=40) :: texts(size(items))
+    integer :: i
+    do i = 1, size(items)
+      texts(i) = str_real(items(i))
+    end do
+    s = join_char(texts, sep, brackets)
+  end function join_real
+
+  !> The separator of `join`: `sep` as given, blanks included, or ', '.
+  pure function separator(sep) result(s)
+    character(len=*), intent(in), optional :: sep
+    character(len=:), allocatable :: s
+    if (present(sep)) then
+      s = sep
+    else
+      s = ', '
+    end if
+  end function separator
 
   !> Lower-case copy of an ASCII string (namelist keywords are case-insensitive).
   pure function to_lower(s) result(t)

@@ -23,7 +23,7 @@ module kumo_les_netcdf
                     NF90_FILL_FLOAT, NF90_MAX_VAR_DIMS, NF90_MAX_NAME
   use kumo_kinds, only: wp, sp, dp, vp
   use kumo_constants, only: PI
-  use kumo_error, only: error_t, set_error, str
+  use kumo_error, only: error_t, set_error, str, join
   use kumo_units, only: unit_factor, QTY_WATER_CONTENT, QTY_LENGTH, QTY_RADIUS, QTY_NUMBER, &
                         QTY_TEMPERATURE, QTY_PRESSURE, QTY_AIR_DENSITY
   implicit none
@@ -446,7 +446,7 @@ contains
       return
     end do
     call set_error(error, PROC//'('//f%path//'): no '//AXES(iaxis)//' dimension; tried '// &
-                   name_list(defaults))
+                   join(defaults))
   end subroutine find_axis_dim
 
   subroutine set_axis_dim(f, iaxis, name, dimid, error)
@@ -1105,7 +1105,7 @@ contains
     varid = -1
     if (required) then
       call set_error(error, PROC//'('//f%path//'): no '//what//' variable; tried '// &
-                     name_list(defaults)//'; name it explicitly')
+                     join(defaults)//'; name it explicitly')
     end if
   end subroutine find_var
 
@@ -1117,20 +1117,9 @@ contains
     if (len_trim(given) > 0) then
       text = trim(given)
     else
-      text = name_list(defaults)
+      text = join(defaults)
     end if
   end function tried
-
-  pure function name_list(names) result(text)
-    character(len=*), intent(in) :: names(:)
-    character(len=:), allocatable :: text
-    integer :: i
-    text = ''
-    do i = 1, size(names)
-      text = text//trim(names(i))
-      if (i < size(names)) text = text//', '
-    end do
-  end function name_list
 
   function per_air_list(lwc, num, iwc, lwc_name, num_name, iwc_name) result(text)
     logical, intent(in) :: lwc, num, iwc

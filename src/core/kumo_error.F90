@@ -15,13 +15,6 @@ module kumo_error
     module procedure str_int, str_int64, str_real
   end interface str
 
-  !> A list for messages: `join(['a', 'b'])` is 'a, b', `join([2, 1], ',', '()')` is '(2,1)'.
-  !> Items are separated by `sep` (default ', '); character items lose their trailing blanks,
-  !> numbers are written as by `str`. `brackets`, two characters, enclose the list if given.
-  interface join
-    module procedure join_char, join_int, join_real
-  end interface join
-
   !> An error with its message.
   type :: error_t
     character(len=:), allocatable :: message  !! what went wrong, naming the input and the bound
@@ -112,56 +105,44 @@ contains
     end subroutine strip_zeros
   end function str_real
 
-  pure function join_char(items, sep, brackets) result(s)
-    character(len=*), intent(in) :: items(:)
-    character(len=*), intent(in), optional :: sep
-    character(len=2), intent(in), optional :: brackets
+  !> A list for messages: `join(['a', 'b'])` is 'a, b', `join([2, 1], ',', '()')` is '(2,1)'.
+  !> Items are separated by `sep` (default ', ') and enclosed in the two characters of
+  !> `brackets` if given. Character items lose their trailing blanks; numbers of the kinds `str`
+  !> takes (default and int64 integers, real64 reals) are written as it writes them; an item of
+  !> any other type or kind shows as '?'.
+  pure function join(items, sep, brackets) result(s)
+    class(*), intent(in) :: items(:)                    !! character or numbers, as above
+    character(len=*), intent(in), optional :: sep       !! between two items, blanks included
+    character(len=2), intent(in), optional :: brackets  !! opening and closing character
     character(len=:), allocatable :: s
+    character(len=:), allocatable :: between
     integer :: i
+    between = ', '
+    if (present(sep)) between = sep
     s = ''
     do i = 1, size(items)
-      if (i > 1) s = s//separator(sep)
-      s = s//trim(items(i))
+      if (i > 1) s = s//between
+      s = s//item_text(items(i))
     end do
     if (present(brackets)) s = brackets(1:1)//s//brackets(2:2)
-  end function join_char
+  end function join
 
-  pure function join_int(items, sep, brackets) result(s)
-    integer, intent(in) :: items(:)
-    character(len=*), intent(in), optional :: sep
-    character(len=2), intent(in), optional :: brackets
+  pure function item_text(item) result(s)
+    class(*), intent(in) :: item
     character(len=:), allocatable :: s
-    character(len=24) :: texts(size(items))
-    integer :: i
-    do i = 1, size(items)
-      texts(i) = str_int(items(i))
-    end do
-    s = join_char(texts, sep, brackets)
-  end function join_int
-
-  pure function join_real(items, sep, brackets) result(s)
-    real(real64), intent(in) :: items(:)
-    character(len=*), intent(in), optional :: sep
-    character(len=2), intent(in), optional :: brackets
-    character(len=:), allocatable :: s
-    character(len=40) :: texts(size(items))
-    integer :: i
-    do i = 1, size(items)
-      texts(i) = str_real(items(i))
-    end do
-    s = join_char(texts, sep, brackets)
-  end function join_real
-
-  !> The separator of `join`: `sep` as given, blanks included, or ', '.
-  pure function separator(sep) result(s)
-    character(len=*), intent(in), optional :: sep
-    character(len=:), allocatable :: s
-    if (present(sep)) then
-      s = sep
-    else
-      s = ', '
-    end if
-  end function separator
+    select type (item)
+    type is (character(len=*))
+      s = trim(item)
+    type is (integer)
+      s = str_int(item)
+    type is (integer(int64))
+      s = str_int64(item)
+    type is (real(real64))
+      s = str_real(item)
+    class default
+      s = '?'
+    end select
+  end function item_text
 
   !> Lower-case copy of an ASCII string (namelist keywords are case-insensitive).
   pure function to_lower(s) result(t)

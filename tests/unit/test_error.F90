@@ -2,7 +2,7 @@
 !> Unit tests of kumo_error: creating errors, adding context, numbers and lists in messages.
 module test_kumo_error
   use kumo_error, only: error_t, set_error, add_context, str, to_lower, join
-  use kumo_kinds, only: dp
+  use kumo_kinds, only: sp, dp, i8
   use kumo_testing, only: unittest_t, new_unittest, check
   implicit none
   private
@@ -105,13 +105,16 @@ contains
     call expect(error, join(names, ' or ', '[]'), '[x or  yy or zzz]', 'separator " or " in []')
   end subroutine test_join_names
 
-  !> Numbers are written as `str` writes them.
+  !> Numbers are written as `str` writes them; a type `str` does not take shows as '?'.
   subroutine test_join_numbers(error)
     type(error_t), allocatable, intent(out) :: error
     call expect(error, join([2, -1, 30]), '2, -1, 30', 'integers')
+    call expect(error, join([-5_i8, 12345678901_i8], '; '), '-5; 12345678901', 'int64')
     call expect(error, join([2, 1, 3], ',', '()'), '(2,1,3)', 'integers in ()')
     call expect(error, join([0.5_dp, 2.5e-7_dp, 1000.0_dp]), '0.5, 2.5E-07, 1000', 'reals')
     call expect(error, join([-1.5_dp, 0.01_dp], ' ', '[]'), '[-1.5 0.01]', 'reals in []')
+    call expect(error, join([0.5_sp, 1.0_sp]), '?, ?', 'single-precision reals')
+    call expect(error, join([.true.], ',', '()'), '(?)', 'a logical')
   end subroutine test_join_numbers
 
   !> An empty list gives nothing (or only the brackets); one item has no separator.

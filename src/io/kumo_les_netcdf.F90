@@ -689,7 +689,7 @@ contains
     type(error_t), allocatable, intent(out) :: error
     logical, intent(out), optional :: is_profile
     integer :: ndims, dimids(NF90_MAX_VAR_DIMS), i
-    character(len=NF90_MAX_NAME) :: dname
+    character(len=NF90_MAX_NAME), allocatable :: dnames(:)
     character(len=:), allocatable :: found, expected, at
     logical :: ok, profile
 
@@ -721,14 +721,13 @@ contains
     if (present(is_profile)) is_profile = profile
     if (ok) return
 
-    found = '('
-    do i = ndims, 1, -1                     ! ncdump order: slowest-varying first
-      call nc_check(nf90_inquire_dimension(f%ncid, dimids(i), name=dname), at, error)
+    allocate (dnames(ndims))
+    do i = 1, ndims                         ! ncdump order: slowest-varying first
+      call nc_check(nf90_inquire_dimension(f%ncid, dimids(ndims + 1 - i), name=dnames(i)), at, &
+                    error)
       if (allocated(error)) return
-      found = found//trim(dname)
-      if (i > 1) found = found//', '
     end do
-    found = found//')'
+    found = join(dnames, ', ', '()')
     expected = '('//trim(f%names(3))//', '//trim(f%names(2))//', '//trim(f%names(1))//')'
     if (f%tdim >= 0) expected = '('//trim(f%tname)//', '//expected(2:)
     if (allow_profile) then

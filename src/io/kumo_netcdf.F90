@@ -414,13 +414,7 @@ contains
     function kind_vars(kk) result(text)
       integer, intent(in) :: kk
       character(len=:), allocatable :: text
-      integer :: j
-      text = ''
-      do j = 1, BRDF_NPAR
-        if (len_trim(BRDF_MAP_VARS(j, kk)) == 0) cycle
-        if (len(text) > 0) text = text//', '
-        text = text//trim(BRDF_MAP_VARS(j, kk))
-      end do
+      text = join(pack(BRDF_MAP_VARS(:, kk), len_trim(BRDF_MAP_VARS(:, kk)) > 0))
       if (kk == BRDF_DSM) text = text//' (or wind_speed)'
     end function kind_vars
   end subroutine read_brdf_body
@@ -1107,8 +1101,7 @@ contains
     type(error_t), allocatable, intent(out) :: error
     integer :: ndims, i
     integer :: dimids(NF90_MAX_VAR_DIMS)
-    character(len=NF90_MAX_NAME) :: dname
-    character(len=:), allocatable :: actual
+    character(len=NF90_MAX_NAME), allocatable :: dnames(:)
     logical :: same
 
     call nc_check(nf90_inquire_variable(ncid, varid, ndims=ndims, dimids=dimids), at, error)
@@ -1116,16 +1109,13 @@ contains
     same = ndims == size(expected_dimids)
     if (same) same = all(dimids(1:ndims) == expected_dimids)
     if (same) return
-    actual = '('
-    do i = ndims, 1, -1                     ! ncdump (C) order: slowest-varying first
-      call nc_check(nf90_inquire_dimension(ncid, dimids(i), name=dname), at, error)
+    allocate (dnames(ndims))
+    do i = 1, ndims                         ! ncdump (C) order: slowest-varying first
+      call nc_check(nf90_inquire_dimension(ncid, dimids(ndims + 1 - i), name=dnames(i)), at, error)
       if (allocated(error)) return
-      actual = actual//trim(dname)
-      if (i > 1) actual = actual//', '
     end do
-    actual = actual//')'
-    call set_error(error, at//': dimensions are '//actual//' in ncdump order; expected '// &
-                   expected_cdl)
+    call set_error(error, at//': dimensions are '//join(dnames, ', ', '()')// &
+                   ' in ncdump order; expected '//expected_cdl)
   end subroutine check_layout
 
   !> nf90_get_var does not unpack, so scale_factor/add_offset would give wrong numbers silently.

@@ -139,9 +139,9 @@ contains
   subroutine test_join_components(error)
     type(error_t), allocatable, intent(out) :: error
     type :: entry_t
-      character(len=6) :: name = ''
-      real(dp) :: factor = 1.0_dp
-      integer :: code = 0
+      character(len=6) :: name
+      real(dp) :: factor
+      integer :: code
     end type entry_t
     type(entry_t) :: table(3)
     table = [entry_t('g m-3', 1.0_dp, 7), entry_t('kg m-3', 1000.0_dp, -1), &

@@ -21,7 +21,7 @@
 module kumo_std_atmosphere
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use kumo_kinds, only: wp
-  use kumo_error, only: error_t, set_error, str, to_lower
+  use kumo_error, only: error_t, set_error, str, to_lower, join
   implicit none
   private
   public :: STD_ATM_US1976, STD_ATMOSPHERE_NAMES, US1976_Z_MIN, US1976_Z_MAX
@@ -62,7 +62,6 @@ contains
     integer, intent(out) :: kind          !! STD_ATM_* code; -1 if unknown
     type(error_t), allocatable, intent(out) :: error
     integer :: i
-    character(len=:), allocatable :: allowed
     do i = 1, size(STD_ATMOSPHERE_NAMES)
       if (trim(adjustl(to_lower(name))) == trim(STD_ATMOSPHERE_NAMES(i))) then
         kind = i
@@ -70,12 +69,8 @@ contains
       end if
     end do
     kind = -1
-    allowed = trim(STD_ATMOSPHERE_NAMES(1))
-    do i = 2, size(STD_ATMOSPHERE_NAMES)
-      allowed = allowed//', '//trim(STD_ATMOSPHERE_NAMES(i))
-    end do
     call set_error(error, "standard atmosphere '"//trim(adjustl(name))// &
-                   "' must be one of "//allowed)
+                   "' must be one of "//join(STD_ATMOSPHERE_NAMES))
   end subroutine std_atmosphere_kind_from_name
 
   !> Pressure, temperature and air density of the named standard atmosphere at heights `z`.

@@ -8,12 +8,20 @@ module kumo_error
   use, intrinsic :: ieee_arithmetic, only: ieee_is_nan
   implicit none
   private
-  public :: error_t, set_error, add_context, stop_on_error, str, to_lower
+  public :: error_t, set_error, add_context, stop_on_error, str, to_lower, join
 
   !> Text of a number for messages: `str(3)` is '3', `str(0.25d0)` is '0.25'.
   interface str
     module procedure str_int, str_int64, str_real
   end interface str
+
+  !> A list for messages: `join(['a', 'b'])` is 'a, b', `join([2, 1], ',', '()')` is '(2,1)'.
+  !> Items are separated by `sep` (default ', ', blanks kept) and enclosed in the two
+  !> characters of `brackets` if given. Names lose their trailing blanks; numbers are written
+  !> as `str` writes them.
+  interface join
+    module procedure join_names, join_ints, join_reals
+  end interface join
 
   !> An error with its message.
   type :: error_t
@@ -104,6 +112,56 @@ contains
       if (t(len(t):len(t)) == '.') t = t(1:len(t) - 1)
     end subroutine strip_zeros
   end function str_real
+
+  pure function join_names(items, sep, brackets) result(s)
+    character(len=*), intent(in) :: items(:)            !! names; trailing blanks are dropped
+    character(len=*), intent(in), optional :: sep       !! between two items; default ', '
+    character(len=2), intent(in), optional :: brackets  !! opening and closing character
+    character(len=:), allocatable :: s
+    integer :: i
+    s = ''
+    do i = 1, size(items)
+      if (i > 1) then
+        if (present(sep)) then
+          s = s//sep
+        else
+          s = s//', '
+        end if
+      end if
+      s = s//trim(items(i))
+    end do
+    if (present(brackets)) s = brackets(1:1)//s//brackets(2:2)
+  end function join_names
+
+  pure function join_ints(items, sep, brackets) result(s)
+    integer, intent(in) :: items(:)
+    character(len=*), intent(in), optional :: sep
+    character(len=2), intent(in), optional :: brackets
+    character(len=:), allocatable :: s
+    s = join_names(int_field(items), sep, brackets)
+  end function join_ints
+
+  pure function join_reals(items, sep, brackets) result(s)
+    real(real64), intent(in) :: items(:)
+    character(len=*), intent(in), optional :: sep
+    character(len=2), intent(in), optional :: brackets
+    character(len=:), allocatable :: s
+    s = join_names(real_field(items), sep, brackets)
+  end function join_reals
+
+  !> `str(i)` in a field long enough for any default integer.
+  elemental function int_field(i) result(field)
+    integer, intent(in) :: i
+    character(len=12) :: field
+    field = str_int(i)
+  end function int_field
+
+  !> `str(x)` in a field long enough for any value it writes ('-0.0001234567891' is 16 long).
+  elemental function real_field(x) result(field)
+    real(real64), intent(in) :: x
+    character(len=24) :: field
+    field = str_real(x)
+  end function real_field
 
   !> Lower-case copy of an ASCII string (namelist keywords are case-insensitive).
   pure function to_lower(s) result(t)

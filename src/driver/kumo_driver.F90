@@ -8,7 +8,7 @@ module kumo_driver
   use, intrinsic :: iso_fortran_env, only: output_unit, error_unit
   use kumo_kinds, only: wp, dp, i8
   use kumo_constants, only: KUMO_VERSION, DEG2RAD, SECONDS_PER_DAY, PI
-  use kumo_error, only: error_t, set_error, add_context, str
+  use kumo_error, only: error_t, set_error, add_context, str, join
   use kumo_rng, only: rng_t, rng_init
   use kumo_phase, only: phase_t, new_phase_isotropic, new_phase_rayleigh, new_phase_hg, phase_from_table, &
                         new_phase_rayleigh_depol, &
@@ -1022,12 +1022,7 @@ contains
 
     function classes() result(s)
       character(len=:), allocatable :: s
-      integer :: kk
-      s = ''
-      do kk = 1, scene%atm%nz
-        if (kk > 1) s = s//', '
-        s = s//trim(LAYER_CLASS_NAMES(scene%atm%layer_class(kk)))
-      end do
+      s = join(LAYER_CLASS_NAMES(scene%atm%layer_class(1:scene%atm%nz)))
     end function classes
 
     function sv_text() result(s)

@@ -11,7 +11,7 @@ module kumo_config
   use, intrinsic :: iso_fortran_env, only: iostat_end
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use kumo_kinds, only: wp, i8
-  use kumo_error, only: error_t, set_error, add_context, str, to_lower
+  use kumo_error, only: error_t, set_error, add_context, str, to_lower, join
   use kumo_phase, only: phase_kind_from_name
   use kumo_math, only: within
   use kumo_brdf, only: brdf_params_t, brdf_params, brdf_kind_from_name, brdf_validate, &
@@ -1554,14 +1554,14 @@ contains
            'kumo_control.mode_3d = '//trim(cfg%control%mode_3d)//nl// &
            'kumo_control.p3d_orders = '//str(cfg%control%p3d_orders)//nl// &
            'kumo_atmosphere.nz = '//str(cfg%atm%nz)//nl// &
-           'kumo_atmosphere.z_levels = '//join_real(cfg%atm%z)//nl// &
+           'kumo_atmosphere.z_levels = '//join(cfg%atm%z)//nl// &
            'kumo_atmosphere.lx = '//str(cfg%atm%lx)//nl// &
            'kumo_atmosphere.ly = '//str(cfg%atm%ly)//nl// &
            'kumo_atmosphere.n_components = '//str(cfg%atm%n_components)//nl
     do i = 1, cfg%atm%n_components
-      text = text//'kumo_atmosphere.ext1d(:,'//str(i)//') = '//join_real(cfg%atm%ext1d(:, i))//nl// &
-             'kumo_atmosphere.ssa1d(:,'//str(i)//') = '//join_real(cfg%atm%ssa1d(:, i))//nl// &
-             'kumo_atmosphere.phase1d(:,'//str(i)//') = '//join_int(cfg%atm%phase1d(:, i))//nl
+      text = text//'kumo_atmosphere.ext1d(:,'//str(i)//') = '//join(cfg%atm%ext1d(:, i))//nl// &
+             'kumo_atmosphere.ssa1d(:,'//str(i)//') = '//join(cfg%atm%ssa1d(:, i))//nl// &
+             'kumo_atmosphere.phase1d(:,'//str(i)//') = '//join(cfg%atm%phase1d(:, i))//nl
     end do
     text = text//'kumo_atmosphere.scene_file = '//trim(cfg%atm%scene_file)//nl// &
            'kumo_atmosphere.k3d_bottom = '//str(cfg%atm%k3d_bottom)//nl// &
@@ -1569,9 +1569,9 @@ contains
            'kumo_atmosphere.ny = '//str(cfg%atm%ny)//nl// &
            'kumo_atmosphere.nz3 = '//str(cfg%atm%nz3)//nl// &
            'kumo_atmosphere.n_components_3d = '//str(cfg%atm%n_components_3d)//nl// &
-           'kumo_atmosphere.phase3d = '//join_int(cfg%atm%phase3d)//nl
+           'kumo_atmosphere.phase3d = '//join(cfg%atm%phase3d)//nl
     if (allocated(cfg%atm%air_density)) text = text//'kumo_atmosphere.air_density = '// &
-                                               join_real(cfg%atm%air_density)//nl
+                                               join(cfg%atm%air_density)//nl
     text = text//'kumo_atmosphere.rayleigh = '//merge('T', 'F', cfg%atm%rayleigh)//nl
     if (cfg%atm%rayleigh) text = text// &
       'kumo_atmosphere.rayleigh_profile = '//trim(cfg%atm%rayleigh_profile)//nl// &
@@ -1579,7 +1579,7 @@ contains
       'kumo_atmosphere.latitude_deg = '//str(cfg%atm%latitude_deg)//nl// &
       'kumo_atmosphere.rayleigh_depol = '//str(cfg%atm%rayleigh_depol)//nl
     if (allocated(cfg%atm%p_levels)) text = text//'kumo_atmosphere.pressure_levels_hpa = '// &
-                                            join_real(0.01_wp*cfg%atm%p_levels)//nl
+                                            join(0.01_wp*cfg%atm%p_levels)//nl
     if (cfg%cloud%enabled) text = text// &
       'kumo_cloud.cloud_file = '//trim(cfg%cloud%file)//nl// &
       'kumo_cloud.cloud_format = '//trim(cfg%cloud%req%format)//nl// &
@@ -1630,14 +1630,14 @@ contains
            'kumo_surface.surface_format = '//trim(cfg%surface%surface_format)//nl// &
            'kumo_surface.surface_nxb = '//str(cfg%surface%surface_nxb)//nl// &
            'kumo_surface.surface_nyb = '//str(cfg%surface%surface_nyb)//nl// &
-           'kumo_surface.surface_mbrdf = '//join_int(cfg%surface%surface_mbrdf)//nl// &
+           'kumo_surface.surface_mbrdf = '//join(cfg%surface%surface_mbrdf)//nl// &
            'kumo_surface.surface_idread = '//str(cfg%surface%surface_idread)//nl// &
            'kumo_source.sza_deg = '//str(cfg%source%sza_deg)//nl// &
            'kumo_source.phi0_deg = '//str(cfg%source%phi0_deg)//nl// &
            'kumo_source.solar_flux = '//str(cfg%source%solar_flux)//nl// &
            'kumo_source.wavelength_um = '//str(cfg%source%wavelength_um)//nl// &
            'kumo_output.file = '//trim(cfg%output%file)//nl// &
-           'kumo_output.flux_levels = '//join_int(cfg%output%flux_levels)//nl// &
+           'kumo_output.flux_levels = '//join(cfg%output%flux_levels)//nl// &
            'kumo_output.column_fluxes = '//merge('T', 'F', cfg%output%column_fluxes)//nl// &
            'kumo_output.voxel_absorption = '//merge('T', 'F', cfg%output%voxel_absorption)//nl// &
            'kumo_vr.rr_threshold = '//str(cfg%vr%rr_threshold)//nl// &
@@ -1659,14 +1659,14 @@ contains
            'kumo_vr.diffusion_max = '//str(cfg%vr%diffusion_max)//nl// &
            'kumo_vr.ddis_eps = '//str(cfg%vr%ddis_eps)//nl
     if (allocated(cfg%rad%mu)) text = text// &
-      'kumo_radiance.rad_mu = '//join_real(cfg%rad%mu)//nl// &
-      'kumo_radiance.rad_phi_deg = '//join_real(cfg%rad%phi_deg)//nl// &
-      'kumo_radiance.rad_levels = '//join_int(cfg%rad%levels)//nl// &
+      'kumo_radiance.rad_mu = '//join(cfg%rad%mu)//nl// &
+      'kumo_radiance.rad_phi_deg = '//join(cfg%rad%phi_deg)//nl// &
+      'kumo_radiance.rad_levels = '//join(cfg%rad%levels)//nl// &
       'kumo_radiance.radiance_maps = '//merge('T', 'F', cfg%rad%maps)//nl
     text = text//'kumo_camera.n_cameras = '//str(cfg%cam%n)//nl
     do i = 1, cfg%cam%n
       text = text//'kumo_camera('//str(i)//') = '//trim(cfg%cam%kind(i))//' at '// &
-             join_real(cfg%cam%pos(:, i))//' look '//str(cfg%cam%look_zenith_deg(i))//' '// &
+             join(cfg%cam%pos(:, i))//' look '//str(cfg%cam%look_zenith_deg(i))//' '// &
              str(cfg%cam%look_azimuth_deg(i))//' roll '//str(cfg%cam%roll_deg(i))//' fov '// &
              str(cfg%cam%fov_deg(i))//' width '//str(cfg%cam%width(i))//' pixels '// &
              str(cfg%cam%npx(i))//' x '//str(cfg%cam%npy(i))//nl
@@ -1743,37 +1743,4 @@ contains
       s = str(n)
     end if
   end function given
-
-  pure function join(names) result(s)
-    character(len=*), intent(in) :: names(:)
-    character(len=:), allocatable :: s
-    integer :: i
-    s = ''
-    do i = 1, size(names)
-      if (i > 1) s = s//', '
-      s = s//trim(names(i))
-    end do
-  end function join
-
-  pure function join_real(v) result(s)
-    real(wp), intent(in) :: v(:)
-    character(len=:), allocatable :: s
-    integer :: i
-    s = ''
-    do i = 1, size(v)
-      if (i > 1) s = s//', '
-      s = s//str(v(i))
-    end do
-  end function join_real
-
-  pure function join_int(v) result(s)
-    integer, intent(in) :: v(:)
-    character(len=:), allocatable :: s
-    integer :: i
-    s = ''
-    do i = 1, size(v)
-      if (i > 1) s = s//', '
-      s = s//str(v(i))
-    end do
-  end function join_int
 end module kumo_config

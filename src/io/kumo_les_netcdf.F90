@@ -23,7 +23,7 @@ module kumo_les_netcdf
                     NF90_FILL_FLOAT, NF90_MAX_VAR_DIMS, NF90_MAX_NAME
   use kumo_kinds, only: wp, sp, dp, vp
   use kumo_constants, only: PI
-  use kumo_error, only: error_t, set_error, str
+  use kumo_error, only: error_t, set_error, str, join
   use kumo_units, only: unit_factor, QTY_WATER_CONTENT, QTY_LENGTH, QTY_RADIUS, QTY_NUMBER, &
                         QTY_TEMPERATURE, QTY_PRESSURE, QTY_AIR_DENSITY
   implicit none
@@ -443,7 +443,7 @@ contains
       return
     end do
     call set_error(error, PROC//'('//f%path//'): no '//AXES(iaxis)//' dimension; tried '// &
-                   name_list(defaults))
+                   join(defaults))
   end subroutine find_axis_dim
 
   subroutine set_axis_dim(f, iaxis, name, dimid, error)
@@ -686,7 +686,7 @@ contains
     type(error_t), allocatable, intent(out) :: error
     logical, intent(out), optional :: is_profile
     integer :: ndims, dimids(NF90_MAX_VAR_DIMS), i
-    character(len=NF90_MAX_NAME) :: dname
+    character(len=NF90_MAX_NAME), allocatable :: dnames(:)
     character(len=:), allocatable :: found, expected, at
     logical :: ok, profile
 
@@ -718,14 +718,13 @@ contains
     if (present(is_profile)) is_profile = profile
     if (ok) return
 
-    found = '('
-    do i = ndims, 1, -1                     ! ncdump order: slowest-varying first
-      call nc_check(nf90_inquire_dimension(f%ncid, dimids(i), name=dname), at, error)
+    allocate (dnames(ndims))
+    do i = 1, ndims                         ! ncdump order: slowest-varying first
+      call nc_check(nf90_inquire_dimension(f%ncid, dimids(ndims + 1 - i), name=dnames(i)), at, &
+                    error)
       if (allocated(error)) return
-      found = found//trim(dname)
-      if (i > 1) found = found//', '
     end do
-    found = found//')'
+    found = join(dnames, ', ', '()')
     expected = '('//trim(f%names(3))//', '//trim(f%names(2))//', '//trim(f%names(1))//')'
     if (f%tdim >= 0) expected = '('//trim(f%tname)//', '//expected(2:)
     if (allow_profile) then
@@ -1102,7 +1101,7 @@ contains
     varid = -1
     if (required) then
       call set_error(error, PROC//'('//f%path//'): no '//what//' variable; tried '// &
-                     name_list(defaults)//'; name it explicitly')
+                     join(defaults)//'; name it explicitly')
     end if
   end subroutine find_var
 
@@ -1114,20 +1113,9 @@ contains
     if (len_trim(given) > 0) then
       text = trim(given)
     else
-      text = name_list(defaults)
+      text = join(defaults)
     end if
   end function tried
-
-  pure function name_list(names) result(text)
-    character(len=*), intent(in) :: names(:)
-    character(len=:), allocatable :: text
-    integer :: i
-    text = ''
-    do i = 1, size(names)
-      text = text//trim(names(i))
-      if (i < size(names)) text = text//', '
-    end do
-  end function name_list
 
   function per_air_list(lwc, num, iwc, lwc_name, num_name, iwc_name) result(text)
     logical, intent(in) :: lwc, num, iwc

@@ -24,7 +24,7 @@ module kumo_netcdf
                     NF90_FILL_DOUBLE, NF90_FILL_FLOAT, NF90_FILL_INT, NF90_FILL_SHORT, &
                     NF90_FILL_BYTE, NF90_MAX_VAR_DIMS, NF90_MAX_NAME
   use kumo_kinds, only: wp, dp
-  use kumo_error, only: error_t, set_error
+  use kumo_error, only: error_t, set_error, join
   use kumo_results, only: result_set_t
   use kumo_brdf, only: BRDF_NPAR, BRDF_NAMES, BRDF_DSM, cox_munk_slope_variance
   implicit none
@@ -176,20 +176,20 @@ contains
       return
     end if
     if (any(shape(ssa) /= shape(ext))) then
-      call set_error(error, at_ssa//': shape '//int_list(shape(ssa))// &
-                     ' differs from the shape of extinction '//int_list(shape(ext)))
+      call set_error(error, at_ssa//': shape '//join(shape(ssa), ',', '()')// &
+                     ' differs from the shape of extinction '//join(shape(ext), ',', '()'))
       return
     end if
     if (present(phase_index)) then
       if (any(shape(phase_index) /= shape(ext))) then
-        call set_error(error, at_phase//': shape '//int_list(shape(phase_index))// &
-                       ' differs from the shape of extinction '//int_list(shape(ext)))
+        call set_error(error, at_phase//': shape '//join(shape(phase_index), ',', '()')// &
+                       ' differs from the shape of extinction '//join(shape(ext), ',', '()'))
         return
       end if
     end if
     if (size(ext) == 0) then
       call set_error(error, at_ext//': every dimension must be >= 1, shape is '// &
-                     int_list(shape(ext)))
+                     join(shape(ext), ',', '()'))
       return
     end if
     call check_real_4d(at_ext, ext, FILL, .false., error)
@@ -338,11 +338,11 @@ contains
         do ix = 1, lengths(1)
           if (kind(ix, iy) == ifill) then
             call set_error(error, at//': value '//int_text(kind(ix, iy))//' at '//MAP_INDEX// &
-                           ' = '//int_list([ix, iy])//' is the fill value (missing data)')
+                           ' = '//join([ix, iy], ',', '()')//' is the fill value (missing data)')
             return
           else if (kind(ix, iy) < 0 .or. kind(ix, iy) > 4) then
             call set_error(error, at//': value '//int_text(kind(ix, iy))//' at '//MAP_INDEX// &
-                           ' = '//int_list([ix, iy])//' must be 0 (black), 1 (Lambert), '// &
+                           ' = '//join([ix, iy], ',', '()')//' must be 0 (black), 1 (Lambert), '// &
                            '2 (DSM), 3 (RPV) or 4 (LSRT)')
             return
           end if
@@ -399,7 +399,7 @@ contains
             if (.not. ieee_is_finite(v(ix, iy)) .or. is_fill(v(ix, iy), fill) .or. &
                 (wind .and. v(ix, iy) < 0.0_wp)) then
               call set_error(error, at//': value '//real_text(v(ix, iy))//' at '//MAP_INDEX// &
-                             ' = '//int_list([ix, iy])//' '// &
+                             ' = '//join([ix, iy], ',', '()')//' '// &
                              value_problem(v(ix, iy), fill, .false.))
               return
             end if
@@ -414,13 +414,7 @@ contains
     function kind_vars(kk) result(text)
       integer, intent(in) :: kk
       character(len=:), allocatable :: text
-      integer :: j
-      text = ''
-      do j = 1, BRDF_NPAR
-        if (len_trim(BRDF_MAP_VARS(j, kk)) == 0) cycle
-        if (len(text) > 0) text = text//', '
-        text = text//trim(BRDF_MAP_VARS(j, kk))
-      end do
+      text = join(pack(BRDF_MAP_VARS(:, kk), len_trim(BRDF_MAP_VARS(:, kk)) > 0))
       if (kk == BRDF_DSM) text = text//' (or wind_speed)'
     end function kind_vars
   end subroutine read_brdf_body
@@ -761,7 +755,7 @@ contains
       do ix = 1, lengths(1)
         if (.not. value_ok(albedo(ix, iy), fill, .true.)) then
           call set_error(error, at//': value '//real_text(albedo(ix, iy))//' at '//MAP_INDEX// &
-                         ' = '//int_list([ix, iy])//' '// &
+                         ' = '//join([ix, iy], ',', '()')//' '// &
                          value_problem(albedo(ix, iy), fill, .true.))
           return
         end if
@@ -894,7 +888,7 @@ contains
                          int_text(expected_size)//' from its dimensions')
           return
         end if
-        call check_finite_flat(at, v%mean, n, counts(1:n), dim_tuple(v%dim_names(1:n)), &
+        call check_finite_flat(at, v%mean, n, counts(1:n), join(v%dim_names(1:n), ',', '()'), &
                                .false., error)
         if (allocated(error)) return
         if (allocated(v%stderr)) then
@@ -905,7 +899,7 @@ contains
                            ' from its dimensions')
             return
           end if
-          call check_finite_flat(at, v%stderr, n, counts(1:n), dim_tuple(v%dim_names(1:n)), &
+          call check_finite_flat(at, v%stderr, n, counts(1:n), join(v%dim_names(1:n), ',', '()'), &
                                  .true., error)
           if (allocated(error)) return
         end if
@@ -941,7 +935,7 @@ contains
           idx(j) = mod(rest, counts(j)) + 1
           rest = rest/counts(j)
         end do
-        place = ' at '//index_names//' = '//int_list(idx(1:ndims))
+        place = ' at '//index_names//' = '//join(idx(1:ndims), ',', '()')
       end if
       call set_error(error, at//': value '//real_text(values(k))//place//' '//problem)
       return
@@ -963,7 +957,7 @@ contains
           do ix = 1, size(values, 1)
             if (value_ok(values(ix, iy, iz, ic), fill, unit_interval)) cycle
             call set_error(error, at//': value '//real_text(values(ix, iy, iz, ic))//' at '// &
-                           SCENE_INDEX//' = '//int_list([ix, iy, iz, ic])//' '// &
+                           SCENE_INDEX//' = '//join([ix, iy, iz, ic], ',', '()')//' '// &
                            value_problem(values(ix, iy, iz, ic), fill, unit_interval))
             return
           end do
@@ -992,7 +986,7 @@ contains
               problem = 'must be >= 1'
             end if
             call set_error(error, at//': value '//int_text(values(ix, iy, iz, ic))//' at '// &
-                           SCENE_INDEX//' = '//int_list([ix, iy, iz, ic])//' '//problem)
+                           SCENE_INDEX//' = '//join([ix, iy, iz, ic], ',', '()')//' '//problem)
             return
           end do
         end do
@@ -1107,8 +1101,7 @@ contains
     type(error_t), allocatable, intent(out) :: error
     integer :: ndims, i
     integer :: dimids(NF90_MAX_VAR_DIMS)
-    character(len=NF90_MAX_NAME) :: dname
-    character(len=:), allocatable :: actual
+    character(len=NF90_MAX_NAME), allocatable :: dnames(:)
     logical :: same
 
     call nc_check(nf90_inquire_variable(ncid, varid, ndims=ndims, dimids=dimids), at, error)
@@ -1116,16 +1109,13 @@ contains
     same = ndims == size(expected_dimids)
     if (same) same = all(dimids(1:ndims) == expected_dimids)
     if (same) return
-    actual = '('
-    do i = ndims, 1, -1                     ! ncdump (C) order: slowest-varying first
-      call nc_check(nf90_inquire_dimension(ncid, dimids(i), name=dname), at, error)
+    allocate (dnames(ndims))
+    do i = 1, ndims                         ! ncdump (C) order: slowest-varying first
+      call nc_check(nf90_inquire_dimension(ncid, dimids(ndims + 1 - i), name=dnames(i)), at, error)
       if (allocated(error)) return
-      actual = actual//trim(dname)
-      if (i > 1) actual = actual//', '
     end do
-    actual = actual//')'
-    call set_error(error, at//': dimensions are '//actual//' in ncdump order; expected '// &
-                   expected_cdl)
+    call set_error(error, at//': dimensions are '//join(dnames, ', ', '()')// &
+                   ' in ncdump order; expected '//expected_cdl)
   end subroutine check_layout
 
   !> nf90_get_var does not unpack, so scale_factor/add_offset would give wrong numbers silently.
@@ -1350,32 +1340,6 @@ contains
     write (buffer, '(i0)') i
     text = trim(buffer)
   end function int_text
-
-  !> "(2,1,3)"
-  pure function int_list(values) result(text)
-    integer, intent(in) :: values(:)
-    character(len=:), allocatable :: text
-    integer :: i
-    text = '('
-    do i = 1, size(values)
-      text = text//int_text(values(i))
-      if (i < size(values)) text = text//','
-    end do
-    text = text//')'
-  end function int_list
-
-  !> "(x,y,z)" from Fortran-ordered dimension names.
-  pure function dim_tuple(names) result(text)
-    character(len=*), intent(in) :: names(:)
-    character(len=:), allocatable :: text
-    integer :: i
-    text = '('
-    do i = 1, size(names)
-      text = text//trim(names(i))
-      if (i < size(names)) text = text//','
-    end do
-    text = text//')'
-  end function dim_tuple
 
   !> A real value in messages, with nine significant digits; NaN and infinities spelt out.
   function real_text(x) result(text)

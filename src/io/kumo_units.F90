@@ -18,7 +18,7 @@
 !> air*; the caller multiplies by the air density [kg m-3] to get kumo's per-volume unit.
 module kumo_units
   use kumo_kinds, only: wp
-  use kumo_error, only: error_t, set_error
+  use kumo_error, only: error_t, set_error, join
   implicit none
   private
   public :: unit_factor, normalize_units, accepted_units
@@ -102,10 +102,7 @@ contains
     text = ''
     if (quantity < 1 .or. quantity > size(QUANTITY_NAMES)) return
     call unit_table(quantity, table)
-    do i = 1, size(table)
-      text = text//trim(table(i)%name)
-      if (i < size(table)) text = text//', '
-    end do
+    text = join([(table(i)%name, i = 1, size(table))])
   end function accepted_units
 
   !> Bring a units string to kumo's normal spelling (see the module description).

@@ -35,7 +35,7 @@ module kumo_phase
   use kumo_kinds, only: wp
   use kumo_math, only: GL_X => GL5_X, GL_W => GL5_W
   use kumo_constants, only: PI, DEG2RAD
-  use kumo_error, only: error_t, set_error, add_context, str, to_lower
+  use kumo_error, only: error_t, set_error, add_context, str, to_lower, join
   use kumo_rayleigh, only: DEPOL_MAX, rayleigh_depol_eval, rayleigh_depol_sample_mu
   implicit none
   private
@@ -210,7 +210,7 @@ contains
     character(len=*), intent(in) :: name            !! e.g. 'hg' or 'Rayleigh'
     integer, intent(out) :: kind                    !! kind code (0 on error)
     type(error_t), allocatable, intent(out) :: error  !! set if the name is unknown
-    character(len=:), allocatable :: key, allowed
+    character(len=:), allocatable :: key
     integer :: i
 
     key = to_lower(trim(adjustl(name)))
@@ -221,12 +221,8 @@ contains
       end if
     end do
     kind = 0
-    allowed = trim(PHASE_NAMES(1))
-    do i = 2, size(PHASE_NAMES)
-      allowed = allowed//', '//trim(PHASE_NAMES(i))
-    end do
     call set_error(error, "phase function '"//trim(adjustl(name))//"' is unknown (allowed: "// &
-                   allowed//')')
+                   join(PHASE_NAMES)//')')
   end subroutine phase_kind_from_name
 
   !> Isotropic phase function.

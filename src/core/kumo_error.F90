@@ -99,7 +99,11 @@ contains
       read (s(ie + 1:), *) nd
       s = s(1:ie - 1)
       call strip_zeros(s)
-      write (buf, '(a,sp,i3.2)') 'E', nd
+      if (abs(nd) < 100) then
+        write (buf, '(a,sp,i3.2)') 'E', nd
+      else
+        write (buf, '(a,sp,i0)') 'E', nd      ! three digits: i3.2 would print ***
+      end if
       s = s//trim(buf)
     end if
   contains

@@ -442,13 +442,8 @@ contains
 end module test_engine_suite
 
 program test_engine
-  use kumo_testing, only: run_unittests
-  use kumo_parallel, only: par_init, par_finalize
+  use kumo_test_text, only: run_suite
   use test_engine_suite, only: collect_engine
   implicit none
-  integer :: n_failed
-  call par_init()
-  call run_unittests('engine', collect_engine(), n_failed)
-  call par_finalize()
-  if (n_failed > 0) error stop 1
+  call run_suite('engine', collect_engine())
 end program test_engine

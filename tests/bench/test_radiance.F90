@@ -659,13 +659,8 @@ contains
 end module test_radiance_suite
 
 program test_radiance
-  use kumo_testing, only: run_unittests
-  use kumo_parallel, only: par_init, par_finalize
+  use kumo_test_text, only: run_suite
   use test_radiance_suite, only: collect_radiance
   implicit none
-  integer :: n_failed
-  call par_init()
-  call run_unittests('radiance', collect_radiance(), n_failed)
-  call par_finalize()
-  if (n_failed > 0) error stop 1
+  call run_suite('radiance', collect_radiance())
 end program test_radiance

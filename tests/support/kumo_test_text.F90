@@ -8,7 +8,8 @@ module kumo_test_text
   use kumo_parallel, only: par_init, par_finalize
   implicit none
   private
-  public :: split, read_table, shared_dir, set_shared_dir, disort_value, run_shared_suite
+  public :: split, read_table, shared_dir, set_shared_dir, disort_value, run_suite, &
+            run_shared_suite
 
   !> The shared data folder (data/, reference/), set from the command line.
   character(len=:), allocatable :: shared_dir
@@ -22,7 +23,6 @@ contains
   subroutine run_shared_suite(program_name, needs, suite_name, tests)
     character(len=*), intent(in) :: program_name, needs, suite_name
     type(unittest_t), intent(in) :: tests(:)
-    integer :: n_failed
     character(len=4096) :: arg
     call par_init()
     if (command_argument_count() < 1) then
@@ -31,10 +31,27 @@ contains
     end if
     call get_command_argument(1, arg)
     call set_shared_dir(trim(arg))
+    call finish_suite(suite_name, tests)
+  end subroutine run_shared_suite
+
+  !> The main program of a suite without arguments: starts MPI (or its stub) and runs the tests;
+  !> stops with code 1 when a test failed.
+  subroutine run_suite(suite_name, tests)
+    character(len=*), intent(in) :: suite_name
+    type(unittest_t), intent(in) :: tests(:)
+    call par_init()
+    call finish_suite(suite_name, tests)
+  end subroutine run_suite
+
+  !> Run the tests, shut MPI (or its stub) down and stop with code 1 when a test failed.
+  subroutine finish_suite(suite_name, tests)
+    character(len=*), intent(in) :: suite_name
+    type(unittest_t), intent(in) :: tests(:)
+    integer :: n_failed
     call run_unittests(suite_name, tests, n_failed)
     call par_finalize()
     if (n_failed > 0) error stop 1
-  end subroutine run_shared_suite
+  end subroutine finish_suite
 
   !> Set the shared data folder.
   subroutine set_shared_dir(path)

@@ -10,7 +10,7 @@ module kumo_test_scenes
   use kumo_netcdf, only: write_scene_3d
   implicit none
   private
-  public :: slab_config, set_phases, run_config, get_scalar, get_array, attach_scene
+  public :: slab_config, set_phases, run_config, run_pair, get_scalar, get_array, attach_scene
 
 contains
 
@@ -107,6 +107,17 @@ contains
     call simulate(cfg, set, s, error)
     if (present(summary)) summary = s
   end subroutine run_config
+
+  !> Run two configurations, `a` first (an error of `a` skips `b`), for tests that compare them.
+  subroutine run_pair(a, set_a, b, set_b, error, summary_a, summary_b)
+    type(config_t), intent(in) :: a, b
+    type(result_set_t), intent(out) :: set_a, set_b
+    type(error_t), allocatable, intent(out) :: error
+    type(run_summary_t), intent(out), optional :: summary_a, summary_b
+    call run_config(a, set_a, error, summary_a)
+    if (allocated(error)) return
+    call run_config(b, set_b, error, summary_b)
+  end subroutine run_pair
 
   !> Mean and standard error of a scalar output.
   subroutine get_scalar(set, name, mean, stderr, error)

@@ -8,8 +8,8 @@ module kumo_test_text
   use kumo_parallel, only: par_init, par_finalize
   implicit none
   private
-  public :: split, read_table, shared_dir, set_shared_dir, disort_value, run_suite, &
-            run_shared_suite
+  public :: split, read_table, shared_dir, set_shared_dir, disort_value, half_last_digit, &
+            run_suite, run_shared_suite
 
   !> The shared data folder (data/, reference/), set from the command line.
   character(len=:), allocatable :: shared_dir
@@ -80,6 +80,19 @@ contains
       i0 = i + 1
     end do
   end subroutine split
+
+  !> Half a unit in the last printed digit of a number written like 1.23456E-01 (0 for a number
+  !> without exponent, such as the exact zeros written as 0.0).
+  real(dp) function half_last_digit(text) result(h)
+    character(len=*), intent(in) :: text
+    integer :: ie, ipt, ios, ex
+    h = 0.0_dp
+    ie = scan(text, 'Ee')
+    ipt = index(text, '.')
+    if (ie == 0 .or. ipt == 0 .or. ipt > ie) return
+    read (text(ie + 1:), *, iostat=ios) ex
+    if (ios == 0) h = 0.5_dp*10.0_dp**(ex - (ie - ipt - 1))
+  end function half_last_digit
 
   !> Read a two-column table with kumo's own reader; a failure becomes the test's error.
   subroutine read_table(path, angle, value, error)

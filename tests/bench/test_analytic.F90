@@ -26,7 +26,7 @@
 !> build on one core). The shared data folder is the first command-line argument.
 module test_kumo_analytic
   use, intrinsic :: iso_fortran_env, only: output_unit, iostat_end
-  use kumo_test_text, only: split, shared_dir, half_last_digit
+  use kumo_test_text, only: split, open_text, shared_dir, half_last_digit
   use kumo_kinds, only: dp, i8
   use kumo_constants, only: PI, RAD2DEG
   use kumo_error, only: error_t, set_error, str
@@ -379,11 +379,8 @@ contains
     character(len=LINE_LEN) :: line, f(7)
     integer :: unit, ios, n, ip, it
     path = shared_dir//'/data/disort/disotest_v2.0beta_correct_answers.csv'
-    open (newunit=unit, file=path, status='old', action='read', iostat=ios)
-    if (ios /= 0) then
-      call set_error(error, 'cannot open '//path)
-      return
-    end if
+    call open_text(path, unit, error)
+    if (allocated(error)) return
     do
       read (unit, '(a)', iostat=ios) line
       if (ios /= 0) exit
@@ -508,11 +505,8 @@ contains
     integer :: unit, ios
     path = shared_dir//'/data/analytic/chandrasekhar_H_isotropic.txt'
     h = -1.0_dp
-    open (newunit=unit, file=path, status='old', action='read', iostat=ios)
-    if (ios /= 0) then
-      call set_error(error, 'cannot open '//path)
-      return
-    end if
+    call open_text(path, unit, error)
+    if (allocated(error)) return
     do
       read (unit, '(a)', iostat=ios) line
       if (ios /= 0) exit

@@ -42,7 +42,7 @@
 !> `${KUMO_SHARED_DIR}`).
 module test_kumo_disort_pp
   use, intrinsic :: iso_fortran_env, only: output_unit, iostat_end, int64
-  use kumo_test_text, only: split, shared_dir
+  use kumo_test_text, only: split, open_text, shared_dir
   use kumo_kinds, only: dp, i8
   use kumo_error, only: error_t, set_error, str
   use kumo_config, only: config_t
@@ -440,11 +440,8 @@ contains
       return
     end if
     path = shared_dir//'/reference/disort_pp.csv'
-    open (newunit=unit, file=path, status='old', action='read', iostat=ios)
-    if (ios /= 0) then
-      call set_error(error, 'cannot open '//path)
-      return
-    end if
+    call open_text(path, unit, error)
+    if (allocated(error)) return
     allocate (cases(0))
     line_no = 0
     do

@@ -84,7 +84,7 @@ module test_kumo_disort_radiance
   use kumo_config, only: config_t
   use kumo_phase, only: PHASE_TABLE
   use kumo_results, only: result_set_t
-  use kumo_test_text, only: split, shared_dir, half_last_digit
+  use kumo_test_text, only: split, open_text, shared_dir, half_last_digit
   use kumo_test_scenes, only: set_layers, run_config, get_array
   use kumo_testing, only: unittest_t, new_unittest, check
   use kumo_test_reference, only: TINY_REF, SIGMA_EXACT, tiny_floor, depth_level, &
@@ -495,11 +495,8 @@ contains
     real(dp) :: v(5)
     type(column_t) :: cl
 
-    open (newunit=unit, file=path, status='old', action='read', iostat=ios)
-    if (ios /= 0) then
-      call set_error(error, 'cannot open '//path)
-      return
-    end if
+    call open_text(path, unit, error)
+    if (allocated(error)) return
     allocate (cols(0))
     lineno = 0
     read (unit, '(a)', iostat=ios) line            ! header
@@ -658,11 +655,8 @@ contains
     allocate (cl%where(0), cl%level(0), cl%mu(0), cl%phi_rel(0), cl%ref(0), cl%extra(0))
 
     path = shared_dir//'/data/disort/disotest_v2.0beta_correct_answers.csv'
-    open (newunit=unit, file=path, status='old', action='read', iostat=ios)
-    if (ios /= 0) then
-      call set_error(error, 'cannot open '//path)
-      return
-    end if
+    call open_text(path, unit, error)
+    if (allocated(error)) return
     do
       read (unit, '(a)', iostat=ios) line
       if (ios /= 0) exit

@@ -3,13 +3,14 @@
 !> reference-data folder (CTest passes it as the first command-line argument).
 module kumo_test_text
   use kumo_kinds, only: wp, dp
+  use kumo_error, only: set_error
   use kumo_textio, only: read_two_columns
   use kumo_testing, only: error_t, check, unittest_t, run_unittests
   use kumo_parallel, only: par_init, par_finalize
   implicit none
   private
-  public :: split, read_table, shared_dir, set_shared_dir, disort_value, half_last_digit, &
-            run_suite, run_shared_suite
+  public :: split, read_table, open_text, shared_dir, set_shared_dir, disort_value, &
+            half_last_digit, run_suite, run_shared_suite
 
   !> The shared data folder (data/, reference/), set from the command line.
   character(len=:), allocatable :: shared_dir
@@ -94,6 +95,16 @@ contains
     if (ios == 0) h = 0.5_dp*10.0_dp**(ex - (ie - ipt - 1))
   end function half_last_digit
 
+  !> Open the text file `path` for reading; failing that, the test's error is 'cannot open path'.
+  subroutine open_text(path, unit, error)
+    character(len=*), intent(in) :: path
+    integer, intent(out) :: unit
+    type(error_t), allocatable, intent(inout) :: error
+    integer :: ios
+    open (newunit=unit, file=path, status='old', action='read', iostat=ios)
+    if (ios /= 0) call set_error(error, 'cannot open '//path)
+  end subroutine open_text
+
   !> Read a two-column table with kumo's own reader; a failure becomes the test's error.
   subroutine read_table(path, angle, value, error)
     character(len=*), intent(in) :: path
@@ -120,12 +131,8 @@ contains
       call check(error, .false., 'the shared data folder was not given on the command line')
       return
     end if
-    open (newunit=unit, file=shared_dir//'/reference/disort_pp.csv', status='old', &
-          action='read', iostat=ios)
-    if (ios /= 0) then
-      call check(error, .false., 'cannot open '//shared_dir//'/reference/disort_pp.csv')
-      return
-    end if
+    call open_text(shared_dir//'/reference/disort_pp.csv', unit, error)
+    if (allocated(error)) return
     do
       read (unit, '(a)', iostat=ios) line
       if (ios /= 0) exit

@@ -26,7 +26,7 @@
 !> build on one core). The shared data folder is the first command-line argument.
 module test_kumo_analytic
   use, intrinsic :: iso_fortran_env, only: output_unit, iostat_end
-  use kumo_test_text, only: split, shared_dir
+  use kumo_test_text, only: split, open_text, shared_dir, half_last_digit
   use kumo_kinds, only: dp, i8
   use kumo_constants, only: PI, RAD2DEG
   use kumo_error, only: error_t, set_error, str
@@ -35,14 +35,12 @@ module test_kumo_analytic
   use kumo_driver, only: simulate, run_summary_t
   use kumo_results, only: result_set_t, find_var
   use kumo_testing, only: unittest_t, new_unittest, check
+  use kumo_test_reference, only: TINY_REF, ROUNDOFF, tiny_floor, direct_sigma, depth_level
   implicit none
   private
   public :: collect_analytic
 
   real(dp), parameter :: K_SIGMA = 4.0_dp        !! allowed deviation in standard errors
-  real(dp), parameter :: TINY_REF = 1.0e-6_dp    !! references below this get the floor
-  real(dp), parameter :: FLOOR = 1.0e-6_dp       !! absolute floor for those
-  real(dp), parameter :: ROUNDOFF = 1.0e-12_dp   !! allowance for exact (zero-variance) results
   integer, parameter :: NB = 40                  !! batches of every run
   real(dp), parameter :: DZ = 1000.0_dp          !! geometric thickness of every layer [m]
   integer, parameter :: LINE_LEN = 256
@@ -327,8 +325,8 @@ contains
     real(dp), intent(in), optional :: g
     type(result_set_t) :: set
     type(disotest_value_t) :: fir, fdn, fup
-    real(dp) :: gg, x, s, xd, sd, cum
-    integer :: iu, lev, nz, l
+    real(dp) :: gg, x, s, xd, sd
+    integer :: iu, lev, nz
     character(len=:), allocatable :: tag
     gg = 0.0_dp
     if (present(g)) gg = g
@@ -340,13 +338,7 @@ contains
     if (allocated(error)) return
     do iu = 1, size(utau)
       ! kumo level of optical depth utau(iu) from the top (levels count from the bottom)
-      lev = -1
-      if (abs(utau(iu)) <= 1.0e-9_dp) lev = nz
-      cum = 0.0_dp
-      do l = 1, nz
-        cum = cum + dtau(l)
-        if (abs(cum - utau(iu)) <= 1.0e-9_dp*max(1.0_dp, utau(iu))) lev = nz - l
-      end do
+      lev = depth_level(dtau, utau(iu))
       if (lev < 0) then
         call set_error(error, tag//': output depth '//str(utau(iu))//' is not a level')
         return
@@ -385,13 +377,10 @@ contains
     type(disotest_value_t) :: v
     character(len=:), allocatable :: path
     character(len=LINE_LEN) :: line, f(7)
-    integer :: unit, ios, n, ip, it, ie, ipt, nd, ex
+    integer :: unit, ios, n, ip, it
     path = shared_dir//'/data/disort/disotest_v2.0beta_correct_answers.csv'
-    open (newunit=unit, file=path, status='old', action='read', iostat=ios)
-    if (ios /= 0) then
-      call set_error(error, 'cannot open '//path)
-      return
-    end if
+    call open_text(path, unit, error)
+    if (allocated(error)) return
     do
       read (unit, '(a)', iostat=ios) line
       if (ios /= 0) exit
@@ -405,17 +394,8 @@ contains
       if (ios /= 0 .or. it /= itau) cycle
       read (f(7), *, iostat=ios) v%value
       if (ios /= 0) exit
-      ! half a unit of the last printed digit: mantissa decimals nd, exponent ex
-      ie = scan(f(7), 'Ee')
-      ipt = index(f(7), '.')
-      if (ie > 0 .and. ipt > 0) then
-        nd = ie - ipt - 1
-        read (f(7)(ie + 1:), *, iostat=ios) ex
-        if (ios /= 0) exit
-        v%half_ulp = 0.5_dp*10.0_dp**(ex - nd)/PI
-      else
-        v%half_ulp = 0.0_dp          ! written as 0.0: an exact zero
-      end if
+      ! half a unit of the last printed digit (0 for an exact zero written as 0.0)
+      v%half_ulp = half_last_digit(f(7))/PI
       v%value = v%value/PI
       v%found = .true.
       exit
@@ -513,20 +493,6 @@ contains
                                  ', reference '//str(ref)//', |diff| > '//str(limit))
   end subroutine compare
 
-  !> Standard error for a direct-beam count: max(batch estimate, binomial sqrt(p (1 - p)/N)).
-  pure real(dp) function direct_sigma(s, p, n) result(sig)
-    real(dp), intent(in) :: s, p
-    integer(i8), intent(in) :: n
-    sig = max(s, sqrt(max(0.0_dp, p*(1.0_dp - p))/real(n, dp)))
-  end function direct_sigma
-
-  !> Absolute floor for references that are zero or below what the budget resolves.
-  pure real(dp) function tiny_floor(ref) result(f)
-    real(dp), intent(in) :: ref
-    f = ROUNDOFF
-    if (abs(ref) < TINY_REF) f = FLOOR
-  end function tiny_floor
-
   !> H(mu) from data/analytic/chandrasekhar_H_isotropic.txt; col 1..5 = w0 1, 0.99, 0.9, 0.8, 0.5.
   subroutine read_h_function(mu, col, h, error)
     real(dp), intent(in) :: mu
@@ -539,11 +505,8 @@ contains
     integer :: unit, ios
     path = shared_dir//'/data/analytic/chandrasekhar_H_isotropic.txt'
     h = -1.0_dp
-    open (newunit=unit, file=path, status='old', action='read', iostat=ios)
-    if (ios /= 0) then
-      call set_error(error, 'cannot open '//path)
-      return
-    end if
+    call open_text(path, unit, error)
+    if (allocated(error)) return
     do
       read (unit, '(a)', iostat=ios) line
       if (ios /= 0) exit

@@ -317,12 +317,7 @@ end module test_brdf_surface_suite
 
 program test_brdf_surface
   use test_brdf_surface_suite, only: collect_brdf_surface
-  use kumo_testing, only: run_unittests
-  use kumo_parallel, only: par_init, par_finalize
+  use kumo_test_text, only: run_suite
   implicit none
-  integer :: n_failed
-  call par_init()
-  call run_unittests('BRDF surfaces in whole runs', collect_brdf_surface(), n_failed)
-  call par_finalize()
-  if (n_failed > 0) error stop 1
+  call run_suite('BRDF surfaces in whole runs', collect_brdf_surface())
 end program test_brdf_surface

@@ -42,28 +42,23 @@
 !> `${KUMO_SHARED_DIR}`).
 module test_kumo_disort_pp
   use, intrinsic :: iso_fortran_env, only: output_unit, iostat_end, int64
-  use kumo_test_text, only: split, shared_dir
+  use kumo_test_text, only: split, open_text, shared_dir
   use kumo_kinds, only: dp, i8
   use kumo_error, only: error_t, set_error, str
   use kumo_config, only: config_t
-  use kumo_phase, only: PHASE_ISOTROPIC, PHASE_RAYLEIGH, PHASE_HG
   use kumo_driver, only: simulate, run_summary_t
   use kumo_results, only: result_set_t, find_var
   use kumo_testing, only: unittest_t, new_unittest, check
+  use kumo_test_scenes, only: set_layers
+  use kumo_test_reference, only: TINY_REF, SIGMA_EXACT, tiny_floor, direct_sigma, &
+                                 check_error_bars, check_all_passed, run_once_t, run_once
   implicit none
   private
   public :: collect_disort_pp
 
   real(dp), parameter :: K_SIGMA = 4.0_dp        !! allowed deviation in standard errors
-  real(dp), parameter :: TINY_REF = 1.0e-6_dp    !! references below this get the floor
-  real(dp), parameter :: FLOOR = 1.0e-6_dp       !! absolute floor for those
-  real(dp), parameter :: ROUNDOFF = 1.0e-12_dp   !! allowance for exact values (F_dir(TOA) = 1)
-  !> Standard errors below this belong to exact quantities: the one-pass variance formula leaves
-  !> ~1e-9 of round-off for a quantity that is the same in every batch (F_dir_down(TOA) = 1).
-  real(dp), parameter :: SIGMA_EXACT = 1.0e-8_dp
   integer, parameter :: N_BATCHES = 40
   integer(i8), parameter :: SEED = 20240611_i8
-  real(dp), parameter :: DZ = 1000.0_dp          !! geometric thickness of every layer [m]
   integer, parameter :: MAXL = 4                 !! most layers in a case
   integer, parameter :: N_CASES_EXPECTED = 102
   integer, parameter :: FLD = 128                !! length of a text field of the table
@@ -82,7 +77,7 @@ module test_kumo_disort_pp
     character(len=FLD) :: spec = ''
     real(dp) :: sza = 0.0_dp, albedo = 0.0_dp
     integer :: nl = 0
-    integer :: kind(MAXL) = 0
+    character(len=8) :: phase(MAXL) = ''         !! 'iso', 'rayleigh' or 'hg'
     real(dp) :: tau(MAXL) = 0.0_dp, omega(MAXL) = 0.0_dp, g(MAXL) = 0.0_dp
     integer :: n_rows_all = 0                    !! rows in the file, radiances included
     type(ref_row_t), allocatable :: rows(:)      !! flux rows only
@@ -101,8 +96,7 @@ module test_kumo_disort_pp
   type(case_t), allocatable :: cases(:)
   type(comparison_t), allocatable :: cmp(:)
   real(dp), allocatable :: closure_err(:)
-  logical :: have_run = .false.
-  character(len=:), allocatable :: run_failure
+  type(run_once_t) :: runs
 
 contains
 
@@ -144,30 +138,22 @@ contains
 
   subroutine test_within_sigma(error)
     type(error_t), allocatable, intent(out) :: error
-    integer :: i, n_fail
-    character(len=:), allocatable :: msg
-    call ensure_run(error)
+    call run_once(runs, run_all, error)
     if (allocated(error)) return
-    n_fail = count(.not. cmp%passed)
-    if (n_fail == 0) return
-    msg = str(n_fail)//' of '//str(size(cmp))//' comparisons beyond 4 sigma + floor:'
-    do i = 1, size(cmp)
-      if (.not. cmp(i)%passed) msg = msg//' ['//describe(cmp(i))//']'
-    end do
-    call set_error(error, msg)
+    call check_all_passed(error, cmp%passed, 'comparisons beyond 4 sigma + floor', describe)
   end subroutine test_within_sigma
 
   subroutine test_zeros(error)
     type(error_t), allocatable, intent(out) :: error
     integer :: i, n_zero
-    call ensure_run(error)
+    call run_once(runs, run_all, error)
     if (allocated(error)) return
     n_zero = 0
     do i = 1, size(cmp)
       if (.not. cmp(i)%zero) cycle
       n_zero = n_zero + 1
       call check(error, is_exactly(cmp(i)%x, 0.0_dp) .and. is_exactly(cmp(i)%sigma_hat, 0.0_dp), &
-                 'zero by physics but kumo gives '//describe(cmp(i)))
+                 'zero by physics but kumo gives '//describe(i))
       if (allocated(error)) return
     end do
     call check(error, n_zero > 0, 'no physical zeros found in the table')
@@ -176,7 +162,7 @@ contains
   subroutine test_closure(error)
     type(error_t), allocatable, intent(out) :: error
     integer :: i
-    call ensure_run(error)
+    call run_once(runs, run_all, error)
     if (allocated(error)) return
     do i = 1, size(cases)
       call check(error, closure_err(i) <= 1.0e-10_dp, trim(cases(i)%id)// &
@@ -189,30 +175,17 @@ contains
     type(error_t), allocatable, intent(out) :: error
     real(dp) :: rms, f2
     integer :: n
-    call ensure_run(error)
+    call run_once(runs, run_all, error)
     if (allocated(error)) return
     call deviation_stats(n, rms, f2)
-    call check(error, n >= 900, 'too few resolved comparisons: '//str(n))
-    call check(error, rms >= 0.7_dp .and. rms <= 1.3_dp, 'RMS of (x - ref)/sigma = '// &
-               str(rms)//' outside [0.7, 1.3]: the error bars are not honest')
-    call check(error, f2 < 0.10_dp, 'fraction beyond 2 sigma = '//str(f2)//' >= 0.10')
+    call check_error_bars(error, 'comparisons', n, 900, rms, f2)
   end subroutine test_honest
 
   ! ------------------------------------------------------------------------------------------
   ! Running the cases
   ! ------------------------------------------------------------------------------------------
 
-  !> Read the table and run every case once; later calls return the cached outcome.
-  subroutine ensure_run(error)
-    type(error_t), allocatable, intent(out) :: error
-    if (.not. have_run) then
-      have_run = .true.
-      call run_all(error)
-      if (allocated(error)) run_failure = error%message
-    end if
-    if (allocated(run_failure)) call set_error(error, 'running the cases failed: '//run_failure)
-  end subroutine ensure_run
-
+  !> Read the table and run every case (once, through run_once).
   subroutine run_all(error)
     type(error_t), allocatable, intent(out) :: error
     type(comparison_t), allocatable :: c(:)
@@ -273,7 +246,7 @@ contains
     do j = 1, size(cmp)
       if (.not. cmp(j)%resolved) cycle
       if (abs(cmp(j)%x - cmp(j)%ref) > 3.0_dp*cmp(j)%sigma) then
-        write (output_unit, '(a)') '#   > 3 sigma: '//describe(cmp(j))
+        write (output_unit, '(a)') '#   > 3 sigma: '//describe(j)
       end if
     end do
   end subroutine run_all
@@ -349,37 +322,11 @@ contains
     integer :: nz, k, l, j, iv, idx, ilayer
     character(len=FLD) :: q, lev
     character(len=24) :: vname
-    real(dp) :: sig_bin
     logical :: direct
 
     associate (cs => cases(i))
       nz = cs%nl
-      cfg%atm%nz = nz
-      cfg%atm%z = [(DZ*k, k=0, nz)]
-      cfg%atm%lx = 1000.0_dp
-      cfg%atm%ly = 1000.0_dp
-      cfg%atm%n_components = 1
-      allocate (cfg%atm%ext1d(nz, 1), cfg%atm%ssa1d(nz, 1), cfg%atm%phase1d(nz, 1))
-      allocate (cfg%phase%kind(nz), cfg%phase%kind_name(nz), cfg%phase%g(nz), cfg%phase%file(nz))
-      do l = 1, nz                    ! l = 1 is the top layer, kumo's layer nz
-        k = nz + 1 - l
-        cfg%atm%ext1d(k, 1) = cs%tau(l)/DZ
-        cfg%atm%ssa1d(k, 1) = cs%omega(l)
-        cfg%atm%phase1d(k, 1) = l
-        cfg%phase%kind(l) = cs%kind(l)
-        select case (cs%kind(l))
-        case (PHASE_ISOTROPIC)
-          cfg%phase%kind_name(l) = 'isotropic'
-        case (PHASE_RAYLEIGH)
-          cfg%phase%kind_name(l) = 'rayleigh'
-        case default
-          cfg%phase%kind_name(l) = 'hg'
-        end select
-        cfg%phase%g(l) = cs%g(l)
-        cfg%phase%file(l) = ''
-      end do
-      cfg%phase%n_phase = nz
-      cfg%atm%phase3d = [1]
+      call set_layers(cfg, cs%tau(1:nz), cs%omega(1:nz), cs%phase(1:nz), cs%g(1:nz))
       cfg%surface%albedo = cs%albedo
       cfg%source%sza_deg = cs%sza
       cfg%output%flux_levels = [(k, k=0, nz)]
@@ -460,20 +407,13 @@ contains
         c(j)%ref = cs%rows(j)%value
         c(j)%sigma = c(j)%sigma_hat
         direct = q == 'T_direct' .or. q == 'F_dir_down'
-        if (direct) then
-          sig_bin = sqrt(max(0.0_dp, c(j)%ref*(1.0_dp - c(j)%ref))/real(nphot, dp))
-          c(j)%sigma = max(c(j)%sigma_hat, sig_bin)
-        end if
+        if (direct) c(j)%sigma = direct_sigma(c(j)%sigma_hat, c(j)%ref, nphot)
         ! zero by physics
         c(j)%zero = (q == 'F_dif_down' .and. lev == 'TOA') .or. &
                     (q == 'F_up' .and. lev == 'BOA' .and. is_exactly(cs%albedo, 0.0_dp)) .or. &
                     (q == 'A_atm' .and. all(is_exactly(cs%omega(1:nz), 1.0_dp)))
         if (ilayer > 0) c(j)%zero = is_exactly(cs%omega(ilayer), 1.0_dp)
-        if (abs(c(j)%ref) < TINY_REF) then
-          c(j)%floor = FLOOR
-        else
-          c(j)%floor = ROUNDOFF
-        end if
+        c(j)%floor = tiny_floor(c(j)%ref)
         c(j)%passed = abs(c(j)%x - c(j)%ref) <= K_SIGMA*c(j)%sigma + c(j)%floor
         c(j)%resolved = abs(c(j)%ref) >= TINY_REF .and. c(j)%sigma > SIGMA_EXACT
       end do
@@ -500,11 +440,8 @@ contains
       return
     end if
     path = shared_dir//'/reference/disort_pp.csv'
-    open (newunit=unit, file=path, status='old', action='read', iostat=ios)
-    if (ios /= 0) then
-      call set_error(error, 'cannot open '//path)
-      return
-    end if
+    call open_text(path, unit, error)
+    if (allocated(error)) return
     allocate (cases(0))
     line_no = 0
     do
@@ -579,12 +516,8 @@ contains
     do l = 1, nl
       call split(layers(l), ':', parts, np)
       select case (trim(parts(1)))
-      case ('iso')
-        cs%kind(l) = PHASE_ISOTROPIC
-      case ('rayleigh')
-        cs%kind(l) = PHASE_RAYLEIGH
-      case ('hg')
-        cs%kind(l) = PHASE_HG
+      case ('iso', 'rayleigh', 'hg')
+        cs%phase(l) = parts(1)
       case default
         call set_error(error, 'layer_spec "'//trim(spec)//'": unknown layer kind "'// &
                        trim(parts(1))//'"')
@@ -626,12 +559,15 @@ contains
   ! Text helpers
   ! ------------------------------------------------------------------------------------------
 
-  function describe(c) result(s)
-    type(comparison_t), intent(in) :: c
+  !> Text of comparison j.
+  function describe(j) result(s)
+    integer, intent(in) :: j
     character(len=:), allocatable :: s
-    s = trim(cases(c%icase)%id)//' '//trim(c%label)//': kumo '//str(c%x)//' +- '// &
-        str(c%sigma)//', DISORT '//str(c%ref)
-    if (c%sigma > 0.0_dp) s = s//', dev '//str((c%x - c%ref)/c%sigma)//' sigma'
+    associate (c => cmp(j))
+      s = trim(cases(c%icase)%id)//' '//trim(c%label)//': kumo '//str(c%x)//' +- '// &
+          str(c%sigma)//', DISORT '//str(c%ref)
+      if (c%sigma > 0.0_dp) s = s//', dev '//str((c%x - c%ref)/c%sigma)//' sigma'
+    end associate
   end function describe
 
   !> x == v, written without == to keep -Wcompare-reals quiet.

@@ -84,25 +84,22 @@ module test_kumo_disort_radiance
   use kumo_config, only: config_t
   use kumo_phase, only: PHASE_TABLE
   use kumo_results, only: result_set_t
-  use kumo_test_text, only: split, shared_dir
-  use kumo_test_scenes, only: set_phases, run_config, get_array
+  use kumo_test_text, only: split, open_text, shared_dir, half_last_digit
+  use kumo_test_scenes, only: set_layers, run_config, get_array
   use kumo_testing, only: unittest_t, new_unittest, check
+  use kumo_test_reference, only: TINY_REF, SIGMA_EXACT, tiny_floor, depth_level, &
+                                 check_error_bars, check_all_passed, run_once_t, run_once
   implicit none
   private
   public :: collect_disort_radiance
 
   real(dp), parameter :: K_SIGMA = 5.0_dp        !! allowed deviation in standard errors
-  real(dp), parameter :: TINY_REF = 1.0e-6_dp    !! references below this get the floor
-  real(dp), parameter :: FLOOR = 1.0e-6_dp       !! absolute floor for those
-  real(dp), parameter :: ROUNDOFF = 1.0e-12_dp   !! allowance for all other references
-  real(dp), parameter :: SIGMA_EXACT = 1.0e-8_dp !! standard errors below this: not resolved
   real(dp), parameter :: ZETA_MIN = 0.3_dp       !! local-estimate roulette ("unbiased" preset)
   !> Resolution floor in quanta zeta_min/(|mu| N) (see the module text) and the least number of
   !> quanta of a reference that enters the error-bar statistics.
   real(dp), parameter :: N_QUANTA_FLOOR = 8.0_dp, N_QUANTA_RESOLVED = 80.0_dp
   integer, parameter :: N_BATCHES = 40
   integer(i8), parameter :: SEED = 20240917_i8
-  real(dp), parameter :: DZ = 1000.0_dp          !! geometric thickness of every layer [m]
   real(dp), parameter :: PHI0 = 0.0_dp           !! propagation azimuth of the beam [deg]
   integer, parameter :: MAXL = 4                 !! most layers in a case
   integer, parameter :: FLD = 128                !! length of a text field
@@ -146,8 +143,7 @@ module test_kumo_disort_radiance
 
   type(column_t), allocatable :: cols(:)
   type(comparison_t), allocatable :: cmp(:)
-  logical :: have_run = .false.
-  character(len=:), allocatable :: run_failure
+  type(run_once_t) :: runs
 
 contains
 
@@ -200,29 +196,21 @@ contains
 
   subroutine test_sigma(error)
     type(error_t), allocatable, intent(out) :: error
-    integer :: j, n_fail
-    character(len=:), allocatable :: msg
-    call ensure_run(error)
+    call run_once(runs, run_all, error)
     if (allocated(error)) return
-    n_fail = count(.not. cmp%passed)
-    if (n_fail == 0) return
-    msg = str(n_fail)//' of '//str(size(cmp))//' radiances beyond 5 sigma + floor:'
-    do j = 1, size(cmp)
-      if (.not. cmp(j)%passed) msg = msg//' ['//describe(cmp(j))//']'
-    end do
-    call set_error(error, msg)
+    call check_all_passed(error, cmp%passed, 'radiances beyond 5 sigma + floor', describe)
   end subroutine test_sigma
 
   subroutine test_zeros(error)
     type(error_t), allocatable, intent(out) :: error
     integer :: j
-    call ensure_run(error)
+    call run_once(runs, run_all, error)
     if (allocated(error)) return
     call check(error, count(cmp%zero) > 0, 'no exact zeros among the references')
     do j = 1, size(cmp)
       if (.not. cmp(j)%zero) cycle
       call check(error, .not. (abs(cmp(j)%x) > 0.0_dp .or. cmp(j)%sigma > 0.0_dp), &
-                 'zero by physics, but kumo gives '//describe(cmp(j)))
+                 'zero by physics, but kumo gives '//describe(j))
       if (allocated(error)) return
     end do
   end subroutine test_zeros
@@ -231,30 +219,17 @@ contains
     type(error_t), allocatable, intent(out) :: error
     real(dp) :: rms, f2
     integer :: n, n3
-    call ensure_run(error)
+    call run_once(runs, run_all, error)
     if (allocated(error)) return
     call error_bar_stats(in_statistics(), n, rms, f2, n3)
-    call check(error, n >= 2000, 'too few resolved radiances: '//str(n))
-    call check(error, rms >= 0.7_dp .and. rms <= 1.3_dp, 'RMS of (x - ref)/sigma = '// &
-               str(rms)//' outside [0.7, 1.3]: the error bars are not honest')
-    call check(error, f2 < 0.10_dp, 'fraction beyond 2 sigma = '//str(f2)//' >= 0.10')
+    call check_error_bars(error, 'radiances', n, 2000, rms, f2)
   end subroutine test_honest
 
   ! ------------------------------------------------------------------------------------------
   ! Running
   ! ------------------------------------------------------------------------------------------
 
-  !> Load the references and run every column once; later calls return the cached outcome.
-  subroutine ensure_run(error)
-    type(error_t), allocatable, intent(out) :: error
-    if (.not. have_run) then
-      have_run = .true.
-      call run_all(error)
-      if (allocated(error)) run_failure = error%message
-    end if
-    if (allocated(run_failure)) call set_error(error, 'running the cases failed: '//run_failure)
-  end subroutine ensure_run
-
+  !> Load the references and run every column (once, through run_once).
   subroutine run_all(error)
     type(error_t), allocatable, intent(out) :: error
     type(comparison_t), allocatable :: c(:)
@@ -313,12 +288,12 @@ contains
       ' radiances, RMS (x - ref)/sigma '//str(rms)//', beyond 2 sigma '//str(100.0_dp*f2)// &
       ' %, beyond 3 sigma '//str(n3)
     do j = 1, size(cmp)
-      if (cmp(j)%peak) write (output_unit, '(a)') '#   beam direction: '//describe(cmp(j))
+      if (cmp(j)%peak) write (output_unit, '(a)') '#   beam direction: '//describe(j)
     end do
     do j = 1, size(cmp)
       if (cmp(j)%peak .or. .not. cmp(j)%resolved) cycle
       if (abs(cmp(j)%x - cmp(j)%ref) > 3.0_dp*cmp(j)%sigma) then
-        write (output_unit, '(a)') '#   > 3 sigma: '//describe(cmp(j))
+        write (output_unit, '(a)') '#   > 3 sigma: '//describe(j)
       end if
     end do
   end subroutine run_all
@@ -426,12 +401,7 @@ contains
                     (abs(mu0 - 1.0_dp) < 1.0e-6_dp .or. abs(cl%phi_rel(r)) < 1.0e-6_dp)
         ! smallest contribution of one photon to a radiance (see the module text)
         quantum = ZETA_MIN/n_total
-        if (abs(c(r)%ref) < TINY_REF) then
-          floor_r = FLOOR
-        else
-          floor_r = ROUNDOFF
-        end if
-        floor_r = max(floor_r, N_QUANTA_FLOOR*quantum)
+        floor_r = max(tiny_floor(c(r)%ref), N_QUANTA_FLOOR*quantum)
         c(r)%limit = K_SIGMA*c(r)%sigma + floor_r + cl%extra(r) + &
                      merge(cl%ref_rel(2), cl%ref_rel(1), c(r)%peak)*abs(c(r)%ref)
         c(r)%passed = abs(c(r)%x - c(r)%ref) <= c(r)%limit
@@ -454,28 +424,16 @@ contains
     end do
   end function find_direction
 
-  !> Configuration of a column (layers top first, DZ thick each), unbiased VR preset.
+  !> Configuration of a column (layers top first, 1000 m thick each), unbiased VR preset.
   function column_config(cl, npb, seed) result(cfg)
     type(column_t), intent(in) :: cl
     integer(i8), intent(in) :: npb, seed
     type(config_t) :: cfg
-    integer :: nz, k, l
+    integer :: nz, l
     nz = cl%nl
     cfg%path = 'test_disort_radiance'
-    cfg%atm%nz = nz
-    cfg%atm%z = [(DZ*k, k=0, nz)]
-    cfg%atm%lx = 1000.0_wp
-    cfg%atm%ly = 1000.0_wp
-    cfg%atm%n_components = 1
-    allocate (cfg%atm%ext1d(nz, 1), cfg%atm%ssa1d(nz, 1), cfg%atm%phase1d(nz, 1))
-    do l = 1, nz
-      k = nz + 1 - l                      ! kumo counts layers from the bottom
-      cfg%atm%ext1d(k, 1) = real(cl%tau(l)/DZ, wp)
-      cfg%atm%ssa1d(k, 1) = real(cl%omega(l), wp)
-      cfg%atm%phase1d(k, 1) = l
-    end do
-    cfg%atm%phase3d = [1]
-    call set_phases(cfg, cl%phase(1:nz), real(cl%g(1:nz), wp))
+    call set_layers(cfg, real(cl%tau(1:nz), wp), real(cl%omega(1:nz), wp), cl%phase(1:nz), &
+                    real(cl%g(1:nz), wp))
     do l = 1, nz
       if (cl%phase(l) /= 'c1') cycle
       cfg%phase%kind(l) = PHASE_TABLE
@@ -537,11 +495,8 @@ contains
     real(dp) :: v(5)
     type(column_t) :: cl
 
-    open (newunit=unit, file=path, status='old', action='read', iostat=ios)
-    if (ios /= 0) then
-      call set_error(error, 'cannot open '//path)
-      return
-    end if
+    call open_text(path, unit, error)
+    if (allocated(error)) return
     allocate (cols(0))
     lineno = 0
     read (unit, '(a)', iostat=ios) line            ! header
@@ -677,8 +632,8 @@ contains
     character(len=:), allocatable :: path
     character(len=256) :: line
     character(len=FLD) :: f(7)
-    integer :: unit, ios, nf, it, iu, ip, l, lev(size(utau))
-    real(dp) :: value, top_depth
+    integer :: unit, ios, nf, it, iu, ip, lev(size(utau))
+    real(dp) :: value
 
     cl%id = 'disotest_5'//cas//'_c1_w'//str(omega)
     cl%group = 'disotest5'
@@ -691,13 +646,7 @@ contains
     cl%ref_rel = [DISOTEST_REL, DISOTEST_REL_BEAM]
     ! the kumo level of every output depth: nl minus the layers above it
     do it = 1, size(utau)
-      lev(it) = -1
-      if (abs(utau(it)) <= 1.0e-9_dp) lev(it) = cl%nl
-      top_depth = 0.0_dp
-      do l = 1, cl%nl
-        top_depth = top_depth + dtau(l)
-        if (abs(top_depth - utau(it)) <= 1.0e-9_dp*max(1.0_dp, utau(it))) lev(it) = cl%nl - l
-      end do
+      lev(it) = depth_level(dtau, utau(it))
       if (lev(it) < 0) then
         call set_error(error, 'DISOTEST 5'//cas//': depth '//str(utau(it))//' is not a level')
         return
@@ -706,11 +655,8 @@ contains
     allocate (cl%where(0), cl%level(0), cl%mu(0), cl%phi_rel(0), cl%ref(0), cl%extra(0))
 
     path = shared_dir//'/data/disort/disotest_v2.0beta_correct_answers.csv'
-    open (newunit=unit, file=path, status='old', action='read', iostat=ios)
-    if (ios /= 0) then
-      call set_error(error, 'cannot open '//path)
-      return
-    end if
+    call open_text(path, unit, error)
+    if (allocated(error)) return
     do
       read (unit, '(a)', iostat=ios) line
       if (ios /= 0) exit
@@ -736,33 +682,21 @@ contains
     close (unit)
   end subroutine disotest5_column
 
-  !> Half a unit in the last printed digit of a number written like 1.23456E-01 (0 for a
-  !> number without exponent, e.g. the exact zeros written as 0.0).
-  real(dp) function half_last_digit(text) result(h)
-    character(len=*), intent(in) :: text
-    integer :: ie, ipt, ios, ex
-    h = 0.0_dp
-    ie = scan(text, 'Ee')
-    ipt = index(text, '.')
-    if (ie == 0 .or. ipt == 0 .or. ipt > ie) return
-    read (text(ie + 1:), *, iostat=ios) ex
-    if (ios == 0) h = 0.5_dp*10.0_dp**(ex - (ie - ipt - 1))
-  end function half_last_digit
-
   ! ------------------------------------------------------------------------------------------
   ! Text
   ! ------------------------------------------------------------------------------------------
 
-  function describe(c) result(s)
-    type(comparison_t), intent(in) :: c
+  !> Text of comparison j.
+  function describe(j) result(s)
+    integer, intent(in) :: j
     character(len=:), allocatable :: s
-    associate (cl => cols(c%icol))
+    associate (c => cmp(j), cl => cols(cmp(j)%icol))
       s = trim(cl%id)//' '//trim(cl%where(c%irow))//' mu '//str(cl%mu(c%irow))//' phi_rel '// &
           str(cl%phi_rel(c%irow))//': kumo '//str(c%x)//' +- '//str(c%sigma)//', ref '// &
           str(c%ref)
+      if (c%sigma > 0.0_dp) s = s//', dev '//str((c%x - c%ref)/c%sigma)//' sigma'
+      if (.not. c%passed) s = s//', |x - ref| > limit '//str(c%limit)
     end associate
-    if (c%sigma > 0.0_dp) s = s//', dev '//str((c%x - c%ref)/c%sigma)//' sigma'
-    if (.not. c%passed) s = s//', |x - ref| > limit '//str(c%limit)
   end function describe
 
 end module test_kumo_disort_radiance

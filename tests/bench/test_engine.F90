@@ -7,8 +7,8 @@ module test_engine_suite
   use kumo_testing, only: error_t, unittest_t, new_unittest, check, check_close, check_sigma
   use kumo_config, only: config_t
   use kumo_results, only: result_set_t
-  use kumo_test_scenes, only: slab_config, set_phases, run_config, get_scalar, get_array, &
-                              attach_scene
+  use kumo_test_scenes, only: slab_config, set_phases, run_config, run_pair, get_scalar, &
+                              get_array, attach_scene
   use kumo_results, only: add_dim, add_var
   use kumo_netcdf, only: write_results
   use kumo_driver, only: run_summary_t
@@ -89,9 +89,7 @@ contains
     call attach_scene(c3, 'engine_homog.nc', 1, ext, ssa, 1, error)
     if (allocated(error)) return
     c3%control%seed = 11_i8
-    call run_config(c1, r1, error)
-    if (allocated(error)) return
-    call run_config(c3, r3, error)
+    call run_pair(c1, r1, c3, r3, error)
     if (allocated(error)) return
     call compare_runs(r1, r3, '1-D vs 3-D', error, [character(len=24) :: BUDGET, &
                       'transmittance_direct', 'absorptance_surface'])
@@ -122,9 +120,7 @@ contains
     off = on
     off%vr%use_supervoxels = .false.
     off%control%seed = 99_i8
-    call run_config(on, r_on, error, s_on)
-    if (allocated(error)) return
-    call run_config(off, r_off, error, s_off)
+    call run_pair(on, r_on, off, r_off, error, s_on, s_off)
     if (allocated(error)) return
     call compare_runs(r_on, r_off, 'super-voxels on vs off', error)
     call check(error, s_on%flight_steps < s_off%flight_steps, &
@@ -182,9 +178,7 @@ contains
     noabs = base
     noabs%vr%use_absorbing_layers = .false.
     noabs%control%seed = 31_i8
-    call run_config(base, rb, error, sb)
-    if (allocated(error)) return
-    call run_config(no1d, r1, error, s1)
+    call run_pair(base, rb, no1d, r1, error, sb, s1)
     if (allocated(error)) return
     call run_config(noabs, r2, error, s2)
     if (allocated(error)) return
@@ -223,9 +217,7 @@ contains
     b%atm%phase1d = 1
     b%output%flux_levels = [0, 4]
     b%control%seed = 41_i8
-    call run_config(a, ra, error)
-    if (allocated(error)) return
-    call run_config(b, rb, error)
+    call run_pair(a, ra, b, rb, error)
     if (allocated(error)) return
     call compare_runs(ra, rb, 'clear layers added', error)
   end subroutine test_clear_layers
@@ -239,9 +231,7 @@ contains
     b%vr%rr_threshold = 0.05_wp
     b%vr%rr_weight = 1.0_wp
     b%control%seed = 51_i8
-    call run_config(a, ra, error)
-    if (allocated(error)) return
-    call run_config(b, rb, error)
+    call run_pair(a, ra, b, rb, error)
     if (allocated(error)) return
     call compare_runs(ra, rb, 'roulette window 0.25/0.5 vs 0.05/1', error, &
                       [character(len=24) :: BUDGET, 'absorptance_surface'])
@@ -405,9 +395,7 @@ contains
     cfg = slab_config(2.0_wp, 0.9_wp, 'hg', 0.7_wp, 30.0_wp, 0.3_wp, 5000_i8, 4)
     uni = cfg
     cfg%surface%albedo_file = 'engine_albedo_uniform.nc'
-    call run_config(cfg, r_map, error)
-    if (allocated(error)) return
-    call run_config(uni, r_uni, error)
+    call run_pair(cfg, r_map, uni, r_uni, error)
     if (allocated(error)) return
     do i = 1, size(BUDGET)
       call get_scalar(r_map, trim(BUDGET(i)), m, e, error)
@@ -442,13 +430,8 @@ contains
 end module test_engine_suite
 
 program test_engine
-  use kumo_testing, only: run_unittests
-  use kumo_parallel, only: par_init, par_finalize
+  use kumo_test_text, only: run_suite
   use test_engine_suite, only: collect_engine
   implicit none
-  integer :: n_failed
-  call par_init()
-  call run_unittests('engine', collect_engine(), n_failed)
-  call par_finalize()
-  if (n_failed > 0) error stop 1
+  call run_suite('engine', collect_engine())
 end program test_engine

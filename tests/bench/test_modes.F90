@@ -16,7 +16,8 @@ module test_modes_suite
   use kumo_testing, only: error_t, unittest_t, new_unittest, check, check_sigma
   use kumo_config, only: config_t
   use kumo_results, only: result_set_t
-  use kumo_test_scenes, only: slab_config, run_config, get_scalar, get_array, attach_scene
+  use kumo_test_scenes, only: slab_config, run_config, run_pair, get_scalar, get_array, &
+                              attach_scene
   use kumo_test_text, only: disort_value
   use kumo_error, only: str
   implicit none
@@ -204,9 +205,7 @@ contains
       b = a
       b%control%mode_3d = 'p3d'
       b%control%p3d_orders = merge(0, 1000000, pass == 1)
-      call run_config(a, ra, error)
-      if (allocated(error)) return
-      call run_config(b, rb, error)
+      call run_pair(a, ra, b, rb, error)
       if (allocated(error)) return
       do i = 1, size(NAMES)
         call get_array(ra, trim(NAMES(i)), ma, ea, error)

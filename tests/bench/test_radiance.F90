@@ -27,8 +27,8 @@ module test_radiance_suite
   use kumo_results, only: result_set_t
   use kumo_driver, only: run_summary_t
   use kumo_netcdf, only: write_scene_3d
-  use kumo_test_scenes, only: slab_config, set_phases, run_config, get_scalar, get_array, &
-                              attach_scene
+  use kumo_test_scenes, only: slab_config, set_phases, run_config, run_pair, get_scalar, &
+                              get_array, attach_scene
   implicit none
   private
   public :: collect_radiance
@@ -219,9 +219,7 @@ contains
     on = off
     on%vr%zeta_min = 0.3_wp
     on%control%seed = 101_i8
-    call run_config(off, r_off, error)
-    if (allocated(error)) return
-    call run_config(on, r_on, error)
+    call run_pair(off, r_off, on, r_on, error)
     if (allocated(error)) return
     call compare_outputs(r_off, r_on, 'radiance', 'zeta_min 0 vs 0.3', error, dev)
     call note('zeta_min 0 vs 0.3: largest radiance deviation '//str(dev)//' sigma')
@@ -241,9 +239,7 @@ contains
     on = off
     on%vr%cf_tau_min = 20.0_wp
     on%control%seed = 202_i8
-    call run_config(off, r_off, error)
-    if (allocated(error)) return
-    call run_config(on, r_on, error)
+    call run_pair(off, r_off, on, r_on, error)
     if (allocated(error)) return
     call get_attr_real(r_off, 'collision_forcing_factor', f, error)
     call check_close(error, f, 1.0_dp, label='collision_forcing_factor without forcing')
@@ -276,9 +272,7 @@ contains
       on = off
       on%vr%cf_tau_min = 1.0_wp
       on%control%seed = 303_i8
-      call run_config(off, r_off, error)
-      if (allocated(error)) return
-      call run_config(on, r_on, error)
+      call run_pair(off, r_off, on, r_on, error)
       if (allocated(error)) return
       call get_attr_real(r_on, 'collision_forcing_factor', f, error)
       ! cf_tau_min / (tau/mu0) with tau 0.05, sza 30
@@ -396,9 +390,7 @@ contains
     c1 = c0
     c1%vr%diffusion = 60.0_wp
     c1%vr%diffusion_max = 30
-    call run_config(c0, r0, error)
-    if (allocated(error)) return
-    call run_config(c1, r1, error)
+    call run_pair(c0, r0, c1, r1, error)
     if (allocated(error)) return
     call get_array(r0, 'radiance', m0, e0, error)
     if (.not. allocated(error)) call get_array(r1, 'radiance', m1, e1, error)
@@ -447,9 +439,7 @@ contains
     on%control%seed = 505_i8
     ! the untruncated run is the noisier one: twice the photons
     off%control%n_photons_per_batch = 50000_i8
-    call run_config(off, r_off, error)
-    if (allocated(error)) return
-    call run_config(on, r_on, error)
+    call run_pair(off, r_off, on, r_on, error)
     if (allocated(error)) return
     call get_attr_real(r_on, 'truncation_levels', nlev, error)
     call check_close(error, nlev, 4.0_dp, label='truncation_levels with truncation')
@@ -659,13 +649,8 @@ contains
 end module test_radiance_suite
 
 program test_radiance
-  use kumo_testing, only: run_unittests
-  use kumo_parallel, only: par_init, par_finalize
+  use kumo_test_text, only: run_suite
   use test_radiance_suite, only: collect_radiance
   implicit none
-  integer :: n_failed
-  call par_init()
-  call run_unittests('radiance', collect_radiance(), n_failed)
-  call par_finalize()
-  if (n_failed > 0) error stop 1
+  call run_suite('radiance', collect_radiance())
 end program test_radiance

@@ -10,7 +10,8 @@ module kumo_test_scenes
   use kumo_netcdf, only: write_scene_3d
   implicit none
   private
-  public :: slab_config, set_phases, run_config, get_scalar, get_array, attach_scene
+  public :: slab_config, set_layers, set_phases, run_config, run_pair, get_scalar, get_array, &
+            attach_scene
 
 contains
 
@@ -42,6 +43,32 @@ contains
     cfg%control%seed = 7_i8
     cfg%control%verbose = 0
   end function slab_config
+
+  !> A plane-parallel column of layers 1000 m thick, given top first: optical depth `tau`,
+  !> single-scattering albedo `omega` and a phase function of its own per layer (`names` and `g`
+  !> as in set_phases). kumo counts layers from the bottom.
+  subroutine set_layers(cfg, tau, omega, names, g)
+    type(config_t), intent(inout) :: cfg
+    real(wp), intent(in) :: tau(:), omega(:), g(:)
+    character(len=*), intent(in) :: names(:)
+    real(wp), parameter :: DZ = 1000.0_wp
+    integer :: nz, k, l
+    nz = size(tau)
+    cfg%atm%nz = nz
+    cfg%atm%z = [(DZ*k, k=0, nz)]
+    cfg%atm%lx = 1000.0_wp
+    cfg%atm%ly = 1000.0_wp
+    cfg%atm%n_components = 1
+    allocate (cfg%atm%ext1d(nz, 1), cfg%atm%ssa1d(nz, 1), cfg%atm%phase1d(nz, 1))
+    do l = 1, nz
+      k = nz + 1 - l
+      cfg%atm%ext1d(k, 1) = tau(l)/DZ
+      cfg%atm%ssa1d(k, 1) = omega(l)
+      cfg%atm%phase1d(k, 1) = l
+    end do
+    cfg%atm%phase3d = [1]
+    call set_phases(cfg, names, g)
+  end subroutine set_layers
 
   !> Set the phase-function list: names 'iso', 'rayleigh', 'hg' with asymmetry parameters g.
   subroutine set_phases(cfg, names, g)
@@ -107,6 +134,17 @@ contains
     call simulate(cfg, set, s, error)
     if (present(summary)) summary = s
   end subroutine run_config
+
+  !> Run two configurations, `a` first (an error of `a` skips `b`), for tests that compare them.
+  subroutine run_pair(a, set_a, b, set_b, error, summary_a, summary_b)
+    type(config_t), intent(in) :: a, b
+    type(result_set_t), intent(out) :: set_a, set_b
+    type(error_t), allocatable, intent(out) :: error
+    type(run_summary_t), intent(out), optional :: summary_a, summary_b
+    call run_config(a, set_a, error, summary_a)
+    if (allocated(error)) return
+    call run_config(b, set_b, error, summary_b)
+  end subroutine run_pair
 
   !> Mean and standard error of a scalar output.
   subroutine get_scalar(set, name, mean, stderr, error)

@@ -3,12 +3,14 @@
 !> reference-data folder (CTest passes it as the first command-line argument).
 module kumo_test_text
   use kumo_kinds, only: wp, dp
+  use kumo_error, only: set_error
   use kumo_textio, only: read_two_columns
   use kumo_testing, only: error_t, check, unittest_t, run_unittests
   use kumo_parallel, only: par_init, par_finalize
   implicit none
   private
-  public :: split, read_table, shared_dir, set_shared_dir, disort_value, run_shared_suite
+  public :: split, read_table, open_text, shared_dir, set_shared_dir, disort_value, &
+            half_last_digit, run_suite, run_shared_suite
 
   !> The shared data folder (data/, reference/), set from the command line.
   character(len=:), allocatable :: shared_dir
@@ -22,7 +24,6 @@ contains
   subroutine run_shared_suite(program_name, needs, suite_name, tests)
     character(len=*), intent(in) :: program_name, needs, suite_name
     type(unittest_t), intent(in) :: tests(:)
-    integer :: n_failed
     character(len=4096) :: arg
     call par_init()
     if (command_argument_count() < 1) then
@@ -31,10 +32,27 @@ contains
     end if
     call get_command_argument(1, arg)
     call set_shared_dir(trim(arg))
+    call finish_suite(suite_name, tests)
+  end subroutine run_shared_suite
+
+  !> The main program of a suite without arguments: starts MPI (or its stub) and runs the tests;
+  !> stops with code 1 when a test failed.
+  subroutine run_suite(suite_name, tests)
+    character(len=*), intent(in) :: suite_name
+    type(unittest_t), intent(in) :: tests(:)
+    call par_init()
+    call finish_suite(suite_name, tests)
+  end subroutine run_suite
+
+  !> Run the tests, shut MPI (or its stub) down and stop with code 1 when a test failed.
+  subroutine finish_suite(suite_name, tests)
+    character(len=*), intent(in) :: suite_name
+    type(unittest_t), intent(in) :: tests(:)
+    integer :: n_failed
     call run_unittests(suite_name, tests, n_failed)
     call par_finalize()
     if (n_failed > 0) error stop 1
-  end subroutine run_shared_suite
+  end subroutine finish_suite
 
   !> Set the shared data folder.
   subroutine set_shared_dir(path)
@@ -64,6 +82,29 @@ contains
     end do
   end subroutine split
 
+  !> Half a unit in the last printed digit of a number written like 1.23456E-01 (0 for a number
+  !> without exponent, such as the exact zeros written as 0.0).
+  real(dp) function half_last_digit(text) result(h)
+    character(len=*), intent(in) :: text
+    integer :: ie, ipt, ios, ex
+    h = 0.0_dp
+    ie = scan(text, 'Ee')
+    ipt = index(text, '.')
+    if (ie == 0 .or. ipt == 0 .or. ipt > ie) return
+    read (text(ie + 1:), *, iostat=ios) ex
+    if (ios == 0) h = 0.5_dp*10.0_dp**(ex - (ie - ipt - 1))
+  end function half_last_digit
+
+  !> Open the text file `path` for reading; failing that, the test's error is 'cannot open path'.
+  subroutine open_text(path, unit, error)
+    character(len=*), intent(in) :: path
+    integer, intent(out) :: unit
+    type(error_t), allocatable, intent(inout) :: error
+    integer :: ios
+    open (newunit=unit, file=path, status='old', action='read', iostat=ios)
+    if (ios /= 0) call set_error(error, 'cannot open '//path)
+  end subroutine open_text
+
   !> Read a two-column table with kumo's own reader; a failure becomes the test's error.
   subroutine read_table(path, angle, value, error)
     character(len=*), intent(in) :: path
@@ -90,12 +131,8 @@ contains
       call check(error, .false., 'the shared data folder was not given on the command line')
       return
     end if
-    open (newunit=unit, file=shared_dir//'/reference/disort_pp.csv', status='old', &
-          action='read', iostat=ios)
-    if (ios /= 0) then
-      call check(error, .false., 'cannot open '//shared_dir//'/reference/disort_pp.csv')
-      return
-    end if
+    call open_text(shared_dir//'/reference/disort_pp.csv', unit, error)
+    if (allocated(error)) return
     do
       read (unit, '(a)', iostat=ios) line
       if (ios /= 0) exit

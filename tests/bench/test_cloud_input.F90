@@ -20,9 +20,8 @@
 module test_cloud_input_suite
   use kumo_kinds, only: wp, dp
   use kumo_testing, only: error_t, unittest_t, new_unittest, check, check_sigma
-  use kumo_config, only: config_t, read_config
   use kumo_results, only: result_set_t
-  use kumo_test_scenes, only: run_config, get_scalar, get_array
+  use kumo_test_scenes, only: run_config, run_namelist, get_scalar, get_array
   use kumo_mie, only: mie_table_t
   use kumo_mie_table, only: read_mie_table
   use kumo_netcdf, only: write_scene_3d
@@ -97,15 +96,6 @@ contains
     s = nf90_close(nc)
   end subroutine write_les
 
-  !> Write a namelist file.
-  subroutine write_text(path, text)
-    character(len=*), intent(in) :: path, text
-    integer :: u
-    open (newunit=u, file=path, status='replace', action='write')
-    write (u, '(a)') text
-    close (u)
-  end subroutine write_text
-
   function common_groups(seed, out) result(text)
     integer, intent(in) :: seed
     character(len=*), intent(in) :: out
@@ -124,17 +114,6 @@ contains
            'mie_cache = ''cloud_mie_test.nc'', n_reff = 6, reff_min_um = 4.0, '// &
            'reff_max_um = 16.0, v_eff = 0.1 /'//new_line('a')
   end function cloud_group
-
-  subroutine run_namelist(path, text, set, error)
-    character(len=*), intent(in) :: path, text
-    type(result_set_t), intent(out) :: set
-    type(error_t), allocatable, intent(out) :: error
-    type(config_t) :: cfg
-    call write_text(path, text)
-    call read_config(path, cfg, error)
-    if (allocated(error)) return
-    call run_config(cfg, set, error)
-  end subroutine run_namelist
 
   !> |a - b| <= k sigma of the difference for R, T, A and the layer absorption.
   subroutine compare_runs(a, b, error)

@@ -29,8 +29,8 @@ module test_mcarats_input_suite
                           check_error_words
   use kumo_config, only: config_t, read_config
   use kumo_results, only: result_set_t
-  use kumo_test_scenes, only: run_config, get_scalar, get_array
-  use kumo_test_text, only: shared_dir
+  use kumo_test_scenes, only: run_config, run_namelist, get_scalar, get_array
+  use kumo_test_text, only: shared_dir, write_text
   use kumo_netcdf, only: write_scene_3d, BRDF_MAP_VARS
   use kumo_cloud_scene, only: build_cloud_atmosphere
   use kumo_atmosphere, only: atmosphere_t, atmosphere_options_t
@@ -819,14 +819,6 @@ contains
     s = trim(adjustl(buf))
   end function r17
 
-  subroutine write_text(path, text)
-    character(len=*), intent(in) :: path, text
-    integer :: u
-    open (newunit=u, file=path, status='replace', action='write')
-    write (u, '(a)') text
-    close (u)
-  end subroutine write_text
-
   !> Raw native float32 values, as MCARaTS writes them.
   subroutine write_f32(path, values)
     character(len=*), intent(in) :: path
@@ -837,17 +829,6 @@ contains
     write (u) values
     close (u)
   end subroutine write_f32
-
-  subroutine run_namelist(path, text, set, error)
-    character(len=*), intent(in) :: path, text
-    type(result_set_t), intent(out) :: set
-    type(error_t), allocatable, intent(out) :: error
-    type(config_t) :: cfg
-    call write_text(path, text)
-    call read_config(path, cfg, error)
-    if (allocated(error)) return
-    call run_config(cfg, set, error)
-  end subroutine run_namelist
 
   !> |a - b| <= K sigma of the difference for R, T, A and the layer absorption. (Where each
   !> voxel's components go is checked exactly by test_small_components.)

@@ -4,14 +4,15 @@ module kumo_test_scenes
   use kumo_kinds, only: wp, dp, i8
   use kumo_error, only: error_t, set_error
   use kumo_phase, only: PHASE_ISOTROPIC, PHASE_RAYLEIGH, PHASE_HG
-  use kumo_config, only: config_t
+  use kumo_config, only: config_t, read_config
+  use kumo_test_text, only: write_text
   use kumo_results, only: result_set_t, find_var
   use kumo_driver, only: simulate, run_summary_t
   use kumo_netcdf, only: write_scene_3d
   implicit none
   private
-  public :: slab_config, set_layers, set_phases, run_config, run_pair, get_scalar, get_array, &
-            attach_scene
+  public :: slab_config, set_layers, set_phases, run_config, run_namelist, run_pair, get_scalar, &
+            get_array, attach_scene
 
 contains
 
@@ -134,6 +135,18 @@ contains
     call simulate(cfg, set, s, error)
     if (present(summary)) summary = s
   end subroutine run_config
+
+  !> Write the namelist `text` to `path`, read it as a user's file and run it.
+  subroutine run_namelist(path, text, set, error)
+    character(len=*), intent(in) :: path, text
+    type(result_set_t), intent(out) :: set
+    type(error_t), allocatable, intent(out) :: error
+    type(config_t) :: cfg
+    call write_text(path, text)
+    call read_config(path, cfg, error)
+    if (allocated(error)) return
+    call run_config(cfg, set, error)
+  end subroutine run_namelist
 
   !> Run two configurations, `a` first (an error of `a` skips `b`), for tests that compare them.
   subroutine run_pair(a, set_a, b, set_b, error, summary_a, summary_b)

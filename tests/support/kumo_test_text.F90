@@ -9,7 +9,7 @@ module kumo_test_text
   use kumo_parallel, only: par_init, par_finalize
   implicit none
   private
-  public :: split, read_table, open_text, shared_dir, set_shared_dir, disort_value, &
+  public :: split, read_table, open_text, write_text, shared_dir, set_shared_dir, disort_value, &
             half_last_digit, run_suite, run_shared_suite
 
   !> The shared data folder (data/, reference/), set from the command line.
@@ -104,6 +104,15 @@ contains
     open (newunit=unit, file=path, status='old', action='read', iostat=ios)
     if (ios /= 0) call set_error(error, 'cannot open '//path)
   end subroutine open_text
+
+  !> Write `text` and a line end to the file `path` (a namelist, a small input file), replacing it.
+  subroutine write_text(path, text)
+    character(len=*), intent(in) :: path, text
+    integer :: u
+    open (newunit=u, file=path, status='replace', action='write')
+    write (u, '(a)') text
+    close (u)
+  end subroutine write_text
 
   !> Read a two-column table with kumo's own reader; a failure becomes the test's error.
   subroutine read_table(path, angle, value, error)

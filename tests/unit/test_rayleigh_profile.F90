@@ -30,6 +30,7 @@ module test_rayleigh_profile_suite
   use kumo_testing, only: error_t, unittest_t, new_unittest, check, check_close
   use kumo_error, only: str
   use kumo_config, only: config_t, read_config
+  use kumo_test_text, only: write_text
   use kumo_driver, only: scene_t, setup_scene
   use kumo_rayleigh, only: rayleigh_cross_section, gravity_bodhaine
   use kumo_std_atmosphere, only: us1976_state
@@ -213,14 +214,6 @@ contains
       if (status /= NF90_NOERR) write (*, '(a)') path//': '//trim(nf90_strerror(status))
     end subroutine put
   end subroutine write_les
-
-  subroutine write_text(path, text)
-    character(len=*), intent(in) :: path, text
-    integer :: u
-    open (newunit=u, file=path, status='replace', action='write')
-    write (u, '(a)') text
-    close (u)
-  end subroutine write_text
 
   !> Namelist groups common to every case, plus `atm` (the inside of &kumo_atmosphere) and
   !> `cloud` (a cloud file, '' for none) with more &kumo_cloud settings in `cloud_extra`.

@@ -21,7 +21,7 @@ module test_cloud_input_suite
   use kumo_kinds, only: wp, dp
   use kumo_testing, only: error_t, unittest_t, new_unittest, check, check_sigma
   use kumo_results, only: result_set_t
-  use kumo_test_scenes, only: run_config, run_namelist, get_scalar, get_array
+  use kumo_test_scenes, only: run_config, run_namelist, run_groups, get_scalar, get_array
   use kumo_mie, only: mie_table_t
   use kumo_mie_table, only: read_mie_table
   use kumo_netcdf, only: write_scene_3d
@@ -100,11 +100,7 @@ contains
     integer, intent(in) :: seed
     character(len=*), intent(in) :: out
     character(len=:), allocatable :: text
-    text = '&kumo_control n_photons_per_batch = 4000, n_batches = 20, seed = '//str(seed)// &
-           ', verbose = 0 /'//new_line('a')// &
-           '&kumo_source sza_deg = 30.0, wavelength_um = 2.13 /'//new_line('a')// &
-           '&kumo_surface albedo = 0.2 /'//new_line('a')// &
-           '&kumo_output file = '''//out//''' /'//new_line('a')
+    text = run_groups(4000, 20, seed, 'sza_deg = 30.0, wavelength_um = 2.13', out, 'albedo = 0.2')
   end function common_groups
 
   function cloud_group(file, fmt) result(text)
@@ -354,12 +350,9 @@ contains
     write (u, '(a)') '1 1 1 280.0 19.0 0.976 1'     ! 19 km-1 over 0.4 km: tau = 7.6
     close (u)
     do i = 1, 2
-      call run_namelist('cloud_mie_slab.nml', '&kumo_control n_photons_per_batch = 10000, '// &
-                        'n_batches = 20, seed = '//str(20 + i)//', verbose = 0 /'// &
-                        new_line('a')//'&kumo_source sza_deg = '//str(SZA(i))//' /'// &
-                        new_line('a')//'&kumo_output file = ''cloud_mie_slab.nc'' /'// &
-                        new_line('a')//'&kumo_cloud cloud_file = ''cloud_mie_slab.prp'', '// &
-                        'cloud_format = ''prp'' /', set, error)
+      call run_namelist('cloud_mie_slab.nml', run_groups(10000, 20, 20 + i, 'sza_deg = '// &
+                        str(SZA(i)), 'cloud_mie_slab.nc')//'&kumo_cloud cloud_file = '// &
+                        '''cloud_mie_slab.prp'', cloud_format = ''prp'' /', set, error)
       if (allocated(error)) return
       call get_scalar(set, 'reflectance', r, sr, error)
       call get_scalar(set, 'transmittance', t, st, error)

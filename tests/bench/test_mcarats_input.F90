@@ -29,7 +29,7 @@ module test_mcarats_input_suite
                           check_error_words
   use kumo_config, only: config_t, read_config
   use kumo_results, only: result_set_t
-  use kumo_test_scenes, only: run_config, run_namelist, get_scalar, get_array
+  use kumo_test_scenes, only: run_config, run_namelist, run_groups, get_scalar, get_array
   use kumo_test_text, only: shared_dir, write_text
   use kumo_netcdf, only: write_scene_3d, BRDF_MAP_VARS
   use kumo_cloud_scene, only: build_cloud_atmosphere
@@ -158,11 +158,7 @@ contains
     integer, intent(in) :: seed
     character(len=*), intent(in) :: out
     character(len=:), allocatable :: text
-    text = '&kumo_control n_photons_per_batch = 1500, n_batches = 40, seed = '//str(seed)// &
-           ', verbose = 0 /'//new_line('a')// &
-           '&kumo_source sza_deg = 35.0, phi0_deg = 30.0 /'//new_line('a')// &
-           '&kumo_surface albedo = 0.15 /'//new_line('a')// &
-           '&kumo_output file = '''//out//''' /'//new_line('a')
+    text = run_groups(1500, 40, seed, 'sza_deg = 35.0, phi0_deg = 30.0', out, 'albedo = 0.15')
   end function small_common
 
   !> &kumo_atmosphere of the small scene; `abs3d` is the 1-D absorption in the 3-D layers.

@@ -2,7 +2,7 @@
 !> Scenes for tests, built in code: slabs, layered columns and small 3-D fields.
 module kumo_test_scenes
   use kumo_kinds, only: wp, dp, i8
-  use kumo_error, only: error_t, set_error
+  use kumo_error, only: error_t, set_error, str
   use kumo_phase, only: PHASE_ISOTROPIC, PHASE_RAYLEIGH, PHASE_HG
   use kumo_config, only: config_t, read_config
   use kumo_test_text, only: write_text
@@ -11,8 +11,8 @@ module kumo_test_scenes
   use kumo_netcdf, only: write_scene_3d
   implicit none
   private
-  public :: slab_config, set_layers, set_phases, run_config, run_namelist, run_pair, get_scalar, &
-            get_array, attach_scene
+  public :: slab_config, set_layers, set_phases, run_config, run_namelist, run_groups, run_pair, &
+            get_scalar, get_array, attach_scene
 
 contains
 
@@ -135,6 +135,21 @@ contains
     call simulate(cfg, set, s, error)
     if (present(summary)) summary = s
   end subroutine run_config
+
+  !> The namelist groups of a small test run: &kumo_control (quiet), &kumo_source with `source`
+  !> inside, &kumo_surface with `surface` inside if given, and &kumo_output writing `out`.
+  function run_groups(n_photons, n_batches, seed, source, out, surface) result(text)
+    integer, intent(in) :: n_photons, n_batches, seed
+    character(len=*), intent(in) :: source, out
+    character(len=*), intent(in), optional :: surface
+    character(len=:), allocatable :: text
+    character(len=*), parameter :: NL = new_line('a')
+    text = '&kumo_control n_photons_per_batch = '//str(n_photons)//', n_batches = '// &
+           str(n_batches)//', seed = '//str(seed)//', verbose = 0 /'//NL// &
+           '&kumo_source '//source//' /'//NL
+    if (present(surface)) text = text//'&kumo_surface '//surface//' /'//NL
+    text = text//'&kumo_output file = '''//out//''' /'//NL
+  end function run_groups
 
   !> Write the namelist `text` to `path`, read it as a user's file and run it.
   subroutine run_namelist(path, text, set, error)

@@ -610,7 +610,7 @@ contains
     type(error_t), allocatable, intent(out) :: error
     type(result_set_t) :: a, b
     real(real32) :: rec(3, 2, 3)
-    real(dp) :: ra, sa, rb, sb, ta, tb
+    real(dp) :: ra, sa, rb, sb
     integer :: nc, dx, dy, v, st
     character(len=:), allocatable :: nml
     rec(:, :, 1) = 290.0
@@ -632,22 +632,16 @@ contains
     if (allocated(error)) return
     nml = surface_nml('&kumo_surface albedo_file = ''mca_lambert_ref.nc'' /', 11, &
                       'mca_lambert_ref_out.nc')
-    call run_namelist('mca_lambert_ref.nml', nml, b, error)
-    if (allocated(error)) return
-    call get_scalar(a, 'reflectance', ra, sa, error)
-    call get_scalar(b, 'reflectance', rb, sb, error)
-    call get_scalar(a, 'absorptance_surface', ta, sa, error)
-    call get_scalar(b, 'absorptance_surface', tb, sb, error)
-    if (allocated(error)) return
     ! the same surface and seed: the same photons, so the same numbers
-    call check(error, ra == rb .and. ta == tb, 'MCARaTS Lambert map: R '//str(ra)//', surface '// &
-               'absorptance '//str(ta)//'; albedo_file: '//str(rb)//', '//str(tb))
+    call check_same_run(a, 'mca_lambert_ref.nml', nml, 'MCARaTS Lambert map', 'albedo_file', error)
     if (allocated(error)) return
     ! and the map matters: the mean albedo 0.425 as a uniform surface gives another answer
     nml = surface_nml('&kumo_surface albedo = 0.425 /', 11, 'mca_uniform_out.nc')
     call run_namelist('mca_uniform.nml', nml, b, error)
     if (allocated(error)) return
+    call get_scalar(a, 'reflectance', ra, sa, error)
     call get_scalar(b, 'reflectance', rb, sb, error)
+    if (allocated(error)) return
     call check(error, ra /= rb, 'the map gives the uniform surface''s reflectance')
   end subroutine test_surface_lambert
 
@@ -655,9 +649,8 @@ contains
   !> parameter fields) against kumo's netCDF BRDF map of the same float32 values.
   subroutine test_surface_mixed(error)
     type(error_t), allocatable, intent(out) :: error
-    type(result_set_t) :: a, b
+    type(result_set_t) :: a
     real(real32) :: rec(3, 2, 7)
-    real(dp) :: ra, sa, rb, sb, aa, ab
     integer :: kinds(3, 2), nc, dx, dy, vk, vid(BRDF_NPAR, 4), i, kk, st, ix, iy
     real(dp) :: par(3, 2)
     character(len=:), allocatable :: nml
@@ -704,15 +697,7 @@ contains
     if (allocated(error)) return
     nml = surface_nml('&kumo_surface brdf_file = ''mca_mixed_ref.nc'' /', 12, &
                       'mca_mixed_ref_out.nc')
-    call run_namelist('mca_mixed_ref.nml', nml, b, error)
-    if (allocated(error)) return
-    call get_scalar(a, 'reflectance', ra, sa, error)
-    call get_scalar(b, 'reflectance', rb, sb, error)
-    call get_scalar(a, 'absorptance_surface', aa, sa, error)
-    call get_scalar(b, 'absorptance_surface', ab, sb, error)
-    if (allocated(error)) return
-    call check(error, ra == rb .and. aa == ab, 'MCARaTS mixed map: R '//str(ra)//', surface '// &
-               'absorptance '//str(aa)//'; brdf_file: '//str(rb)//', '//str(ab))
+    call check_same_run(a, 'mca_mixed_ref.nml', nml, 'MCARaTS mixed map', 'brdf_file', error)
   end subroutine test_surface_mixed
 
   !> A kind that surface_mbrdf does not enable, and pixel counts that do not fit the file.
@@ -825,6 +810,25 @@ contains
     write (u) values
     close (u)
   end subroutine write_f32
+
+  !> Run the namelist `nml` (written to `path`) and require the reflectance and the surface
+  !> absorptance of run `a` to the last bit: the same surface given another way, same seed.
+  subroutine check_same_run(a, path, nml, label, other, error)
+    type(result_set_t), intent(in) :: a
+    character(len=*), intent(in) :: path, nml, label, other
+    type(error_t), allocatable, intent(inout) :: error
+    type(result_set_t) :: b
+    real(dp) :: ra, rb, ta, tb, s
+    call run_namelist(path, nml, b, error)
+    if (allocated(error)) return
+    call get_scalar(a, 'reflectance', ra, s, error)
+    call get_scalar(b, 'reflectance', rb, s, error)
+    call get_scalar(a, 'absorptance_surface', ta, s, error)
+    call get_scalar(b, 'absorptance_surface', tb, s, error)
+    if (allocated(error)) return
+    call check(error, ra == rb .and. ta == tb, label//': R '//str(ra)//', surface '// &
+               'absorptance '//str(ta)//'; '//other//': '//str(rb)//', '//str(tb))
+  end subroutine check_same_run
 
   !> |a - b| <= K sigma of the difference for R, T, A and the layer absorption. (Where each
   !> voxel's components go is checked exactly by test_small_components.)

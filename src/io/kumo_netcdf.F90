@@ -24,7 +24,7 @@ module kumo_netcdf
                     NF90_FILL_DOUBLE, NF90_FILL_FLOAT, NF90_FILL_INT, NF90_FILL_SHORT, &
                     NF90_FILL_BYTE, NF90_MAX_VAR_DIMS, NF90_MAX_NAME
   use kumo_kinds, only: wp, dp
-  use kumo_error, only: error_t, set_error, join
+  use kumo_error, only: error_t, set_error, join, str
   use kumo_results, only: result_set_t
   use kumo_brdf, only: BRDF_NPAR, BRDF_NAMES, BRDF_DSM, cox_munk_slope_variance
   implicit none
@@ -337,11 +337,11 @@ contains
       do iy = 1, lengths(2)
         do ix = 1, lengths(1)
           if (kind(ix, iy) == ifill) then
-            call set_error(error, at//': value '//int_text(kind(ix, iy))//' at '//MAP_INDEX// &
+            call set_error(error, at//': value '//str(kind(ix, iy))//' at '//MAP_INDEX// &
                            ' = '//join([ix, iy], ',', '()')//' is the fill value (missing data)')
             return
           else if (kind(ix, iy) < 0 .or. kind(ix, iy) > 4) then
-            call set_error(error, at//': value '//int_text(kind(ix, iy))//' at '//MAP_INDEX// &
+            call set_error(error, at//': value '//str(kind(ix, iy))//' at '//MAP_INDEX// &
                            ' = '//join([ix, iy], ',', '()')//' must be 0 (black), 1 (Lambert), '// &
                            '2 (DSM), 3 (RPV) or 4 (LSRT)')
             return
@@ -662,9 +662,9 @@ contains
       call nc_check(nf90_inquire_dimension(ncid, dimids(i), len=length), at, error)
       if (allocated(error)) return
       if (length /= expected(i)) then
-        call set_error(error, at//': dimension size '//int_text(length)// &
+        call set_error(error, at//': dimension size '//str(length)// &
                        ' in the file does not match the expected size '// &
-                       trim(EXPECTED_NAMES(i))//' = '//int_text(expected(i)))
+                       trim(EXPECTED_NAMES(i))//' = '//str(expected(i)))
         return
       end if
     end do
@@ -816,7 +816,7 @@ contains
       do i = 1, size(set%attrs)
         at = where_text(routine, path, trim(set%attrs(i)%name))
         if (len_trim(set%attrs(i)%name) == 0) then
-          call set_error(error, at//': global attribute '//int_text(i)//' has no name')
+          call set_error(error, at//': global attribute '//str(i)//' has no name')
           return
         end if
         if (trim(set%attrs(i)%name) == 'Conventions') then
@@ -831,7 +831,7 @@ contains
       do i = 1, size(set%dims)
         at = where_text(routine, path, trim(set%dims(i)%name))
         if (len_trim(set%dims(i)%name) == 0) then
-          call set_error(error, at//': dimension '//int_text(i)//' has no name')
+          call set_error(error, at//': dimension '//str(i)//' has no name')
           return
         end if
         if (dim_position(set, set%dims(i)%name) /= i) then
@@ -839,14 +839,14 @@ contains
           return
         end if
         if (set%dims(i)%size < 1) then
-          call set_error(error, at//': dimension size '//int_text(set%dims(i)%size)// &
+          call set_error(error, at//': dimension size '//str(set%dims(i)%size)// &
                          ' must be >= 1')
           return
         end if
         if (allocated(set%dims(i)%coord)) then
           if (size(set%dims(i)%coord) /= set%dims(i)%size) then
-            call set_error(error, at//': coordinate has '//int_text(size(set%dims(i)%coord))// &
-                           ' values, dimension size is '//int_text(set%dims(i)%size))
+            call set_error(error, at//': coordinate has '//str(size(set%dims(i)%coord))// &
+                           ' values, dimension size is '//str(set%dims(i)%size))
             return
           end if
           call check_finite_flat(at, set%dims(i)%coord, 1, [set%dims(i)%size], &
@@ -861,13 +861,13 @@ contains
       associate (v => set%vars(i))
         at = where_text(routine, path, trim(v%name))
         if (len_trim(v%name) == 0) then
-          call set_error(error, at//': variable '//int_text(i)//' has no name')
+          call set_error(error, at//': variable '//str(i)//' has no name')
           return
         end if
         n = v%ndims
         if (n < 0 .or. n > size(v%dim_names)) then
-          call set_error(error, at//': ndims = '//int_text(n)//' must be in [0, '// &
-                         int_text(size(v%dim_names))//']')
+          call set_error(error, at//': ndims = '//str(n)//' must be in [0, '// &
+                         str(size(v%dim_names))//']')
           return
         end if
         do j = 1, n
@@ -884,8 +884,8 @@ contains
           return
         end if
         if (size(v%mean) /= expected_size) then
-          call set_error(error, at//': '//int_text(size(v%mean))//' mean values, expected '// &
-                         int_text(expected_size)//' from its dimensions')
+          call set_error(error, at//': '//str(size(v%mean))//' mean values, expected '// &
+                         str(expected_size)//' from its dimensions')
           return
         end if
         call check_finite_flat(at, v%mean, n, counts(1:n), join(v%dim_names(1:n), ',', '()'), &
@@ -894,8 +894,8 @@ contains
         if (allocated(v%stderr)) then
           at = where_text(routine, path, trim(v%name)//'_stderr')
           if (size(v%stderr) /= expected_size) then
-            call set_error(error, at//': '//int_text(size(v%stderr))// &
-                           ' standard errors, expected '//int_text(expected_size)// &
+            call set_error(error, at//': '//str(size(v%stderr))// &
+                           ' standard errors, expected '//str(expected_size)// &
                            ' from its dimensions')
             return
           end if
@@ -985,7 +985,7 @@ contains
             else
               problem = 'must be >= 1'
             end if
-            call set_error(error, at//': value '//int_text(values(ix, iy, iz, ic))//' at '// &
+            call set_error(error, at//': value '//str(values(ix, iy, iz, ic))//' at '// &
                            SCENE_INDEX//' = '//join([ix, iy, iz, ic], ',', '()')//' '//problem)
             return
           end do
@@ -1332,14 +1332,6 @@ contains
   ! ------------------------------------------------------------------------------------------------
   ! Text formatting
   ! ------------------------------------------------------------------------------------------------
-
-  pure function int_text(i) result(text)
-    integer, intent(in) :: i
-    character(len=:), allocatable :: text
-    character(len=12) :: buffer
-    write (buffer, '(i0)') i
-    text = trim(buffer)
-  end function int_text
 
   !> A real value in messages, with nine significant digits; NaN and infinities spelt out.
   function real_text(x) result(text)

@@ -515,6 +515,11 @@ contains
     cs%nl = nl
     do l = 1, nl
       call split(layers(l), ':', parts, np)
+      if (np > size(parts)) then
+        call set_error(error, 'layer_spec "'//trim(spec)//'": more than '//str(size(parts))// &
+                       ' items in layer '//str(l))
+        return
+      end if
       select case (trim(parts(1)))
       case ('iso', 'rayleigh', 'hg')
         cs%phase(l) = parts(1)

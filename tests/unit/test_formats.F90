@@ -21,6 +21,7 @@ module test_kumo_formats
   use kumo_testing, only: error_t, unittest_t, new_unittest, check, check_close, &
                           check_error_words
   use kumo_test_text, only: shared_dir
+  use kumo_error, only: str
   implicit none
   private
   public :: collect_formats
@@ -80,7 +81,7 @@ contains
     ! awk 'NR>5 && NF==5 {s+=$4; if ($4>0) n++}': s = 8455.5556, n = 24789 (65536 lines).
     ! Summing 65536 values of <= 5 significant digits in double precision: 1e-10 relative.
     call check_close(error, sum(f%lwc), 8455.5556_dp, rel_tol=1.0e-10_dp, label='total LWC')
-    call check(error, count(f%lwc > 0.0_wp) == 24789, 'cloudy points: '//itoa(count(f%lwc > 0)))
+    call check(error, count(f%lwc > 0.0_wp) == 24789, 'cloudy points: '//str(count(f%lwc > 0)))
     call check(error, f%n_listed == 64*64*16, 'every point is listed in this file')
     call check(error, index(f%missing, 'wavelength') > 0 .and. &
                index(f%missing, 'droplet number') == 0, 'missing: '//f%missing)
@@ -622,14 +623,6 @@ contains
     write (unit) values
     close (unit)
   end subroutine write_f32
-
-  pure function itoa(i) result(s)
-    integer, intent(in) :: i
-    character(len=:), allocatable :: s
-    character(len=16) :: buf
-    write (buf, '(i0)') i
-    s = trim(buf)
-  end function itoa
 end module test_kumo_formats
 
 program test_formats

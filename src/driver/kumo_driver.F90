@@ -23,7 +23,10 @@ module kumo_driver
   use kumo_brdf, only: brdf_params_t, BRDF_NPAR
   use kumo_tally, only: tally_layout_t, tally_t, stats_t, layout_init, tally_reset, stats_init, &
                         stats_add_batch, stats_mean, stats_stderr, N_ANOMALIES, ANOMALY_NAMES
-  use kumo_transport, only: source_t, tracer_options_t, source_init, trace_batch
+  use kumo_source, only: solar_source, source_stratify
+  use kumo_vr, only: collision_forcing, ddis_phases, spiky_without_vr, SPIKY_PEAK, DDIS_CONE_DEG
+  use kumo_scene, only: scene_t
+  use kumo_transport, only: trace_batch
   use kumo_results, only: result_set_t, add_dim, add_var, add_attr, find_var
   use kumo_config, only: config_t, read_config, config_echo, resolve_path
   use kumo_cloud_scene, only: build_cloud_atmosphere, rayleigh_layers
@@ -38,30 +41,6 @@ module kumo_driver
   implicit none
   private
   public :: run_case, simulate, scene_t, setup_scene, run_summary_t
-
-  !> Everything the photon loop reads.
-  type :: scene_t
-    type(atmosphere_t) :: atm
-    type(surface_t) :: sfc
-    type(source_t) :: src
-    type(tracer_options_t) :: tracer
-    type(detectors_t) :: det                 !! radiance detectors and cameras
-    real(wp) :: mu0 = 1.0_wp
-    real(wp), allocatable :: air_density(:)  !! (nz) [kg m-3] for heating rates, if known
-    character(len=:), allocatable :: notes    !! how the scene was built, for the log
-    character(len=:), allocatable :: warnings !! for the log and the output file
-  end type scene_t
-
-  !> A phase function whose forward value exceeds this is "spiky" for local estimates.
-  real(wp), parameter :: SPIKY_PEAK = 50.0_wp
-  !> Directional importance sampling is used for scatterings by phase functions whose forward
-  !> value exceeds this (Mie clouds: 10^3 - 10^4); below it (e.g. HG 0.85, P(0) = 82) its
-  !> secondaries cost more than they save (measured on the HG slab).
-  real(wp), parameter :: DDIS_PEAK = 300.0_wp
-  !> DDIS secondaries are kept only within this angle of their detector direction, where the
-  !> forward peak is; outside it they are ordinary photons that cost time (LES at 2.13 um:
-  !> 12 % less CPU time, the same radiance error, in a 2e7-photon run).
-  real(wp), parameter :: DDIS_CONE_DEG = 15.0_wp
 
   !> Figures of a finished run, for the log and for tests.
   type :: run_summary_t
@@ -257,36 +236,32 @@ contains
     end if
     if (allocated(error)) return
 
-    scene%src = source_init(cfg%source%sza_deg, cfg%source%phi0_deg)
+    scene%src = solar_source(cfg%source%sza_deg, cfg%source%phi0_deg)
     if (cfg%vr%stratify_source) then
       ! entry cells: the 3-D region's columns, or else the surface map's pixels
       if (scene%atm%n3 > 0) then
-        scene%src%nsx = scene%atm%nx
-        scene%src%nsy = scene%atm%ny
+        call source_stratify(scene%src, scene%atm%nx, scene%atm%ny, &
+                             scene%atm%z(scene%atm%nz) - scene%atm%z(0))
       else if (.not. scene%sfc%uniform) then
-        scene%src%nsx = scene%sfc%nxs
-        scene%src%nsy = scene%sfc%nys
+        call source_stratify(scene%src, scene%sfc%nxs, scene%sfc%nys, &
+                             scene%atm%z(scene%atm%nz) - scene%atm%z(0))
       end if
-      scene%src%shift_x = scene%src%ux/(-scene%src%uz)*(scene%atm%z(scene%atm%nz) - &
-                                                         scene%atm%z(0))
-      scene%src%shift_y = scene%src%uy/(-scene%src%uz)*(scene%atm%z(scene%atm%nz) - &
-                                                         scene%atm%z(0))
     end if
     scene%mu0 = cos(cfg%source%sza_deg*DEG2RAD)
-    scene%tracer%rr_threshold = cfg%vr%rr_threshold
-    scene%tracer%rr_weight = cfg%vr%rr_weight
-    scene%tracer%max_events = cfg%control%max_events
+    scene%vr%rr_threshold = cfg%vr%rr_threshold
+    scene%vr%rr_weight = cfg%vr%rr_weight
+    scene%max_events = cfg%control%max_events
     select case (cfg%control%mode_3d)
     case ('ica')
-      scene%tracer%n_3d = 0
+      scene%n_3d = 0
     case ('p3d')
-      scene%tracer%n_3d = cfg%control%p3d_orders
+      scene%n_3d = cfg%control%p3d_orders
     case default
-      scene%tracer%n_3d = huge(1)
+      scene%n_3d = huge(1)
     end select
     ! flight steps (null collisions, face crossings) per event are many but bounded: the step cap
     ! only catches a photon that no longer makes progress
-    scene%tracer%max_steps = max(1000000000_i8, min(huge(1_i8)/2000_i8, cfg%control%max_events)*1000_i8)
+    scene%max_steps = max(1000000000_i8, min(huge(1_i8)/2000_i8, cfg%control%max_events)*1000_i8)
 
     call setup_estimators(cfg, scene, error)
   end subroutine setup_scene
@@ -300,9 +275,7 @@ contains
     type(error_t), allocatable, intent(out) :: error
     type(camera_t), allocatable :: cams(:)
     type(truncation_t) :: tr
-    real(wp) :: tau_col
-    integer :: i, k, kind
-    logical :: spiky
+    integer :: i, kind
 
     allocate (cams(cfg%cam%n))
     do i = 1, cfg%cam%n
@@ -343,24 +316,7 @@ contains
       call atmosphere_set_truncation(scene%atm, tr)
     end if
 
-    ! Collision forcing: the extinction is raised uniformly so that the domain-mean column
-    ! optical depth along the sun's path (tau/mu0) is at least cf_tau_min (the MCARaTS rule,
-    ! digest section 19.4 a, on the slant column so that a low sun is not forced needlessly).
-    associate (atm => scene%atm)
-      tau_col = 0.0_wp
-      do k = 1, atm%nz
-        if (atm%layer_class(k) == LAYER_3D) then
-          tau_col = tau_col + sum(real(atm%ext3(:, :, k - atm%k3_lo + 1), wp))/(atm%nx*atm%ny)* &
-                    (atm%z(k) - atm%z(k - 1))
-        else
-          tau_col = tau_col + atm%ext1(k)*(atm%z(k) - atm%z(k - 1))
-        end if
-      end do
-    end associate
-    tau_col = tau_col/scene%mu0
-    if (tau_col > 0.0_wp .and. tau_col < cfg%vr%cf_tau_min) then
-      scene%tracer%cf_factor = cfg%vr%cf_tau_min/tau_col
-    end if
+    scene%vr%cf_factor = collision_forcing(scene%atm, scene%mu0, cfg%vr%cf_tau_min)
     do i = 1, size(cams)
       if (cams(i)%capped) scene%warnings = scene%warnings//'camera '//str(i)// &
         ' sees the periodic scene up to the horizon; copies beyond '// &
@@ -370,17 +326,11 @@ contains
     scene%det%ddis_mu_cone = cos(DDIS_CONE_DEG*DEG2RAD)
     deallocate (scene%det%ddis_phase)
     allocate (scene%det%ddis_phase(size(scene%atm%phases)))
-    do i = 1, size(scene%atm%phases)
-      scene%det%ddis_phase(i) = phase_eval(scene%atm%phases(i), 1.0_wp) > DDIS_PEAK
-    end do
+    scene%det%ddis_phase = ddis_phases(scene%atm%phases)
 
-    ! MYSTIC stops in this situation; kumo warns: local estimates with a forward peak and no
-    ! variance reduction converge very slowly (one rare near-forward scattering dominates).
-    spiky = .false.
-    do i = 1, size(scene%atm%phases)
-      if (phase_eval(scene%atm%phases(i), 1.0_wp) > SPIKY_PEAK) spiky = .true.
-    end do
-    if (spiky .and. cfg%vr%zeta_min <= 0.0_wp .and. .not. scene%atm%truncated) then
+    ! local estimates with a forward peak and no variance reduction converge very slowly (one
+    ! rare near-forward scattering dominates)
+    if (spiky_without_vr(scene%atm%phases, cfg%vr%zeta_min, scene%atm%truncated)) then
       scene%warnings = scene%warnings//'radiances are requested for a phase function with a forward peak '// &
                        '(P(0) > '//str(SPIKY_PEAK)//') with local-estimate roulette and '// &
                        'truncation off: pixel radiances will be very noisy; vr_preset = '// &
@@ -667,8 +617,7 @@ contains
         if (mod(ib - 1, nranks) /= rank) cycle
         call rng_init(rng, cfg%control%seed, int(ib, i8))
         call tally_reset(tal, lay)
-        call trace_batch(scene%atm, scene%sfc, scene%src, scene%tracer, lay, scene%det, rng, &
-                         nphot, tal)
+        call trace_batch(scene, lay, rng, nphot, tal)
         call stats_add_batch(st, lay, tal, nphot)
         rec(1, ib) = tal%buf(lay%i_up + lay%nz + 1)/real(nphot, dp)
         rec(2, ib) = (tal%buf(lay%i_dir + 1) + tal%buf(lay%i_dif + 1))/real(nphot, dp)
@@ -914,7 +863,7 @@ contains
       call add_attr(set, 'events_per_photon', &
                     str(real(summary%events, dp)/real(max(1_i8, summary%n_photons), dp)))
       call add_attr(set, 'layer_classes', classes())
-      call add_attr(set, 'collision_forcing_factor', str(scene%tracer%cf_factor))
+      call add_attr(set, 'collision_forcing_factor', str(scene%vr%cf_factor))
       call add_attr(set, 'truncation_levels', str(atm%trunc%n_levels))
       call add_attr(set, 'vr_preset', trim(cfg%vr%preset))
       call add_attr(set, 'mode_3d', trim(cfg%control%mode_3d))

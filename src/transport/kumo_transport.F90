@@ -1,12 +1,13 @@
 ! SPDX-License-Identifier: BSD-3-Clause
-!> The photon loop: trace the photons of one batch through the atmosphere and tally them.
+!> The photon loop: trace the photons of one batch through a scene and tally them.
 !>
-!> Forward Monte Carlo with weights (seed text chapter 2-3): photons enter at the top with the
-!> solar direction; free paths are sampled in optical depth; at a collision the weight is
-!> multiplied by the cell's single-scattering albedo (the rest is absorbed there), Russian
-!> roulette keeps the weight in a window, the scattering component is drawn by its scattering
-!> coefficient and a new direction from its phase function. Fluxes are counted where photons
-!> cross levels (method I of the seed text, section 3.8.2), absorption where it happens.
+!> Forward Monte Carlo with weights (seed text chapter 2-3), written as the flowchart of the seed
+!> text: a source launches a photon (kumo_source); it flies a sampled optical path (`fly`); the
+!> flight ends in a collision (`collide`: absorption, then the scattering component), a
+!> reflection at the surface (`reflect`) or an escape at the top; after a collision the photon
+!> scatters (`scatter`: truncation, local estimates, roulette, a new direction, DDIS); fluxes
+!> are scored where photons cross levels (method I of the seed text, section 3.8.2), absorption
+!> where it happens. Variance-reduction settings come from kumo_vr, the scene from kumo_scene.
 !>
 !> Per layer class (see kumo_atmosphere): clear layers are crossed in one step, purely absorbing
 !> layers multiply the weight by exp(-tau) along the path and deposit the difference, uniform
@@ -15,10 +16,10 @@
 !> index of their layer and super-voxel; positions are set exactly onto faces when crossing them,
 !> and a position that round-off puts outside its cell is clamped back (and counted).
 !>
-!> No allocation, I/O or polymorphic dispatch happens in here.
+!> No allocation, I/O or polymorphic dispatch happens in here. The event procedures are called
+!> from one place each, so the compiler inlines them into one loop.
 module kumo_transport
   use kumo_kinds, only: wp, dp, i8
-  use kumo_constants, only: DEG2RAD
   use kumo_rng, only: rng_t, rng_uniform, sample_azimuth
   use kumo_math, only: rotate_direction, wrap, UZ_MIN
   use kumo_phase, only: phase_sample_mu
@@ -27,386 +28,473 @@ module kumo_transport
                                  ddis_direction
   use kumo_atmosphere, only: atmosphere_t, column_of, column_xy, LAYER_CLEAR, &
                              LAYER_ABSORBING, LAYER_SCATTERING, LAYER_3D
-  use kumo_surface, only: surface_t
   use kumo_brdf, only: brdf_albedo, brdf_sample
   use kumo_tally, only: tally_layout_t, tally_t, ANOM_UZ_NUDGED, ANOM_EVENT_CAP, &
                         ANOM_STEP_CAP, ANOM_POSITION_REPAIR, ANOM_BRDF_ENVELOPE
+  use kumo_photon, only: photon_t
+  use kumo_source, only: launch_plan_t, source_begin_batch, source_launch
+  use kumo_vr, only: roulette
+  use kumo_scene, only: scene_t
   implicit none
   private
-  public :: source_t, tracer_options_t, source_init, trace_batch
+  public :: trace_batch
 
-  !> The solar source: a parallel beam entering at the top of the domain.
-  !>
-  !> Entry points are stratified when nsx*nsy > 1 and a batch has at least nsx*nsy photons: the
-  !> photons of a batch take the cells of an nsx x nsy grid in turn, from a random first cell,
-  !> each at a uniform random point of its cell, and the grid is shifted by (shift_x, shift_y)
-  !> (the drift of the direct beam from the top to the surface, so that the cells fall onto the
-  !> columns or surface pixels below). Every entry point is still uniform over the domain, so
-  !> the estimates stay unbiased; each batch covers the domain evenly, so per-column and
-  !> per-pixel results vary less between batches.
-  type :: source_t
-    real(wp) :: ux = 0.0_wp, uy = 0.0_wp, uz = -1.0_wp  !! propagation direction of the beam
-    integer :: nsx = 1, nsy = 1                         !! grid of entry cells (1 x 1: off)
-    real(wp) :: shift_x = 0.0_wp, shift_y = 0.0_wp      !! grid offset [m]
-  end type source_t
-
-  !> Settings of the photon loop.
-  type :: tracer_options_t
-    real(wp) :: rr_threshold = 0.25_wp  !! Russian roulette below this weight ...
-    real(wp) :: rr_weight = 0.5_wp      !! ... survivors continue with this weight
-    integer(i8) :: max_events = 100000000_i8 !! collisions + reflections per photon
-    integer(i8) :: max_steps = 100000000000_i8 !! flight steps per photon (1000 x max_events)
-    real(wp) :: cf_factor = 1.0_wp      !! collision forcing: extinction multiplied by this (>= 1)
-    !> Transport mode: photons move horizontally only while their scattering order (scatterings
-    !> and reflections so far) is below n_3d; afterwards they stay in their column. huge: F3D;
-    !> 0: ICA (every column a plane-parallel atmosphere); N: P3D.
-    integer :: n_3d = huge(1)
-  end type tracer_options_t
-
-  integer, parameter :: EV_COLLISION = 1, EV_ESCAPE = 2, EV_SURFACE = 3, EV_KILLED = 4
+  !> How a flight ends: it goes on (EV_NONE), or the photon collides, escapes at the top,
+  !> reaches the surface, or was killed by roulette on its way.
+  integer, parameter :: EV_NONE = 0, EV_COLLISION = 1, EV_ESCAPE = 2, EV_SURFACE = 3, &
+                        EV_KILLED = 4
   !> Most DDIS secondaries queued per photon (secondaries do not split again).
   integer, parameter :: MAX_PENDING = 64
 
+  !> What stays the same for every photon of a batch.
+  type :: batch_t
+    logical :: track_xy  !! horizontal positions matter in the 1-D layers
+    logical :: forced    !! collision forcing on
+    logical :: plain     !! no local estimates, forcing or truncation: the plain scattering
+    real(wp) :: inv_cf   !! 1/(collision-forcing factor)
+  end type batch_t
+
+  !> DDIS secondaries of the current photon waiting to be traced, last in first out: position,
+  !> direction and weight (r), layer, order and truncation level (i).
+  type :: pending_t
+    integer :: n = 0
+    real(wp) :: r(7, MAX_PENDING)
+    integer :: i(3, MAX_PENDING)
+  end type pending_t
+
 contains
 
-  !> Source for solar zenith angle `sza_deg` and propagation azimuth `phi0_deg` (from +x
-  !> towards +y; 0 means the beam travels towards +x, i.e. the sun is at low x).
-  pure function source_init(sza_deg, phi0_deg) result(src)
-    real(wp), intent(in) :: sza_deg, phi0_deg
-    type(source_t) :: src
-    real(wp) :: st
-    st = sin(sza_deg*DEG2RAD)
-    src%ux = st*cos(phi0_deg*DEG2RAD)
-    src%uy = st*sin(phi0_deg*DEG2RAD)
-    src%uz = -cos(sza_deg*DEG2RAD)
-  end function source_init
-
-  !> Trace `n_photons` photons, adding into `tal` (which the caller has reset).
-  subroutine trace_batch(atm, sfc, src, opts, lay, det, rng, n_photons, tal)
-    type(atmosphere_t), intent(in) :: atm
-    type(surface_t), intent(in) :: sfc
-    type(source_t), intent(in) :: src
-    type(tracer_options_t), intent(in) :: opts
+  !> Trace `n_photons` photons of scene `scn`, adding into `tal` (which the caller has reset).
+  subroutine trace_batch(scn, lay, rng, n_photons, tal)
+    type(scene_t), intent(in) :: scn
     type(tally_layout_t), intent(in) :: lay
-    type(detectors_t), intent(in) :: det
     type(rng_t), intent(inout) :: rng
     integer(i8), intent(in) :: n_photons
     type(tally_t), intent(inout) :: tal
-    integer(i8) :: ip, n_events, n_steps
-    real(wp) :: x, y, z, ux, uy, uz, w, tau, d, zb, e, wn, albedo, mu, cphi, sphi, omega, ps, wb
-    real(wp) :: inv_cf, uxi, uyi, uzi, u_out(3)
-    integer :: iz, order, cls, ev, ix, iy, kr, ic, iph, nc, lev, n_pending, kb, ns, s_cell
-    integer(i8) :: s_first
-    logical :: in3d, track_xy, move_xy, column, forced, secondary, split, plain, stratify
-    ! DDIS secondaries waiting to be traced: position, direction, weight; layer, order, level
-    real(wp) :: pend_r(7, MAX_PENDING)
-    integer :: pend_i(3, MAX_PENDING)
+    type(batch_t) :: bat
+    type(launch_plan_t) :: plan
+    type(photon_t) :: p
+    type(pending_t) :: pend
+    integer(i8) :: ip
 
     ! Horizontal positions matter only for a 3-D region, an albedo map, per-column maps or
     ! cameras; a plane-parallel scene skips their bookkeeping in the 1-D layers.
-    track_xy = atm%n3 > 0 .or. .not. sfc%uniform .or. lay%do_maps .or. lay%do_rad_maps .or. &
-               size(det%cams) > 0
+    bat%track_xy = scn%atm%n3 > 0 .or. .not. scn%sfc%uniform .or. lay%do_maps .or. &
+                   lay%do_rad_maps .or. size(scn%det%cams) > 0
     ! Collision forcing (seed text section 4.2.4 a): free paths are sampled in the extinction
-    ! cf_factor * sigma; see the collision below.
-    forced = opts%cf_factor > 1.0_wp
-    inv_cf = 1.0_wp/opts%cf_factor
-    plain = .not. (det%active .or. forced .or. atm%truncated)
-    ns = src%nsx*src%nsy
-    stratify = ns > 1 .and. n_photons >= ns
-    s_first = 0
-    if (stratify) s_first = min(int(rng_uniform(rng)*ns, i8), int(ns - 1, i8))
+    ! cf_factor * sigma; see `collide`.
+    bat%forced = scn%vr%cf_factor > 1.0_wp
+    bat%inv_cf = 1.0_wp/scn%vr%cf_factor
+    bat%plain = .not. (scn%det%active .or. bat%forced .or. scn%atm%truncated)
+    call source_begin_batch(scn%src, n_photons, rng, plan)
     do ip = 1, n_photons
-      if (stratify) then
-        s_cell = int(mod(s_first + ip - 1, int(ns, i8)))
-        x = (mod(s_cell, src%nsx) + rng_uniform(rng))*(atm%lx/src%nsx) - src%shift_x
-        y = (s_cell/src%nsx + rng_uniform(rng))*(atm%ly/src%nsy) - src%shift_y
-        call wrap(x, atm%lx)
-        call wrap(y, atm%ly)
-      else
-        x = rng_uniform(rng)*atm%lx
-        y = rng_uniform(rng)*atm%ly
-      end if
-      z = atm%z(atm%nz)
-      ux = src%ux
-      uy = src%uy
-      uz = src%uz
-      w = 1.0_wp
-      order = 0
-      lev = 1
-      iz = atm%nz
-      n_events = 0
-      n_steps = 0
-      call tally_level(atm, lay, tal, atm%nz, .false., 0, w, x, y)
-      n_pending = 0
-      secondary = .false.
-
+      call source_launch(scn%src, plan, scn%atm, rng, ip, p)
+      call tally_level(scn%atm, lay, tal, scn%atm%nz, .false., 0, p%w, p%x, p%y)
+      pend%n = 0
       history: do
-      ! ICA and P3D: beyond its 3-D orders the photon keeps its column (x, y fixed)
-      column = order >= opts%n_3d
-      move_xy = track_xy .and. .not. column
-      photon: do
-        if (order >= opts%n_3d .and. .not. column) then
-          column = .true.
-          move_xy = .false.
-        end if
-        tau = -log(1.0_wp - rng_uniform(rng))
-        if (forced) tau = tau*inv_cf
-        flight: do
-          n_steps = n_steps + 1
-          if (n_steps > opts%max_steps) then
-            tal%anomalies(ANOM_STEP_CAP) = tal%anomalies(ANOM_STEP_CAP) + 1
-            tal%buf(lay%i_lost + 1) = tal%buf(lay%i_lost + 1) + w
-            exit photon
-          end if
-          cls = atm%layer_class(iz)
-          if (cls == LAYER_3D) then
-            if (column) then
-              call fly_column(atm, lay, tal, x, y, z, uz, w, order, iz, tau, n_steps, &
-                              opts%max_steps, ev, ix, iy, kr)
-            else
-              call fly_3d(atm, lay, tal, rng, x, y, z, ux, uy, uz, w, order, iz, tau, n_steps, &
-                          opts%max_steps, inv_cf, ev, ix, iy, kr)
-            end if
-            in3d = .true.
-          else
-            in3d = .false.
-            zb = level_ahead(atm, iz, uz)
-            d = (zb - z)/uz
-            ev = 0
-            select case (cls)
-            case (LAYER_SCATTERING)
-              e = atm%ext1(iz)
-              if (tau < e*d) then
-                d = tau/e
-                z = z + uz*d
-                if (move_xy) then
-                  x = x + ux*d
-                  y = y + uy*d
-                  call wrap(x, atm%lx)
-                  call wrap(y, atm%ly)
-                end if
-                ev = EV_COLLISION
-              else
-                tau = tau - e*d
-              end if
-            case (LAYER_ABSORBING)
-              wn = w*exp(-atm%ext1(iz)*d)
-              tal%buf(lay%i_abs + iz) = tal%buf(lay%i_abs + iz) + (w - wn)
-              w = wn
-            case default ! LAYER_CLEAR
-            end select
-            if (ev == 0) then
-              z = zb
-              if (move_xy) then
-                x = x + ux*d
-                y = y + uy*d
-                call wrap(x, atm%lx)
-                call wrap(y, atm%ly)
-              end if
-              call cross_level(atm, lay, tal, x, y, uz, w, order, iz, ev)
-              if (cls == LAYER_ABSORBING .and. ev == 0) then
-                call roulette(opts, lay, tal, rng, w)
-                if (w <= 0.0_wp) exit photon
-              end if
-            end if
-          end if
-
-          select case (ev)
-          case (0)
-            cycle flight
-          case (EV_ESCAPE, EV_KILLED)
-            exit photon
-          case (EV_SURFACE)
-            ! Lambert reflection (seed text section 3.6.3): weight times albedo, then a
-            ! cosine-weighted direction.
-            n_events = n_events + 1
-            if (sfc%black) then
-              tal%buf(lay%i_sfc + 1) = tal%buf(lay%i_sfc + 1) + w
-              exit photon
-            end if
-            ! a BRDF (seed text section 3.6): weight times the directional albedo, then a
-            ! direction drawn from BRDF mu_out / albedo
-            kb = 1
-            if (sfc%use_brdf) then
-              kb = sfc%class_at(x, y)
-              albedo = brdf_albedo(sfc%tabs(kb), -uz)
-            else
-              albedo = sfc%albedo_at(x, y)
-            end if
-            tal%buf(lay%i_sfc + 1) = tal%buf(lay%i_sfc + 1) + w*(1.0_wp - albedo)
-            w = w*albedo
-            if (w <= 0.0_wp) exit photon
-            if (det%active) call le_surface(det, atm, lay, tal, rng, sfc, kb, x, y, ux, uy, uz, &
-                                            w, lev, column)
-            call roulette(opts, lay, tal, rng, w)
-            if (w <= 0.0_wp) exit photon
-            if (sfc%use_brdf) then
-              call brdf_sample(sfc%tabs(kb), [ux, uy, uz], rng, u_out, &
-                               tal%anomalies(ANOM_BRDF_ENVELOPE))
-              ux = u_out(1)
-              uy = u_out(2)
-              uz = u_out(3)
-            else
-              uz = sqrt(rng_uniform(rng))
-              call sample_azimuth(rng, cphi, sphi)
-              mu = sqrt(max(0.0_wp, 1.0_wp - uz*uz))
-              ux = mu*cphi
-              uy = mu*sphi
-            end if
-            if (uz < UZ_MIN) then
-              uz = UZ_MIN
-              tal%anomalies(ANOM_UZ_NUDGED) = tal%anomalies(ANOM_UZ_NUDGED) + 1
-            end if
-            order = order + 1
-            z = atm%z(0)
-            iz = 1
-            call tally_level(atm, lay, tal, 0, .true., order, w, x, y)
-            if (n_events > opts%max_events) then
-              call lose_photon(lay, tal, ANOM_EVENT_CAP, w)
-              exit photon
-            end if
-            exit flight
-          case (EV_COLLISION)
-            n_events = n_events + 1
-            ! Absorption (seed text section 3.4.3 b). With collision forcing the medium has the
-            ! extinction F sigma and the albedo omega' = 1 - (1 - omega)/F, so absorption is
-            ! unchanged; a collision is a real scattering with probability ps = omega/(F omega'),
-            ! otherwise the photon goes on undeflected (eq. 4.2.42-45).
-            if (in3d) then
-              omega = atm%omg3(ix, iy, kr)
-            else
-              omega = atm%omg1(iz)
-            end if
-            ps = 1.0_wp
-            if (forced) then
-              wn = 1.0_wp - (1.0_wp - omega)*inv_cf
-              if (wn > 0.0_wp) ps = omega*inv_cf/wn
-              wn = w*wn
-            else
-              wn = w*omega
-            end if
-            tal%buf(lay%i_abs + iz) = tal%buf(lay%i_abs + iz) + (w - wn)
-            if (in3d .and. lay%do_voxel) then
-              ic = lay%i_vox + (kr - 1)*lay%ncol + ix + (iy - 1)*atm%nx
-              tal%buf(ic) = tal%buf(ic) + (w - wn)
-            end if
-            w = wn
-            if (w <= 0.0_wp) exit photon
-            if (n_events > opts%max_events) then
-              call lose_photon(lay, tal, ANOM_EVENT_CAP, w)
-              exit photon
-            end if
-            if (in3d) then
-              nc = atm%ncomp
-              ic = 1
-              if (nc > 1) then
-                e = rng_uniform(rng)
-                do ic = 1, nc - 1
-                  if (e < atm%csca3(ic, ix, iy, kr)) exit
-                end do
-              end if
-              if (allocated(atm%iph3)) then
-                iph = atm%iph3(ic, ix, iy, kr)
-              else
-                iph = atm%iph3_const(ic)
-              end if
-              if (allocated(atm%wph3)) then
-                ! a blend of tables iph and iph + 1: the photon takes table iph + 1 with
-                ! probability w, which samples (1 - w) P(iph) + w P(iph + 1) exactly
-                wb = atm%wph3(ic, ix, iy, kr)
-                if (wb > 0.0_wp) then
-                  if (rng_uniform(rng) < wb) iph = iph + 1
-                end if
-              end if
-            else
-              nc = atm%ncomp1
-              iph = atm%iph1(1, iz)
-              if (nc > 1) then
-                e = rng_uniform(rng)
-                do ic = 1, nc
-                  if (e < atm%csca1(ic, iz)) exit
-                end do
-                iph = atm%iph1(min(ic, nc), iz)
-              end if
-            end if
-            if (plain) then
-              ! a flux run without variance reduction: the scattering as it always was
-              call roulette(opts, lay, tal, rng, w)
-              if (w <= 0.0_wp) exit photon
-              order = order + 1
-              mu = phase_sample_mu(atm%phases(iph), rng_uniform(rng))
-              call sample_azimuth(rng, cphi, sphi)
-              call rotate_direction(ux, uy, uz, mu, cphi, sphi)
-            else
-              ! Truncation (seed text eq. 4.2.19): with probability f the scattering belongs to
-              ! the delta peak and the photon keeps its direction; it is still a scattering.
-              if (atm%truncated) then
-                if (rng_uniform(rng) < atm%trunc%f(lev, iph)) then
-                  order = order + 1
-                  call roulette(opts, lay, tal, rng, w)
-                  if (w <= 0.0_wp) exit photon
-                  exit flight
-                end if
-              end if
-              ! local estimates before the roulette, so that a light photon (a DDIS secondary)
-              ! still contributes with its own weight
-              if (det%active) call le_particle(det, atm, lay, tal, rng, x, y, z, iz, ux, uy, uz, &
-                                               w*ps, iph, lev, ps, column)
-              call roulette(opts, lay, tal, rng, w)
-              if (w <= 0.0_wp) exit photon
-              if (forced) then
-                if (rng_uniform(rng) >= ps) exit flight
-              end if
-              order = order + 1
-              call sample_azimuth(rng, cphi, sphi)
-              uxi = ux
-              uyi = uy
-              uzi = uz
-              split = .false.
-              if (atm%truncated) then
-                mu = trunc_sample_mu(atm%trunc, atm%phases(iph), iph, lev, rng_uniform(rng))
-              else
-                mu = phase_sample_mu(atm%phases(iph), rng_uniform(rng))
-              end if
-              call rotate_direction(ux, uy, uz, mu, cphi, sphi)
-              if (det%ddis_eps > 0.0_wp .and. .not. secondary .and. n_pending < MAX_PENDING) then
-                split = det%ddis_phase(iph)
-              end if
-              if (split) call ddis_split(atm, lay, det, tal, rng, iph, lev, order, iz, x, y, z, &
-                                         uxi, uyi, uzi, ux, uy, uz, w, n_pending, pend_r, pend_i)
-              if (atm%truncated) then
-                if (lev < atm%trunc%n_levels .and. mu <= atm%trunc%mu_peak(iph)) lev = lev + 1
-              end if
-            end if
-            if (abs(uz) < UZ_MIN) then
-              uz = sign(UZ_MIN, uz)
-              tal%anomalies(ANOM_UZ_NUDGED) = tal%anomalies(ANOM_UZ_NUDGED) + 1
-            end if
-            exit flight
-          case default
-            exit photon   ! no other event exists
-          end select
-        end do flight
-      end do photon
-      ! DDIS secondaries of this photon, last in first out
-      if (n_pending == 0) exit history
-      x = pend_r(1, n_pending)
-      y = pend_r(2, n_pending)
-      z = pend_r(3, n_pending)
-      ux = pend_r(4, n_pending)
-      uy = pend_r(5, n_pending)
-      uz = pend_r(6, n_pending)
-      w = pend_r(7, n_pending)
-      iz = pend_i(1, n_pending)
-      order = pend_i(2, n_pending)
-      lev = pend_i(3, n_pending)
-      n_pending = n_pending - 1
-      secondary = .true.
+        call trace_photon(scn, bat, lay, rng, tal, p, pend)
+        if (pend%n == 0) exit history
+        call pop_secondary(pend, p)
       end do history
-      tal%work(1) = tal%work(1) + n_steps
-      tal%work(2) = tal%work(2) + n_events
+      tal%work(1) = tal%work(1) + p%n_steps
+      tal%work(2) = tal%work(2) + p%n_events
     end do
   end subroutine trace_batch
+
+  !> Follow photon `p` from its current state until it escapes, is absorbed, killed or lost:
+  !> flights and the events that end them.
+  subroutine trace_photon(scn, bat, lay, rng, tal, p, pend)
+    type(scene_t), intent(in) :: scn
+    type(batch_t), intent(in) :: bat
+    type(tally_layout_t), intent(in) :: lay
+    type(rng_t), intent(inout) :: rng
+    type(tally_t), intent(inout) :: tal
+    type(photon_t), intent(inout) :: p
+    type(pending_t), intent(inout) :: pend
+    real(wp) :: tau, ps
+    integer :: ev, ix, iy, kr, iph
+    logical :: in3d, move_xy, alive
+
+    ! ICA and P3D: beyond its 3-D orders the photon keeps its column (x, y fixed)
+    p%column = p%order >= scn%n_3d
+    move_xy = bat%track_xy .and. .not. p%column
+    photon: do
+      if (p%order >= scn%n_3d .and. .not. p%column) then
+        p%column = .true.
+        move_xy = .false.
+      end if
+      tau = -log(1.0_wp - rng_uniform(rng))
+      if (bat%forced) tau = tau*bat%inv_cf
+      flight: do
+        p%n_steps = p%n_steps + 1
+        if (p%n_steps > scn%max_steps) then
+          tal%anomalies(ANOM_STEP_CAP) = tal%anomalies(ANOM_STEP_CAP) + 1
+          tal%buf(lay%i_lost + 1) = tal%buf(lay%i_lost + 1) + p%w
+          return
+        end if
+        call fly(scn, bat, lay, tal, rng, p, move_xy, tau, ev, in3d, ix, iy, kr)
+        select case (ev)
+        case (EV_NONE)
+          cycle flight
+        case (EV_SURFACE)
+          call reflect(scn, lay, tal, rng, p, alive)
+          if (.not. alive) return
+          exit flight
+        case (EV_COLLISION)
+          call collide(scn, bat, lay, tal, rng, p, in3d, ix, iy, kr, ps, iph, alive)
+          if (.not. alive) return
+          if (bat%plain) then
+            call scatter_plain(scn, lay, tal, rng, p, iph, alive)
+          else
+            call scatter(scn, bat, lay, tal, rng, p, iph, ps, pend, alive)
+          end if
+          if (.not. alive) return
+          exit flight
+        case default   ! EV_ESCAPE, EV_KILLED
+          return
+        end select
+      end do flight
+    end do photon
+  end subroutine trace_photon
+
+  !> One flight step along the remaining optical path `tau`: through one 1-D layer, or through
+  !> the 3-D region until a collision or until the photon leaves it. Levels crossed are scored.
+  !> `ev` tells how it ended; for a collision, `in3d` and the voxel (ix, iy, kr) say where.
+  subroutine fly(scn, bat, lay, tal, rng, p, move_xy, tau, ev, in3d, ix, iy, kr)
+    type(scene_t), intent(in) :: scn
+    type(batch_t), intent(in) :: bat
+    type(tally_layout_t), intent(in) :: lay
+    type(tally_t), intent(inout) :: tal
+    type(rng_t), intent(inout) :: rng
+    type(photon_t), intent(inout) :: p
+    logical, intent(in) :: move_xy
+    real(wp), intent(inout) :: tau
+    integer, intent(out) :: ev, ix, iy, kr
+    logical, intent(out) :: in3d
+    real(wp) :: zb, d, e, wn
+    integer :: cls
+
+    cls = scn%atm%layer_class(p%iz)
+    if (cls == LAYER_3D) then
+      if (p%column) then
+        call fly_column(scn%atm, lay, tal, p%x, p%y, p%z, p%uz, p%w, p%order, p%iz, tau, &
+                        p%n_steps, scn%max_steps, ev, ix, iy, kr)
+      else
+        call fly_3d(scn%atm, lay, tal, rng, p%x, p%y, p%z, p%ux, p%uy, p%uz, p%w, p%order, p%iz, &
+                    tau, p%n_steps, scn%max_steps, bat%inv_cf, ev, ix, iy, kr)
+      end if
+      in3d = .true.
+      return
+    end if
+    in3d = .false.
+    ix = 0
+    iy = 0
+    kr = 0
+    zb = level_ahead(scn%atm, p%iz, p%uz)
+    d = (zb - p%z)/p%uz
+    ev = EV_NONE
+    select case (cls)
+    case (LAYER_SCATTERING)
+      e = scn%atm%ext1(p%iz)
+      if (tau < e*d) then
+        d = tau/e
+        p%z = p%z + p%uz*d
+        if (move_xy) then
+          p%x = p%x + p%ux*d
+          p%y = p%y + p%uy*d
+          call wrap(p%x, scn%atm%lx)
+          call wrap(p%y, scn%atm%ly)
+        end if
+        ev = EV_COLLISION
+        return
+      end if
+      tau = tau - e*d
+    case (LAYER_ABSORBING)
+      wn = p%w*exp(-scn%atm%ext1(p%iz)*d)
+      tal%buf(lay%i_abs + p%iz) = tal%buf(lay%i_abs + p%iz) + (p%w - wn)
+      p%w = wn
+    case default ! LAYER_CLEAR
+    end select
+    p%z = zb
+    if (move_xy) then
+      p%x = p%x + p%ux*d
+      p%y = p%y + p%uy*d
+      call wrap(p%x, scn%atm%lx)
+      call wrap(p%y, scn%atm%ly)
+    end if
+    call cross_level(scn%atm, lay, tal, p%x, p%y, p%uz, p%w, p%order, p%iz, ev)
+    if (cls == LAYER_ABSORBING .and. ev == EV_NONE) then
+      call roulette(scn%vr, lay, tal, rng, p%w)
+      if (p%w <= 0.0_wp) ev = EV_KILLED
+    end if
+  end subroutine fly
+
+  !> Reflection at the surface (seed text sections 3.6, 3.6.3): the absorbed part is scored, the
+  !> weight is multiplied by the albedo (Lambert) or the directional albedo (BRDF), local
+  !> estimates see the surface, and a new upward direction is drawn (cosine-weighted, or from
+  !> BRDF mu_out / albedo). `alive` is false when the photon ends here.
+  subroutine reflect(scn, lay, tal, rng, p, alive)
+    type(scene_t), intent(in) :: scn
+    type(tally_layout_t), intent(in) :: lay
+    type(tally_t), intent(inout) :: tal
+    type(rng_t), intent(inout) :: rng
+    type(photon_t), intent(inout) :: p
+    logical, intent(out) :: alive
+    real(wp) :: albedo, mu, cphi, sphi, u_out(3)
+    integer :: kb
+
+    alive = .false.
+    p%n_events = p%n_events + 1
+    if (scn%sfc%black) then
+      tal%buf(lay%i_sfc + 1) = tal%buf(lay%i_sfc + 1) + p%w
+      return
+    end if
+    kb = 1
+    if (scn%sfc%use_brdf) then
+      kb = scn%sfc%class_at(p%x, p%y)
+      albedo = brdf_albedo(scn%sfc%tabs(kb), -p%uz)
+    else
+      albedo = scn%sfc%albedo_at(p%x, p%y)
+    end if
+    tal%buf(lay%i_sfc + 1) = tal%buf(lay%i_sfc + 1) + p%w*(1.0_wp - albedo)
+    p%w = p%w*albedo
+    if (p%w <= 0.0_wp) return
+    if (scn%det%active) call le_surface(scn%det, scn%atm, lay, tal, rng, scn%sfc, kb, p%x, p%y, &
+                                        p%ux, p%uy, p%uz, p%w, p%lev, p%column)
+    call roulette(scn%vr, lay, tal, rng, p%w)
+    if (p%w <= 0.0_wp) return
+    if (scn%sfc%use_brdf) then
+      call brdf_sample(scn%sfc%tabs(kb), [p%ux, p%uy, p%uz], rng, u_out, &
+                       tal%anomalies(ANOM_BRDF_ENVELOPE))
+      p%ux = u_out(1)
+      p%uy = u_out(2)
+      p%uz = u_out(3)
+    else
+      p%uz = sqrt(rng_uniform(rng))
+      call sample_azimuth(rng, cphi, sphi)
+      mu = sqrt(max(0.0_wp, 1.0_wp - p%uz*p%uz))
+      p%ux = mu*cphi
+      p%uy = mu*sphi
+    end if
+    if (p%uz < UZ_MIN) then
+      p%uz = UZ_MIN
+      tal%anomalies(ANOM_UZ_NUDGED) = tal%anomalies(ANOM_UZ_NUDGED) + 1
+    end if
+    p%order = p%order + 1
+    p%z = scn%atm%z(0)
+    p%iz = 1
+    call tally_level(scn%atm, lay, tal, 0, .true., p%order, p%w, p%x, p%y)
+    if (p%n_events > scn%max_events) then
+      call lose_photon(lay, tal, ANOM_EVENT_CAP, p%w)
+      return
+    end if
+    alive = .true.
+  end subroutine reflect
+
+  !> A collision (seed text section 3.4.3 b): the absorbed part of the weight is scored (per
+  !> layer, and per voxel in the 3-D region), then the scattering component and its phase
+  !> function `iph` are drawn. With collision forcing the medium has the extinction F sigma and
+  !> the albedo omega' = 1 - (1 - omega)/F, so absorption is unchanged; the collision is a real
+  !> scattering with probability ps = omega/(F omega') (eq. 4.2.42-45), else the photon goes on
+  !> undeflected (see `scatter`).
+  subroutine collide(scn, bat, lay, tal, rng, p, in3d, ix, iy, kr, ps, iph, alive)
+    type(scene_t), intent(in) :: scn
+    type(batch_t), intent(in) :: bat
+    type(tally_layout_t), intent(in) :: lay
+    type(tally_t), intent(inout) :: tal
+    type(rng_t), intent(inout) :: rng
+    type(photon_t), intent(inout) :: p
+    logical, intent(in) :: in3d
+    integer, intent(in) :: ix, iy, kr
+    real(wp), intent(out) :: ps
+    integer, intent(out) :: iph
+    logical, intent(out) :: alive
+    real(wp) :: omega, wn, e, wb
+    integer :: ic, nc
+
+    alive = .false.
+    iph = 1
+    p%n_events = p%n_events + 1
+    if (in3d) then
+      omega = scn%atm%omg3(ix, iy, kr)
+    else
+      omega = scn%atm%omg1(p%iz)
+    end if
+    ps = 1.0_wp
+    if (bat%forced) then
+      wn = 1.0_wp - (1.0_wp - omega)*bat%inv_cf
+      if (wn > 0.0_wp) ps = omega*bat%inv_cf/wn
+      wn = p%w*wn
+    else
+      wn = p%w*omega
+    end if
+    tal%buf(lay%i_abs + p%iz) = tal%buf(lay%i_abs + p%iz) + (p%w - wn)
+    if (in3d .and. lay%do_voxel) then
+      ic = lay%i_vox + (kr - 1)*lay%ncol + ix + (iy - 1)*scn%atm%nx
+      tal%buf(ic) = tal%buf(ic) + (p%w - wn)
+    end if
+    p%w = wn
+    if (p%w <= 0.0_wp) return
+    if (p%n_events > scn%max_events) then
+      call lose_photon(lay, tal, ANOM_EVENT_CAP, p%w)
+      return
+    end if
+    associate (atm => scn%atm)
+      if (in3d) then
+        nc = atm%ncomp
+        ic = 1
+        if (nc > 1) then
+          e = rng_uniform(rng)
+          do ic = 1, nc - 1
+            if (e < atm%csca3(ic, ix, iy, kr)) exit
+          end do
+        end if
+        if (allocated(atm%iph3)) then
+          iph = atm%iph3(ic, ix, iy, kr)
+        else
+          iph = atm%iph3_const(ic)
+        end if
+        if (allocated(atm%wph3)) then
+          ! a blend of tables iph and iph + 1: the photon takes table iph + 1 with
+          ! probability w, which samples (1 - w) P(iph) + w P(iph + 1) exactly
+          wb = atm%wph3(ic, ix, iy, kr)
+          if (wb > 0.0_wp) then
+            if (rng_uniform(rng) < wb) iph = iph + 1
+          end if
+        end if
+      else
+        nc = atm%ncomp1
+        iph = atm%iph1(1, p%iz)
+        if (nc > 1) then
+          e = rng_uniform(rng)
+          do ic = 1, nc
+            if (e < atm%csca1(ic, p%iz)) exit
+          end do
+          iph = atm%iph1(min(ic, nc), p%iz)
+        end if
+      end if
+    end associate
+    alive = .true.
+  end subroutine collide
+
+  !> Scattering by phase function `iph` after a collision in a run without local estimates,
+  !> collision forcing or truncation (seed text section 3.5): roulette, then a new direction.
+  subroutine scatter_plain(scn, lay, tal, rng, p, iph, alive)
+    type(scene_t), intent(in) :: scn
+    type(tally_layout_t), intent(in) :: lay
+    type(tally_t), intent(inout) :: tal
+    type(rng_t), intent(inout) :: rng
+    type(photon_t), intent(inout) :: p
+    integer, intent(in) :: iph
+    logical, intent(out) :: alive
+    real(wp) :: mu, cphi, sphi
+    alive = .false.
+    call roulette(scn%vr, lay, tal, rng, p%w)
+    if (p%w <= 0.0_wp) return
+    p%order = p%order + 1
+    mu = phase_sample_mu(scn%atm%phases(iph), rng_uniform(rng))
+    call sample_azimuth(rng, cphi, sphi)
+    call rotate_direction(p%ux, p%uy, p%uz, mu, cphi, sphi)
+    call nudge_uz(tal, p)
+    alive = .true.
+  end subroutine scatter_plain
+
+  !> Scattering by phase function `iph` after a collision, with the variance reduction that
+  !> serves radiances (seed text sections 3.5, 4.2): truncation, local estimates, roulette,
+  !> the new direction, DDIS. `ps` is the chance that a forced collision is a real scattering.
+  subroutine scatter(scn, bat, lay, tal, rng, p, iph, ps, pend, alive)
+    type(scene_t), intent(in) :: scn
+    type(batch_t), intent(in) :: bat
+    type(tally_layout_t), intent(in) :: lay
+    type(tally_t), intent(inout) :: tal
+    type(rng_t), intent(inout) :: rng
+    type(photon_t), intent(inout) :: p
+    integer, intent(in) :: iph
+    real(wp), intent(in) :: ps
+    type(pending_t), intent(inout) :: pend
+    logical, intent(out) :: alive
+    real(wp) :: mu, cphi, sphi, uxi, uyi, uzi
+    logical :: split
+
+    alive = .false.
+    associate (atm => scn%atm, det => scn%det)
+      ! Truncation (seed text eq. 4.2.19): with probability f the scattering belongs to the
+      ! delta peak and the photon keeps its direction; it is still a scattering.
+      if (atm%truncated) then
+        if (rng_uniform(rng) < atm%trunc%f(p%lev, iph)) then
+          p%order = p%order + 1
+          call roulette(scn%vr, lay, tal, rng, p%w)
+          alive = p%w > 0.0_wp
+          return
+        end if
+      end if
+      ! local estimates before the roulette, so that a light photon (a DDIS secondary) still
+      ! contributes with its own weight
+      if (det%active) call le_particle(det, atm, lay, tal, rng, p%x, p%y, p%z, p%iz, p%ux, &
+                                       p%uy, p%uz, p%w*ps, iph, p%lev, ps, p%column)
+      call roulette(scn%vr, lay, tal, rng, p%w)
+      if (p%w <= 0.0_wp) return
+      if (bat%forced) then
+        if (rng_uniform(rng) >= ps) then
+          alive = .true.
+          return
+        end if
+      end if
+      p%order = p%order + 1
+      call sample_azimuth(rng, cphi, sphi)
+      uxi = p%ux
+      uyi = p%uy
+      uzi = p%uz
+      split = .false.
+      if (atm%truncated) then
+        mu = trunc_sample_mu(atm%trunc, atm%phases(iph), iph, p%lev, rng_uniform(rng))
+      else
+        mu = phase_sample_mu(atm%phases(iph), rng_uniform(rng))
+      end if
+      call rotate_direction(p%ux, p%uy, p%uz, mu, cphi, sphi)
+      if (det%ddis_eps > 0.0_wp .and. .not. p%secondary .and. pend%n < MAX_PENDING) then
+        split = det%ddis_phase(iph)
+      end if
+      if (split) call ddis_split(atm, lay, det, tal, rng, iph, p%lev, p%order, p%iz, p%x, p%y, &
+                                 p%z, uxi, uyi, uzi, p%ux, p%uy, p%uz, p%w, pend%n, pend%r, &
+                                 pend%i)
+      if (atm%truncated) then
+        if (p%lev < atm%trunc%n_levels .and. mu <= atm%trunc%mu_peak(iph)) p%lev = p%lev + 1
+      end if
+    end associate
+    call nudge_uz(tal, p)
+    alive = .true.
+  end subroutine scatter
+
+  !> A direction after scattering that is too close to horizontal for the level-to-level walk
+  !> is nudged to |uz| = UZ_MIN (and counted).
+  subroutine nudge_uz(tal, p)
+    type(tally_t), intent(inout) :: tal
+    type(photon_t), intent(inout) :: p
+    if (abs(p%uz) < UZ_MIN) then
+      p%uz = sign(UZ_MIN, p%uz)
+      tal%anomalies(ANOM_UZ_NUDGED) = tal%anomalies(ANOM_UZ_NUDGED) + 1
+    end if
+  end subroutine nudge_uz
+
+  !> The next DDIS secondary of the current photon becomes the photon (its counts of steps and
+  !> events go on: the caps apply to a photon and its secondaries together).
+  subroutine pop_secondary(pend, p)
+    type(pending_t), intent(inout) :: pend
+    type(photon_t), intent(inout) :: p
+    p%x = pend%r(1, pend%n)
+    p%y = pend%r(2, pend%n)
+    p%z = pend%r(3, pend%n)
+    p%ux = pend%r(4, pend%n)
+    p%uy = pend%r(5, pend%n)
+    p%uz = pend%r(6, pend%n)
+    p%w = pend%r(7, pend%n)
+    p%iz = pend%i(1, pend%n)
+    p%order = pend%i(2, pend%n)
+    p%lev = pend%i(3, pend%n)
+    pend%n = pend%n - 1
+    p%secondary = .true.
+  end subroutine pop_secondary
 
   !> DDIS split at a scattering (kumo_local_estimate, ddis_factor): the photon, now leaving along
   !> (ux, uy, uz) after arriving along (uxi, uyi, uzi), keeps its direction with a weight factor,
@@ -755,25 +843,6 @@ contains
       if (ev /= 0 .or. iz < atm%k3_lo .or. iz > atm%k3_hi) return
     end do
   end subroutine fly_column
-
-  !> Russian roulette with a weight window (seed text section 3.4.4): below the threshold the
-  !> photon survives with probability w/W and then carries W. The net weight it creates or
-  !> destroys is tallied so that the energy budget can be closed exactly.
-  subroutine roulette(opts, lay, tal, rng, w)
-    type(tracer_options_t), intent(in) :: opts
-    type(tally_layout_t), intent(in) :: lay
-    type(tally_t), intent(inout) :: tal
-    type(rng_t), intent(inout) :: rng
-    real(wp), intent(inout) :: w
-    if (w >= opts%rr_threshold) return
-    if (rng_uniform(rng)*opts%rr_weight < w) then
-      tal%buf(lay%i_rr + 1) = tal%buf(lay%i_rr + 1) + (opts%rr_weight - w)
-      w = opts%rr_weight
-    else
-      tal%buf(lay%i_rr + 1) = tal%buf(lay%i_rr + 1) - w
-      w = 0.0_wp
-    end if
-  end subroutine roulette
 
   !> Stop a photon at a loop cap: its weight is counted as lost, never silently dropped.
   subroutine lose_photon(lay, tal, which, w)

@@ -91,7 +91,7 @@ contains
     do ib = 1, cfg%control%n_batches
       call rng_init(rng, cfg%control%seed, int(ib, i8))
       call tally_reset(tal, lay)
-      call trace_batch(scene%atm, scene%sfc, scene%src, scene%tracer, lay, scene%det, rng, &
+      call trace_batch(scene, lay, rng, &
                        cfg%control%n_photons_per_batch, tal)
       r = tal%buf(lay%i_up + nz + 1)/n
       t = (tal%buf(lay%i_dir + 1) + tal%buf(lay%i_dif + 1))/n

@@ -26,13 +26,17 @@ module kumo_source
 
   !> A source of photons.
   !>
-  !> Solar beam: entry points are stratified when nsx*nsy > 1 and a batch has at least nsx*nsy
-  !> photons: the photons of a batch take the cells of an nsx x nsy grid in turn, from a random
-  !> first cell, each at a uniform random point of its cell, and the grid is shifted by
+  !> Solar beam: entry points are stratified when nsx*nsy > 1. A batch of n = q*ns + r photons
+  !> (ns = nsx*nsy cells) gives q photons to every cell of an nsx x nsy grid, taken in turn from
+  !> a random first cell, each at a uniform random point of its cell; the grid is shifted by
   !> (shift_x, shift_y) (the drift of the direct beam from the top to the surface, so that the
-  !> cells fall onto the columns or surface pixels below). Every entry point is still uniform
-  !> over the domain, so the estimates stay unbiased; each batch covers the domain evenly, so
-  !> per-column and per-pixel results vary less between batches.
+  !> cells fall onto the columns or surface pixels below). The r photons left over (all of them
+  !> when n < ns) enter at the points of a randomly shifted rank-1 lattice over the whole domain
+  !> (x in the k-th of r strips, y at k*g/r for a generator g coprime with r), which spreads
+  !> them evenly in both directions whatever r is. The expected number of photons per unit area
+  !> is uniform, so the estimates stay unbiased; each batch covers the domain evenly, so domain
+  !> means and per-column and per-pixel results vary less between batches than with
+  !> independent entry points, whatever the batch size.
   type :: source_t
     integer :: kind = SOURCE_SOLAR
     real(wp) :: ux = 0.0_wp, uy = 0.0_wp, uz = -1.0_wp  !! propagation direction of the beam
@@ -40,12 +44,20 @@ module kumo_source
     real(wp) :: shift_x = 0.0_wp, shift_y = 0.0_wp      !! grid offset [m]
   end type source_t
 
-  !> What a source decides once per batch (the first entry cell of a stratified beam).
+  !> What a source decides once per batch (stratified beam: the first entry cell, the photons
+  !> that go to the cells, and the lattice of the photons left over).
   type :: launch_plan_t
     logical :: stratify = .false.
     integer :: ns = 1              !! entry cells
     integer(i8) :: s_first = 0_i8  !! cell of the batch's first photon (0-based)
+    integer(i8) :: n_cells = 0_i8  !! photons 1 .. n_cells go to the cells (q*ns of them)
+    integer(i8) :: n_left = 0_i8   !! photons after them, on the lattice (r)
+    integer(i8) :: g = 0_i8        !! lattice generator, coprime with n_left
+    real(wp) :: u1 = 0.0_wp, u2 = 0.0_wp  !! random shift of the lattice
   end type launch_plan_t
+
+  !> The golden ratio's fractional part: lattice generators near r/phi spread points evenly.
+  real(wp), parameter :: GOLDEN_FRACTION = 0.6180339887498949_wp
 
 contains
 
@@ -82,10 +94,36 @@ contains
     type(rng_t), intent(inout) :: rng
     type(launch_plan_t), intent(out) :: plan
     plan%ns = src%nsx*src%nsy
-    plan%stratify = plan%ns > 1 .and. n_photons >= plan%ns
+    plan%stratify = plan%ns > 1
     plan%s_first = 0
-    if (plan%stratify) plan%s_first = min(int(rng_uniform(rng)*plan%ns, i8), int(plan%ns - 1, i8))
+    if (.not. plan%stratify) return
+    plan%n_left = mod(n_photons, int(plan%ns, i8))
+    plan%n_cells = n_photons - plan%n_left
+    if (plan%n_cells > 0) &
+      plan%s_first = min(int(rng_uniform(rng)*plan%ns, i8), int(plan%ns - 1, i8))
+    if (plan%n_left > 0) then
+      plan%u1 = rng_uniform(rng)
+      plan%u2 = rng_uniform(rng)
+      plan%g = max(1_i8, nint(plan%n_left*GOLDEN_FRACTION, i8))
+      do while (gcd(plan%g, plan%n_left) /= 1)
+        plan%g = plan%g + 1
+      end do
+    end if
   end subroutine source_begin_batch
+
+  !> Greatest common divisor of two positive integers.
+  pure integer(i8) function gcd(a, b)
+    integer(i8), intent(in) :: a, b
+    integer(i8) :: x, y, t
+    x = a
+    y = b
+    do while (y /= 0)
+      t = mod(x, y)
+      x = y
+      y = t
+    end do
+    gcd = x
+  end function gcd
 
   !> Launch photon `ip` (1-based) of the batch: position, direction, weight 1, no events yet.
   subroutine source_launch(src, plan, atm, rng, ip, p)
@@ -96,8 +134,19 @@ contains
     integer(i8), intent(in) :: ip
     type(photon_t), intent(inout) :: p
     integer :: s_cell
+    integer(i8) :: k
+    real(wp) :: fy
     ! SOURCE_SOLAR (the only kind so far): the beam enters at the top
-    if (plan%stratify) then
+    if (plan%stratify .and. ip > plan%n_cells) then
+      ! a photon left over: point k of the shifted lattice
+      k = ip - plan%n_cells - 1
+      p%x = (real(k, wp) + plan%u1)/real(plan%n_left, wp)*atm%lx
+      fy = real(mod(k*plan%g, plan%n_left), wp)/real(plan%n_left, wp) + plan%u2
+      if (fy >= 1.0_wp) fy = fy - 1.0_wp
+      p%y = fy*atm%ly
+      call wrap(p%x, atm%lx)
+      call wrap(p%y, atm%ly)
+    else if (plan%stratify) then
       s_cell = int(mod(plan%s_first + ip - 1, int(plan%ns, i8)))
       p%x = (mod(s_cell, src%nsx) + rng_uniform(rng))*(atm%lx/src%nsx) - src%shift_x
       p%y = (s_cell/src%nsx + rng_uniform(rng))*(atm%ly/src%nsy) - src%shift_y

@@ -1,0 +1,397 @@
+! SPDX-License-Identifier: BSD-3-Clause
+!> The output schema and the run log: which products a run writes (names, dimensions, units,
+!> attributes), formed from the batch statistics of the tallies, and the summary printed at the
+!> end. The netCDF writer writes any result set generically, so the output layout lives here.
+module kumo_output
+  use, intrinsic :: iso_fortran_env, only: output_unit
+  use kumo_kinds, only: wp, dp, i8
+  use kumo_constants, only: KUMO_VERSION, SECONDS_PER_DAY, PI
+  use kumo_error, only: str, join
+  use kumo_atmosphere, only: LAYER_CLASS_NAMES
+  use kumo_tally, only: tally_layout_t, stats_t, stats_mean, stats_stderr, N_ANOMALIES, &
+                        ANOMALY_NAMES
+  use kumo_scene, only: scene_t
+  use kumo_results, only: result_set_t, add_dim, add_var, add_attr, find_var
+  use kumo_config, only: config_t, config_echo
+  use kumo_parallel, only: PAR_IS_MPI
+  implicit none
+  private
+  public :: run_summary_t, build_results, log_summary
+
+  !> Figures of a finished run, for the log and for tests.
+  type :: run_summary_t
+    integer(i8) :: n_photons = 0_i8
+    integer(i8) :: n_batches = 0_i8
+    integer :: n_ranks = 1
+    real(dp) :: wall_time = 0.0_dp      !! [s]
+    real(dp) :: cpu_time = 0.0_dp       !! summed over ranks [s]
+    real(dp) :: setup_time = 0.0_dp     !! [s]
+    integer(i8) :: anomalies(N_ANOMALIES) = 0_i8
+    integer(i8) :: flight_steps = 0_i8  !! flight steps of all photons (null collisions included)
+    integer(i8) :: events = 0_i8        !! collisions and reflections of all photons
+  end type run_summary_t
+
+contains
+
+  !> Lay out every product with its standard error, units and provenance.
+  subroutine build_results(cfg, scene, lay, st, rec, summary, set)
+    type(config_t), intent(in) :: cfg
+    type(scene_t), intent(in) :: scene
+    type(tally_layout_t), intent(in) :: lay
+    type(stats_t), intent(in) :: st
+    real(dp), intent(in) :: rec(:, :)
+    type(run_summary_t), intent(in) :: summary
+    type(result_set_t), intent(inout) :: set
+    integer :: nz, k, n_out, i, ncol, kr
+    integer, allocatable :: lev(:)
+    real(dp), allocatable :: z(:), zmid(:), dz(:), m(:), e(:), fac(:)
+    real(dp) :: f_hor
+    integer :: tv(8)
+    character(len=*), parameter :: NORM = ' normalised by the incident solar flux on a horizontal plane'
+    character(len=32) :: stamp
+    associate (atm => scene%atm)
+      nz = atm%nz
+      z = atm%z
+      zmid = 0.5_dp*(z(1:nz) + z(0:nz - 1))
+      dz = z(1:nz) - z(0:nz - 1)
+      lev = cfg%output%flux_levels
+      n_out = size(lev)
+      ncol = lay%ncol
+      f_hor = cfg%source%solar_flux*scene%mu0   ! incident flux on a horizontal plane [W m-2]
+
+      call add_dim(set, 'level', n_out, coord=z(lev), units='m', &
+                   long_name='height of the flux levels')
+      call add_dim(set, 'layer', nz, coord=zmid, units='m', long_name='height of the layer centres')
+      call add_dim(set, 'batch', size(rec, 2))
+
+      ! domain-mean fluxes at the chosen levels
+      call put('flux_up', 'upward flux'//NORM, lay%i_up + lev + 1)
+      call put('flux_down', 'downward flux (direct + diffuse)'//NORM, lay%i_dn + lev + 1)
+      call put('flux_down_direct', 'downward direct (unscattered) flux'//NORM, lay%i_dir + lev + 1)
+      call put('flux_down_diffuse', 'downward diffuse flux'//NORM, lay%i_dif + lev + 1)
+      call put('reflectance', 'upward flux at the top of the atmosphere'//NORM, [lay%i_up + nz + 1])
+      call put('transmittance', 'downward flux at the surface (direct + diffuse)'//NORM, &
+               [lay%i_dn + 1])
+      call put('transmittance_direct', 'downward direct flux at the surface'//NORM, [lay%i_dir + 1])
+      call put('transmittance_diffuse', 'downward diffuse flux at the surface'//NORM, &
+               [lay%i_dif + 1])
+      call put('absorptance_atmosphere', 'power absorbed by the atmosphere'//NORM, [lay%i_atm + 1])
+      call put('absorptance_surface', 'power absorbed by the surface'//NORM, [lay%i_sfc + 1])
+      call put('absorptance_layer', 'power absorbed in each layer'//NORM, &
+               [(lay%i_abs + k, k=1, nz)], dims=['layer'])
+      call put('roulette_weight_balance', 'net weight created by Russian roulette and DDIS'// &
+               ' splitting'//NORM// &
+               ' (zero in expectation)', [lay%i_rr + 1])
+      call put('weight_lost', 'weight of photons stopped at a loop cap'//NORM, [lay%i_lost + 1])
+      call put('energy_closure', 'reflectance + absorptance_atmosphere + absorptance_surface'// &
+               ' - roulette_weight_balance + weight_lost (1 to round-off)', [lay%i_closure + 1])
+
+      ! heating of the layers
+      if (f_hor > 0.0_dp) then
+        fac = f_hor/dz
+        m = stats_mean(st, lay%i_abs + 1, lay%i_abs + nz)*fac
+        e = stats_stderr(st, lay%i_abs + 1, lay%i_abs + nz)*fac
+        call add_var(set, 'flux_up_wm2', 'upward flux', 'W m-2', ['level'], &
+                     stats_mean1(lay%i_up + lev + 1)*f_hor, stats_err1(lay%i_up + lev + 1)*f_hor)
+        call add_var(set, 'flux_down_wm2', 'downward flux (direct + diffuse)', 'W m-2', &
+                     ['level'], stats_mean1(lay%i_dn + lev + 1)*f_hor, &
+                     stats_err1(lay%i_dn + lev + 1)*f_hor)
+        call add_var(set, 'flux_down_direct_wm2', 'downward direct flux', 'W m-2', ['level'], &
+                     stats_mean1(lay%i_dir + lev + 1)*f_hor, stats_err1(lay%i_dir + lev + 1)*f_hor)
+        call add_var(set, 'flux_down_diffuse_wm2', 'downward diffuse flux', 'W m-2', ['level'], &
+                     stats_mean1(lay%i_dif + lev + 1)*f_hor, stats_err1(lay%i_dif + lev + 1)*f_hor)
+        call add_var(set, 'absorbed_power_density_layer', 'layer-mean absorbed power per volume', &
+                     'W m-3', ['layer'], m, e)
+        if (allocated(scene%air_density)) then
+          fac = SECONDS_PER_DAY/(scene%air_density*cfg%atm%cp_air)
+          call add_var(set, 'heating_rate_layer', 'layer-mean heating rate', 'K day-1', &
+                       ['layer'], m*fac, e*fac)
+        end if
+      else
+        fac = 1.0_dp/dz
+        call add_var(set, 'absorbed_power_density_layer', 'layer-mean absorbed power per volume'// &
+                     ' per unit incident solar flux on a horizontal plane', 'm-1', ['layer'], &
+                     stats_mean(st, lay%i_abs + 1, lay%i_abs + nz)*fac, &
+                     stats_err1([(lay%i_abs + k, k=1, nz)])*fac)
+      end if
+
+      ! per-column maps and voxel absorption of the 3-D region
+      if (lay%do_maps .or. lay%do_voxel) then
+        call add_dim(set, 'x', atm%nx, coord=[((i - 0.5_dp)*atm%dx, i=1, atm%nx)], units='m', &
+                     long_name='x of the column centres')
+        call add_dim(set, 'y', atm%ny, coord=[((i - 0.5_dp)*atm%dy, i=1, atm%ny)], units='m', &
+                     long_name='y of the column centres')
+      end if
+      if (lay%do_maps) then
+        call put('flux_up_map', 'upward flux per column'//NORM, &
+                 [(lay%i_map_up + i, i=1, n_out*ncol)], dims=['x    ', 'y    ', 'level'])
+        call put('flux_down_direct_map', 'downward direct flux per column'//NORM, &
+                 [(lay%i_map_dir + i, i=1, n_out*ncol)], dims=['x    ', 'y    ', 'level'])
+        call put('flux_down_diffuse_map', 'downward diffuse flux per column'//NORM, &
+                 [(lay%i_map_dif + i, i=1, n_out*ncol)], dims=['x    ', 'y    ', 'level'])
+        call put('flux_down_map', 'total (direct + diffuse) downward flux per column'//NORM, &
+                 [(lay%i_map_dn + i, i=1, n_out*ncol)], dims=['x    ', 'y    ', 'level'])
+      end if
+      if (lay%do_voxel) then
+        call add_dim(set, 'z3d', atm%n3, coord=zmid(atm%k3_lo:atm%k3_hi), units='m', &
+                     long_name='height of the layer centres of the 3-D region')
+        call put('absorptance_voxel', 'power absorbed per voxel per unit column area'//NORM, &
+                 [(lay%i_vox + i, i=1, atm%n3*ncol)], dims=['x  ', 'y  ', 'z3d'])
+        if (allocated(fac)) deallocate (fac)
+        allocate (fac(atm%n3*ncol))
+        do kr = 1, atm%n3
+          fac((kr - 1)*ncol + 1:kr*ncol) = 1.0_dp/dz(atm%k3_lo + kr - 1)
+        end do
+        m = stats_mean(st, lay%i_vox + 1, lay%i_vox + atm%n3*ncol)*fac
+        e = stats_stderr(st, lay%i_vox + 1, lay%i_vox + atm%n3*ncol)*fac
+        if (f_hor > 0.0_dp) then
+          call add_var(set, 'absorbed_power_density_voxel', 'absorbed power per volume', &
+                       'W m-3', ['x  ', 'y  ', 'z3d'], m*f_hor, e*f_hor)
+          if (allocated(scene%air_density)) then
+            do kr = 1, atm%n3
+              fac((kr - 1)*ncol + 1:kr*ncol) = f_hor*SECONDS_PER_DAY/ &
+                (scene%air_density(atm%k3_lo + kr - 1)*cfg%atm%cp_air)
+            end do
+            call add_var(set, 'heating_rate_voxel', 'heating rate', 'K day-1', &
+                         ['x  ', 'y  ', 'z3d'], m*fac, e*fac)
+          end if
+        else
+          call add_var(set, 'absorbed_power_density_voxel', 'absorbed power per volume per'// &
+                       ' unit incident solar flux on a horizontal plane', 'm-1', &
+                       ['x  ', 'y  ', 'z3d'], m, e)
+        end if
+      end if
+
+      if (lay%do_budget) then
+        call put('absorptance_column', 'power absorbed in the 3-D region of each column per'// &
+                 ' unit column area'//NORM, [(lay%i_col_abs + i, i=1, ncol)], dims=['x', 'y'])
+        call put('horizontal_transport_map', 'net power leaving the 3-D region of each'// &
+                 ' column through its sides, per unit column area'//NORM// &
+                 ' (net flux in at the top - net flux out at the bottom - absorptance_column)', &
+                 [(lay%i_htr + i, i=1, ncol)], dims=['x', 'y'])
+      end if
+
+      call radiance_results()
+
+      call add_var(set, 'batch_reflectance', 'reflectance of each batch', '1', ['batch'], rec(1, :))
+      call add_var(set, 'batch_transmittance', 'transmittance of each batch', '1', ['batch'], &
+                   rec(2, :))
+      call add_var(set, 'batch_absorptance', 'atmospheric absorptance of each batch', '1', &
+                   ['batch'], rec(3, :))
+
+      call date_and_time(values=tv)
+      write (stamp, '(i4.4,"-",i2.2,"-",i2.2,"T",i2.2,":",i2.2,":",i2.2)') tv(1:3), tv(5:7)
+      call add_attr(set, 'title', 'kumo Monte Carlo radiative transfer results')
+      call add_attr(set, 'source', 'kumo '//KUMO_VERSION)
+      call add_attr(set, 'history', trim(stamp)//' kumo '//cfg%path)
+      call add_attr(set, 'kumo_version', KUMO_VERSION)
+      call add_attr(set, 'configuration', config_echo(cfg))
+      call add_attr(set, 'seed', str(cfg%control%seed))
+      call add_attr(set, 'n_photons', str(summary%n_photons))
+      call add_attr(set, 'n_batches', str(summary%n_batches))
+      call add_attr(set, 'n_photons_per_batch', str(cfg%control%n_photons_per_batch))
+      call add_attr(set, 'n_ranks', str(summary%n_ranks))
+      call add_attr(set, 'parallel', merge('MPI   ', 'serial', PAR_IS_MPI))
+      call add_attr(set, 'wall_time_s', str(summary%wall_time))
+      call add_attr(set, 'cpu_time_s', str(summary%cpu_time))
+      call add_attr(set, 'setup_time_s', str(summary%setup_time))
+      call add_attr(set, 'solar_zenith_angle_deg', str(cfg%source%sza_deg))
+      if (cfg%source%wavelength_um > 0.0_wp) call add_attr(set, 'wavelength_um', &
+                                                           str(cfg%source%wavelength_um))
+      call add_attr(set, 'normalisation', 'fluxes and absorptances are divided by the incident'// &
+                    ' solar flux on a horizontal plane, mu0*F0; *_wm2 and power densities use F0 = '// &
+                    str(cfg%source%solar_flux)//' W m-2')
+      call add_attr(set, 'flight_steps_per_photon', &
+                    str(real(summary%flight_steps, dp)/real(max(1_i8, summary%n_photons), dp)))
+      call add_attr(set, 'events_per_photon', &
+                    str(real(summary%events, dp)/real(max(1_i8, summary%n_photons), dp)))
+      call add_attr(set, 'layer_classes', classes())
+      call add_attr(set, 'collision_forcing_factor', str(scene%vr%cf_factor))
+      call add_attr(set, 'truncation_levels', str(atm%trunc%n_levels))
+      call add_attr(set, 'vr_preset', trim(cfg%vr%preset))
+      call add_attr(set, 'mode_3d', trim(cfg%control%mode_3d))
+      if (cfg%control%mode_3d == 'p3d') call add_attr(set, 'p3d_orders', str(cfg%control%p3d_orders))
+      if (len(scene%warnings) > 0) call add_attr(set, 'warnings', scene%warnings)
+      if (len(scene%notes) > 0) call add_attr(set, 'scene_notes', scene%notes)
+      call add_attr(set, 'supervoxels', sv_text())
+      do i = 1, N_ANOMALIES
+        call add_attr(set, 'anomaly_'//trim(ANOMALY_NAMES(i)), str(summary%anomalies(i)))
+      end do
+    end associate
+
+  contains
+
+    !> Radiances at levels (domain means and maps) and camera images, as pi I/(mu0 F0), and
+    !> in W m-2 sr-1 when F0 is known.
+    subroutine radiance_results()
+      integer :: nd, nl, nn, c, np
+      real(dp), allocatable :: mr(:), er(:)
+      character(len=:), allocatable :: cn
+      character(len=*), parameter :: RNORM = 'pi times radiance divided by the incident solar'// &
+        ' flux on a horizontal plane (diffuse light only; the bidirectional reflectance factor'// &
+        ' for upward light at the top)'
+      nd = lay%n_rad_dir
+      nl = lay%n_rad_lev
+      if (nd > 0) then
+        call add_dim(set, 'direction', nd, coord=real(cfg%rad%mu, dp), units='1', &
+                     long_name='cosine of the propagation direction from the upward vertical'// &
+                     ' (> 0: upward light, seen by a downward-looking sensor)')
+        call add_var(set, 'direction_phi', 'azimuth of the propagation direction (same frame '// &
+                     'as phi0_deg: from +x towards +y)', 'degree', ['direction'], &
+                     real(cfg%rad%phi_deg, dp))
+        call add_dim(set, 'rad_level', nl, coord=z(cfg%rad%levels), units='m', &
+                     long_name='height of the radiance levels')
+        nn = nd*nl
+        call put('radiance', RNORM, [(lay%i_rad + i, i=1, nn)], &
+                 dims=['rad_level', 'direction'])
+        if (f_hor > 0.0_dp) then
+          mr = stats_mean1([(lay%i_rad + i, i=1, nn)])*f_hor/PI
+          er = stats_err1([(lay%i_rad + i, i=1, nn)])*f_hor/PI
+          call add_var(set, 'radiance_wm2sr', 'diffuse radiance', 'W m-2 sr-1', &
+                       ['rad_level', 'direction'], mr, er)
+        end if
+        if (lay%do_rad_maps) then
+          if (.not. (lay%do_maps .or. lay%do_voxel)) then
+            call add_dim(set, 'x', scene%atm%nx, units='m', long_name='x of the column centres', &
+                         coord=[((i - 0.5_dp)*scene%atm%dx, i=1, scene%atm%nx)])
+            call add_dim(set, 'y', scene%atm%ny, units='m', long_name='y of the column centres', &
+                         coord=[((i - 0.5_dp)*scene%atm%dy, i=1, scene%atm%ny)])
+          end if
+          call put('radiance_map', RNORM//', per column', &
+                   [(lay%i_rad_map + i, i=1, nn*ncol)], &
+                   dims=['x        ', 'y        ', 'rad_level', 'direction'])
+        end if
+      end if
+      do c = 1, size(lay%i_cam)
+        cn = 'camera'//str(c)
+        np = cfg%cam%npx(c)*cfg%cam%npy(c)
+        call add_dim(set, cn//'_x', cfg%cam%npx(c), long_name='pixel column of camera '//str(c))
+        call add_dim(set, cn//'_y', cfg%cam%npy(c), long_name='pixel row of camera '//str(c))
+        call put(cn//'_radiance', RNORM//', mean over each pixel of camera '//str(c), &
+                 [(lay%i_cam(c) + i, i=1, np)], dims=[cn//'_x', cn//'_y'])
+        if (f_hor > 0.0_dp) then
+          call add_var(set, cn//'_radiance_wm2sr', 'radiance, mean over each pixel', &
+                       'W m-2 sr-1', [cn//'_x', cn//'_y'], &
+                       stats_mean1([(lay%i_cam(c) + i, i=1, np)])*f_hor/PI, &
+                       stats_err1([(lay%i_cam(c) + i, i=1, np)])*f_hor/PI)
+        end if
+      end do
+    end subroutine radiance_results
+
+    subroutine put(name, long_name, idx, dims)
+      character(len=*), intent(in) :: name, long_name
+      integer, intent(in) :: idx(:)
+      character(len=*), intent(in), optional :: dims(:)
+      if (present(dims)) then
+        call add_var(set, name, long_name, '1', dims, stats_mean1(idx), stats_err1(idx))
+      else if (size(idx) == 1) then
+        call add_var(set, name, long_name, '1', [character(len=1) ::], stats_mean1(idx), &
+                     stats_err1(idx))
+      else
+        call add_var(set, name, long_name, '1', ['level'], stats_mean1(idx), stats_err1(idx))
+      end if
+    end subroutine put
+
+    function stats_mean1(idx) result(v)
+      integer, intent(in) :: idx(:)
+      real(dp) :: v(size(idx))
+      integer :: j
+      do j = 1, size(idx)
+        v(j) = st%s1(idx(j))/real(st%n_batches, dp)
+      end do
+    end function stats_mean1
+
+    function stats_err1(idx) result(v)
+      integer, intent(in) :: idx(:)
+      real(dp) :: v(size(idx))
+      integer :: j
+      real(dp) :: tmp(1)
+      do j = 1, size(idx)
+        tmp = stats_stderr(st, idx(j), idx(j))
+        v(j) = tmp(1)
+      end do
+    end function stats_err1
+
+    function classes() result(s)
+      character(len=:), allocatable :: s
+      s = join(LAYER_CLASS_NAMES(scene%atm%layer_class(1:scene%atm%nz)))
+    end function classes
+
+    function sv_text() result(s)
+      character(len=:), allocatable :: s
+      integer :: j
+      s = str(scene%atm%sv%ns)//' super-layers'
+      do j = 1, scene%atm%sv%ns
+        s = s//'; layers '//str(scene%atm%k3_lo + scene%atm%sv%kb(j) - 1)//'-'// &
+            str(scene%atm%k3_lo + scene%atm%sv%kt(j) - 1)//': blocks of '// &
+            str(scene%atm%sv%bx(j))//'x'//str(scene%atm%sv%by(j))//' voxels'
+      end do
+    end function sv_text
+  end subroutine build_results
+
+  !> Print the headline numbers, their standard errors and the anomaly counts.
+  subroutine log_summary(set, summary, path)
+    type(result_set_t), intent(in) :: set
+    type(run_summary_t), intent(in) :: summary
+    character(len=*), intent(in) :: path
+    character(len=24), parameter :: names(5) = [character(len=24) :: 'reflectance', &
+      'transmittance', 'absorptance_atmosphere', 'absorptance_surface', 'energy_closure']
+    integer :: i, j
+    write (output_unit, '(a)') 'photons '//str(summary%n_photons)//' in '// &
+      str(summary%n_batches)//' batches on '//str(summary%n_ranks)//' rank(s); wall '// &
+      str(summary%wall_time)//' s, cpu '//str(summary%cpu_time)//' s'
+    do i = 1, size(names)
+      do j = 1, size(set%vars)
+        if (trim(set%vars(j)%name) == trim(names(i))) then
+          write (output_unit, '(2x,a24,f12.6,a,f10.6)') names(i), set%vars(j)%mean(1), ' +- ', &
+            set%vars(j)%stderr(1)
+        end if
+      end do
+    end do
+    call log_radiances(set)
+    do i = 1, N_ANOMALIES
+      if (summary%anomalies(i) > 0) write (output_unit, '(a)') '  anomaly '// &
+        trim(ANOMALY_NAMES(i))//': '//str(summary%anomalies(i))
+    end do
+    write (output_unit, '(a)') 'wrote '//path
+  end subroutine log_summary
+
+  !> The domain-mean radiances, one line per direction and level, leaving out exact zeros (no
+  !> light enters at the top; a black surface reflects none); at most MAX_LINES lines.
+  subroutine log_radiances(set)
+    type(result_set_t), intent(in) :: set
+    integer, parameter :: MAX_LINES = 12
+    integer :: iv, iphi, idir, ilev, nd, nl, j, k, lines
+    real(dp) :: mu, phi, z
+    iv = find_var(set, 'radiance')
+    iphi = find_var(set, 'direction_phi')
+    idir = 0
+    ilev = 0
+    do j = 1, size(set%dims)
+      if (trim(set%dims(j)%name) == 'direction') idir = j
+      if (trim(set%dims(j)%name) == 'rad_level') ilev = j
+    end do
+    if (iv == 0 .or. iphi == 0 .or. idir == 0 .or. ilev == 0) return
+    nd = set%dims(idir)%size
+    nl = set%dims(ilev)%size
+    lines = 0
+    do j = 1, nd
+      mu = set%dims(idir)%coord(j)
+      phi = set%vars(iphi)%mean(j)
+      do k = 1, nl
+        z = set%dims(ilev)%coord(k)
+        if (set%vars(iv)%mean(k + (j - 1)*nl) == 0.0_dp .and. &
+            set%vars(iv)%stderr(k + (j - 1)*nl) == 0.0_dp) cycle
+        lines = lines + 1
+        if (lines > MAX_LINES) then
+          write (output_unit, '(a)') '  radiance: ... (all in the file)'
+          return
+        end if
+        write (output_unit, '(2x,a,f7.4,a,f7.1,a,f9.1,a,f12.6,a,f10.6)') 'radiance mu', mu, &
+          ' phi', phi, ' z', z, ' m', set%vars(iv)%mean(k + (j - 1)*nl), ' +- ', &
+          set%vars(iv)%stderr(k + (j - 1)*nl)
+      end do
+    end do
+  end subroutine log_radiances
+
+end module kumo_output

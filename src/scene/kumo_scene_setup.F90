@@ -1,0 +1,490 @@
+! SPDX-License-Identifier: BSD-3-Clause
+!> From a configuration to a scene: every input file the configuration names is read (on rank 0,
+!> then broadcast, so that all ranks hold the same arrays or the same error) and turned into the
+!> scene_t the photon loop reads: phase functions, the atmosphere (namelist layers, scene file or
+!> cloud file, Rayleigh layers), the surface (albedo, BRDF or MCARaTS surface maps), the source,
+!> the detectors and the variance reduction that serves them.
+module kumo_scene_setup
+  use kumo_kinds, only: wp, dp, i8
+  use kumo_constants, only: DEG2RAD, PI
+  use kumo_error, only: error_t, set_error, add_context, str
+  use kumo_phase, only: phase_t, new_phase_isotropic, new_phase_rayleigh, new_phase_hg, &
+                        phase_from_table, new_phase_rayleigh_depol, PHASE_ISOTROPIC, &
+                        PHASE_RAYLEIGH, PHASE_HG, PHASE_TABLE
+  use kumo_atmosphere, only: atmosphere_t, atmosphere_options_t, atmosphere_init, &
+                             atmosphere_set_truncation
+  use kumo_truncation, only: truncation_t, truncation_init
+  use kumo_camera, only: camera_t, camera_init, CAMERA_PINHOLE, CAMERA_ORTHOGRAPHIC, &
+                         MAX_IMAGE_SHIFTS
+  use kumo_local_estimate, only: detectors_init
+  use kumo_surface, only: surface_init, surface_init_brdf, surface_init_brdf_map
+  use kumo_brdf, only: brdf_params_t, BRDF_NPAR
+  use kumo_source, only: solar_source, source_stratify
+  use kumo_vr, only: collision_forcing, ddis_phases, spiky_without_vr, SPIKY_PEAK, DDIS_CONE_DEG
+  use kumo_scene, only: scene_t
+  use kumo_config, only: config_t, resolve_path
+  use kumo_cloud_scene, only: build_cloud_atmosphere, rayleigh_layers
+  use kumo_rayleigh, only: depol_from_king, king_factor_air
+  use kumo_textio, only: read_two_columns
+  use kumo_netcdf, only: read_scene_3d, read_albedo_map, read_brdf_map
+  use kumo_mcarats_files, only: mcarats_surface_t, read_mcarats_surface, mcarats_surface_npsfc, &
+                                mcarats_surface_brdf
+  use kumo_parallel, only: par_size, par_is_root, par_bcast_int, par_bcast_real
+  implicit none
+  private
+  public :: setup_scene
+
+contains
+
+  !> Build the scene (phase functions, atmosphere, surface, source) from a configuration.
+  subroutine setup_scene(cfg, scene, error)
+    type(config_t), intent(in) :: cfg
+    type(scene_t), intent(out) :: scene
+    type(error_t), allocatable, intent(out) :: error
+    type(phase_t), allocatable :: phases(:)
+    type(atmosphere_options_t) :: aopts
+    real(wp), allocatable :: ang(:), val(:), ext3(:, :, :, :), ssa3(:, :, :, :), alb(:, :)
+    type(brdf_params_t), allocatable :: bmap(:, :)
+    integer, allocatable :: iph3(:, :, :, :), phase1d(:, :)
+    integer :: i
+    character(len=:), allocatable :: nml_path
+    real(wp), allocatable :: ext1d(:, :), ssa1d(:, :), ray_ext(:), ray_rho(:)
+    character(len=:), allocatable :: ray_notes
+    real(wp) :: depol
+    character(len=:), allocatable :: cloud_notes, cloud_warnings
+    character(len=:), allocatable :: sfc_notes
+
+    nml_path = ''
+    if (allocated(cfg%path)) nml_path = cfg%path
+    allocate (phases(cfg%phase%n_phase))
+    do i = 1, cfg%phase%n_phase
+      select case (cfg%phase%kind(i))
+      case (PHASE_ISOTROPIC)
+        phases(i) = new_phase_isotropic()
+      case (PHASE_RAYLEIGH)
+        phases(i) = new_phase_rayleigh()
+      case (PHASE_HG)
+        phases(i) = new_phase_hg(cfg%phase%g(i), error)
+      case (PHASE_TABLE)
+        call read_two_columns(resolve_path(cfg%phase%file(i), nml_path), ang, val, error)
+        if (.not. allocated(error)) phases(i) = phase_from_table(ang, val, cfg%phase%n_table, error)
+      case default
+        call set_error(error, 'unknown phase-function kind code '//str(cfg%phase%kind(i)))
+      end select
+      if (allocated(error)) then
+        call add_context(error, '&kumo_phase: phase function '//str(i))
+        return
+      end if
+    end do
+
+    scene%notes = ''
+    scene%warnings = ''
+    ext1d = cfg%atm%ext1d
+    ssa1d = cfg%atm%ssa1d
+    phase1d = cfg%atm%phase1d
+    if (allocated(cfg%atm%air_density)) scene%air_density = cfg%atm%air_density
+    if (cfg%atm%rayleigh) then
+      ! molecules: one more 1-D component with its own phase function. The profile's arrays
+      ! that are not allocated (those of the other profiles) count as absent arguments.
+      call rayleigh_layers(cfg%atm%z, cfg%source%wavelength_um, cfg%atm%rayleigh_profile, &
+                           cfg%atm%co2_ppm, cfg%atm%latitude_deg, ray_ext, ray_rho, ray_notes, &
+                           error, p_levels=cfg%atm%p_levels, z_file=cfg%cloud%grid%z, &
+                           p_file=cfg%atm%p_cloud)
+      if (allocated(error)) then
+        call add_context(error, '&kumo_atmosphere rayleigh_profile = '''// &
+                         trim(cfg%atm%rayleigh_profile)//'''')
+        return
+      end if
+      depol = cfg%atm%rayleigh_depol
+      if (depol < 0.0_wp) depol = depol_from_king(king_factor_air(cfg%source%wavelength_um, &
+                                                                  cfg%atm%co2_ppm))
+      phases = [phases, new_phase_rayleigh_depol(depol, error)]
+      if (allocated(error)) then
+        call add_context(error, '&kumo_atmosphere rayleigh_depol')
+        return
+      end if
+      ext1d = reshape([ext1d, ray_ext], [cfg%atm%nz, size(ext1d, 2) + 1])
+      ssa1d = reshape([ssa1d, spread(1.0_wp, 1, cfg%atm%nz)], [cfg%atm%nz, size(ssa1d, 2) + 1])
+      phase1d = reshape([phase1d, spread(size(phases), 1, cfg%atm%nz)], &
+                        [cfg%atm%nz, size(phase1d, 2) + 1])
+      if (allocated(cfg%atm%p_cloud_source)) ray_notes = cfg%atm%p_cloud_source//'; '//ray_notes
+      scene%notes = scene%notes//'Rayleigh scattering (Bodhaine et al. 1999), rayleigh_profile'// &
+                    ' = '''//trim(cfg%atm%rayleigh_profile)//''': optical depth '// &
+                    str(sum(ray_ext*(cfg%atm%z(2:) - cfg%atm%z(:cfg%atm%nz))))// &
+                    ', depolarisation ratio '//str(depol)//new_line('a')// &
+                    '  pressure from '//ray_notes//new_line('a')
+      if (allocated(scene%air_density)) then
+        scene%notes = scene%notes//'  layer air density (heating rates): air_density of '// &
+                      '&kumo_atmosphere'//new_line('a')
+      else
+        scene%air_density = ray_rho
+        scene%notes = scene%notes//'  layer air density (heating rates): (p_bottom - p_top)/'// &
+                      '(g0 dz) of the same pressure, g0 = 9.80665 m s-2'//new_line('a')
+      end if
+    end if
+    aopts%use_1d_layers = cfg%vr%use_1d_layers
+    aopts%use_absorbing_layers = cfg%vr%use_absorbing_layers
+    aopts%sv%enabled = cfg%vr%use_supervoxels
+    aopts%sv%fsupg = cfg%vr%sv_fsupg
+    aopts%sv%fsupi = cfg%vr%sv_fsupi
+    aopts%sv%max_layers = cfg%vr%sv_max_layers
+    if (cfg%cloud%enabled) then
+      call cloud_on_ranks(cfg, ext1d, ssa1d, phase1d, phases, aopts, scene%atm, cloud_notes, &
+                          cloud_warnings, error)
+      if (allocated(error)) return
+      scene%notes = scene%notes//cloud_notes
+      scene%warnings = scene%warnings//cloud_warnings
+    else
+      if (len_trim(cfg%atm%scene_file) > 0) then
+        call read_scene_on_root(cfg, resolve_path(cfg%atm%scene_file, nml_path), ext3, ssa3, &
+                                iph3, error)
+        if (allocated(error)) return
+      end if
+      if (allocated(ext3)) then
+        call atmosphere_init(scene%atm, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, ext1d, ssa1d, &
+                             phase1d, phases, aopts, error, cfg%atm%k3d_bottom, ext3, ssa3, iph3)
+      else
+        call atmosphere_init(scene%atm, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, ext1d, ssa1d, &
+                             phase1d, phases, aopts, error)
+      end if
+      if (allocated(error)) return
+    end if
+
+    if (len_trim(cfg%surface%albedo_file) > 0) then
+      call read_albedo_on_root(resolve_path(cfg%surface%albedo_file, nml_path), &
+                               trim(cfg%surface%albedo_var), alb, error)
+      if (allocated(error)) return
+    else
+      allocate (alb(1, 1))
+      alb = cfg%surface%albedo
+    end if
+    if (len_trim(cfg%surface%surface_file) > 0) then
+      call mcarats_surface_on_root(cfg, resolve_path(cfg%surface%surface_file, nml_path), bmap, &
+                                   sfc_notes, error)
+      if (allocated(error)) return
+      call surface_init_brdf_map(scene%sfc, bmap, cfg%atm%lx, cfg%atm%ly, error)
+      call add_context(error, trim(cfg%surface%surface_file))
+      scene%notes = scene%notes//sfc_notes
+    else if (len_trim(cfg%surface%brdf_file) > 0) then
+      call brdf_map_on_root(resolve_path(cfg%surface%brdf_file, nml_path), cfg%surface%model%kind, &
+                            bmap, error)
+      if (allocated(error)) return
+      call surface_init_brdf_map(scene%sfc, bmap, cfg%atm%lx, cfg%atm%ly, error)
+      call add_context(error, trim(cfg%surface%brdf_file))
+    else if (cfg%surface%brdf == 'lambert') then
+      call surface_init(scene%sfc, alb, cfg%atm%lx, cfg%atm%ly, error)
+    else
+      call surface_init_brdf(scene%sfc, cfg%surface%model, cfg%atm%lx, cfg%atm%ly, error)
+    end if
+    if (allocated(error)) return
+
+    scene%src = solar_source(cfg%source%sza_deg, cfg%source%phi0_deg)
+    if (cfg%vr%stratify_source) then
+      ! entry cells: the 3-D region's columns, or else the surface map's pixels
+      if (scene%atm%n3 > 0) then
+        call source_stratify(scene%src, scene%atm%nx, scene%atm%ny, &
+                             scene%atm%z(scene%atm%nz) - scene%atm%z(0))
+      else if (.not. scene%sfc%uniform) then
+        call source_stratify(scene%src, scene%sfc%nxs, scene%sfc%nys, &
+                             scene%atm%z(scene%atm%nz) - scene%atm%z(0))
+      end if
+    end if
+    scene%mu0 = cos(cfg%source%sza_deg*DEG2RAD)
+    scene%vr%rr_threshold = cfg%vr%rr_threshold
+    scene%vr%rr_weight = cfg%vr%rr_weight
+    scene%max_events = cfg%control%max_events
+    select case (cfg%control%mode_3d)
+    case ('ica')
+      scene%n_3d = 0
+    case ('p3d')
+      scene%n_3d = cfg%control%p3d_orders
+    case default
+      scene%n_3d = huge(1)
+    end select
+    ! flight steps (null collisions, face crossings) per event are many but bounded: the step cap
+    ! only catches a photon that no longer makes progress
+    scene%max_steps = max(1000000000_i8, min(huge(1_i8)/2000_i8, cfg%control%max_events)*1000_i8)
+
+    call setup_estimators(cfg, scene, error)
+  end subroutine setup_scene
+
+  !> Radiance detectors, cameras and the variance reduction that serves them. Truncation and
+  !> collision forcing act on local estimates only, so they are set up only when radiances or
+  !> cameras are requested: a flux run pays for neither.
+  subroutine setup_estimators(cfg, scene, error)
+    type(config_t), intent(in) :: cfg
+    type(scene_t), intent(inout) :: scene
+    type(error_t), allocatable, intent(out) :: error
+    type(camera_t), allocatable :: cams(:)
+    type(truncation_t) :: tr
+    integer :: i, kind
+
+    allocate (cams(cfg%cam%n))
+    do i = 1, cfg%cam%n
+      kind = CAMERA_PINHOLE
+      if (cfg%cam%kind(i) == 'orthographic') kind = CAMERA_ORTHOGRAPHIC
+      call camera_init(cams(i), kind, cfg%cam%pos(:, i), cfg%cam%look_zenith_deg(i), &
+                       cfg%cam%look_azimuth_deg(i), cfg%cam%roll_deg(i), cfg%cam%fov_deg(i), &
+                       cfg%cam%width(i), cfg%cam%npx(i), cfg%cam%npy(i), cfg%atm%lx, cfg%atm%ly, &
+                       scene%atm%z(scene%atm%nz), error)
+      if (allocated(error)) then
+        call add_context(error, '&kumo_camera: camera '//str(i))
+        return
+      end if
+    end do
+    if (allocated(cfg%rad%mu)) then
+      ! numerical diffusion: the spread is `diffusion` x half the mean spacing of the photons
+      ! of the run at the top, sqrt(lx ly / N)/2, x sqrt(pi a) (MCARaTS, state-of-the-art B5);
+      ! it shrinks as the photon count grows
+      call detectors_init(scene%det, cfg%rad%mu, cfg%rad%phi_deg, cfg%rad%levels, cams, &
+                          cfg%vr%zeta_min, cfg%atm%lx, cfg%atm%ly, &
+                          cfg%vr%diffusion*0.5_wp*sqrt(cfg%atm%lx*cfg%atm%ly/ &
+                          (real(cfg%control%n_photons_per_batch, wp)*cfg%control%n_batches)), &
+                          cfg%vr%diffusion_max, cfg%vr%ddis_eps)
+    else   ! a configuration built in code without radiances
+      call detectors_init(scene%det, [real(wp) ::], [real(wp) ::], [integer ::], cams, &
+                          cfg%vr%zeta_min, cfg%atm%lx, cfg%atm%ly)
+    end if
+    if (.not. scene%det%active) return
+
+    if (cfg%vr%trunc_levels > 1) then
+      call truncation_init(tr, scene%atm%phases, cfg%vr%trunc_theta_max_deg, &
+                           cfg%vr%trunc_levels, &
+                           cfg%vr%trunc_peak, error)
+      if (allocated(error)) then
+        call add_context(error, '&kumo_vr: truncation')
+        return
+      end if
+      call atmosphere_set_truncation(scene%atm, tr)
+    end if
+
+    scene%vr%cf_factor = collision_forcing(scene%atm, scene%mu0, cfg%vr%cf_tau_min)
+    do i = 1, size(cams)
+      if (cams(i)%capped) scene%warnings = scene%warnings//'camera '//str(i)// &
+        ' sees the periodic scene up to the horizon; copies beyond '// &
+        str(MAX_IMAGE_SHIFTS)//' domain lengths are left out (pixels near the horizon are low). '
+    end do
+
+    scene%det%ddis_mu_cone = cos(DDIS_CONE_DEG*DEG2RAD)
+    deallocate (scene%det%ddis_phase)
+    allocate (scene%det%ddis_phase(size(scene%atm%phases)))
+    scene%det%ddis_phase = ddis_phases(scene%atm%phases)
+
+    ! local estimates with a forward peak and no variance reduction converge very slowly (one
+    ! rare near-forward scattering dominates)
+    if (spiky_without_vr(scene%atm%phases, cfg%vr%zeta_min, scene%atm%truncated)) then
+      scene%warnings = scene%warnings//'radiances are requested for a phase function with a forward peak '// &
+                       '(P(0) > '//str(SPIKY_PEAK)//') with local-estimate roulette and '// &
+                       'truncation off: pixel radiances will be very noisy; vr_preset = '// &
+                       '"unbiased" (roulette) or "standard" (also truncation) is recommended'
+    end if
+  end subroutine setup_estimators
+
+  !> Rank 0 reads the 3-D optical properties and broadcasts them; every rank ends with the same
+  !> arrays, or the same error.
+  subroutine read_scene_on_root(cfg, path, ext3, ssa3, iph3, error)
+    type(config_t), intent(in) :: cfg
+    character(len=*), intent(in) :: path
+    real(wp), allocatable, intent(out) :: ext3(:, :, :, :), ssa3(:, :, :, :)
+    integer, allocatable, intent(out) :: iph3(:, :, :, :)
+    type(error_t), allocatable, intent(out) :: error
+    integer :: status(2), i, n(4)
+    logical :: has_iph
+    real(dp), allocatable :: buf(:)
+    n = [cfg%atm%nx, cfg%atm%ny, cfg%atm%nz3, cfg%atm%n_components_3d]
+    status = 0
+    if (par_is_root()) then
+      call read_scene_3d(path, n(1), n(2), n(3), n(4), ext3, ssa3, iph3, has_iph, error)
+      if (allocated(error)) status(1) = 1
+      if (has_iph) status(2) = 1
+    end if
+    call share_read_status(status, path, error)
+    if (allocated(error)) return
+    if (.not. par_is_root()) allocate (ext3(n(1), n(2), n(3), n(4)), ssa3(n(1), n(2), n(3), n(4)))
+    if (status(2) == 0) then
+      if (allocated(iph3)) deallocate (iph3)
+      allocate (iph3(n(1), n(2), n(3), n(4)))
+      do i = 1, n(4)
+        iph3(:, :, :, i) = cfg%atm%phase3d(i)
+      end do
+    else if (.not. par_is_root()) then
+      allocate (iph3(n(1), n(2), n(3), n(4)))
+    end if
+    if (par_size() == 1) return
+    buf = reshape(ext3, [size(ext3)])
+    call par_bcast_real(buf)
+    ext3 = reshape(buf, shape(ext3))
+    buf = reshape(ssa3, [size(ssa3)])
+    call par_bcast_real(buf)
+    ssa3 = reshape(buf, shape(ssa3))
+    if (status(2) /= 0) then
+      buf = real(reshape(iph3, [size(iph3)]), dp)
+      call par_bcast_real(buf)
+      iph3 = reshape(nint(buf), shape(iph3))
+    end if
+  end subroutine read_scene_on_root
+
+  !> The cloud's atmosphere on every rank. Rank 0 goes first, so that a Mie table it computes
+  !> is in the cache before the other ranks look for it; they then read it instead of
+  !> computing it.
+  subroutine cloud_on_ranks(cfg, ext1d, ssa1d, phase1d, phases, aopts, atm, notes, warnings, &
+                            error)
+    type(config_t), intent(in) :: cfg
+    real(wp), intent(in) :: ext1d(:, :), ssa1d(:, :)
+    integer, intent(in) :: phase1d(:, :)
+    type(phase_t), allocatable, intent(inout) :: phases(:)
+    type(atmosphere_options_t), intent(in) :: aopts
+    type(atmosphere_t), intent(out) :: atm
+    character(len=:), allocatable, intent(out) :: notes, warnings
+    type(error_t), allocatable, intent(out) :: error
+    integer :: status(1)
+    status = 0
+    if (par_is_root()) then
+      call build(error)
+      if (allocated(error)) status = 1
+    end if
+    call share_read_status(status, cfg%cloud%req%path, error)
+    if (allocated(error) .or. par_is_root()) return
+    call build(error)
+  contains
+    subroutine build(err)
+      type(error_t), allocatable, intent(out) :: err
+      call build_cloud_atmosphere(cfg%cloud, cfg%source%wavelength_um, cfg%phase%n_table, &
+                                  cfg%atm%z, cfg%atm%lx, cfg%atm%ly, cfg%atm%k3d_bottom, ext1d, &
+                                  ssa1d, phase1d, phases, aopts, atm, notes, warnings, err)
+    end subroutine build
+  end subroutine cloud_on_ranks
+
+  !> Give every rank rank 0's read status (status(1) /= 0: failed; the rest: sizes); ranks
+  !> other than 0 get an error naming the file when the read failed.
+  subroutine share_read_status(status, path, error)
+    integer, intent(inout) :: status(:)
+    character(len=*), intent(in) :: path
+    type(error_t), allocatable, intent(inout) :: error
+    call par_bcast_int(status)
+    if (status(1) /= 0 .and. .not. allocated(error)) then
+      call set_error(error, 'reading '//path//' failed on rank 0')
+    end if
+  end subroutine share_read_status
+
+  !> Rank 0 reads the BRDF map and broadcasts it.
+  subroutine brdf_map_on_root(path, default_kind, bmap, error)
+    character(len=*), intent(in) :: path
+    integer, intent(in) :: default_kind
+    type(brdf_params_t), allocatable, intent(out) :: bmap(:, :)
+    type(error_t), allocatable, intent(out) :: error
+    integer :: status(3), i, j
+    integer, allocatable :: kind(:, :)
+    real(wp), allocatable :: c(:, :, :)
+    real(dp), allocatable :: buf(:)
+    status = 0
+    if (par_is_root()) then
+      call read_brdf_map(path, default_kind, status(2), status(3), kind, c, error)
+      if (allocated(error)) status(1) = 1
+    end if
+    call share_read_status(status, path, error)
+    if (allocated(error)) return
+    if (par_size() > 1) then
+      if (.not. par_is_root()) allocate (kind(status(2), status(3)), &
+                                         c(BRDF_NPAR, status(2), status(3)))
+      buf = [real(reshape(kind, [size(kind)]), dp), reshape(c, [size(c)])]
+      call par_bcast_real(buf)
+      kind = reshape(nint(buf(1:size(kind))), shape(kind))
+      c = reshape(buf(size(kind) + 1:), shape(c))
+    end if
+    allocate (bmap(status(2), status(3)))
+    do j = 1, status(3)
+      do i = 1, status(2)
+        bmap(i, j)%kind = kind(i, j)
+        bmap(i, j)%c = c(:, i, j)
+      end do
+    end do
+  end subroutine brdf_map_on_root
+
+  !> Rank 0 reads an MCARaTS surface file (&kumo_surface surface_file, binary, pixel counts
+  !> and enabled models from the namelist) and broadcasts kumo's BRDF map of it; the notes
+  !> (rank 0 only) say what the file held and what was taken from the namelist.
+  subroutine mcarats_surface_on_root(cfg, path, bmap, notes, error)
+    type(config_t), intent(in) :: cfg
+    character(len=*), intent(in) :: path
+    type(brdf_params_t), allocatable, intent(out) :: bmap(:, :)
+    character(len=:), allocatable, intent(out) :: notes
+    type(error_t), allocatable, intent(out) :: error
+    type(mcarats_surface_t) :: sfc
+    integer :: status(1), i, j, nxb, nyb, it
+    integer, allocatable :: kind(:, :)
+    real(wp), allocatable :: c(:, :, :)
+    real(dp), allocatable :: buf(:)
+    character(len=*), parameter :: KIND_NAMES(0:4) = &
+      [character(len=7) :: 'black', 'Lambert', 'DSM', 'RPV', 'LSRT']
+    nxb = cfg%surface%surface_nxb
+    nyb = cfg%surface%surface_nyb
+    notes = ''
+    status = 0
+    if (par_is_root()) then
+      call read_mcarats_surface(path, nxb, nyb, mcarats_surface_npsfc(cfg%surface%surface_mbrdf), &
+                                sfc, error, cfg%surface%surface_idread)
+      if (.not. allocated(error)) call mcarats_surface_brdf(sfc, cfg%surface%surface_mbrdf, path, &
+                                                            bmap, error)
+      if (allocated(error)) status = 1
+    end if
+    call share_read_status(status, path, error)
+    if (allocated(error)) return
+    if (par_is_root()) then
+      notes = 'surface file '//path//' (MCARaTS): dataset '//str(sfc%idread)//' of '// &
+              str(sfc%ndatasets)//', '//str(nxb)//' x '//str(nyb)//' pixels:'
+      do it = 0, 4
+        if (any(sfc%brdf_type == it)) notes = notes//' '//trim(KIND_NAMES(it))//' '// &
+                                              str(count(sfc%brdf_type == it))
+      end do
+      notes = notes//'; its temperatures are not used (solar radiation only)'//new_line('a')// &
+              'the file does not give its pixel counts (surface_nxb, surface_nyb) and the '// &
+              'extent they cover (the domain lx x ly = '//str(cfg%atm%lx)//' x '// &
+              str(cfg%atm%ly)//' m); taken from the namelist'//new_line('a')
+    end if
+    if (par_size() == 1) return
+    allocate (kind(nxb, nyb), c(BRDF_NPAR, nxb, nyb))
+    if (par_is_root()) then
+      do j = 1, nyb
+        do i = 1, nxb
+          kind(i, j) = bmap(i, j)%kind
+          c(:, i, j) = bmap(i, j)%c
+        end do
+      end do
+    else
+      allocate (bmap(nxb, nyb))
+    end if
+    buf = [real(reshape(kind, [size(kind)]), dp), reshape(c, [size(c)])]
+    call par_bcast_real(buf)
+    kind = reshape(nint(buf(1:size(kind))), shape(kind))
+    c = reshape(buf(size(kind) + 1:), shape(c))
+    do j = 1, nyb
+      do i = 1, nxb
+        bmap(i, j)%kind = kind(i, j)
+        bmap(i, j)%c = c(:, i, j)
+      end do
+    end do
+  end subroutine mcarats_surface_on_root
+
+  !> Rank 0 reads the albedo map and broadcasts it.
+  subroutine read_albedo_on_root(path, varname, alb, error)
+    character(len=*), intent(in) :: path, varname
+    real(wp), allocatable, intent(out) :: alb(:, :)
+    type(error_t), allocatable, intent(out) :: error
+    integer :: status(3)
+    real(dp), allocatable :: buf(:)
+    status = 0
+    if (par_is_root()) then
+      call read_albedo_map(path, varname, status(2), status(3), alb, error)
+      if (allocated(error)) status(1) = 1
+    end if
+    call share_read_status(status, path, error)
+    if (allocated(error)) return
+    if (par_size() == 1) return
+    if (.not. par_is_root()) allocate (alb(status(2), status(3)))
+    buf = reshape(alb, [size(alb)])
+    call par_bcast_real(buf)
+    alb = reshape(buf, shape(alb))
+  end subroutine read_albedo_on_root
+
+end module kumo_scene_setup

@@ -326,8 +326,8 @@ def write_reference(path, cases):
     lines = [
         '# thermal_1d_reference.csv: fluxes and radiances of plane-parallel thermal-emission cases',
         '# computed by bench/thermal/make_thermal_reference.py with the discrete-ordinates solver',
-        '# PythonicDISORT (Ho 2024, J. Open Source Softw. 9, 6442; checked there against DISORT test',
-        '# problems 6 and 7 to 4e-6 of the largest flux). Radiances at the given mu come from',
+        '# PythonicDISORT (Ho 2024, J. Open Source Softw. 9, 6442; checked by the script against DISORT',
+        '# test problems 6 and 7 to 4e-6 of the largest flux). Radiances at the given mu come from',
         '# integrating the discrete-ordinates source function along the line of sight.',
         '#',
         '# Conventions (kumo): layers k = 1..nz from the surface up, levels i = 0..nz (0 = surface).',

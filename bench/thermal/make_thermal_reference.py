@@ -9,8 +9,9 @@ an isotropic internal source given as a polynomial in optical depth per layer (m
 1 - ssa inside, Kirchhoff's law), so the Planck source linear in optical depth between level
 values (DISORT's convention, which kumo uses) is represented exactly.
 
-Usage (needs numpy, scipy and PythonicDISORT; about ten minutes on one core, most of it
-in the two scattering clouds with 256-400 streams):
+Usage (needs numpy, scipy and PythonicDISORT: `pip install PythonicDISORT==1.8`, which brings
+numpy and scipy; the file was made with numpy 2.4, scipy 1.17; about ten minutes on one core,
+most of it in the two scattering clouds with 256-400 streams):
 
     python3 bench/thermal/make_thermal_reference.py --shared-dir <KUMO_SHARED_DIR> \
         [--validate-only] [--output tests/data/thermal/thermal_1d_reference.csv]

@@ -78,9 +78,11 @@ def to_namelist(groups: Mapping[str, Mapping]) -> f90nml.Namelist:
 
 
 def write_namelist(groups: Mapping[str, Mapping], path) -> Path:
-    """Write the groups as a kumo namelist file at ``path`` (replaced if it exists)."""
+    """Write the groups as a kumo namelist file at ``path`` (replaced if it exists; missing
+    folders are created)."""
     path = Path(path)
     nml = to_namelist(groups)
+    path.parent.mkdir(parents=True, exist_ok=True)
     nml.write(path, force=True)
     return path
 

@@ -8,7 +8,8 @@ One figure with what the file contains (docs/output.md):
   layer absorptance, with error bars;
 * per-column maps (reflectance at the top, transmittance at the surface, column absorptance),
   domain-mean radiances against height, radiance maps and camera images; every image comes
-  with a panel of its relative standard error.
+  with a panel of its relative standard error (colour scale capped at its 98th percentile, so
+  a few near-zero means do not wash it out).
 
 Error bars are +-2 standard errors (about 95 %).
 """
@@ -73,7 +74,7 @@ def _profile_panels(ds):
                 err = _err(ds, name)
                 ax.errorbar(da.values, z / 1000.0, xerr=None if err is None else K_SIGMA * err,
                             marker=".", capsize=2, color="C3")
-                ax.set_xlabel(f"{name} [{da.attrs.get('units', '1')}]")
+                ax.set_xlabel(f"[{da.attrs.get('units', '1')}]")
                 ax.set_ylabel("height [km]")
                 ax.set_title(f"{name} (+-{K_SIGMA:g} s.e.)")
             panels.append(draw_absorption)
@@ -212,8 +213,13 @@ def quicklook(path, output=None, dpi: int = 120):
             if data is None:
                 ax.set_axis_off()
                 continue
-            im = ax.imshow(data if offset == 0 else 100.0 * data, origin="lower", cmap=cmap,
-                           aspect="auto", extent=extent, interpolation="nearest")
+            shown = data if offset == 0 else 100.0 * data
+            # relative errors: a few near-zero means must not wash out the colour scale
+            vmax = None
+            if offset == 1 and np.any(np.isfinite(shown)):
+                vmax = float(np.nanpercentile(shown, 98.0))
+            im = ax.imshow(shown, origin="lower", cmap=cmap, aspect="auto", extent=extent,
+                           interpolation="nearest", vmax=vmax)
             fig.colorbar(im, ax=ax, shrink=0.85, label=label)
             ax.set_title(name, fontsize="small")
             ax.set_xlabel("x [km]" if extent else "pixel")

@@ -163,11 +163,13 @@ def run_kumo(case, workdir=None, *, name: str = "case", exe=None, np: int = 1, m
     kumo is required); ``args`` are extra kumo options (e.g. ``["--check"]``). Raises
     :class:`KumoError` with kumo's message when it exits with a non-zero status.
     """
-    workdir = Path(workdir) if workdir is not None else Path.cwd()
+    workdir = (Path(workdir) if workdir is not None else Path.cwd()).resolve()
     workdir.mkdir(parents=True, exist_ok=True)
     program = find_executable(exe)
     nml = _namelist_path(case, workdir, name)
-    command = [str(program), *[str(a) for a in args], str(nml)]
+    # a namelist in the working directory is named as such (it is recorded in the output)
+    shown = nml.name if nml.parent == workdir else str(nml)
+    command = [str(program), *[str(a) for a in args], shown]
     if int(np) > 1:
         info = version_info(program)
         if info.get("parallel", "MPI") != "MPI":

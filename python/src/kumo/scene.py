@@ -8,7 +8,7 @@ names is transposed to that order first. The formats are specified in docs/input
 (scene, albedo map) and docs/les-input.md (cloud fields).
 
 Every writer checks the values with the rules kumo applies when it reads them, so a file
-written here is not rejected for its values.
+written here is not rejected for its values. Missing folders of the path are created.
 """
 
 from __future__ import annotations
@@ -31,6 +31,13 @@ def _array(value, dims, name):
     if array.ndim != len(dims):
         raise ValueError(f"{name}: {array.ndim}-D array, expected {len(dims)}-D {dims}")
     return array
+
+
+def _new_file(path) -> Path:
+    """``path`` as a Path, its folder created if missing."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return path
 
 
 def _check_range(array, name, low=None, high=None):
@@ -84,7 +91,7 @@ def write_scene(path, extinction, ssa, phase_index=None, ext_units: str = "m-1")
         _check_range(iph, "phase_index", low=1)
         iph = iph.astype(np.int32)
 
-    path = Path(path)
+    path = _new_file(path)
     with Dataset(path, "w", format="NETCDF4_CLASSIC") as nc:
         for name, size in zip(dims, ext.shape):
             nc.createDimension(name, size)
@@ -113,7 +120,7 @@ def write_albedo_map(path, albedo, var: str = "albedo") -> Path:
     """
     alb = _array(albedo, ("ys", "xs"), var).astype(float)
     _check_range(alb, var, low=0.0, high=1.0)
-    path = Path(path)
+    path = _new_file(path)
     with Dataset(path, "w", format="NETCDF4_CLASSIC") as nc:
         nc.createDimension("xs", alb.shape[1])
         nc.createDimension("ys", alb.shape[0])
@@ -151,7 +158,7 @@ def write_cloud(path, lwc, reff, z_edges, dx: float, dy: float) -> Path:
     if not (dx > 0 and dy > 0):
         raise ValueError(f"dx = {dx}, dy = {dy}: column widths must be > 0")
 
-    path = Path(path)
+    path = _new_file(path)
     with Dataset(path, "w", format="NETCDF4_CLASSIC") as nc:
         nc.createDimension("x", nx)
         nc.createDimension("y", ny)

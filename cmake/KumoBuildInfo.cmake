@@ -46,6 +46,7 @@ elseif(GIT_EXECUTABLE AND EXISTS "${GIT_EXECUTABLE}")
 endif()
 # a Fortran string between single quotes: no quotes or line breaks from outside
 string(REGEX REPLACE "['\n\r]" "" KUMO_GIT_COMMIT "${KUMO_GIT_COMMIT}")
+string(SUBSTRING "${KUMO_GIT_COMMIT}" 0 60 KUMO_GIT_COMMIT)   # keeps the source line short
 set(KUMO_BUILD_TYPE "${BUILD_TYPE}")
 if(NOT KUMO_BUILD_TYPE)
   set(KUMO_BUILD_TYPE "unspecified")

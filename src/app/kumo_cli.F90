@@ -147,33 +147,41 @@ contains
     files = ''
     problems = ''
     do i = 1, cfg%phase%n_phase
-      if (cfg%phase%kind(i) == PHASE_TABLE) &
+      if (cfg%phase%kind(i) == PHASE_TABLE) then
         call check_input('&kumo_phase phase_file('//str(i)//')', &
                          resolve_path(cfg%phase%file(i), path), files, problems)
+      end if
     end do
-    if (len_trim(cfg%atm%scene_file) > 0) &
+    if (len_trim(cfg%atm%scene_file) > 0) then
       call check_input('&kumo_atmosphere scene_file', resolve_path(cfg%atm%scene_file, path), &
                        files, problems)
-    if (len_trim(cfg%surface%albedo_file) > 0) &
+    end if
+    if (len_trim(cfg%surface%albedo_file) > 0) then
       call check_input('&kumo_surface albedo_file', resolve_path(cfg%surface%albedo_file, path), &
                        files, problems)
-    if (len_trim(cfg%surface%brdf_file) > 0) &
+    end if
+    if (len_trim(cfg%surface%brdf_file) > 0) then
       call check_input('&kumo_surface brdf_file', resolve_path(cfg%surface%brdf_file, path), &
                        files, problems)
-    if (len_trim(cfg%surface%surface_file) > 0) &
+    end if
+    if (len_trim(cfg%surface%surface_file) > 0) then
       call check_input('&kumo_surface surface_file', resolve_path(cfg%surface%surface_file, path), &
                        files, problems)
+    end if
     if (cfg%cloud%enabled) then
-      if (allocated(cfg%cloud%req%path)) &
+      if (allocated(cfg%cloud%req%path)) then
         call check_input('&kumo_cloud cloud_file', cfg%cloud%req%path, files, problems)
+      end if
       if (allocated(cfg%cloud%req%mcarats%phase_path)) then
-        if (len_trim(cfg%cloud%req%mcarats%phase_path) > 0) &
+        if (len_trim(cfg%cloud%req%mcarats%phase_path) > 0) then
           call check_input('&kumo_cloud mcarats_phase_file', cfg%cloud%req%mcarats%phase_path, &
                            files, problems)
+        end if
       end if
-      if (len_trim(cfg%cloud%ice_optics_file) > 0) &
+      if (len_trim(cfg%cloud%ice_optics_file) > 0) then
         call check_input('&kumo_cloud ice_optics_file', trim(cfg%cloud%ice_optics_file), files, &
                          problems)
+      end if
       if (len_trim(cfg%cloud%mie_cache) > 0) then
         cache = trim(cfg%cloud%mie_cache)
         inquire (file=cache, exist=exists)

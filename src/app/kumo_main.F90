@@ -11,7 +11,7 @@ program kumo_main
   use kumo_parallel, only: par_init, par_finalize, par_is_root, par_abort, par_stop, &
                            par_bcast_int
   use kumo_cli, only: cli_t, parse_command_line, help_text, version_text, check_case, &
-                      CLI_RUN, CLI_HELP, CLI_VERSION, CLI_CHECK
+                      CLI_HELP, CLI_VERSION, CLI_CHECK
   implicit none
   type(error_t), allocatable :: error
   type(cli_t) :: cli
@@ -46,7 +46,7 @@ program kumo_main
     end if
     call par_bcast_int(status)
     if (status(1) /= 0) call par_stop(1)
-  case (CLI_RUN)
+  case default   ! CLI_RUN
     call run_case(cli%path, error)
     if (allocated(error)) then   ! possibly found on one rank only: par_abort ends them all
       if (par_is_root()) write (error_unit, '(a)') 'kumo error: '//error%message

@@ -21,6 +21,7 @@ module kumo_parallel
   interface
     subroutine c_exit(status) bind(c, name='exit')
       import :: c_int
+      implicit none
       integer(c_int), value, intent(in) :: status
     end subroutine c_exit
   end interface

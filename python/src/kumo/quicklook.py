@@ -83,9 +83,10 @@ def _profile_panels(ds):
     if "radiance" in ds and ds["radiance"].ndim == 2:
         def draw_radiance(ax):
             da = ds["radiance"]
-            err = _err(ds, "radiance")
-            direction_dim = da.dims[0]
-            level_dim = da.dims[1]
+            direction_dim, level_dim = _radiance_dims(da)
+            da = da.transpose(direction_dim, level_dim)
+            err = ds.get("radiance" + STDERR_SUFFIX)
+            err = None if err is None else err.transpose(direction_dim, level_dim).values
             z = (da.coords[level_dim].values if level_dim in da.coords
                  else np.arange(da.sizes[level_dim]))
             for i in range(da.sizes[direction_dim]):
@@ -100,29 +101,36 @@ def _profile_panels(ds):
     return panels
 
 
+def _radiance_dims(da):
+    """(direction dim, level dim) of a radiance variable: by name, else the first two."""
+    direction = next((d for d in da.dims if "direction" in d), da.dims[0])
+    level = next((d for d in da.dims if "level" in d and d != direction),
+                 next(d for d in da.dims if d != direction))
+    return direction, level
+
+
 def _direction_label(ds, da, i):
-    """'mu=0.5 phi=90' for direction i of a radiance variable."""
-    dim = da.dims[0]
+    """'mu=0.5 phi=90' for direction i of a radiance variable: from the coordinates or
+    variables along the direction dimension whose names mention mu and phi (the direction
+    coordinate itself holds mu when nothing else does)."""
+    dim = _radiance_dims(da)[0]
+    along = {str(n): v for n, v in {**dict(ds.variables), **dict(da.coords)}.items()
+             if v.dims == (dim,)}
     parts = []
-    for name in ("mu", dim):
-        if name in da.coords and da.coords[name].dims == (dim,):
-            parts.append(f"mu={float(da.coords[name].values[i]):.3g}")
-            break
-    for name in ("phi", "direction_phi"):
-        source = da.coords if name in da.coords else ds
-        if name in source and source[name].dims == (dim,):
-            parts.append(f"phi={float(source[name].values[i]):.3g}")
-            break
+    for key in ("mu", "phi"):
+        names = [n for n in along if key in n.lower()]
+        if key == "mu" and not names and dim in along:
+            names = [dim]
+        if names:
+            parts.append(f"{key}={float(along[names[0]].values[i]):.3g}")
     return " ".join(parts) if parts else f"{dim} {i + 1}"
 
 
 def _extent(da):
     """imshow extent [km] from the x and y coordinates of a map, or None (pixel indices)."""
-    if da.ndim != 2:
+    if da.ndim != 2 or da.dims != ("y", "x") or "x" not in da.coords or "y" not in da.coords:
         return None
     ydim, xdim = da.dims
-    if xdim not in da.coords or ydim not in da.coords:
-        return None
     edges = []
     for dim in (xdim, ydim):
         c = np.asarray(da.coords[dim].values, dtype=float)
@@ -162,7 +170,7 @@ def _images(ds):
     if "radiance_map" in ds and ds["radiance_map"].ndim == 4:
         da = ds["radiance_map"]
         err = ds.get("radiance_map" + STDERR_SUFFIX)
-        direction_dim, level_dim = da.dims[0], da.dims[1]
+        direction_dim, level_dim = _radiance_dims(da)
         for k in reversed(range(da.sizes[level_dim])):      # top level first
             for i in range(da.sizes[direction_dim]):
                 sel = {direction_dim: i, level_dim: k}

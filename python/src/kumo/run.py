@@ -160,8 +160,9 @@ def run_kumo(case, workdir=None, *, name: str = "case", exe=None, np: int = 1, m
     ``case`` is a mapping of namelist groups (written to ``<workdir>/<name>.nml``) or the path
     of a namelist file. kumo runs in ``workdir`` (default: the current directory), so a
     relative output file name lands there. ``np`` > 1 runs ``mpirun -np np`` (an MPI build of
-    kumo is required); ``args`` are extra kumo options (e.g. ``["--check"]``). Raises
-    :class:`KumoError` with kumo's message when it exits with a non-zero status.
+    kumo is required); ``args`` are extra kumo options (e.g. ``["--check"]``); ``env`` adds
+    environment variables. Raises :class:`KumoError` with kumo's message when it exits with a
+    non-zero status, and ``subprocess.TimeoutExpired`` after ``timeout`` seconds.
     """
     workdir = (Path(workdir) if workdir is not None else Path.cwd()).resolve()
     workdir.mkdir(parents=True, exist_ok=True)

@@ -46,7 +46,8 @@ class Completed:
 
 
 def find_executable(exe=None) -> Path:
-    """The kumo program: ``exe`` if given, else ``$KUMO_EXE``, else ``kumo`` on ``PATH``."""
+    """The kumo program: ``exe`` if given, else ``$KUMO_EXE``, else ``kumo`` on ``PATH``.
+    ``exe`` and ``$KUMO_EXE`` may be paths or program names found on ``PATH``."""
     candidates = []
     if exe is not None:
         candidates.append(("the exe argument", str(exe)))
@@ -60,6 +61,8 @@ def find_executable(exe=None) -> Path:
         candidates.append(("PATH", found))
     source, path = candidates[0]
     path = Path(path).expanduser()
+    if not path.is_file() and os.sep not in str(path) and shutil.which(str(path)):
+        path = Path(shutil.which(str(path)))      # a program name, e.g. exe="kumo-mpi"
     if not path.is_file() or not os.access(path, os.X_OK):
         raise KumoError(f"kumo program from {source} = {path} is not an executable file")
     return path.resolve()

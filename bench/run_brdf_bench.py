@@ -25,12 +25,13 @@ Usage:
       [--parts events,image] [--batches 10] [--photons 65536]
 Writes <out>/brdf_events.csv, <out>/brdf_image.csv and <out>/brdf_summary.md; namelists and
 netCDF files go to <out>/raw/brdf/ (not kept in git). Build kumo in Release first
-(bash scripts/build.sh Release).
+(bash scripts/build.sh Release). The namelists and the scene file are written, and kumo is run,
+with the kumo Python package of this tree (python/; needs f90nml and xarray:
+bash scripts/install-deps.sh --python).
 """
 import argparse
 import csv
 import os
-import re
 import subprocess
 import sys
 import time
@@ -39,51 +40,46 @@ import numpy as np
 from netCDF4 import Dataset
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.join(REPO, 'python', 'src'))   # the kumo package of this tree
+import kumo  # noqa: E402
+
 SURFACES = {
-    'black': "brdf = 'black'",
-    'lambert': 'albedo = 0.5',
-    'lsrt': "brdf = 'lsrt', brdf_param = 0.3, 0.07, 0.03",
-    'rpv': "brdf = 'rpv', brdf_param = 0.3, 0.8, -0.1, 0.2",
-    'dsm': "brdf = 'dsm', brdf_param = 0.3, 0.5, 1.334, 0.0, 0.02",
+    'black': {'brdf': 'black'},
+    'lambert': {'albedo': 0.5},
+    'lsrt': {'brdf': 'lsrt', 'brdf_param': [0.3, 0.07, 0.03]},
+    'rpv': {'brdf': 'rpv', 'brdf_param': [0.3, 0.8, -0.1, 0.2]},
+    'dsm': {'brdf': 'dsm', 'brdf_param': [0.3, 0.5, 1.334, 0.0, 0.02]},
 }
 
 
-def run_kumo(cmd, cwd):
+def timed_run(exe, nml, cwd):
+    """Run kumo on the namelist file nml in cwd: (wall time [s], log)."""
     t0 = time.perf_counter()
-    p = subprocess.run(cmd, cwd=cwd, capture_output=True, text=True)
-    if p.returncode != 0:
-        sys.exit(f'run_brdf_bench: {" ".join(cmd)} failed:\n{p.stderr}')
-    return time.perf_counter() - t0, p.stdout
+    try:
+        done = kumo.run_kumo(nml, cwd, exe=exe)
+    except kumo.KumoError as error:
+        sys.exit(f'run_brdf_bench: kumo failed on {nml}:\n{error}')
+    return time.perf_counter() - t0, done.stdout
 
 
 def event_nml(surface, n, path):
-    with open(path, 'w') as f:
-        f.write(f"""&kumo_control
-  n_photons_per_batch = {n}, n_batches = 2, seed = 3, verbose = 0
-/
-&kumo_atmosphere
-  nz = 1
-  z_levels = 0.0, 1000.0
-/
-&kumo_surface
-  {SURFACES[surface]}
-/
-&kumo_source
-  sza_deg = 40.0
-/
-&kumo_vr
-  rr_threshold = 0.01
-/
-&kumo_output
-  file = '{os.path.basename(path)[:-4]}.nc'
-/
-""")
+    kumo.write_namelist({
+        'control': {'n_photons_per_batch': n, 'n_batches': 2, 'seed': 3, 'verbose': 0},
+        'atmosphere': {'nz': 1, 'z_levels': [0.0, 1000.0]},
+        'surface': SURFACES[surface],
+        'source': {'sza_deg': 40.0},
+        'vr': {'rr_threshold': 0.01},
+        'output': {'file': os.path.basename(path)[:-4] + '.nc'},
+    }, path)
 
 
-def instructions(kumo, nml, cwd):
+def instructions(exe, nml, cwd):
     out = nml[:-4] + '.cg'
-    run_kumo(['valgrind', '--tool=callgrind', f'--callgrind-out-file={out}', kumo,
-              os.path.basename(nml)], cwd)
+    p = subprocess.run(['valgrind', '--tool=callgrind', f'--callgrind-out-file={out}', exe,
+                        os.path.basename(nml)], cwd=cwd, capture_output=True, text=True,
+                       check=False)
+    if p.returncode != 0:
+        sys.exit(f'run_brdf_bench: callgrind failed on {nml}:\n{p.stderr}')
     with open(os.path.join(cwd, out)) as f:
         for line in f:
             if line.startswith('summary:') or line.startswith('totals:'):
@@ -121,80 +117,50 @@ def write_map(path, n, seed=1):
             v[:] = lo + (hi - lo) * rng.random((n, n))
 
 
-def write_empty_scene(path, n):
-    with Dataset(path, 'w', format='NETCDF4_CLASSIC') as nc:
-        for name in ('x', 'y'):
-            nc.createDimension(name, n)
-        nc.createDimension('z', 1)
-        nc.createDimension('component', 1)
-        dims = ('component', 'z', 'y', 'x')
-        v = nc.createVariable('extinction', 'f8', dims)
-        v.units = 'm-1'
-        v[:] = 0.0
-        v = nc.createVariable('ssa', 'f8', dims)
-        v.units = '1'
-        v[:] = 1.0
-
-
 def image_nml(path, n, photons, batches, rayleigh, preset):
     lx = 30.0 * n
+    atm = {'nz': 1, 'z_levels': [0.0, 1000.0]}
+    case = {}
     if rayleigh:
-        atm = f"""  nz = 2
-  z_levels = 0.0, 1000.0, 9000.0
-  ext1d(2,1) = {0.05 / 8000.0}, ssa1d(2,1) = 1.0
-  phase1d(2,1) = 1"""
-        phase = "&kumo_phase\n  phase_kind = 'rayleigh'\n/\n"
-    else:
-        atm = """  nz = 1
-  z_levels = 0.0, 1000.0"""
-        phase = ''
-    with open(path, 'w') as f:
-        f.write(f"""&kumo_control
-  n_photons_per_batch = {photons}, n_batches = {batches}, seed = 5, verbose = 0
-/
-&kumo_atmosphere
-{atm}
-  lx = {lx}, ly = {lx}
-  scene_file = 'empty_{n}.nc', nx = {n}, ny = {n}, nz3 = 1, k3d_bottom = 1
-  n_components_3d = 1
-/
-{phase}&kumo_surface
-  brdf = 'lsrt', brdf_file = 'lsrt_map_{n}.nc'
-/
-&kumo_source
-  sza_deg = 30.0
-/
-&kumo_radiance
-  rad_mu = 1.0, rad_phi_deg = 0.0
-/
-&kumo_vr
-  vr_preset = '{preset}'
-/
-&kumo_output
-  file = '{os.path.basename(path)[:-4]}.nc'
-  column_fluxes = .false., voxel_absorption = .false.
-/
-""")
+        # a Rayleigh layer of optical depth 0.05 above the (empty) 3-D region
+        atm = {'nz': 2, 'z_levels': [0.0, 1000.0, 9000.0], 'ext1d': [[0.0], [0.05 / 8000.0]],
+               'ssa1d': [[1.0], [1.0]], 'phase1d': [[1], [1]]}
+        case['phase'] = {'phase_kind': ['rayleigh']}
+    atm.update({'lx': lx, 'ly': lx, 'scene_file': f'empty_{n}.nc', 'nx': n, 'ny': n, 'nz3': 1,
+                'k3d_bottom': 1, 'n_components_3d': 1})
+    case.update({
+        'control': {'n_photons_per_batch': photons, 'n_batches': batches, 'seed': 5,
+                    'verbose': 0},
+        'atmosphere': atm,
+        'surface': {'brdf': 'lsrt', 'brdf_file': f'lsrt_map_{n}.nc'},
+        'source': {'sza_deg': 30.0},
+        'radiance': {'rad_mu': [1.0], 'rad_phi_deg': [0.0]},
+        'vr': {'vr_preset': preset},
+        'output': {'file': os.path.basename(path)[:-4] + '.nc', 'column_fluxes': False,
+                   'voxel_absorption': False},
+    })
+    kumo.write_namelist(case, path)
 
 
 def part_image(args, raw):
     n = 256
     write_map(os.path.join(raw, f'lsrt_map_{n}.nc'), n)
-    write_empty_scene(os.path.join(raw, f'empty_{n}.nc'), n)
+    kumo.write_scene(os.path.join(raw, f'empty_{n}.nc'), np.zeros((1, n, n)),
+                     np.ones((1, n, n)))
     rows = []
     for rayleigh, preset in ((False, 'analog'), (False, 'unbiased'), (True, 'analog'),
                              (True, 'unbiased')):
         # set-up alone: a run with the fewest photons the driver accepts
         nml0 = os.path.join(raw, f'image_setup_{int(rayleigh)}.nml')
         image_nml(nml0, n, 1, 2, rayleigh, preset)
-        t_setup, _ = run_kumo([args.kumo, os.path.basename(nml0)], raw)
+        t_setup, _ = timed_run(args.kumo, nml0, raw)
         nml = os.path.join(raw, f'image_{int(rayleigh)}_{preset}.nml')
         image_nml(nml, n, args.photons, args.batches, rayleigh, preset)
-        t_run, _ = run_kumo([args.kumo, os.path.basename(nml)], raw)
-        with Dataset(os.path.join(raw, os.path.basename(nml)[:-4] + '.nc')) as nc:
-            # (direction, rad_level, y, x): nadir, the top level
-            m = np.asarray(nc['radiance_map'][0, -1]).ravel()
-            e = np.asarray(nc['radiance_map_stderr'][0, -1]).ravel()
+        t_run, _ = timed_run(args.kumo, nml, raw)
+        ds = kumo.open_results(os.path.join(raw, os.path.basename(nml)[:-4] + '.nc'))
+        # (direction, rad_level, y, x): nadir, the top level
+        m = ds['radiance_map'][0, -1].values.ravel()
+        e = ds['radiance_map_stderr'][0, -1].values.ravel()
         # pixels whose LSRT sum is clipped at nadir view have no reflected light and no error
         rel = e[m > 0] / m[m > 0]
         q50, q99, qmax = np.percentile(rel, 50), np.percentile(rel, 99), rel.max()

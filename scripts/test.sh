@@ -5,7 +5,8 @@
 # suite; the serial build without MPI (build-serial/) runs all but the `bench` label (its
 # physics is the Release build's; what differs is the parallel layer, which the other
 # labels and the batch-by-batch comparison of the serial and MPI builds that follows
-# cover). All runs always happen; the script exits non-zero if any fails. The last line
+# cover). Then the Python package's pytest tests run against the Release build.
+# All runs always happen; the script exits non-zero if any fails. The last line
 # is the total over all runs, "N passed, N failed". A configuration that does not build
 # counts as one failed test.
 set -uo pipefail
@@ -80,6 +81,40 @@ else
   status=1
 fi
 rm -rf "$cmp_dir"
+
+# The Python package (python/): install it where it cannot disturb the user's Python
+# (build/python-site, with pip as `pip install ./python` would), then run its pytest tests
+# against the Release build. Each test counts; pytest exiting without a summary (no tests
+# collected: exit status 5, or a crash) counts as one failure.
+echo "=== Python package: pytest ==="
+python="${PYTHON:-python3}"
+repo=$PWD
+site="$repo/build/python-site"
+log=$(mktemp)
+if bash scripts/install-deps.sh --python &&
+  rm -rf "$site" &&
+  PIP_ROOT_USER_ACTION=ignore "$python" -m pip install --quiet --no-deps --target "$site" ./python; then
+  (cd python && PYTHONPATH="$site" KUMO_EXE="$repo/build/kumo" \
+    "$python" -m pytest -p no:cacheprovider -q -rs tests) 2>&1 | tee "$log"
+  rc=${PIPESTATUS[0]}
+else
+  echo "=== Python package: installation FAILED ==="
+  rc=-1
+fi
+line=$(grep -E '^=*[ ]*[0-9]+ (passed|failed|error)' "$log" | tail -n 1)
+rm -f "$log"
+py_passed=0
+py_failed=0
+[[ $line =~ ([0-9]+)\ passed ]] && py_passed=${BASH_REMATCH[1]}
+[[ $line =~ ([0-9]+)\ failed ]] && py_failed=${BASH_REMATCH[1]}
+[[ $line =~ ([0-9]+)\ errors? ]] && py_failed=$((py_failed + BASH_REMATCH[1]))
+if ((rc != 0 && py_failed == 0)); then
+  py_failed=1   # no tests run, or pytest or the installation broke down
+fi
+summaries+=("pytest: ${py_passed} passed, ${py_failed} failed")
+total_passed=$((total_passed + py_passed))
+total_failed=$((total_failed + py_failed))
+((rc != 0)) && status=1
 
 echo "=== summary ==="
 for s in "${summaries[@]}"; do

@@ -1,24 +1,57 @@
 ! SPDX-License-Identifier: BSD-3-Clause
-!> kumo: forward Monte Carlo 3-D radiative transfer. Usage: `kumo CASE.nml`.
+!> kumo: forward Monte Carlo 3-D radiative transfer. Usage: `kumo [options] CASE.nml`
+!> (`kumo --help`).
+!>
+!> Exit status: 0 success, 1 invalid case or failed run, 2 wrong command line. Errors are one
+!> `kumo error: ...` message on standard error, without a STOP line (`par_abort`).
 program kumo_main
-  use, intrinsic :: iso_fortran_env, only: error_unit
+  use, intrinsic :: iso_fortran_env, only: error_unit, output_unit
   use kumo_error, only: error_t
   use kumo_driver, only: run_case
-  use kumo_parallel, only: par_init, par_finalize, par_is_root, par_abort
+  use kumo_parallel, only: par_init, par_finalize, par_is_root, par_abort, par_stop, &
+                           par_bcast_int
+  use kumo_cli, only: cli_t, parse_command_line, help_text, version_text, check_case, &
+                      CLI_HELP, CLI_VERSION, CLI_CHECK
   implicit none
   type(error_t), allocatable :: error
-  character(len=4096) :: path
+  type(cli_t) :: cli
+  character(len=:), allocatable :: report
+  integer :: status(1)
 
   call par_init()
-  if (command_argument_count() /= 1) then
-    if (par_is_root()) write (error_unit, '(a)') 'usage: kumo CASE.nml'
-    call par_abort(2)
-  end if
-  call get_command_argument(1, path)
-  call run_case(trim(path), error)
+  call parse_command_line(cli, error)
   if (allocated(error)) then
-    if (par_is_root()) write (error_unit, '(a)') 'kumo error: '//error%message
-    call par_abort(1)
+    if (par_is_root()) write (error_unit, '(a)') 'kumo: '//error%message//new_line('a')// &
+                                                 'usage: kumo [options] CASE.nml (kumo --help)'
+    call par_stop(2)   ! every rank parsed the same command line
   end if
+
+  select case (cli%action)
+  case (CLI_HELP)
+    if (par_is_root()) write (output_unit, '(a)') help_text()
+  case (CLI_VERSION)
+    if (par_is_root()) write (output_unit, '(a)') version_text()
+  case (CLI_CHECK)
+    ! rank 0 checks; the others learn the outcome, so that every rank ends with the same status
+    status = 0
+    if (par_is_root()) then
+      call check_case(cli%path, report, error)
+      if (len(report) > 0) write (output_unit, '(a)') report
+      if (allocated(error)) then
+        write (error_unit, '(a)') 'kumo error: '//error%message
+        status = 1
+      else
+        write (output_unit, '(a)') 'kumo --check: '//cli%path//' is valid; nothing was run'
+      end if
+    end if
+    call par_bcast_int(status)
+    if (status(1) /= 0) call par_stop(1)
+  case default   ! CLI_RUN
+    call run_case(cli%path, error)
+    if (allocated(error)) then   ! possibly found on one rank only: par_abort ends them all
+      if (par_is_root()) write (error_unit, '(a)') 'kumo error: '//error%message
+      call par_abort(1)
+    end if
+  end select
   call par_finalize()
 end program kumo_main

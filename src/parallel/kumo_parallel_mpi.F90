@@ -7,17 +7,31 @@ module kumo_parallel
   use mpi_f08, only: MPI_Init, MPI_Initialized, MPI_Finalize, MPI_Finalized, MPI_Comm_rank, &
     MPI_Comm_size, MPI_Reduce, MPI_Allreduce, MPI_Bcast, MPI_Barrier, MPI_Wtime, MPI_Abort, &
     MPI_COMM_WORLD, MPI_IN_PLACE, MPI_DOUBLE_PRECISION, MPI_INTEGER, MPI_INTEGER8, MPI_SUM
+  use mpi_f08, only: MPI_Ibarrier, MPI_Test, MPI_Request, MPI_STATUS_IGNORE
+  use, intrinsic :: iso_c_binding, only: c_int
   use kumo_kinds, only: dp, i8
   implicit none
   private
   public :: par_init, par_finalize, par_rank, par_size, par_is_root, par_sum_to_root, &
             par_allreduce_sum, par_abort, par_barrier, par_wtime, par_bcast_int, par_bcast_real, PAR_IS_MPI
+  public :: par_stop
 
   logical, parameter :: PAR_IS_MPI = .true.  !! this build distributes batches over MPI ranks
 
   interface par_sum_to_root
     module procedure sum_to_root_dp, sum_to_root_i8
   end interface par_sum_to_root
+
+  !> The C library's exit(): ends the process with an exit status and, unlike STOP with a code,
+  !> prints nothing (Fortran 2008 has no quiet STOP). Fortran units are flushed and closed by
+  !> the run-time library's exit handlers.
+  interface
+    subroutine c_exit(status) bind(c, name='exit')
+      import :: c_int
+      implicit none
+      integer(c_int), value, intent(in) :: status
+    end subroutine c_exit
+  end interface
 
 contains
 
@@ -100,15 +114,32 @@ contains
     t = MPI_Wtime()
   end function par_wtime
 
-  !> Stop every rank with a non-zero exit code (no rank is left waiting). A single-rank run
-  !> finalises MPI and stops quietly, without the launcher's abort banner.
+  !> Stop every rank with a non-zero exit code (no rank is left waiting). When every rank calls
+  !> it within ABORT_GRACE_S seconds (an error all ranks found, such as an invalid namelist)
+  !> MPI is finalised and each rank exits quietly (`par_stop`); otherwise (an error on some
+  !> ranks only, the others busy or waiting in a collective operation) MPI_Abort ends them all.
   subroutine par_abort(code)
     integer, intent(in) :: code
-    if (par_size() == 1) then
-      call MPI_Finalize()
-      if (code == 2) stop 2
-      stop 1
-    end if
+    real(dp), parameter :: ABORT_GRACE_S = 5.0_dp
+    type(MPI_Request) :: request
+    logical :: all_here
+    real(dp) :: t0
+    if (par_size() == 1) call par_stop(code)
+    call MPI_Ibarrier(MPI_COMM_WORLD, request)
+    t0 = MPI_Wtime()
+    do
+      call MPI_Test(request, all_here, MPI_STATUS_IGNORE)
+      if (all_here) call par_stop(code)
+      if (MPI_Wtime() - t0 > ABORT_GRACE_S) exit
+    end do
     call MPI_Abort(MPI_COMM_WORLD, code)
   end subroutine par_abort
+
+  !> End the run with exit status `code` and no STOP line. Every rank must call it (an outcome
+  !> all ranks know, e.g. after a broadcast): MPI is finalised, then each process exits.
+  subroutine par_stop(code)
+    integer, intent(in) :: code
+    call par_finalize()
+    call c_exit(int(code, c_int))
+  end subroutine par_stop
 end module kumo_parallel

@@ -1,17 +1,30 @@
 ! SPDX-License-Identifier: BSD-3-Clause
 !> Serial build of kumo_parallel: one rank, every operation is trivial.
 module kumo_parallel
+  use, intrinsic :: iso_c_binding, only: c_int
   use kumo_kinds, only: dp, i8
   implicit none
   private
   public :: par_init, par_finalize, par_rank, par_size, par_is_root, par_sum_to_root, &
             par_allreduce_sum, par_abort, par_barrier, par_wtime, par_bcast_int, par_bcast_real, PAR_IS_MPI
+  public :: par_stop
 
   logical, parameter :: PAR_IS_MPI = .false.  !! this build runs on one process
 
   interface par_sum_to_root
     module procedure sum_to_root_dp, sum_to_root_i8
   end interface par_sum_to_root
+
+  !> The C library's exit(): ends the process with an exit status and, unlike STOP with a code,
+  !> prints nothing (Fortran 2008 has no quiet STOP). Fortran units are flushed and closed by
+  !> the run-time library's exit handlers.
+  interface
+    subroutine c_exit(status) bind(c, name='exit')
+      import :: c_int
+      implicit none
+      integer(c_int), value, intent(in) :: status
+    end subroutine c_exit
+  end interface
 
 contains
 
@@ -67,9 +80,15 @@ contains
     t = real(count, dp)/real(rate, dp)
   end function par_wtime
 
+  !> End the run with exit status `code`, without a STOP line.
   subroutine par_abort(code)
     integer, intent(in) :: code
-    if (code == 2) stop 2
-    stop 1
+    call par_stop(code)
   end subroutine par_abort
+
+  !> End the run with exit status `code` and no STOP line.
+  subroutine par_stop(code)
+    integer, intent(in) :: code
+    call c_exit(int(code, c_int))
+  end subroutine par_stop
 end module kumo_parallel

@@ -1,6 +1,7 @@
 # SPDX-License-Identifier: BSD-3-Clause
 # Run kumo on a namelist that must be rejected: the run has to end with a non-zero exit code,
-# print a message matching REGEX on standard error, and leave no output file behind.
+# print a message matching REGEX on standard error (and no STOP line after it), and leave no
+# output file behind.
 # Variables: KUMO (program), NML (namelist), REGEX, OUT (output file that must not exist),
 # optional CDL_DIR (every <name>.cdl there, netCDF in CDL text, becomes <name>.nc with ncgen
 # before the run).
@@ -24,6 +25,9 @@ if(rc EQUAL 0)
 endif()
 if(NOT err MATCHES "${REGEX}")
   message(FATAL_ERROR "message does not match '${REGEX}':\n${err}")
+endif()
+if(err MATCHES "(^|\n)(ERROR )?STOP")
+  message(FATAL_ERROR "a STOP line follows kumo's message:\n${err}")
 endif()
 if(EXISTS ${OUT} OR EXISTS ${OUT}.tmp)
   message(FATAL_ERROR "a (partial) output file was left behind: ${OUT}")

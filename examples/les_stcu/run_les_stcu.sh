@@ -6,17 +6,26 @@
 #
 #   bash examples/les_stcu/run_les_stcu.sh [photons per batch, default 100000]
 #
-# Environment: KUMO (the kumo program, default build/kumo), KUMO_SHARED_DIR (the shared data
-# folder, default: `shared` next to the repository). Output goes to examples/les_stcu/run/.
+# Input: examples/data/i3rc_les/i3rc_les_stcu.lwc (in the repository; source and licence in its
+# README). Environment: KUMO (the kumo program, default build/kumo), KUMO_RUN_DIR (the folder
+# for the namelists, Mie tables and outputs, default examples/les_stcu/run/).
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 repo="$(cd "$here/../.." && pwd)"
 kumo="${KUMO:-$repo/build/kumo}"
-shared="${KUMO_SHARED_DIR:-$repo/../shared}"
-lwc="$(cd "$shared/data/i3rc/les_examples" && pwd)/i3rc_les_stcu.lwc"
+lwc="$repo/examples/data/i3rc_les/i3rc_les_stcu.lwc"
+if [[ ! -x $kumo ]]; then
+  echo "run_les_stcu: $kumo not found or not executable; build kumo first: bash scripts/build.sh" >&2
+  exit 1
+fi
+if [[ ! -f $lwc ]]; then
+  echo "run_les_stcu: input file $lwc not found; this checkout lacks examples/data" >&2
+  exit 1
+fi
 photons="${1:-100000}"
-mkdir -p "$here/run"
-cd "$here/run"
+run_dir="${KUMO_RUN_DIR:-$here/run}"
+mkdir -p "$run_dir"
+cd "$run_dir"
 
 for wl in 0.67 2.13; do
   tag="${wl/./}"
@@ -38,6 +47,10 @@ for wl in 0.67 2.13; do
 &kumo_source sza_deg = 60.0, wavelength_um = ${wl}, solar_flux = 1000.0 /
 &kumo_surface albedo = 0.05 /
 &kumo_radiance rad_mu = 1.0, rad_phi_deg = 0.0 /
+! The nadir radiance image: with the default preset ('unbiased') the 64 x 64 map is dominated by
+! noise at this photon budget; 'standard' (truncated forward peaks, collision forcing, map
+! diffusion) gives a readable image at a small bias (docs/radiances.md).
+&kumo_vr vr_preset = 'standard' /
 &kumo_output file = 'les_stcu_${tag}.nc' /
 NML
   echo "== les_stcu_${tag}.nml"

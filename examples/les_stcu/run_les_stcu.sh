@@ -27,16 +27,29 @@ run_dir="${KUMO_RUN_DIR:-$here/run}"
 mkdir -p "$run_dir"
 cd "$run_dir"
 
+# Air density of the 17 layers (the ground to 425 m, then the file's 16 layers), for the heating
+# rates at 2.13 um, where no Rayleigh profile supplies it: (p_bottom - p_top) / (g0 dz) of the
+# US 1976 standard atmosphere below 11 km, p = p0 (1 - L H / T0)^(g0 M / (R L)) with H the
+# geopotential height, the values kumo takes itself from its Rayleigh profile at 0.67 um.
+density=$(awk 'NR == 4 {
+  n = split("0 " $0, z)
+  for (k = 1; k <= n; k++) {
+    zm = 1000 * z[k]; h = 6356766 * zm / (6356766 + zm)
+    p[k] = 101325 * (1 - 0.0065 * h / 288.15) ^ 5.255877
+  }
+  for (k = 1; k < n; k++) printf "%s%.6f", (k > 1 ? ", " : ""), (p[k] - p[k + 1]) / (9.80665 * 1000 * (z[k + 1] - z[k]))
+}' "$lwc")
+
 for wl in 0.67 2.13; do
   tag="${wl/./}"
   # Rayleigh scattering is defined for 0.23-1.69 um; at 2.13 um its optical depth over the
-  # lowest kilometre is below 1e-4 and is left out.
-  rayleigh=".true."
-  [ "$wl" = "2.13" ] && rayleigh=".false."
+  # lowest kilometre is below 1e-4 and is left out, and the air density is given instead.
+  atmosphere="rayleigh = .true."
+  [ "$wl" = "2.13" ] && atmosphere="rayleigh = .false., air_density = ${density}"
   cat > "les_stcu_${tag}.nml" <<NML
 ! I3RC LES stratocumulus at ${wl} um, optics computed by kumo from LWC and r_eff.
-&kumo_control n_photons_per_batch = ${photons}, n_batches = 20 /
-&kumo_atmosphere rayleigh = ${rayleigh} /
+&kumo_control n_photons_per_batch = ${photons}, n_batches = 20, seed = 1 /
+&kumo_atmosphere ${atmosphere} /
 &kumo_cloud
   cloud_file = '${lwc}'
   cloud_format = 'lwc'

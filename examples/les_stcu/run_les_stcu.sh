@@ -15,7 +15,8 @@ repo="$(cd "$here/../.." && pwd)"
 kumo="${KUMO:-$repo/build/kumo}"
 lwc="$repo/examples/data/i3rc_les/i3rc_les_stcu.lwc"
 if [[ ! -x $kumo ]]; then
-  echo "run_les_stcu: $kumo not found or not executable; build kumo first: bash scripts/build.sh" >&2
+  echo "run_les_stcu: $kumo not found or not executable; build kumo first:" \
+    "bash scripts/build.sh" >&2
   exit 1
 fi
 if [[ ! -f $lwc ]]; then
@@ -37,7 +38,10 @@ density=$(awk 'NR == 4 {
     zm = 1000 * z[k]; h = 6356766 * zm / (6356766 + zm)
     p[k] = 101325 * (1 - 0.0065 * h / 288.15) ^ 5.255877
   }
-  for (k = 1; k < n; k++) printf "%s%.6f", (k > 1 ? ", " : ""), (p[k] - p[k + 1]) / (9.80665 * 1000 * (z[k + 1] - z[k]))
+  for (k = 1; k < n; k++) {
+    rho = (p[k] - p[k + 1]) / (9.80665 * 1000 * (z[k + 1] - z[k]))
+    printf "%s%.6f", (k > 1 ? ", " : ""), rho
+  }
 }' "$lwc")
 
 for wl in 0.67 2.13; do

@@ -26,8 +26,7 @@ Besides the scene file, `--atm-group FILE` writes the matching `&kumo_atmosphere
 Usage:
   python3 bench/make_landsat_scene.py --data DIR --out scene.nc [--refine 2] [--layers 20]
       [--ssa 0.99] [--atm-group atm.nml]
-DIR defaults to $KUMO_SHARED_DIR/data/i3rc/phase1_inputs (KUMO_SHARED_DIR defaults to the
-folder `shared` next to the repository).
+DIR defaults to examples/data/i3rc_phase1, the copy of the I3RC inputs in the repository.
 """
 import argparse
 import os

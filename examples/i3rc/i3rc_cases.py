@@ -3,9 +3,8 @@
 """Write kumo scenes and namelists for the I3RC Phase 1 cases (Cahalan et al. 2005).
 
 The three Phase 1 clouds of the Intercomparison of 3-D Radiation Codes (Cahalan et al. 2005,
-BAMS 86, 1275, doi:10.1175/BAMS-86-9-1275), with the inputs from the shared data folder
-(`$KUMO_SHARED_DIR/data/i3rc/phase1_inputs`; KUMO_SHARED_DIR defaults to the folder `shared`
-next to the repository; its README, section 1, describes the files and the experiments):
+BAMS 86, 1275, doi:10.1175/BAMS-86-9-1275), with the inputs in examples/data/i3rc_phase1 (their
+README gives the source and the licence; `--data DIR` reads them from elsewhere):
 
   case 1  step cloud: 32 columns of 15.625 m (period 0.5 km), columns 1-16 optical depth 2,
           17-32 optical depth 18, cloud from 0 to 0.25 km, uniform extinction, infinite in y
@@ -14,7 +13,8 @@ next to the repository; its README, section 1, describes the files and the exper
           ground to 2.43 km, infinite in y
   case 3  Landsat cloud (scene 43): 128 x 128 columns of 30 m, cloud base flat at 0.2 km,
           column optical depth and geometric thickness from `scene43.tau/dz.128x128`, uniform
-          extinction in each column
+          extinction in each column; 80 equal layers from the base to the highest top (30 m
+          thick), so that the voxels the cloud tops cut hold little of any column
 
 No atmosphere besides the cloud, periodic boundaries, one wavelength, solar flux 1, sun in the
 x-z plane with the photons travelling towards +x (`phi0_deg = 0`). Experiments (EXPERIMENTS
@@ -36,7 +36,10 @@ with `--p3d-orders N` (photons move horizontally during the direct beam and afte
 1 .. N-1, and stay in their column afterwards; files `..._p3d<N>.nml`). The namelists ask for the I3RC products:
 flux maps at the ground and the top (R, T), absorption per column (A) and net horizontal
 transport (H) of the 3-D region, which spans the whole atmosphere, and radiance maps (Iu, Id,
-I601, I602); plot_i3rc.py extracts them.
+I601, I602); plot_i3rc.py extracts them. As in the I3RC definitions (and the consensus files),
+the transmittance T and the zenith radiance Id are taken at the cloud base: 630 m in case 2
+(the lowest 14 layers of the MMCR field are clear), 200 m in case 3, the ground in case 1. The
+namelists therefore put flux and radiance detectors at the ground, the cloud base and the top.
 
 `--check` reads the scene files back and verifies their column optical depths against the
 published statistics (case 1: exactly 2 and 18; case 2: mean 19.509, min 6.480, max 51.525;
@@ -68,7 +71,10 @@ REPO = os.path.dirname(os.path.dirname(HERE))
 BASE_KM = 0.2          # flat cloud base of the Landsat scene [km]
 DX_M = 30.0            # column size of the Landsat field [m]
 N_FIELD = 128          # columns per side of the Landsat field
-LANDSAT_LAYERS = 20    # equal layers from the cloud base to the highest cloud top
+#: Equal layers from the cloud base to the highest cloud top (2.38 km above it). With 20 layers
+#: of 119 m the voxels the cloud tops cut spread their optical depth over the whole voxel, which
+#: lowers R by 0.27 % and the nadir radiance by 0.6 % against the same cloud on 80 layers.
+LANDSAT_LAYERS = 80
 
 MMCR_FILE = 'mmcr_tau_32km_020898'
 MMCR_SHAPE = (54, 640)  # lines (layers, top first) x values (columns)
@@ -84,18 +90,15 @@ C1_FILE = 'C.1_PF'
 
 
 def default_data_dir():
-    """$KUMO_SHARED_DIR/data/i3rc/phase1_inputs; KUMO_SHARED_DIR defaults to `shared` next to
-    the repository."""
-    shared = os.environ.get('KUMO_SHARED_DIR')
-    if not shared:
-        shared = os.path.join(os.path.dirname(REPO), 'shared')
-    return os.path.join(shared, 'data', 'i3rc', 'phase1_inputs')
+    """The I3RC Phase 1 inputs shipped with the repository: examples/data/i3rc_phase1."""
+    return os.path.join(REPO, 'examples', 'data', 'i3rc_phase1')
 
 
 def _input_path(data_dir, name):
     path = os.path.join(data_dir, name)
     if not os.path.isfile(path):
-        raise ValueError(f'input file {path} not found (set KUMO_SHARED_DIR or use --data)')
+        raise ValueError(f'input file {path} not found (the repository holds it in '
+                         'examples/data/i3rc_phase1; --data DIR reads it from DIR)')
     return path
 
 
@@ -238,6 +241,17 @@ class Scene:
     def shape(self):
         return self.ext.shape
 
+    @property
+    def base_level(self):
+        """The cloud base: the level below the lowest layer holding any cloud (0 = ground)."""
+        cloudy = np.flatnonzero((self.ext > 0).any(axis=(1, 2)))
+        return int(cloudy[0]) if cloudy.size else 0
+
+    @property
+    def detector_levels(self):
+        """Levels of the flux and radiance detectors: ground, cloud base (if above it), top."""
+        return sorted({0, self.base_level, self.shape[0]})
+
 
 def build_scene(case, data_dir):
     """The cloud of `case` (1, 2, 3) as a Scene."""
@@ -279,6 +293,10 @@ def namelist_text(scene, scene_file, case, exp_no, exp, mode, p3d_orders, photon
     tag = mode_tag(mode, p3d_orders)
     out = f'case{case}_exp{exp_no}_{tag}.nc'
     zl = ', '.join(f'{z:.6f}' for z in scene.z_m)
+    levels = ', '.join(str(k) for k in scene.detector_levels)
+    base = scene.base_level
+    base_text = (f'level {base} = {scene.z_m[base]:g} m' if base > 0 else
+                 'level 0, the ground: the cloud starts there')
     npb = max(1, photons // batches)
     mode_lines = f"  mode_3d = '{mode}'\n"
     if mode == 'p3d':
@@ -316,18 +334,19 @@ def namelist_text(scene, scene_file, case, exp_no, exp, mode, p3d_orders, photon
         '  phi0_deg = 0.0            ! photons travel towards +x (sun at low x)\n'
         '  solar_flux = 1.0\n'
         '/\n'
-        '! R, T: flux maps at the ground (level 0) and the top; A, H: absorptance_column and\n'
+        f'! R: flux map at the top; T: at the cloud base ({base_text}), as I3RC defines it;\n'
+        '! the ground level closes the budget. A, H: absorptance_column and\n'
         '! horizontal_transport_map (the 3-D region spans levels 0..nz)\n'
         '&kumo_output\n'
         f"  file = '{out}'\n"
-        f'  flux_levels = 0, {nz}\n'
+        f'  flux_levels = {levels}\n'
         '/\n'
-        '! Iu: mu 1 at the top; Id: mu -1 at the ground; I601, I602: mu 0.5 at the top, light\n'
+        '! Iu: mu 1 at the top; Id: mu -1 at the cloud base; I601, I602: mu 0.5 at the top, light\n'
         '! travelling towards +x (phi 0, forward side) and -x (phi 180)\n'
         '&kumo_radiance\n'
         '  rad_mu = 1.0, -1.0, 0.5, 0.5\n'
         '  rad_phi_deg = 0.0, 0.0, 0.0, 180.0\n'
-        f'  rad_levels = 0, {nz}\n'
+        f'  rad_levels = {levels}\n'
         '/\n')
 
 
@@ -405,7 +424,7 @@ def main(argv=None):
                     help=f'batches per run (default {DEFAULT_BATCHES})')
     ap.add_argument('--seed', type=int, default=1, help='random seed (default 1)')
     ap.add_argument('--data', default=None, help='folder with the I3RC Phase 1 input files '
-                    '(default $KUMO_SHARED_DIR/data/i3rc/phase1_inputs)')
+                    '(default examples/data/i3rc_phase1)')
     ap.add_argument('--run-dir', default=os.path.join(HERE, 'run'),
                     help='folder for the scenes and namelists (default examples/i3rc/run)')
     ap.add_argument('--check', action='store_true',

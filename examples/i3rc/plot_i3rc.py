@@ -3,19 +3,22 @@
 """Extract the I3RC products from kumo output files, tabulate their domain means and plot them.
 
 For each kumo output file written from a namelist of i3rc_cases.py (the 3-D region spans the
-whole atmosphere, flux levels 0 and nz, radiances at levels 0 and nz), the per-pixel I3RC
-products and their standard errors are
+whole atmosphere; flux and radiance levels at the ground, the cloud base when it is above the
+ground, and the top), the per-pixel I3RC products and their standard errors are
 
   R     flux_up_map at the top                              (reflectance)
-  T     flux_down_map at level 0                            (transmittance, direct + diffuse)
+  T     flux_down_map at the cloud base                     (transmittance, direct + diffuse)
   A     absorptance_column                                  (absorptance)
   H     horizontal_transport_map                            (net horizontal transport)
   Iu    radiance_map, mu  1.0, top                          (nadir reflectivity)
-  Id    radiance_map, mu -1.0, ground                       (zenith transmissivity, diffuse)
+  Id    radiance_map, mu -1.0, cloud base                   (zenith transmissivity, diffuse)
   I601  radiance_map, mu  0.5, phi   0, top                 (60 deg, light towards +x)
   I602  radiance_map, mu  0.5, phi 180, top                 (60 deg, light towards -x)
 
-all normalised by the incident flux mu0 F0 (radiances as pi I / (mu0 F0)), each with kumo's own
+The cloud base is the lowest level above the ground when the file has three or more levels
+(i3rc_cases.py writes 0, base, top for cases 2 and 3), else the ground (case 1, whose cloud
+starts at the ground); the I3RC consensus files give T and Id there. All are normalised by the
+incident flux mu0 F0 (radiances as pi I / (mu0 F0)), each with kumo's own
 per-pixel standard error. Domain means
 of R, T, A and the radiances are kumo's domain products (reflectance, transmittance,
 absorptance_atmosphere, radiance) with their standard errors. The domain mean of H is the mean
@@ -54,11 +57,18 @@ FLUXES = ('R', 'T', 'A', 'H')
 RADIANCES = ('Iu', 'Id', 'I601', 'I602')
 LONG = {'R': 'reflectance', 'T': 'transmittance', 'A': 'absorptance',
         'H': 'net horizontal transport', 'Iu': 'nadir reflectivity (mu 1, top)',
-        'Id': 'zenith transmissivity (mu -1, ground)',
+        'Id': 'zenith transmissivity (mu -1, cloud base)',
         'I601': 'reflectivity mu 0.5 phi 0 (top)', 'I602': 'reflectivity mu 0.5 phi 180 (top)'}
-#: the radiance products: (mu, phi [deg], level 'top' or 'bottom')
-RAD_DIRS = {'Iu': (1.0, None, 'top'), 'Id': (-1.0, None, 'bottom'),
+#: the radiance products: (mu, phi [deg], level 'top' or 'base' (the cloud base))
+RAD_DIRS = {'Iu': (1.0, None, 'top'), 'Id': (-1.0, None, 'base'),
             'I601': (0.5, 0.0, 'top'), 'I602': (0.5, 180.0, 'top')}
+
+
+def base_index(heights):
+    """Index of the cloud-base level among `heights`: the lowest above the ground when there are
+    three or more levels, else the ground."""
+    order = np.argsort(heights)
+    return int(order[1]) if len(heights) > 2 else int(order[0])
 
 
 class ProductError(Exception):
@@ -114,7 +124,10 @@ class Run:
 
         # per-pixel products
         self.maps['R'], self.maps_se['R'] = pick('flux_up_map', top)
-        self.maps['T'], self.maps_se['T'] = pick('flux_down_map', bot)
+        base = base_index(levels)
+        self.base_height = float(levels[base])
+        self.maps['T'], self.maps_se['T'] = pick('flux_down_map', base)
+        t_ground = var('flux_down_map')[bot]
         self.maps['A'], self.maps_se['A'] = var('absorptance_column'), \
             var('absorptance_column_stderr')
         self.maps['H'], self.maps_se['H'] = var('horizontal_transport_map'), \
@@ -127,7 +140,7 @@ class Run:
         rad, rad_se = var('radiance'), var('radiance_stderr')
         rmap, rmap_se = var('radiance_map'), var('radiance_map_stderr')
         for p, (m, ph, where) in RAD_DIRS.items():
-            k = int(np.argmax(rlev)) if where == 'top' else int(np.argmin(rlev))
+            k = int(np.argmax(rlev)) if where == 'top' else base_index(rlev)
             hit = np.isclose(mu, m, atol=1e-6)
             if ph is not None:
                 hit &= np.isclose(np.mod(phi - ph + 180.0, 360.0) - 180.0, 0.0, atol=1e-6)
@@ -157,7 +170,7 @@ class Run:
         # closure: R + (T - F_up,ground) + A + H = incident flux, domain-wide and per column
         self.closure = (self.mean['R'] + self.mean['T'] - self.up_ground + self.mean['A'] +
                         self.mean['H'])
-        col = self.maps['R'] + self.maps['T'] - up_bot + self.maps['A'] + self.maps['H']
+        col = self.maps['R'] + t_ground - up_bot + self.maps['A'] + self.maps['H']
         self.closure_col_err = float(np.max(np.abs(col - self.incident)))
         self.incident_rms = float(np.sqrt(np.mean((self.incident - 1.0) ** 2)))
         self.max_abs_h = float(np.max(np.abs(self.maps['H'])))

@@ -11,8 +11,8 @@
 # time of every run is appended to run/timings.txt, and plot_i3rc.py writes <name>_summary.txt
 # and <name>.png for every new output, F3D-versus-ICA (or -P3D) comparisons where both outputs
 # exist, and run/summary.md, a table of the domain means of every output in run/.
-# Environment: KUMO (the kumo program, default build/kumo), PYTHON (default python3),
-# KUMO_SHARED_DIR (the shared data folder, default: `shared` next to the repository).
+# Input: examples/data/i3rc_phase1 (in the repository; source and licence in its README).
+# Environment: KUMO (the kumo program, default build/kumo), PYTHON (default python3).
 set -euo pipefail
 
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"

@@ -7,17 +7,29 @@
 #
 #   bash examples/mcarats_les05/run_mcarats_les05.sh [photons per batch, default 100000]
 #
-# Environment: KUMO (the kumo program, default build/kumo), KUMO_SHARED_DIR (the shared data
-# folder, default: `shared` next to the repository). Output goes to examples/mcarats_les05/run/.
+# Input: examples/data/mcarats_les05/ (in the repository; source and licence in its README).
+# Environment: KUMO (the kumo program, default build/kumo), KUMO_RUN_DIR (the folder for the
+# namelists and outputs, default examples/mcarats_les05/run/).
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 repo="$(cd "$here/../.." && pwd)"
 kumo="${KUMO:-$repo/build/kumo}"
-shared="${KUMO_SHARED_DIR:-$repo/../shared}"
-data="$(cd "$shared/data/mcarats" && pwd)"
+data="$repo/examples/data/mcarats_les05"
+if [[ ! -x $kumo ]]; then
+  echo "run_mcarats_les05: $kumo not found or not executable; build kumo first:" \
+    "bash scripts/build.sh" >&2
+  exit 1
+fi
+for f in les05_0213.atm les05_0213.atm.ctl les05_0213.sca les05_0213.sca.ctl; do
+  if [[ ! -f $data/$f ]]; then
+    echo "run_mcarats_les05: input file $data/$f not found; this checkout lacks examples/data" >&2
+    exit 1
+  fi
+done
 photons="${1:-100000}"
-mkdir -p "$here/run"
-cd "$here/run"
+run_dir="${KUMO_RUN_DIR:-$here/run}"
+mkdir -p "$run_dir"
+cd "$run_dir"
 
 # The 1-D aerosol of conf_hr0213 has Atm_apf1d = 2: table 2 of the phase-function file. kumo's
 # 1-D layers take phase functions from &kumo_phase, so table 2 is written as a two-column text

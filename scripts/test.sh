@@ -12,6 +12,8 @@ set -uo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 
 bash scripts/install-deps.sh || exit 1
+# RRTMGP k-distribution files for the gas-optics tests (cache outside the source tree).
+bash scripts/fetch-rrtmgp.sh || exit 1
 
 total_passed=0
 total_failed=0

@@ -49,7 +49,7 @@ from rrtmgp.optics.lookup_volume_mixing_ratio import LookupVolumeMixingRatio  # 
 
 N_A = 6.02214076e23
 G0 = 9.80665
-M_DRY = 28.9644e-3
+M_DRY = 28.9644e-3  # U.S. Standard Atmosphere 1976
 M_H2O = 18.0153e-3
 R_DRY = 287.04  # J kg-1 K-1, RCEMIP sounding (Wing et al. 2018)
 
@@ -221,7 +221,8 @@ def run_case(out, kind, fname, col, targets, levels=False):
     out.write("gases " + " ".join(names) + "\n")
     out.write(f"surface {col['tsfc']:.17g} {col['tsi']:.17g}\n")
     for k, l in enumerate(layers):
-        row = [col["p_lay"][l], col["t_lay"][l], cd_all[l], col["t_lev"][l], col["t_lev"][l + 1]]
+        row = [col["p_lay"][l], col["t_lay"][l], cd_all[l], col["t_lev"][l], col["t_lev"][l + 1],
+               col["p_lev"][l], col["p_lev"][l + 1]]
         row += [vmr[g][k] for g in names]
         out.write(f"layer {l + 1} " + " ".join(f"{v:.17g}" for v in row) + "\n")
 
@@ -272,7 +273,8 @@ def main():
                   "#   gases <names in the order of the vmr columns>\n"
                   "#   surface <surface temperature K> <total solar irradiance W m-2>\n"
                   "#   layer <index from the bottom> p[Pa] T[K] col_dry[molecules m-2] "
-                  "T_bottom[K] T_top[K] vmr...\n"
+                  "T_bottom[K] T_top[K]\n"
+                  "#     p_bottom[Pa] p_top[Pa] vmr...\n"
                   "#   <quantity> <layer index, 0 for column quantities> <one value per g-point>\n"
                   "#     tau, tau_rayleigh: optical depth; lay_src, lev_src_bot, lev_src_top,\n"
                   "#     sfc_src: Planck source W m-2 sr-1; solar_src: W m-2\n"

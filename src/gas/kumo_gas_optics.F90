@@ -58,11 +58,16 @@ module kumo_gas_optics
 
   public :: gas_kdist_t, minor_table_t, GAS_NAME_LEN
   public :: gas_index, kdist_finish, kdist_memory_bytes
-  public :: gas_optical_depth, gas_planck_source, gas_solar_source
+  public :: gas_optical_depth, gas_planck_source, gas_solar_source, gas_col_dry
+  public :: AVOGADRO_CODATA, GRAVITY_STD, MOLAR_MASS_DRY, MOLAR_MASS_H2O
 
   integer, parameter :: GAS_NAME_LEN = 32          !! length of gas names in the files
   real(wp), parameter :: CM2_TO_M2 = 1.0e-4_wp     !! the tables are in cm2 per molecule
   real(wp), parameter :: PA_TO_HPA = 0.01_wp       !! the density scaling uses p in hPa
+  real(wp), parameter :: AVOGADRO_CODATA = 6.02214076e23_wp  !! mol-1 (SI 2019, exact)
+  real(wp), parameter :: GRAVITY_STD = 9.80665_wp            !! m s-2, standard gravity
+  real(wp), parameter :: MOLAR_MASS_DRY = 28.9644e-3_wp      !! kg mol-1, dry air (US 1976)
+  real(wp), parameter :: MOLAR_MASS_H2O = 18.0153e-3_wp      !! kg mol-1, water
 
   !> Minor absorbers of one atmosphere part (lower or upper): one entry per minor interval, a
   !> contiguous range of g-points of one band where one gas absorbs.
@@ -438,6 +443,47 @@ contains
     end if
     src = total * kd%solar_quiet / sum(kd%solar_quiet)
   end subroutine gas_solar_source
+
+  !> Dry-air column of each layer between pressure levels, molecules m-2, for a hydrostatic layer
+  !> of dry air and water vapour: N_A (p_bottom - p_top) / (g (M_d + M_w r_w)), r_w the
+  !> water-vapour volume mixing ratio relative to dry air.
+  subroutine gas_col_dry(plev, vmr_h2o, col_dry, error, gravity)
+    real(wp), intent(in) :: plev(0:)         !! level pressure, Pa; plev(0) bottom of layer 1
+    real(wp), intent(in) :: vmr_h2o(:)       !! (n_layer) mol/mol of dry air
+    real(wp), intent(out) :: col_dry(:)      !! (n_layer) molecules m-2
+    type(error_t), allocatable, intent(out) :: error
+    real(wp), intent(in), optional :: gravity  !! m s-2 (default GRAVITY_STD)
+    real(wp) :: g
+    integer :: l, nl
+    nl = size(vmr_h2o)
+    g = GRAVITY_STD
+    if (present(gravity)) g = gravity
+    if (size(plev) /= nl + 1 .or. size(col_dry) /= nl) then
+      call set_error(error, 'gas_col_dry: ' // str(nl) // ' layers need ' // str(nl + 1) // &
+                     ' levels and ' // str(nl) // ' outputs, got ' // str(size(plev)) // ' and ' // &
+                     str(size(col_dry)))
+      return
+    end if
+    if (.not. ieee_is_finite(g) .or. g <= 0) then
+      call set_error(error, 'gas_col_dry: gravity = ' // str(g) // ' m s-2, must be > 0')
+      return
+    end if
+    do l = 1, nl
+      if (.not. (plev(l - 1) > plev(l) .and. plev(l) >= 0) .or. .not. ieee_is_finite(plev(l - 1))) then
+        call set_error(error, 'gas_col_dry: level pressures must decrease upwards and be >= 0; ' // &
+                       'levels ' // str(l - 1) // ', ' // str(l) // ': ' // str(plev(l - 1)) // &
+                       ', ' // str(plev(l)) // ' Pa')
+        return
+      end if
+      if (.not. ieee_is_finite(vmr_h2o(l)) .or. vmr_h2o(l) < 0) then
+        call set_error(error, 'gas_col_dry: layer ' // str(l) // ' water vapour = ' // &
+                       str(vmr_h2o(l)) // ', must be >= 0')
+        return
+      end if
+      col_dry(l) = AVOGADRO_CODATA * (plev(l - 1) - plev(l)) / &
+                   (g * (MOLAR_MASS_DRY + MOLAR_MASS_H2O * vmr_h2o(l)))
+    end do
+  end subroutine gas_col_dry
 
   ! ---------------------------------------------------------------------------------------------
 

@@ -20,7 +20,7 @@ module test_gas_optics_suite
   use kumo_kinds, only: wp
   use kumo_error, only: str
   use kumo_gas_optics, only: gas_kdist_t, gas_index, gas_optical_depth, gas_planck_source, &
-                             gas_solar_source, kdist_memory_bytes
+                             gas_solar_source, kdist_memory_bytes, gas_col_dry
   use kumo_rrtmgp_file, only: read_rrtmgp_kdist
   use kumo_testing, only: error_t, unittest_t, new_unittest, check
   use netcdf, only: nf90_create, nf90_def_dim, nf90_enddef, nf90_close, NF90_CLOBBER
@@ -90,7 +90,7 @@ contains
     integer, allocatable :: lay_id(:), map(:)
     real(wp), allocatable :: p(:), t(:), cd(:), tlev(:), vmr(:, :), row(:), vin(:)
     real(wp), allocatable :: tau(:, :), tray(:, :), src(:, :, :), sfc(:), sol(:), got(:)
-    real(wp) :: tsfc, tsi, diff, worst, worst_all
+    real(wp) :: tsfc, tsi, diff, worst, worst_all, cdry(1)
     type(gas_kdist_t), pointer :: kd
     type(error_t), allocatable :: err
     logical :: computed
@@ -114,7 +114,7 @@ contains
         if (allocated(error)) exit
         if (allocated(names)) deallocate (names, map, lay_id, p, t, cd, tlev, vmr, vin)
         allocate (names(ng), map(ng), lay_id(nl), p(nl), t(nl), cd(nl), tlev(0:2*nl - 1), &
-                  vmr(nl, kd%n_gas), vin(5 + ng))
+                  vmr(nl, kd%n_gas), vin(7 + ng))
         vmr = 0
         k = 0
         computed = .false.
@@ -139,8 +139,17 @@ contains
         tlev(2*k - 2) = vin(4)
         tlev(2*k - 1) = vin(5)
         do i = 1, ng
-          vmr(k, map(i)) = vin(5 + i)
+          vmr(k, map(i)) = vin(7 + i)
         end do
+        ! The dry-air column of the reference follows from the level pressures and water vapour.
+        call gas_col_dry(vin(6:7), [vmr(k, gas_index(kd, 'h2o'))], cdry, err)
+        if (allocated(err)) then
+          call check(error, .false., err%message)
+          exit
+        end if
+        call check(error, abs(cdry(1) - cd(k)) <= 1.0e-13_wp * cd(k), trim(cname) // ' layer ' // &
+                   str(lay_id(k)) // ': gas_col_dry ' // str(cdry(1)) // ', reference ' // str(cd(k)))
+        if (allocated(error)) exit
       case ('end')
         write (*, '(a, es9.2)') '  ' // trim(cname) // ' ' // trim(fname) // &
           ': largest relative difference ', worst

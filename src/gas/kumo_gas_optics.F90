@@ -46,12 +46,12 @@
 !>
 !> Memory of the tables (8-byte reals): `kmajor` n_temp x (n_press+1) x n_eta x n_gpt
 !> (14 x 60 x 9 x 128: 7.7 MB for lw-g128, 6.8 MB for sw-g112, twice that for g256/g224), the same
-!> again for the Planck fractions (longwave), the minor tables 14 x 9 x n_contributors (0.7 MB for
+!> again for the Planck fractions (longwave), the minor tables 14 x 9 x n_contributors (0.8 MB for
 !> lw-g128) and the Rayleigh tables 2 x 14 x 9 x n_gpt (0.2 MB for sw-g112). One longwave plus one
-!> shortwave set at 128/112 g-points takes about 23 MB.
+!> shortwave set at 128/112 g-points takes 24 MB (`kdist_memory_bytes`).
 module kumo_gas_optics
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
-  use kumo_kinds, only: wp
+  use kumo_kinds, only: wp, i8
   use kumo_error, only: error_t, set_error, str, to_lower
   implicit none
   private
@@ -227,17 +227,18 @@ contains
   !> Bytes held by the tables of `kd`.
   pure function kdist_memory_bytes(kd) result(nbytes)
     type(gas_kdist_t), intent(in) :: kd
-    integer(kind=8) :: nbytes
+    integer(i8) :: nbytes
     integer :: part
     nbytes = 0
-    if (allocated(kd%kmajor)) nbytes = nbytes + 8_8 * size(kd%kmajor, kind=8)
-    if (allocated(kd%planck_fraction)) nbytes = nbytes + 8_8 * size(kd%planck_fraction, kind=8)
-    if (allocated(kd%rayleigh)) nbytes = nbytes + 8_8 * size(kd%rayleigh, kind=8)
-    if (allocated(kd%planck_band)) nbytes = nbytes + 8_8 * size(kd%planck_band, kind=8)
-    if (allocated(kd%vmr_ref)) nbytes = nbytes + 8_8 * size(kd%vmr_ref, kind=8)
+    if (allocated(kd%kmajor)) nbytes = nbytes + 8_i8 * size(kd%kmajor, kind=i8)
+    if (allocated(kd%planck_fraction)) nbytes = nbytes + 8_i8 * size(kd%planck_fraction, kind=i8)
+    if (allocated(kd%rayleigh)) nbytes = nbytes + 8_i8 * size(kd%rayleigh, kind=i8)
+    if (allocated(kd%planck_band)) nbytes = nbytes + 8_i8 * size(kd%planck_band, kind=i8)
+    if (allocated(kd%vmr_ref)) nbytes = nbytes + 8_i8 * size(kd%vmr_ref, kind=i8)
     do part = 1, 2
-      if (allocated(kd%minor(part)%kminor)) &
-        nbytes = nbytes + 8_8 * size(kd%minor(part)%kminor, kind=8)
+      if (allocated(kd%minor(part)%kminor)) then
+        nbytes = nbytes + 8_i8 * size(kd%minor(part)%kminor, kind=i8)
+      end if
     end do
   end function kdist_memory_bytes
 

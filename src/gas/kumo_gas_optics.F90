@@ -8,7 +8,8 @@
 !> k-distribution files (`kmajor`, `kminor_lower/upper`, `vmr_ref`, `key_species`, ...).
 !>
 !> * Each band has two key ("major") species per atmosphere part (lower: p > `press_ref_trop`,
-!>   upper: p <= `press_ref_trop`); key species 0 stands for dry air (volume mixing ratio 1).
+!>   upper: p <= `press_ref_trop`); key species 0 stands for dry air (volume mixing ratio 1), and
+!>   a part with no key species at all (0, 0) uses CO2 for both (the tables' convention).
 !>   For a layer at (p, T) with mixing ratios r1, r2 of the key species, at each of the two
 !>   reference temperatures T_j bracketing T the binary-mixing parameter is
 !>       eta_j = r1 / (r1 + R_j r2),  R_j = vmr_ref(1, T_j) / vmr_ref(2, T_j)
@@ -137,7 +138,7 @@ contains
   subroutine kdist_finish(kd, error)
     type(gas_kdist_t), intent(inout) :: kd
     type(error_t), allocatable, intent(out) :: error
-    integer :: b, part, i
+    integer :: b, part, i, co2
     character(len=:), allocatable :: where
 
     where = 'gas optics tables'
@@ -185,6 +186,14 @@ contains
       call set_error(error, where // ': key_species outside 0..' // str(kd%n_gas))
       return
     end if
+    ! A band part without key species (0, 0) takes CO2 for both, the convention of the RRTMGP
+    ! tables (their kmajor is zero there within the range of atmospheric states).
+    co2 = gas_index(kd, 'co2')
+    do b = 1, kd%n_band
+      do part = 1, 2
+        if (all(kd%key_species(:, part, b) == 0) .and. co2 > 0) kd%key_species(:, part, b) = co2
+      end do
+    end do
     do part = 1, 2
       associate (m => kd%minor(part))
         if (allocated(m%band_first)) deallocate(m%band_first, m%band_last)

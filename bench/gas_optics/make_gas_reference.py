@@ -20,7 +20,9 @@ Columns:
   1046) and the RCEMIP ozone profile (Wing et al. 2018, GMD 11, 793, doi:10.5194/gmd-11-793-2018);
 * a moist tropical column: the RCEMIP analytic sounding for SST 300 K (Wing et al. 2018) with
   the same ozone profile.
-The well-mixed gases of the last two columns are the RFMIP present-day global means.
+* three layers outside the tables (very high and low pressure and temperature), where both codes
+  extend the tables linearly and floor the results at zero.
+The well-mixed gases of the last three columns are the RFMIP present-day global means.
 
 The dry-air column of a layer is N_A dp / (g (M_d + M_w r_w)) with g = 9.80665 m s-2,
 M_d = 28.9644e-3 and M_w = 18.0153e-3 kg/mol and r_w the water-vapour volume mixing ratio
@@ -65,6 +67,7 @@ RFMIP_SITES = (0, 40, 80)
 # Layers written per column besides the lowest: the nearest to these pressures (Pa), None for the
 # highest. 11000 and 9000 Pa straddle the lower/upper boundary of the tables (9948 Pa).
 FULL_TARGETS = (11000.0, 9000.0, None)
+EXTREME_TARGETS = (50000.0, None)
 SHORT_TARGETS = (9000.0,)
 # Level sources are written for the first column only; the g256/g224 files are checked on the
 # tropical column, lowest and highest layer.
@@ -183,6 +186,20 @@ def rcemip_column(well_mixed):
     return column_from_levels("tropical_rcemip", z, state, well_mixed, 300.0, 1361.0)
 
 
+def extremes_column(well_mixed):
+    """Three layers outside the tables: 1105 hPa and 330 K, 500 hPa and 362 K, 0.6 Pa and 150 K
+    (level temperatures down to 140 K), where both codes extend the tables linearly and floor
+    the results at zero (Planck fractions: held at the table edge)."""
+    p_lev = np.array([111000.0, 110000.0, 1.0, 0.2])
+    p_lay = np.array([110500.0, 50000.0, 0.6])
+    vmr = {"h2o": np.array([0.03, 0.01, 3e-6]), "o3": rcemip_ozone(p_lay)}
+    for gas, v in well_mixed.items():
+        vmr[gas] = np.full(p_lay.shape, v)
+    return dict(name="out_of_table", p_lev=p_lev, t_lev=np.array([335.0, 325.0, 200.0, 140.0]),
+                p_lay=p_lay, t_lay=np.array([330.0, 362.0, 150.0]), vmr=vmr, tsfc=340.0,
+                tsi=1361.0)
+
+
 def col_dry(p_lev, r_h2o):
     dp = p_lev[:-1] - p_lev[1:]
     return N_A * dp / (G0 * (M_DRY + M_H2O * r_h2o))
@@ -263,7 +280,8 @@ def main():
     out_path = sys.argv[1] if len(sys.argv) > 1 else os.path.join(
         os.path.dirname(__file__), "..", "..", "tests", "data", "gas_optics", "reference.txt")
     rfmip, well_mixed = rfmip_columns()
-    cols = rfmip + [us1976_column(well_mixed), rcemip_column(well_mixed)]
+    cols = rfmip + [us1976_column(well_mixed), rcemip_column(well_mixed),
+                    extremes_column(well_mixed)]
     with open(out_path, "w") as out:
         out.write("# Reference RRTMGP gas optics from jax-rrtmgp "
                   f"{metadata.version('jax-rrtmgp')} (jax {jax.__version__}, float64),\n"
@@ -281,7 +299,7 @@ def main():
                   "#   end\n")
         for i, col in enumerate(cols):
             targets = SHORT_TARGETS if col["name"] in ("rfmip_site40", "rfmip_site80") \
-                else FULL_TARGETS
+                else EXTREME_TARGETS if col["name"] == "out_of_table" else FULL_TARGETS
             run_case(out, "lw", "rrtmgp-gas-lw-g128.nc", col, targets, levels=(i == 0))
             run_case(out, "sw", "rrtmgp-gas-sw-g112.nc", col, targets)
         for col in cols:

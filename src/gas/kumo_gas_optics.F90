@@ -187,7 +187,7 @@ contains
       return
     end if
     ! A band part without key species (0, 0) takes CO2 for both, the convention of the RRTMGP
-    ! tables (their kmajor is zero there within the range of atmospheric states).
+    ! tables (their kmajor vanishes there at the nodes atmospheric states reach).
     co2 = gas_index(kd, 'co2')
     do b = 1, kd%n_band
       do part = 1, 2

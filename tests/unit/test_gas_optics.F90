@@ -3,7 +3,8 @@
 !> of the independent implementation jax-rrtmgp 0.5.0 (float64), produced by
 !> bench/gas_optics/make_gas_reference.py and stored with their inputs in
 !> tests/data/gas_optics/reference.txt (RFMIP clear-sky sites, U.S. Standard Atmosphere 1976, an
-!> RCEMIP moist tropical column; a subset of layers, every g-point).
+!> RCEMIP moist tropical column, three layers outside the tables; a subset of layers, every
+!> g-point).
 !>
 !> Tolerance: both codes evaluate the same interpolation formulas in double precision, so they
 !> differ only by round-off and by how the uniform reference grids are parametrised (kumo takes
@@ -209,7 +210,7 @@ contains
     if (allocated(error)) return
     write (*, '(a, i0, a, i0, a, es9.2)') '  ', ncases, ' cases, ', nrows, &
       ' rows of g-point values; largest relative difference ', worst_all
-    call check(error, ncases >= 12 .and. nrows >= 90, 'the reference file holds only ' // &
+    call check(error, ncases >= 14 .and. nrows >= 100, 'the reference file holds only ' // &
                str(ncases) // ' cases and ' // str(nrows) // ' rows')
   end subroutine test_reference
 

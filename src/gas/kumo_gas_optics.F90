@@ -34,7 +34,8 @@
 !>   the sources at the bottom and top of a layer the level temperatures with the layer's
 !>   fractions, the surface source the surface temperature with the fractions of the lowest layer.
 !> * Solar source: `solar_source_quiet` per g-point normalised to sum 1 and scaled to the total
-!>   solar irradiance asked for.
+!>   solar irradiance asked for; optionally with the facular and sunspot terms of the NRLSSI2
+!>   model, quiet + (Mg - Mg_0) facular + (SB - SB_0) sunspot, before the scaling.
 !>
 !> Outside the reference tables (T below 160 K or above 355 K; p above 1096 hPa or below 1 Pa for
 !> these files) the interpolation is extended linearly along the end interval and the result
@@ -61,6 +62,7 @@ module kumo_gas_optics
   public :: gas_index, kdist_finish, kdist_memory_bytes
   public :: gas_optical_depth, gas_planck_source, gas_solar_source, gas_col_dry
   public :: AVOGADRO_CODATA, GRAVITY_STD, MOLAR_MASS_DRY, MOLAR_MASS_H2O
+  public :: NRLSSI2_MG_OFFSET, NRLSSI2_SB_OFFSET
 
   integer, parameter :: GAS_NAME_LEN = 32          !! length of gas names in the files
   real(wp), parameter :: CM2_TO_M2 = 1.0e-4_wp     !! the tables are in cm2 per molecule
@@ -69,6 +71,12 @@ module kumo_gas_optics
   real(wp), parameter :: GRAVITY_STD = 9.80665_wp            !! m s-2, standard gravity
   real(wp), parameter :: MOLAR_MASS_DRY = 28.9644e-3_wp      !! kg mol-1, dry air (US 1976)
   real(wp), parameter :: MOLAR_MASS_H2O = 18.0153e-3_wp      !! kg mol-1, water
+  !> Offsets of the facular (Mg II index) and sunspot (sunspot darkening index) terms of the
+  !> NRLSSI2 solar-variability model (Coddington et al. 2016, BAMS 97, 1265,
+  !> doi:10.1175/BAMS-D-14-00265.1) as the RRTMGP shortwave files use them: with the files'
+  !> `mg_default` and `sb_default` the three terms sum to their `tsi_default`.
+  real(wp), parameter :: NRLSSI2_MG_OFFSET = 0.14959542_wp
+  real(wp), parameter :: NRLSSI2_SB_OFFSET = 0.00066696_wp
 
   !> Minor absorbers of one atmosphere part (lower or upper): one entry per minor interval, a
   !> contiguous range of g-points of one band where one gas absorbs.
@@ -106,8 +114,11 @@ module kumo_gas_optics
     real(wp), allocatable :: rayleigh(:, :, :, :)    !! (n_gpt, n_eta, n_temp, 2 parts), cm2; SW
     real(wp), allocatable :: planck_fraction(:, :, :, :)  !! like kmajor; LW
     real(wp), allocatable :: planck_band(:, :)       !! (n_temp_planck, n_band) W m-2 sr-1; LW
-    real(wp), allocatable :: solar_quiet(:)          !! (n_gpt) W m-2; SW
+    real(wp), allocatable :: solar_quiet(:)          !! (n_gpt) W m-2; SW, quiet sun
+    real(wp), allocatable :: solar_facular(:)        !! (n_gpt) W m-2 per unit Mg index; SW
+    real(wp), allocatable :: solar_sunspot(:)        !! (n_gpt) W m-2 per unit SB index; SW
     real(wp) :: tsi_default = 0                      !! W m-2; SW
+    real(wp) :: mg_default = 0, sb_default = 0       !! default solar indices; SW
     ! Derived by kdist_finish.
     real(wp) :: dtemp = 0, dlnp = 0, ln_press_ref1 = 0, dtemp_planck = 0
   end type gas_kdist_t
@@ -428,13 +439,18 @@ contains
 
   !> Solar irradiance at the top of the atmosphere per g-point (W m-2, on a surface normal to
   !> the beam): the quiet-sun spectrum of the file scaled to sum to `tsi` (W m-2; the file's
-  !> `tsi_default` when absent).
-  subroutine gas_solar_source(kd, src, error, tsi)
+  !> `tsi_default` when absent). With `mg_index` or `sb_index` (the other one then takes the
+  !> file's default, `kd%mg_default` or `kd%sb_default`) the spectrum is that of the NRLSSI2
+  !> model, quiet + (mg_index - NRLSSI2_MG_OFFSET) facular + (sb_index - NRLSSI2_SB_OFFSET)
+  !> sunspot, before the scaling.
+  subroutine gas_solar_source(kd, src, error, tsi, mg_index, sb_index)
     type(gas_kdist_t), intent(in) :: kd
     real(wp), intent(out) :: src(:)          !! (n_gpt) W m-2
     type(error_t), allocatable, intent(out) :: error
     real(wp), intent(in), optional :: tsi    !! total solar irradiance, W m-2
-    real(wp) :: total
+    real(wp), intent(in), optional :: mg_index  !! NRLSSI2 facular (Mg II) index
+    real(wp), intent(in), optional :: sb_index  !! NRLSSI2 sunspot darkening index
+    real(wp) :: total, mg, sb
     if (.not. allocated(kd%solar_quiet)) then
       call set_error(error, 'gas_solar_source: the k-distribution has no solar source ' // &
                      '(a longwave file?)')
@@ -451,7 +467,27 @@ contains
       call set_error(error, 'gas_solar_source: tsi = ' // str(total) // ' must be >= 0')
       return
     end if
-    src = total * kd%solar_quiet / sum(kd%solar_quiet)
+    if (present(mg_index) .or. present(sb_index)) then
+      mg = kd%mg_default
+      sb = kd%sb_default
+      if (present(mg_index)) mg = mg_index
+      if (present(sb_index)) sb = sb_index
+      if (.not. allocated(kd%solar_facular) .or. .not. allocated(kd%solar_sunspot)) then
+        call set_error(error, 'gas_solar_source: the k-distribution has no facular and sunspot ' &
+                       // 'terms')
+        return
+      end if
+      src = kd%solar_quiet + (mg - NRLSSI2_MG_OFFSET) * kd%solar_facular &
+            + (sb - NRLSSI2_SB_OFFSET) * kd%solar_sunspot
+      if (any(src < 0) .or. .not. all(ieee_is_finite(src))) then
+        call set_error(error, 'gas_solar_source: mg_index = ' // str(mg) // ' and sb_index = ' // &
+                       str(sb) // ' give a negative solar source')
+        return
+      end if
+    else
+      src = kd%solar_quiet
+    end if
+    src = total * src / sum(src)
   end subroutine gas_solar_source
 
   !> Dry-air column of each layer between pressure levels, molecules m-2, for a hydrostatic layer

@@ -139,6 +139,18 @@ contains
       call get_real(path, ncid, 'tsi_default', [character(len=40) ::], r, error)
       if (allocated(error)) return
       kd%tsi_default = r(1)
+      call get_real(path, ncid, 'solar_source_facular', [character(len=40) :: 'gpt'], r, error)
+      if (allocated(error)) return
+      kd%solar_facular = r
+      call get_real(path, ncid, 'solar_source_sunspot', [character(len=40) :: 'gpt'], r, error)
+      if (allocated(error)) return
+      kd%solar_sunspot = r
+      call get_real(path, ncid, 'mg_default', [character(len=40) ::], r, error)
+      if (allocated(error)) return
+      kd%mg_default = r(1)
+      call get_real(path, ncid, 'sb_default', [character(len=40) ::], r, error)
+      if (allocated(error)) return
+      kd%sb_default = r(1)
       allocate(kd%rayleigh(kd%n_gpt, kd%n_eta, kd%n_temp, 2))
       call get_real(path, ncid, 'rayl_lower', [character(len=40) :: 'gpt', 'mixing_fraction', &
                     'temperature'], r, error)

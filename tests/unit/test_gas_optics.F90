@@ -21,7 +21,8 @@ module test_gas_optics_suite
   use kumo_kinds, only: wp
   use kumo_error, only: str
   use kumo_gas_optics, only: gas_kdist_t, gas_index, gas_optical_depth, gas_planck_source, &
-                             gas_solar_source, kdist_memory_bytes, gas_col_dry
+                             gas_solar_source, kdist_memory_bytes, gas_col_dry, &
+                             NRLSSI2_MG_OFFSET, NRLSSI2_SB_OFFSET
   use kumo_rrtmgp_file, only: read_rrtmgp_kdist
   use kumo_testing, only: error_t, unittest_t, new_unittest, check
   use netcdf, only: nf90_create, nf90_def_dim, nf90_enddef, nf90_close, NF90_CLOBBER
@@ -291,7 +292,7 @@ contains
   subroutine test_solar_sum(error)
     type(error_t), allocatable, intent(out) :: error
     type(gas_kdist_t), pointer :: kd
-    real(wp) :: src(112)
+    real(wp) :: src(112), quiet(112)
     call load('rrtmgp-gas-sw-g112.nc', kd, error)
     if (allocated(error)) return
     call gas_solar_source(kd, src, error, tsi=1361.0_wp)
@@ -304,6 +305,25 @@ contains
     call check(error, abs(sum(src) - kd%tsi_default) < 1.0e-9_wp .and. kd%tsi_default > 1300, &
                'default solar source sums to ' // str(sum(src)) // ', tsi_default ' // &
                str(kd%tsi_default))
+    if (allocated(error)) return
+    ! NRLSSI2 offsets: with the file's default indices the three terms add up to its tsi_default
+    ! (unnormalised; agreement 4e-10 relative).
+    quiet = src
+    src = kd%solar_quiet + (kd%mg_default - NRLSSI2_MG_OFFSET) * kd%solar_facular &
+          + (kd%sb_default - NRLSSI2_SB_OFFSET) * kd%solar_sunspot
+    call check(error, abs(sum(src) - kd%tsi_default) < 1.0e-8_wp * kd%tsi_default, &
+               'quiet + facular + sunspot terms at the default indices sum to ' // str(sum(src)) // &
+               ', tsi_default ' // str(kd%tsi_default))
+    if (allocated(error)) return
+    call gas_solar_source(kd, src, error, mg_index=kd%mg_default)
+    if (allocated(error)) return
+    call check(error, abs(sum(src) - kd%tsi_default) < 1.0e-9_wp .and. &
+               maxval(abs(src - quiet) / quiet) > 1.0e-3_wp, 'solar variability changes nothing')
+    if (allocated(error)) return
+    call gas_solar_source(kd, src, error, mg_index=NRLSSI2_MG_OFFSET, sb_index=NRLSSI2_SB_OFFSET)
+    if (allocated(error)) return
+    call check(error, maxval(abs(src - quiet) / quiet) < 1.0e-12_wp, &
+               'at the NRLSSI2 offsets the spectrum is not the quiet sun')
   end subroutine test_solar_sum
 
   subroutine test_bad_inputs(error)

@@ -276,9 +276,10 @@ contains
     real(wp), intent(out) :: tau(:, :)       !! (n_layer, kd%n_gpt) absorption optical depth
     type(error_t), allocatable, intent(out) :: error
     real(wp), intent(out), optional :: tau_rayleigh(:, :)  !! (n_layer, kd%n_gpt), shortwave only
-    integer :: l, b, part, k, g, i, je(2), c, s, ih2o
+    integer :: l, b, part, g, g1, g2, i, je(2), c, s, ih2o, jp, jt1, jt2
     type(locus_t) :: loc
     real(wp) :: wt(2), fe(2), mix(2), v(0:kd%n_gas), col, kk, scale, sgas, dry_fact
+    real(wp) :: we(2, 2), w(4, 2), tg(kd%n_gpt), rg(kd%n_gpt)
 
     call check_column(kd, 'gas_optical_depth', play, tlay, vmr, col_dry, error)
     if (allocated(error)) return
@@ -305,6 +306,9 @@ contains
     do l = 1, size(play)
       loc = locate(kd, play(l), tlay(l), clamp=.false.)
       part = loc%part
+      jp = loc%ip + part - 1
+      jt1 = loc%it
+      jt2 = loc%it + 1
       wt = [1 - loc%ft, loc%ft]
       v(0) = 1
       v(1:) = vmr(l, :)
@@ -312,17 +316,27 @@ contains
       dry_fact = 1
       if (ih2o > 0) dry_fact = 1 / (1 + v(ih2o))
       do b = 1, kd%n_band
+        g1 = kd%band_gpt(1, b)
+        g2 = kd%band_gpt(2, b)
         call binary_mixing(kd, loc, b, v, mix, je, fe)
-        ! Major species.
-        do g = kd%band_gpt(1, b), kd%band_gpt(2, b)
-          kk = 0
-          do k = 1, 2
-            kk = kk + wt(k) * mix(k) * interp_ep(kd%kmajor, g, je(k), fe(k), &
-                                                   loc%ip + part - 1, loc%fp, loc%it + k - 1)
-          end do
-          tau(l, g) = col * max(kk, 0.0_wp)
+        ! Weights of the eta nodes at each temperature node.
+        we(1, :) = wt * (1 - fe)
+        we(2, :) = wt * fe
+        ! Major species: trilinear in eta, ln p (and T), weighted by r1 + R r2 at each T node.
+        w(:, 1) = mix(1) * [we(1, 1) * (1 - loc%fp), we(1, 1) * loc%fp, &
+                            we(2, 1) * (1 - loc%fp), we(2, 1) * loc%fp]
+        w(:, 2) = mix(2) * [we(1, 2) * (1 - loc%fp), we(1, 2) * loc%fp, &
+                            we(2, 2) * (1 - loc%fp), we(2, 2) * loc%fp]
+        do g = g1, g2
+          kk = w(1, 1) * kd%kmajor(g, je(1), jp, jt1) + w(2, 1) * kd%kmajor(g, je(1), jp + 1, jt1) &
+               + w(3, 1) * kd%kmajor(g, je(1) + 1, jp, jt1) &
+               + w(4, 1) * kd%kmajor(g, je(1) + 1, jp + 1, jt1) &
+               + w(1, 2) * kd%kmajor(g, je(2), jp, jt2) + w(2, 2) * kd%kmajor(g, je(2), jp + 1, jt2) &
+               + w(3, 2) * kd%kmajor(g, je(2) + 1, jp, jt2) &
+               + w(4, 2) * kd%kmajor(g, je(2) + 1, jp + 1, jt2)
+          tg(g) = col * max(kk, 0.0_wp)
         end do
-        ! Minor absorbers of this band and atmosphere part.
+        ! Minor absorbers of this band and atmosphere part: bilinear in eta and T.
         associate (m => kd%minor(part))
           do i = m%band_first(b), m%band_last(b)
             scale = col * v(m%gas(i))
@@ -335,13 +349,11 @@ contains
                 scale = scale * sgas
               end if
             end if
+            c = m%kstart(i) - m%gpt(1, i)
             do g = m%gpt(1, i), m%gpt(2, i)
-              c = m%kstart(i) + g - m%gpt(1, i)
-              kk = 0
-              do k = 1, 2
-                kk = kk + wt(k) * interp_e(m%kminor, c, je(k), fe(k), loc%it + k - 1)
-              end do
-              tau(l, g) = tau(l, g) + scale * max(kk, 0.0_wp)
+              kk = we(1, 1) * m%kminor(c + g, je(1), jt1) + we(2, 1) * m%kminor(c + g, je(1) + 1, jt1) &
+                   + we(1, 2) * m%kminor(c + g, je(2), jt2) + we(2, 2) * m%kminor(c + g, je(2) + 1, jt2)
+              tg(g) = tg(g) + scale * max(kk, 0.0_wp)
             end do
           end do
         end associate
@@ -349,16 +361,16 @@ contains
         if (present(tau_rayleigh)) then
           scale = col
           if (ih2o > 0) scale = col * (1 + v(ih2o))
-          do g = kd%band_gpt(1, b), kd%band_gpt(2, b)
-            kk = 0
-            do k = 1, 2
-              kk = kk + wt(k) * ((1 - fe(k)) * kd%rayleigh(g, je(k), loc%it + k - 1, part) &
-                                 + fe(k) * kd%rayleigh(g, je(k) + 1, loc%it + k - 1, part))
-            end do
-            tau_rayleigh(l, g) = scale * max(kk, 0.0_wp)
+          do g = g1, g2
+            kk = we(1, 1) * kd%rayleigh(g, je(1), jt1, part) + we(2, 1) * kd%rayleigh(g, je(1) + 1, jt1, part) &
+                 + we(1, 2) * kd%rayleigh(g, je(2), jt2, part) &
+                 + we(2, 2) * kd%rayleigh(g, je(2) + 1, jt2, part)
+            rg(g) = scale * max(kk, 0.0_wp)
           end do
         end if
       end do
+      tau(l, :) = tg
+      if (present(tau_rayleigh)) tau_rayleigh(l, :) = rg
     end do
   end subroutine gas_optical_depth
 
@@ -587,14 +599,6 @@ contains
     val = (1 - fe) * ((1 - fp) * table(g, je, jp, jt) + fp * table(g, je, jp + 1, jt)) &
           + fe * ((1 - fp) * table(g, je + 1, jp, jt) + fp * table(g, je + 1, jp + 1, jt))
   end function interp_ep
-
-  !> Linear interpolation of table(c, eta, T) in eta at one temperature node.
-  pure real(wp) function interp_e(table, c, je, fe, jt) result(val)
-    real(wp), intent(in) :: table(:, :, :)
-    integer, intent(in) :: c, je, jt
-    real(wp), intent(in) :: fe
-    val = (1 - fe) * table(c, je, jt) + fe * table(c, je + 1, jt)
-  end function interp_e
 
   !> Band-integrated Planck radiance of band b at temperature t, W m-2 sr-1 (linear in t,
   !> extended along the end interval outside the table, floored at zero).

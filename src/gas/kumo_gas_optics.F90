@@ -63,6 +63,7 @@ module kumo_gas_optics
   public :: gas_optical_depth, gas_planck_source, gas_solar_source, gas_col_dry
   public :: AVOGADRO_CODATA, GRAVITY_STD, MOLAR_MASS_DRY, MOLAR_MASS_H2O
   public :: NRLSSI2_MG_OFFSET, NRLSSI2_SB_OFFSET
+  public :: gas_default_vmr, rcemip_ozone
 
   integer, parameter :: GAS_NAME_LEN = 32          !! length of gas names in the files
   real(wp), parameter :: CM2_TO_M2 = 1.0e-4_wp     !! the tables are in cm2 per molecule
@@ -542,6 +543,50 @@ contains
                    (g * (MOLAR_MASS_DRY + MOLAR_MASS_H2O * vmr_h2o(l)))
     end do
   end subroutine gas_col_dry
+
+  !> Default mixing ratios (mol/mol of dry air) of every gas except water vapour, which the
+  !> caller supplies: the well-mixed gases at the present-day global means of RFMIP (experiment
+  !> "present day", year 2014; Pincus, Forster and Stevens 2016, GMD 9, 3447, concentrations of
+  !> Meinshausen et al. 2017, GMD 10, 2057), ozone from the RCEMIP profile (`rcemip_ozone`),
+  !> NO2 zero. Columns of gases the file does not know are left alone.
+  subroutine gas_default_vmr(kd, play, vmr, error)
+    type(gas_kdist_t), intent(in) :: kd
+    real(wp), intent(in) :: play(:)          !! layer pressure, Pa
+    real(wp), intent(inout) :: vmr(:, :)     !! (n_layer, kd%n_gas); the h2o column is kept
+    type(error_t), allocatable, intent(out) :: error
+    character(len=8), parameter :: NAMES(17) = [character(len=8) :: 'co2', 'n2o', 'co', 'ch4', &
+      'o2', 'n2', 'ccl4', 'cfc11', 'cfc12', 'cfc22', 'hfc143a', 'hfc125', 'hfc23', 'hfc32', &
+      'hfc134a', 'cf4', 'no2']
+    real(wp), parameter :: VALUES(17) = [397.547e-6_wp, 326.988e-9_wp, 120.0e-9_wp, &
+      1831.471e-9_wp, 0.209_wp, 0.781_wp, 83.06993e-12_wp, 233.0799e-12_wp, 520.5810e-12_wp, &
+      229.5421e-12_wp, 15.25278e-12_wp, 15.355e-12_wp, 26.89044e-12_wp, 8.336969e-12_wp, &
+      80.51573e-12_wp, 81.09249e-12_wp, 0.0_wp]
+    integer :: i, j
+    if (size(vmr, 1) /= size(play) .or. size(vmr, 2) /= kd%n_gas) then
+      call set_error(error, 'gas_default_vmr: vmr has shape ' // shape_text(shape(vmr)) // &
+                     ', expected ' // shape_text([size(play), kd%n_gas]))
+      return
+    end if
+    if (any(.not. ieee_is_finite(play)) .or. any(play <= 0)) then
+      call set_error(error, 'gas_default_vmr: layer pressures must be positive')
+      return
+    end if
+    do i = 1, size(NAMES)
+      j = gas_index(kd, NAMES(i))
+      if (j > 0) vmr(:, j) = VALUES(i)
+    end do
+    j = gas_index(kd, 'o3')
+    if (j > 0) vmr(:, j) = rcemip_ozone(play)
+  end subroutine gas_default_vmr
+
+  !> Ozone mixing ratio of RCEMIP (Wing et al. 2018, GMD 11, 793, doi:10.5194/gmd-11-793-2018,
+  !> their analytic fit to a tropical profile): 3.6478 p^0.83209 exp(-p/11.3515) ppmv, p in hPa.
+  elemental real(wp) function rcemip_ozone(p) result(o3)
+    real(wp), intent(in) :: p                !! pressure, Pa
+    real(wp) :: ph
+    ph = p * PA_TO_HPA
+    o3 = 3.6478e-6_wp * ph**0.83209_wp * exp(-ph / 11.3515_wp)
+  end function rcemip_ozone
 
   ! ---------------------------------------------------------------------------------------------
 

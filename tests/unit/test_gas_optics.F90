@@ -22,7 +22,7 @@ module test_gas_optics_suite
   use kumo_error, only: str
   use kumo_gas_optics, only: gas_kdist_t, gas_index, gas_optical_depth, gas_planck_source, &
                              gas_solar_source, kdist_memory_bytes, gas_col_dry, &
-                             NRLSSI2_MG_OFFSET, NRLSSI2_SB_OFFSET
+                             NRLSSI2_MG_OFFSET, NRLSSI2_SB_OFFSET, gas_default_vmr
   use kumo_rrtmgp_file, only: read_rrtmgp_kdist
   use kumo_testing, only: error_t, unittest_t, new_unittest, check
   use netcdf, only: nf90_create, nf90_def_dim, nf90_enddef, nf90_close, NF90_CLOBBER
@@ -92,6 +92,7 @@ contains
     integer, allocatable :: lay_id(:), map(:)
     real(wp), allocatable :: p(:), t(:), cd(:), tlev(:), vmr(:, :), row(:), vin(:)
     real(wp), allocatable :: tau(:, :), tray(:, :), src(:, :, :), sfc(:), sol(:), got(:)
+    real(wp), allocatable :: vdef(:, :)
     real(wp) :: tsfc, tsi, diff, worst, worst_all, cdry(1)
     type(gas_kdist_t), pointer :: kd
     type(error_t), allocatable :: err
@@ -143,6 +144,22 @@ contains
         do i = 1, ng
           vmr(k, map(i)) = vin(7 + i)
         end do
+        ! The columns built in the reference script use kumo's default gases (RFMIP present-day
+        ! means, stored there in single precision, and the RCEMIP ozone profile).
+        if (cname == 'us1976' .or. cname == 'tropical_rcemip' .or. cname == 'out_of_table') then
+          vdef = vmr(k:k, :)
+          call gas_default_vmr(kd, p(k:k), vdef, err)
+          if (allocated(err)) then
+            call check(error, .false., err%message)
+            exit
+          end if
+          do i = 1, kd%n_gas
+            call check(error, abs(vdef(1, i) - vmr(k, i)) <= 1.0e-6_wp * vmr(k, i), trim(cname) // &
+                       ' layer ' // str(lay_id(k)) // ': default ' // trim(kd%gas_names(i)) // ' ' // &
+                       str(vdef(1, i)) // ', reference ' // str(vmr(k, i)))
+          end do
+          if (allocated(error)) exit
+        end if
         ! The dry-air column of the reference follows from the level pressures and water vapour.
         call gas_col_dry(vin(6:7), [vmr(k, gas_index(kd, 'h2o'))], cdry, err)
         if (allocated(err)) then

@@ -290,7 +290,6 @@ contains
     type(error_t), allocatable, intent(out) :: error
     integer :: status(2), i, n(4)
     logical :: has_iph
-    real(dp), allocatable :: buf(:)
     n = [cfg%atm%nx, cfg%atm%ny, cfg%atm%nz3, cfg%atm%n_components_3d]
     status = 0
     if (par_is_root()) then
@@ -310,18 +309,9 @@ contains
     else if (.not. par_is_root()) then
       allocate (iph3(n(1), n(2), n(3), n(4)))
     end if
-    if (par_size() == 1) return
-    buf = reshape(ext3, [size(ext3)])
-    call par_bcast_real(buf)
-    ext3 = reshape(buf, shape(ext3))
-    buf = reshape(ssa3, [size(ssa3)])
-    call par_bcast_real(buf)
-    ssa3 = reshape(buf, shape(ssa3))
-    if (status(2) /= 0) then
-      buf = real(reshape(iph3, [size(iph3)]), dp)
-      call par_bcast_real(buf)
-      iph3 = reshape(nint(buf), shape(iph3))
-    end if
+    call share_reals(ext3, size(ext3))
+    call share_reals(ssa3, size(ssa3))
+    if (status(2) /= 0) call share_ints(iph3, size(iph3))
   end subroutine read_scene_on_root
 
   !> The cloud's atmosphere on every rank. Rank 0 goes first, so that a Mie table it computes
@@ -376,7 +366,6 @@ contains
     integer :: status(3), i, j
     integer, allocatable :: kind(:, :)
     real(wp), allocatable :: c(:, :, :)
-    real(dp), allocatable :: buf(:)
     status = 0
     if (par_is_root()) then
       call read_brdf_map(path, default_kind, status(2), status(3), kind, c, error)
@@ -384,14 +373,10 @@ contains
     end if
     call share_read_status(status, path, error)
     if (allocated(error)) return
-    if (par_size() > 1) then
-      if (.not. par_is_root()) allocate (kind(status(2), status(3)), &
-                                         c(BRDF_NPAR, status(2), status(3)))
-      buf = [real(reshape(kind, [size(kind)]), dp), reshape(c, [size(c)])]
-      call par_bcast_real(buf)
-      kind = reshape(nint(buf(1:size(kind))), shape(kind))
-      c = reshape(buf(size(kind) + 1:), shape(c))
-    end if
+    if (.not. par_is_root()) allocate (kind(status(2), status(3)), &
+                                       c(BRDF_NPAR, status(2), status(3)))
+    call share_ints(kind, size(kind))
+    call share_reals(c, size(c))
     allocate (bmap(status(2), status(3)))
     do j = 1, status(3)
       do i = 1, status(2)
@@ -414,7 +399,6 @@ contains
     integer :: status(1), i, j, nxb, nyb, it
     integer, allocatable :: kind(:, :)
     real(wp), allocatable :: c(:, :, :)
-    real(dp), allocatable :: buf(:)
     character(len=*), parameter :: KIND_NAMES(0:4) = &
       [character(len=7) :: 'black', 'Lambert', 'DSM', 'RPV', 'LSRT']
     nxb = cfg%surface%surface_nxb
@@ -454,10 +438,8 @@ contains
     else
       allocate (bmap(nxb, nyb))
     end if
-    buf = [real(reshape(kind, [size(kind)]), dp), reshape(c, [size(c)])]
-    call par_bcast_real(buf)
-    kind = reshape(nint(buf(1:size(kind))), shape(kind))
-    c = reshape(buf(size(kind) + 1:), shape(c))
+    call share_ints(kind, size(kind))
+    call share_reals(c, size(c))
     do j = 1, nyb
       do i = 1, nxb
         bmap(i, j)%kind = kind(i, j)
@@ -472,7 +454,6 @@ contains
     real(wp), allocatable, intent(out) :: alb(:, :)
     type(error_t), allocatable, intent(out) :: error
     integer :: status(3)
-    real(dp), allocatable :: buf(:)
     status = 0
     if (par_is_root()) then
       call read_albedo_map(path, varname, status(2), status(3), alb, error)
@@ -480,11 +461,23 @@ contains
     end if
     call share_read_status(status, path, error)
     if (allocated(error)) return
-    if (par_size() == 1) return
     if (.not. par_is_root()) allocate (alb(status(2), status(3)))
-    buf = reshape(alb, [size(alb)])
-    call par_bcast_real(buf)
-    alb = reshape(buf, shape(alb))
+    call share_reals(alb, size(alb))
   end subroutine read_albedo_on_root
+
+  !> Give every rank rank 0's values of an array of any rank and shape (already allocated with
+  !> that shape on every rank), in place: the array is passed as its sequence of elements.
+  subroutine share_reals(x, n)
+    integer, intent(in) :: n
+    real(dp), intent(inout) :: x(n)
+    if (par_size() > 1) call par_bcast_real(x)
+  end subroutine share_reals
+
+  !> `share_reals` for integers.
+  subroutine share_ints(x, n)
+    integer, intent(in) :: n
+    integer, intent(inout) :: x(n)
+    if (par_size() > 1) call par_bcast_int(x)
+  end subroutine share_ints
 
 end module kumo_scene_setup

@@ -8,20 +8,24 @@
 #   bash scripts/install-deps.sh --python   only the Python modules of the example and benchmark
 #                                           scripts and of the Python package in python/ and its
 #                                           tests (numpy, netCDF4, xarray, f90nml, matplotlib,
-#                                           pytest) for the Python in $PYTHON (default python3),
-#                                           with pip (user site when not root)
+#                                           pytest, compliance-checker) for the Python in
+#                                           $PYTHON (default python3), with pip (user site
+#                                           when not root)
 set -euo pipefail
 
 if [[ ${1:-} == --python ]]; then
   python="${PYTHON:-python3}"
-  if "$python" -c 'import numpy, netCDF4, xarray, f90nml, matplotlib, pytest' 2>/dev/null; then
+  if "$python" -c 'import numpy, netCDF4, xarray, f90nml, matplotlib, pytest, compliance_checker' \
+    2>/dev/null; then
     echo "install-deps: Python modules present"
     exit 0
   fi
-  echo "install-deps: installing numpy, netCDF4, xarray, f90nml, matplotlib, pytest for $python (pip)"
+  echo "install-deps: installing numpy, netCDF4, xarray, f90nml, matplotlib, pytest," \
+    "compliance-checker for $python (pip)"
   pip_args=(--quiet)
   [[ $(id -u) -ne 0 ]] && pip_args+=(--user)
-  if ! "$python" -m pip install "${pip_args[@]}" numpy netCDF4 xarray f90nml matplotlib pytest; then
+  if ! "$python" -m pip install "${pip_args[@]}" numpy netCDF4 xarray f90nml matplotlib pytest \
+    compliance-checker; then
     echo "install-deps: pip failed; on Debian/Ubuntu install python3-numpy python3-netcdf4" \
       "python3-xarray python3-f90nml python3-matplotlib python3-pytest and use" \
       "PYTHON=/usr/bin/python3" >&2

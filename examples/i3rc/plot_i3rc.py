@@ -106,7 +106,7 @@ class Run:
 
         self.mode = attr('mode_3d', 'f3d')
         if self.mode == 'p3d':
-            self.mode += attr('p3d_orders', '')
+            self.mode += str(int(float(attr('p3d_orders', '0'))))
         self.photons = int(float(attr('n_photons', '0')))
         self.batches = int(float(attr('n_batches', '0')))
         self.wall = float(attr('wall_time_s', 'nan'))
@@ -135,7 +135,7 @@ class Run:
         up_bot = var('flux_up_map')[bot]
         self.incident = var('flux_down_direct_map')[top]
 
-        mu, phi = var('direction'), var('direction_phi')
+        mu, phi = var('direction_mu'), var('direction_phi')
         rlev = var('rad_level')
         rad, rad_se = var('radiance'), var('radiance_stderr')
         rmap, rmap_se = var('radiance_map'), var('radiance_map_stderr')

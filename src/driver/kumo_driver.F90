@@ -28,6 +28,16 @@ module kumo_driver
   private
   public :: run_case, simulate, scene_t, setup_scene, run_summary_t
 
+  !> Progress on rank 0 (standard error), for runs longer than a few seconds: the first line
+  !> after PROGRESS_FIRST seconds, then one every PROGRESS_EVERY seconds.
+  real(dp), parameter :: PROGRESS_FIRST = 5.0_dp, PROGRESS_EVERY = 15.0_dp
+  type :: progress_t
+    logical :: on = .false.
+    real(dp) :: t0 = 0.0_dp          !! start of tracing [s]
+    real(dp) :: next = 0.0_dp        !! time of the next line [s]
+    real(dp) :: rel = -1.0_dp        !! relative error of the target after the last round
+  end type progress_t
+
 contains
 
   !> The program's job: namelist file in, netCDF file out.
@@ -57,6 +67,7 @@ contains
     if (par_is_root() .and. cfg%control%verbose >= 1) then
       write (output_unit, '(a)') 'kumo '//KUMO_VERSION//': '//trim(path)
       write (output_unit, '(a)') config_echo(cfg)
+      flush (output_unit)   ! a batch job's log shows the configuration while it runs
     end if
     call simulate(cfg, set, summary, error, nml_text)
     if (allocated(error)) return
@@ -85,6 +96,7 @@ contains
     integer :: ib, ib_next, nb_round, rank, nranks, itarget, nb_done
     integer, allocatable :: map_levels(:), cam_npix(:)
     logical :: maps, voxel, rad_maps
+    type(progress_t) :: pg
 
     t0 = par_wtime()
     rank = par_rank()
@@ -109,6 +121,7 @@ contains
                      [scene%atm%k3_lo - 1, scene%atm%k3_hi])
     if (par_is_root() .and. len(scene%notes) > 0 .and. cfg%control%verbose >= 1) then
       write (output_unit, '(a)', advance='no') scene%notes
+      flush (output_unit)
     end if
     if (par_is_root() .and. len(scene%warnings) > 0) write (error_unit, '(a)') &
       'kumo: warning: '//scene%warnings
@@ -129,6 +142,9 @@ contains
     allocate (rec(3, 0))
     ib_next = 1
     cpu = 0.0_dp
+    pg%on = par_is_root() .and. cfg%control%verbose >= 1
+    pg%t0 = par_wtime()
+    pg%next = pg%t0 + PROGRESS_FIRST
     do
       allocate (tmp(3, ib_next + nb_round - 1))
       tmp = 0.0_dp
@@ -144,6 +160,7 @@ contains
         rec(1, ib) = tal%buf(lay%i_up + lay%nz + 1)/real(nphot, dp)
         rec(2, ib) = (tal%buf(lay%i_dir + 1) + tal%buf(lay%i_dif + 1))/real(nphot, dp)
         rec(3, ib) = sum(tal%buf(lay%i_abs + 1:lay%i_abs + lay%nz))/real(nphot, dp)
+        if (pg%on) call report_progress(pg, cfg, int(st%n_batches)*nranks, ib_next - 1 + nb_round)
       end do
       call cpu_time(c1)
       cpu = cpu + (c1 - c0)
@@ -153,9 +170,11 @@ contains
       buf2 = [st%s1(itarget), st%s2(itarget), real(st%n_batches, dp)]
       call par_allreduce_sum(buf2)
       rel = relative_error(buf2)
+      pg%rel = rel
       if (par_is_root() .and. cfg%control%verbose >= 2) then
         write (output_unit, '(a)') '  batches '//str(ib_next - 1)//': '// &
           trim(cfg%control%target_output)//' relative standard error '//str(rel)
+        flush (output_unit)
       end if
       if (rel <= cfg%control%target_rel_error) exit
       if (int(ib_next - 1 + nb_round, i8)*nphot > cfg%control%max_photons) exit
@@ -195,6 +214,34 @@ contains
     call build_results(cfg, scene, lay, st, rec(:, 1:nb_done), summary, set)
     if (present(nml_text)) call add_attr(set, 'namelist', nml_text)
   end subroutine simulate
+
+  !> A progress line on standard error when it is due: batches done (estimated over all ranks
+  !> from rank 0's own), photons per second, and the time left (fixed batch count) or the
+  !> current relative error of the target output (target-error mode).
+  subroutine report_progress(pg, cfg, n_done, n_planned)
+    type(progress_t), intent(inout) :: pg
+    type(config_t), intent(in) :: cfg
+    integer, intent(in) :: n_done, n_planned
+    real(dp) :: t, rate
+    character(len=:), allocatable :: line
+    t = par_wtime()
+    if (t < pg%next .or. n_done <= 0) return
+    pg%next = t + PROGRESS_EVERY
+    rate = real(n_done, dp)*real(cfg%control%n_photons_per_batch, dp)/max(t - pg%t0, 1.0e-9_dp)
+    if (cfg%control%target_rel_error > 0.0_dp) then
+      line = 'kumo: '//str(n_done)//' batches, '//str(real(nint(rate), dp))//' photons/s'
+      if (pg%rel >= 0.0_dp) line = line//', '//trim(cfg%control%target_output)// &
+        ' relative error '//str(pg%rel)//' (target '//str(cfg%control%target_rel_error)//')'
+    else
+      line = 'kumo: '//str(min(n_done, n_planned))//' of '//str(n_planned)//' batches ('// &
+             str(nint(100.0_dp*min(n_done, n_planned)/n_planned))//' %), '// &
+             str(real(nint(rate), dp))//' photons/s, about '// &
+             str(nint(max(0.0_dp, (t - pg%t0)*(real(n_planned, dp)/n_done - 1.0_dp))))// &
+             ' s left'
+    end if
+    write (error_unit, '(a)') line
+    flush (error_unit)
+  end subroutine report_progress
 
   pure real(dp) function relative_error(b) result(rel)
     real(dp), intent(in) :: b(3)  !! S1, S2, number of batches

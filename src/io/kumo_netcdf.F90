@@ -36,7 +36,10 @@ module kumo_netcdf
   public :: read_var_1d, read_text_attr
 
   !> netCDF-4 file restricted to the classic data model (readable by every netCDF-4 tool).
-  integer, parameter :: CREATE_MODE = ior(NF90_CLOBBER, ior(NF90_NETCDF4, NF90_CLASSIC_MODEL))
+  !> Output files are created exclusively (after removing a stale temporary file, which
+  !> unlinks a symbolic link instead of following it), so a link planted at <file>.tmp can never
+  !> make kumo write elsewhere.
+  integer, parameter :: CREATE_MODE = ior(NF90_NOCLOBBER, ior(NF90_NETCDF4, NF90_CLASSIC_MODEL))
   character(len=*), parameter :: CONVENTIONS = 'CF-1.8'
   character(len=*), parameter :: TMP_SUFFIX = '.tmp'
   character(len=*), parameter :: DEFAULT_ALBEDO_NAME = 'albedo'
@@ -134,7 +137,10 @@ contains
       call set_error(error, at//': output path is a directory')
       return
     end if
-    open (newunit=unit, file=fname//TMP_SUFFIX, status='replace', action='write', iostat=ios, &
+    ! a stale probe or temporary file (or a link of that name) goes first; the probe is then
+    ! created exclusively, so a link is never followed
+    call remove_file(fname//TMP_SUFFIX)
+    open (newunit=unit, file=fname//TMP_SUFFIX, status='new', action='write', iostat=ios, &
           iomsg=msg)
     if (ios /= 0) then
       call set_error(error, at//': cannot create the output file: '//trim(msg))
@@ -486,7 +492,9 @@ contains
       do i = 1, size(set%attrs)
         name = trim(set%attrs(i)%name)
         at = where_text(routine, path, name)
-        if (allocated(set%attrs(i)%value)) then
+        if (allocated(set%attrs(i)%num)) then
+          call nc_check(nf90_put_att(ncid, NF90_GLOBAL, name, set%attrs(i)%num), at, error)
+        else if (allocated(set%attrs(i)%value)) then
           call nc_check(nf90_put_att(ncid, NF90_GLOBAL, name, set%attrs(i)%value), at, error)
         else
           call nc_check(nf90_put_att(ncid, NF90_GLOBAL, name, ''), at, error)
@@ -508,6 +516,19 @@ contains
       if (allocated(error)) return
       call put_text_att_if_set(at, ncid, coord_ids(i), 'long_name', set%dims(i)%long_name, error)
       if (allocated(error)) return
+      if (allocated(set%dims(i)%standard_name)) then
+        call put_text_att_if_set(at, ncid, coord_ids(i), 'standard_name', &
+                                 set%dims(i)%standard_name, error)
+        if (allocated(error)) return
+      end if
+      if (set%dims(i)%axis /= ' ') then
+        call put_text_att_if_set(at, ncid, coord_ids(i), 'axis', set%dims(i)%axis, error)
+        if (allocated(error)) return
+        ! kumo's vertical coordinates are heights
+        if (set%dims(i)%axis == 'Z') call put_text_att_if_set(at, ncid, coord_ids(i), &
+                                                              'positive', 'up', error)
+        if (allocated(error)) return
+      end if
     end do
 
     ! Result variables: <name> and <name>_stderr, dimensions in Fortran order.
@@ -523,22 +544,42 @@ contains
           if (len_trim(v%long_name) > 0) long_name = trim(v%long_name)
         end if
         at = where_text(routine, path, name)
-        call nc_check(nf90_def_var(ncid, name, NF90_DOUBLE, vdims(1:nd), mean_ids(k)), at, error)
+        call def_result_var(name, mean_ids(k))
         if (allocated(error)) return
         call put_text_att_if_set(at, ncid, mean_ids(k), 'long_name', long_name, error)
         if (allocated(error)) return
         call put_text_att_if_set(at, ncid, mean_ids(k), 'units', v%units, error)
         if (allocated(error)) return
+        if (allocated(v%standard_name)) then
+          call put_text_att_if_set(at, ncid, mean_ids(k), 'standard_name', v%standard_name, error)
+          if (allocated(error)) return
+        end if
+        if (allocated(v%coordinates)) then
+          call put_text_att_if_set(at, ncid, mean_ids(k), 'coordinates', v%coordinates, error)
+          if (allocated(error)) return
+        end if
         if (allocated(v%stderr)) then
+          ! CF: the standard error is an ancillary variable of the value
+          call put_text_att_if_set(at, ncid, mean_ids(k), 'ancillary_variables', name//'_stderr', &
+                                   error)
+          if (allocated(error)) return
           at = where_text(routine, path, name//'_stderr')
-          call nc_check(nf90_def_var(ncid, name//'_stderr', NF90_DOUBLE, vdims(1:nd), &
-                                     stderr_ids(k)), at, error)
+          call def_result_var(name//'_stderr', stderr_ids(k))
           if (allocated(error)) return
           call put_text_att_if_set(at, ncid, stderr_ids(k), 'long_name', &
                                    'standard error of '//long_name, error)
           if (allocated(error)) return
           call put_text_att_if_set(at, ncid, stderr_ids(k), 'units', v%units, error)
           if (allocated(error)) return
+          if (allocated(v%standard_name)) then
+            call put_text_att_if_set(at, ncid, stderr_ids(k), 'standard_name', &
+                                     v%standard_name//' standard_error', error)
+            if (allocated(error)) return
+          end if
+          if (allocated(v%coordinates)) then
+            call put_text_att_if_set(at, ncid, stderr_ids(k), 'coordinates', v%coordinates, error)
+            if (allocated(error)) return
+          end if
         end if
       end associate
     end do
@@ -568,6 +609,20 @@ contains
         end if
       end associate
     end do
+
+  contains
+
+    !> Define a result variable on the dimensions vdims(1:nd), deflated when the set asks.
+    subroutine def_result_var(vname, id)
+      character(len=*), intent(in) :: vname
+      integer, intent(out) :: id
+      if (set%deflate > 0 .and. nd > 0) then
+        call nc_check(nf90_def_var(ncid, vname, NF90_DOUBLE, vdims(1:nd), id, shuffle=.true., &
+                                   deflate_level=set%deflate), at, error)
+      else
+        call nc_check(nf90_def_var(ncid, vname, NF90_DOUBLE, vdims(1:nd), id), at, error)
+      end if
+    end subroutine def_result_var
   end subroutine write_results_body
 
   subroutine write_scene_body(routine, path, ncid, ext, units, ssa, phase_index, error)
@@ -1199,6 +1254,7 @@ contains
     logical :: dir_exists
 
     ncid = -1
+    call remove_file(path//TMP_SUFFIX)   ! left by a run that was killed while writing
     status = nf90_create(path//TMP_SUFFIX, CREATE_MODE, ncid)
     if (status == NF90_NOERR) return
     call remove_file(path//TMP_SUFFIX)

@@ -11,7 +11,8 @@ module kumo_output
   use kumo_tally, only: tally_layout_t, stats_t, stats_mean, stats_stderr, N_ANOMALIES, &
                         ANOMALY_NAMES
   use kumo_scene, only: scene_t
-  use kumo_results, only: result_set_t, add_dim, add_var, add_attr, find_var
+  use kumo_results, only: result_set_t, add_dim, add_var, add_attr, add_num_attr, find_var, &
+                          find_dim
   use kumo_config, only: config_t, config_echo
   use kumo_parallel, only: PAR_IS_MPI
   implicit none
@@ -186,38 +187,49 @@ contains
       call add_attr(set, 'history', trim(stamp)//' kumo '//cfg%path)
       call add_attr(set, 'kumo_version', KUMO_VERSION)
       call add_attr(set, 'configuration', config_echo(cfg))
-      call add_attr(set, 'seed', str(cfg%control%seed))
-      call add_attr(set, 'n_photons', str(summary%n_photons))
-      call add_attr(set, 'n_batches', str(summary%n_batches))
-      call add_attr(set, 'n_photons_per_batch', str(cfg%control%n_photons_per_batch))
-      call add_attr(set, 'n_ranks', str(summary%n_ranks))
+      ! numbers are stored as numbers (double: the classic model has no 64-bit integers; a seed
+      ! beyond 2**53 would not survive that, so it stays text)
+      if (abs(cfg%control%seed) < 2_i8**53) then
+        call add_num_attr(set, 'seed', real(cfg%control%seed, dp))
+      else
+        call add_attr(set, 'seed', str(cfg%control%seed))
+      end if
+      call add_num_attr(set, 'n_photons', real(summary%n_photons, dp))
+      call add_num_attr(set, 'n_batches', real(summary%n_batches, dp))
+      call add_num_attr(set, 'n_photons_per_batch', real(cfg%control%n_photons_per_batch, dp))
+      call add_num_attr(set, 'n_ranks', real(summary%n_ranks, dp))
       call add_attr(set, 'parallel', merge('MPI   ', 'serial', PAR_IS_MPI))
-      call add_attr(set, 'wall_time_s', str(summary%wall_time))
-      call add_attr(set, 'cpu_time_s', str(summary%cpu_time))
-      call add_attr(set, 'setup_time_s', str(summary%setup_time))
-      call add_attr(set, 'solar_zenith_angle_deg', str(cfg%source%sza_deg))
-      if (cfg%source%wavelength_um > 0.0_wp) call add_attr(set, 'wavelength_um', &
-                                                           str(cfg%source%wavelength_um))
+      call add_num_attr(set, 'wall_time_s', summary%wall_time)
+      call add_num_attr(set, 'cpu_time_s', summary%cpu_time)
+      call add_num_attr(set, 'setup_time_s', summary%setup_time)
+      call add_num_attr(set, 'solar_zenith_angle_deg', real(cfg%source%sza_deg, dp))
+      if (cfg%source%wavelength_um > 0.0_wp) then
+        call add_num_attr(set, 'wavelength_um', real(cfg%source%wavelength_um, dp))
+        call add_var(set, 'wavelength', 'wavelength of the radiation', 'um', &
+                     [character(len=1) ::], [real(cfg%source%wavelength_um, dp)])
+      end if
       call add_attr(set, 'normalisation', 'fluxes and absorptances are divided by the incident'// &
                     ' solar flux on a horizontal plane, mu0*F0; *_wm2 and power densities use F0 = '// &
                     str(cfg%source%solar_flux)//' W m-2')
-      call add_attr(set, 'flight_steps_per_photon', &
-                    str(real(summary%flight_steps, dp)/real(max(1_i8, summary%n_photons), dp)))
-      call add_attr(set, 'events_per_photon', &
-                    str(real(summary%events, dp)/real(max(1_i8, summary%n_photons), dp)))
+      call add_num_attr(set, 'flight_steps_per_photon', &
+                        real(summary%flight_steps, dp)/real(max(1_i8, summary%n_photons), dp))
+      call add_num_attr(set, 'events_per_photon', &
+                        real(summary%events, dp)/real(max(1_i8, summary%n_photons), dp))
       call add_attr(set, 'layer_classes', classes())
-      call add_attr(set, 'collision_forcing_factor', str(scene%vr%cf_factor))
-      call add_attr(set, 'truncation_levels', str(atm%trunc%n_levels))
+      call add_num_attr(set, 'collision_forcing_factor', real(scene%vr%cf_factor, dp))
+      call add_num_attr(set, 'truncation_levels', real(atm%trunc%n_levels, dp))
       call add_attr(set, 'vr_preset', trim(cfg%vr%preset))
       call add_attr(set, 'mode_3d', trim(cfg%control%mode_3d))
-      if (cfg%control%mode_3d == 'p3d') call add_attr(set, 'p3d_orders', str(cfg%control%p3d_orders))
+      if (cfg%control%mode_3d == 'p3d') call add_num_attr(set, 'p3d_orders', &
+                                                          real(cfg%control%p3d_orders, dp))
       if (len(scene%warnings) > 0) call add_attr(set, 'warnings', scene%warnings)
       if (len(scene%notes) > 0) call add_attr(set, 'scene_notes', scene%notes)
       call add_attr(set, 'supervoxels', sv_text())
       do i = 1, N_ANOMALIES
-        call add_attr(set, 'anomaly_'//trim(ANOMALY_NAMES(i)), str(summary%anomalies(i)))
+        call add_num_attr(set, 'anomaly_'//trim(ANOMALY_NAMES(i)), real(summary%anomalies(i), dp))
       end do
     end associate
+    call cf_annotate(set)
 
   contains
 
@@ -233,9 +245,12 @@ contains
       nd = lay%n_rad_dir
       nl = lay%n_rad_lev
       if (nd > 0) then
-        call add_dim(set, 'direction', nd, coord=real(cfg%rad%mu, dp), units='1', &
-                     long_name='cosine of the propagation direction from the upward vertical'// &
-                     ' (> 0: upward light, seen by a downward-looking sensor)')
+        ! directions are numbered: mu repeats (several azimuths), so mu and phi are auxiliary
+        ! coordinates of the dimension (CF), not its coordinate variable
+        call add_dim(set, 'direction', nd)
+        call add_var(set, 'direction_mu', 'cosine of the propagation direction from the upward'// &
+                     ' vertical (> 0: upward light, seen by a downward-looking sensor)', '1', &
+                     ['direction'], real(cfg%rad%mu, dp))
         call add_var(set, 'direction_phi', 'azimuth of the propagation direction (same frame '// &
                      'as phi0_deg: from +x towards +y)', 'degree', ['direction'], &
                      real(cfg%rad%phi_deg, dp))
@@ -265,8 +280,10 @@ contains
       do c = 1, size(lay%i_cam)
         cn = 'camera'//str(c)
         np = cfg%cam%npx(c)*cfg%cam%npy(c)
-        call add_dim(set, cn//'_x', cfg%cam%npx(c), long_name='pixel column of camera '//str(c))
-        call add_dim(set, cn//'_y', cfg%cam%npy(c), long_name='pixel row of camera '//str(c))
+        call add_dim(set, cn//'_x', cfg%cam%npx(c), coord=[(real(i, dp), i=1, cfg%cam%npx(c))], &
+                     units='1', long_name='pixel column of camera '//str(c)//' (1: left)')
+        call add_dim(set, cn//'_y', cfg%cam%npy(c), coord=[(real(i, dp), i=1, cfg%cam%npy(c))], &
+                     units='1', long_name='pixel row of camera '//str(c)//' (1: bottom)')
         call put(cn//'_radiance', RNORM//', mean over each pixel of camera '//str(c), &
                  [(lay%i_cam(c) + i, i=1, np)], dims=[cn//'_x', cn//'_y'])
         if (f_hor > 0.0_dp) then
@@ -354,29 +371,73 @@ contains
         trim(ANOMALY_NAMES(i))//': '//str(summary%anomalies(i))
     end do
     write (output_unit, '(a)') 'wrote '//path
+    flush (output_unit)
   end subroutine log_summary
+
+  !> CF metadata of a result set: standard names where CF has one (heights, fluxes in W m-2,
+  !> heating rates), and the auxiliary and scalar coordinates of every result (the direction's
+  !> mu and phi, the wavelength). The standard errors get their link (ancillary_variables) and
+  !> the `standard_error` modifier from the writer.
+  subroutine cf_annotate(set)
+    type(result_set_t), intent(inout) :: set
+    integer :: i, j
+    logical :: has_wl
+    character(len=:), allocatable :: coords
+    do i = 1, size(set%dims)
+      select case (trim(set%dims(i)%name))
+      case ('level', 'layer', 'z3d', 'rad_level')
+        set%dims(i)%standard_name = 'height'
+        set%dims(i)%axis = 'Z'
+      end select
+    end do
+    has_wl = find_var(set, 'wavelength') > 0
+    do i = 1, size(set%vars)
+      associate (v => set%vars(i))
+        select case (trim(v%name))
+        case ('flux_up_wm2')
+          v%standard_name = 'upwelling_shortwave_flux_in_air'
+        case ('flux_down_wm2')
+          v%standard_name = 'downwelling_shortwave_flux_in_air'
+        case ('flux_down_direct_wm2')
+          v%standard_name = 'direct_downwelling_shortwave_flux_in_air'
+        case ('flux_down_diffuse_wm2')
+          v%standard_name = 'diffuse_downwelling_shortwave_flux_in_air'
+        case default
+          if (index(v%name, 'heating_rate') == 1) &
+            v%standard_name = 'tendency_of_air_temperature_due_to_shortwave_heating'
+        end select
+        if (.not. allocated(v%stderr)) cycle
+        coords = ''
+        do j = 1, v%ndims
+          if (trim(v%dim_names(j)) == 'direction') coords = 'direction_mu direction_phi'
+        end do
+        if (has_wl) then
+          if (len(coords) > 0) coords = coords//' '
+          coords = coords//'wavelength'
+        end if
+        if (len(coords) > 0) v%coordinates = coords
+      end associate
+    end do
+  end subroutine cf_annotate
 
   !> The domain-mean radiances, one line per direction and level, leaving out exact zeros (no
   !> light enters at the top; a black surface reflects none); at most MAX_LINES lines.
   subroutine log_radiances(set)
     type(result_set_t), intent(in) :: set
     integer, parameter :: MAX_LINES = 12
-    integer :: iv, iphi, idir, ilev, nd, nl, j, k, lines
+    integer :: iv, iphi, imu, idir, ilev, nd, nl, j, k, lines
     real(dp) :: mu, phi, z
     iv = find_var(set, 'radiance')
     iphi = find_var(set, 'direction_phi')
-    idir = 0
-    ilev = 0
-    do j = 1, size(set%dims)
-      if (trim(set%dims(j)%name) == 'direction') idir = j
-      if (trim(set%dims(j)%name) == 'rad_level') ilev = j
-    end do
-    if (iv == 0 .or. iphi == 0 .or. idir == 0 .or. ilev == 0) return
+    imu = find_var(set, 'direction_mu')
+    idir = find_dim(set, 'direction')
+    ilev = find_dim(set, 'rad_level')
+    if (iv == 0 .or. iphi == 0 .or. imu == 0 .or. idir == 0 .or. ilev == 0) return
     nd = set%dims(idir)%size
     nl = set%dims(ilev)%size
     lines = 0
     do j = 1, nd
-      mu = set%dims(idir)%coord(j)
+      mu = set%vars(imu)%mean(j)
       phi = set%vars(iphi)%mean(j)
       do k = 1, nl
         z = set%dims(ilev)%coord(k)

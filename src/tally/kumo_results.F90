@@ -1,15 +1,15 @@
 ! SPDX-License-Identifier: BSD-3-Clause
 !> A set of named results (mean and standard error on named dimensions) and global attributes.
 !>
-!> The driver fills a `result_set_t`; the netCDF writer turns it into a file. Nothing here knows
-!> about netCDF, so the layout of the output is decided in one place (the driver) and written
-!> generically.
+!> kumo_output fills a `result_set_t`; the netCDF writer turns it into a file. Nothing here
+!> knows about netCDF, so the layout of the output is decided in one place (kumo_output) and
+!> written generically.
 module kumo_results
   use kumo_kinds, only: dp
   implicit none
   private
   public :: result_dim_t, result_var_t, result_attr_t, result_set_t
-  public :: add_dim, add_var, add_attr, find_var
+  public :: add_dim, add_var, add_attr, add_num_attr, find_var, find_dim
 
   integer, parameter :: NAME_LEN = 64
 
@@ -20,6 +20,8 @@ module kumo_results
     real(dp), allocatable :: coord(:)                !! coordinate values (written if allocated)
     character(len=:), allocatable :: units           !! units of the coordinate
     character(len=:), allocatable :: long_name       !! description of the coordinate
+    character(len=:), allocatable :: standard_name   !! CF standard name of the coordinate
+    character(len=1) :: axis = ' '                   !! CF axis of the coordinate ('Z': a height, positive up)
   end type result_dim_t
 
   !> One output quantity: mean and standard error, flattened in Fortran order of its dims.
@@ -31,12 +33,15 @@ module kumo_results
     character(len=NAME_LEN) :: dim_names(4) = ''     !! dimension names, first varies fastest
     real(dp), allocatable :: mean(:)                 !! mean over batches
     real(dp), allocatable :: stderr(:)               !! standard error of the mean (if allocated)
+    character(len=:), allocatable :: standard_name   !! CF standard name (if allocated)
+    character(len=:), allocatable :: coordinates     !! CF auxiliary/scalar coordinates (if allocated)
   end type result_var_t
 
-  !> A global attribute (text).
+  !> A global attribute: text, or a number when `num` is allocated.
   type :: result_attr_t
     character(len=NAME_LEN) :: name = ''             !! attribute name
     character(len=:), allocatable :: value           !! attribute text
+    real(dp), allocatable :: num(:)                  !! numeric value (written as a number)
   end type result_attr_t
 
   !> Everything that goes into one output file.
@@ -44,6 +49,7 @@ module kumo_results
     type(result_dim_t), allocatable :: dims(:)
     type(result_var_t), allocatable :: vars(:)
     type(result_attr_t), allocatable :: attrs(:)
+    integer :: deflate = 0                           !! deflate level of the variables (0: none)
   end type result_set_t
 
 contains
@@ -96,6 +102,33 @@ contains
     if (.not. allocated(set%attrs)) allocate (set%attrs(0))
     set%attrs = [set%attrs, a]
   end subroutine add_attr
+
+  !> Add a numeric global attribute.
+  subroutine add_num_attr(set, name, value)
+    type(result_set_t), intent(inout) :: set
+    character(len=*), intent(in) :: name
+    real(dp), intent(in) :: value
+    type(result_attr_t) :: a
+    a%name = name
+    a%num = [value]
+    if (.not. allocated(set%attrs)) allocate (set%attrs(0))
+    set%attrs = [set%attrs, a]
+  end subroutine add_num_attr
+
+  !> Index of the dimension with the given name, 0 if absent.
+  pure integer function find_dim(set, name) result(idx)
+    type(result_set_t), intent(in) :: set
+    character(len=*), intent(in) :: name
+    integer :: i
+    idx = 0
+    if (.not. allocated(set%dims)) return
+    do i = 1, size(set%dims)
+      if (trim(set%dims(i)%name) == trim(name)) then
+        idx = i
+        return
+      end if
+    end do
+  end function find_dim
 
   !> Index of the variable with the given name, 0 if absent.
   pure integer function find_var(set, name) result(idx)

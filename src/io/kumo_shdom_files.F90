@@ -29,6 +29,7 @@ module kumo_shdom_files
   use kumo_kinds, only: wp
   use kumo_constants, only: PI
   use kumo_error, only: error_t, set_error, str
+  use kumo_file_check, only: check_text_complete
   implicit none
   private
   public :: lwc_field_t, prp_field_t, read_lwc_file, read_prp_file
@@ -691,6 +692,9 @@ contains
     integer :: ios
     character(len=512) :: msg
     tf%path = trim(path)
+    tf%line = ''
+    call check_text_complete(path, error)   ! (before the open: a file is open on one unit only)
+    if (allocated(error)) return
     open (newunit=tf%unit, file=path, status='old', action='read', form='formatted', &
           access='sequential', iostat=ios, iomsg=msg)
     if (ios /= 0) then
@@ -698,7 +702,6 @@ contains
     else
       tf%is_open = .true.
     end if
-    tf%line = ''
   end subroutine text_open
 
   !> Close the file (no-op when closed).

@@ -22,7 +22,8 @@ module kumo_config
   use kumo_cloud_input, only: cloud_input_t, cloud_request_t, read_cloud_input, &
                               cloud_format_check, CLOUD_OPTICS, CLOUD_MCARATS
   use kumo_mcarats_files, only: is_ctl_path, mcarats_request_t
-  use kumo_nml_text, only: nml_group_t, nml_scan, nml_diagnose, closest_name, nml_probe_i
+  use kumo_nml_text, only: nml_group_t, nml_scan, nml_diagnose, closest_name, nml_probe_i, &
+                           nml_find_nan, nml_find_long_string
   use kumo_textio, only: read_line
   implicit none
   private
@@ -38,7 +39,13 @@ module kumo_config
   integer, parameter :: MAX_PHASE = 64      !! most phase functions
   integer, parameter :: MAX_DIR = 64        !! most radiance directions
   integer, parameter :: MAX_CAMERAS = 8     !! most cameras
-  integer, parameter :: PATH_LEN = 512
+  integer, parameter :: PATH_LEN = 4096  !! longest path a namelist can give
+  !> A Rayleigh atmosphere whose top is lower than this [m] was given in kilometres.
+  real(wp), parameter :: KM_HINT = 100.0_wp
+  !> Photon totals beyond 2^53 lose exactness in the double-precision tallies.
+  integer(i8), parameter :: MAX_TOTAL_PHOTONS = 2_i8**53
+  !> Largest rr_weight/rr_threshold: beyond it the roulette kills nearly every photon.
+  real(wp), parameter :: RR_RATIO_MAX = 1000.0_wp
   real(wp), parameter :: UNSET = -huge(1.0_wp)
   real(wp), parameter :: BIG = huge(1.0_wp)      !! largest finite value
   real(wp), parameter :: SMALL = tiny(1.0_wp)    !! smallest positive value
@@ -317,7 +324,9 @@ contains
     rewind (unit)
   end function unit_text
 
-  !> Turn the iostat of a namelist read into an error (or nothing). A failed read is explained
+  !> Turn the iostat of a namelist read into an error (or nothing). A value NaN is refused
+  !> wherever it is written (even where another form of the same setting would win). A failed
+  !> read is explained
   !> by re-reading the group's assignments one at a time (`probe`): the message names the
   !> group, the line, the variable and what it takes.
   subroutine check_read(unit, group, present, ios, msg, error, probe)
@@ -327,7 +336,16 @@ contains
     integer, intent(in) :: ios
     type(error_t), allocatable, intent(out) :: error
     procedure(nml_probe_i) :: probe
-    if (ios == 0) return
+    character(len=:), allocatable :: nan_message
+    if (ios == 0) then
+      if (present) then
+        nan_message = nml_find_nan(group, unit_text(unit))
+        if (len(nan_message) == 0) nan_message = nml_find_long_string(group, unit_text(unit), &
+                                                                      probe)
+        if (len(nan_message) > 0) call set_error(error, nan_message)
+      end if
+      return
+    end if
     if (ios == iostat_end .and. .not. present) return
     if (ios == iostat_end) then
       call set_error(error, 'namelist &'//group//' is malformed: a value could not be read '// &
@@ -386,6 +404,14 @@ contains
     call require(findloc(TARGET_NAMES, cfg%target_output, 1) > 0, CTX, 'target_output', &
                  target_output, 'must be one of '//join(TARGET_NAMES), error)
     call require(max_photons >= 1, CTX, 'max_photons', max_photons, 'must be >= 1', error)
+    if (.not. allocated(error)) then
+      call require(n_photons_per_batch <= MAX_TOTAL_PHOTONS/n_batches, CTX, &
+                   'n_photons_per_batch', n_photons_per_batch, 'times n_batches = '// &
+                   str(n_batches)//' must be <= 2^53 = '//str(MAX_TOTAL_PHOTONS)// &
+                   ' photons (beyond, counts overflow or lose exactness in the tallies)', error)
+      call require(max_photons <= MAX_TOTAL_PHOTONS, CTX, 'max_photons', max_photons, &
+                   'must be <= 2^53 = '//str(MAX_TOTAL_PHOTONS), error)
+    end if
     call require(max_events >= 1, CTX, 'max_events', max_events, 'must be >= 1', error)
     call require(findloc(MODE_NAMES, cfg%mode_3d, 1) > 0, CTX, 'mode_3d', mode_3d, &
                  'must be one of '//join(MODE_NAMES), error)
@@ -520,6 +546,14 @@ contains
     call require(within(lx, SMALL, BIG) .and. within(ly, SMALL, BIG), CTX, 'lx', lx, &
                  'and ly = '//str(ly)//' must be > 0 [m]', error)
     if (allocated(error)) return
+    ! Rayleigh layers are set from pressures over real heights: a top below KM_HINT looks like
+    ! kilometres given where metres are expected.
+    if (rayleigh .and. z_levels(nz) < KM_HINT) then
+      call set_error(error, CTX//'z_levels top = '//str(z_levels(nz))//' m with rayleigh = '// &
+                     '.true.: heights are in metres; '//str(z_levels(nz))//' km would be '// &
+                     str(1000.0_wp*z_levels(nz))//' m (the top must be >= '//str(KM_HINT)//' m)')
+      return
+    end if
     if (any(ext1d(nz + 1:, :) /= UNSET) .or. any(ext1d(:, n_components + 1:) /= UNSET) .or. &
         any(ssa1d(nz + 1:, :) /= UNSET) .or. any(ssa1d(:, n_components + 1:) /= UNSET) .or. &
         any(phase1d(nz + 1:, :) /= IUNSET) .or. any(phase1d(:, n_components + 1:) /= IUNSET)) then
@@ -1459,6 +1493,14 @@ contains
     call require(within(rr_weight, SMALL, BIG), CTX, 'rr_weight', rr_weight, 'must be > 0', error)
     call require(within(rr_threshold, 0.0_wp, rr_weight), CTX, 'rr_threshold', rr_threshold, &
                  'must be within [0, rr_weight = '//str(rr_weight)//']', error)
+    if (.not. allocated(error) .and. rr_threshold > 0.0_wp) then
+      call require(rr_weight <= RR_RATIO_MAX*rr_threshold, CTX, 'rr_weight', rr_weight, &
+                   'must be <= '//str(RR_RATIO_MAX)//' x rr_threshold = '//str(rr_threshold)// &
+                   ': a photon below rr_threshold survives the roulette with probability '// &
+                   'at most rr_threshold/rr_weight = '//str(rr_threshold/rr_weight)// &
+                   ', so nearly every photon is killed and the few survivors, of weight '// &
+                   'rr_weight, dominate the result (set rr_threshold = 0 for no roulette)', error)
+    end if
     call require(within(sv_fsupg, SMALL, BIG) .and. within(sv_fsupi, SMALL, BIG), CTX, &
                  'sv_fsupg and sv_fsupi', rule='must be > 0', error=error)
     call require(sv_max_layers >= 1, CTX, 'sv_max_layers', sv_max_layers, 'must be >= 1', error)

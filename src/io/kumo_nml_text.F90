@@ -7,11 +7,12 @@
 !> several groups on one line, blanks or tabs anywhere, `!` comments. Text outside groups is
 !> ignored (as the compiler's reader does). Quoted strings may hold any character.
 module kumo_nml_text
+  use, intrinsic :: iso_fortran_env, only: iostat_end, iostat_eor
   use kumo_error, only: error_t, set_error, str, to_lower
   implicit none
   private
   public :: nml_group_t, nml_assign_t, nml_scan, nml_assignments, nml_diagnose, closest_name, &
-            edit_distance, nml_probe_i
+            edit_distance, nml_probe_i, nml_find_nan, nml_find_long_string
 
   !> One group as written in the file.
   type :: nml_group_t
@@ -286,6 +287,171 @@ contains
     message = 'namelist &'//group//' (lines '//str(groups(ig)%line)//' to '// &
               str(groups(ig)%end_line)//'): '//trim(compiler_msg)
   end function nml_diagnose
+
+  !> A message for the first value NaN (any case, signed, with a repeat count or a payload
+  !> such as nan(q)) in group `group` of the namelist text, or '' when there is none.
+  function nml_find_nan(group, text) result(message)
+    character(len=*), intent(in) :: group, text
+    character(len=:), allocatable :: message
+    type(nml_group_t), allocatable :: groups(:)
+    type(nml_assign_t), allocatable :: items(:)
+    type(error_t), allocatable :: scan_error
+    character(len=:), allocatable :: v, tok
+    integer :: ig, ia, i, j, k
+    message = ''
+    call nml_scan(text, groups, scan_error)
+    if (allocated(scan_error)) return
+    do ig = 1, size(groups)
+      if (groups(ig)%name /= group) cycle
+      call nml_assignments(text, groups(ig), items)
+      do ia = 1, size(items)
+        v = items(ia)%value
+        i = 1
+        do while (i <= len(v))
+          if (v(i:i) == '''' .or. v(i:i) == '"') then     ! skip a string
+            j = index(v(i + 1:), v(i:i))
+            if (j == 0) exit
+            i = i + j + 1
+            cycle
+          end if
+          if (index(' ,', v(i:i)) > 0) then
+            i = i + 1
+            cycle
+          end if
+          j = i
+          do while (j <= len(v))
+            if (index(' ,', v(j:j)) > 0) exit
+            j = j + 1
+          end do
+          tok = to_lower(v(i:j - 1))
+          k = index(tok, '*')
+          if (k > 0) tok = tok(k + 1:)
+          if (len(tok) > 0) then
+            if (tok(1:1) == '+' .or. tok(1:1) == '-') tok = tok(2:)
+          end if
+          if (len(tok) >= 3) then
+            if (tok(1:3) == 'nan') then
+              message = items(ia)%object//' = NaN must be finite (namelist &'//group// &
+                        ', line '//str(items(ia)%line)//'; kumo accepts no NaN input)'
+              return
+            end if
+          end if
+          i = j
+        end do
+      end do
+    end do
+  end function nml_find_nan
+
+  !> A message for the first quoted string of group `group` longer than its variable (the
+  !> compiler cuts it silently: a path would name another file), or ''. The variables' lengths
+  !> are those of the values in the compiler's namelist output (`probe`).
+  function nml_find_long_string(group, text, probe) result(message)
+    character(len=*), intent(in) :: group, text
+    procedure(nml_probe_i) :: probe
+    character(len=:), allocatable :: message
+    type(nml_group_t), allocatable :: groups(:)
+    type(nml_assign_t), allocatable :: items(:)
+    type(error_t), allocatable :: scan_error
+    character(len=64), allocatable :: names(:)
+    integer, allocatable :: lens(:)
+    integer :: ig, ia, k, n
+    message = ''
+    call nml_scan(text, groups, scan_error)
+    if (allocated(scan_error)) return
+    names = [character(len=64) ::]
+    lens = [integer ::]
+    do ig = 1, size(groups)
+      if (groups(ig)%name /= group) cycle
+      call nml_assignments(text, groups(ig), items)
+      do ia = 1, size(items)
+        if (len(items(ia)%value) == 0) cycle
+        if (items(ia)%value(1:1) /= '''' .and. items(ia)%value(1:1) /= '"') cycle
+        n = quoted_length(items(ia)%value)
+        if (n <= 64) cycle                   ! no variable of kumo holds fewer characters
+        if (size(names) == 0) call string_lengths(probe, names, lens)
+        do k = 1, size(names)
+          if (trim(names(k)) == items(ia)%name .and. n > lens(k)) then
+            message = 'namelist &'//group//', line '//str(items(ia)%line)//': '// &
+                      items(ia)%object//' has '//str(n)//' characters, more than the '// &
+                      str(lens(k))//' it holds'
+            return
+          end if
+        end do
+      end do
+    end do
+  end function nml_find_long_string
+
+  !> Characters of the first quoted string of `v` (doubled quotes count once).
+  pure integer function quoted_length(v) result(n)
+    character(len=*), intent(in) :: v
+    integer :: i
+    character(len=1) :: q
+    q = v(1:1)
+    n = 0
+    i = 2
+    do while (i <= len(v))
+      if (v(i:i) == q) then
+        if (i < len(v)) then
+          if (v(i + 1:i + 1) == q) then
+            n = n + 1
+            i = i + 2
+            cycle
+          end if
+        end if
+        return
+      end if
+      n = n + 1
+      i = i + 1
+    end do
+  end function quoted_length
+
+  !> Names and lengths of a group's character variables, from the compiler's namelist output
+  !> (written with quotes, so each value shows the variable's full length).
+  subroutine string_lengths(probe, names, lens)
+    procedure(nml_probe_i) :: probe
+    character(len=64), allocatable, intent(out) :: names(:)
+    integer, allocatable, intent(out) :: lens(:)
+    character(len=:), allocatable :: line
+    character(len=512) :: msg
+    integer :: u, ios, k
+    allocate (names(0), lens(0))
+    open (newunit=u, status='scratch', action='readwrite', form='formatted', delim='quote', &
+          iostat=ios)
+    if (ios /= 0) return
+    call probe('', u, ios, msg)
+    rewind (u)
+    do
+      call read_any_line(u, line, ios)
+      if (ios /= 0) exit
+      line = adjustl(line)
+      k = index(line, '=')
+      if (k <= 1 .or. k >= len(line)) cycle
+      if (line(k + 1:k + 1) /= '"') cycle
+      names = [character(len=64) :: names, to_lower(line(1:k - 1))]
+      lens = [lens, quoted_length(line(k + 1:))]
+    end do
+    close (u)
+  end subroutine string_lengths
+
+  !> One line of any length.
+  subroutine read_any_line(unit, line, ios)
+    integer, intent(in) :: unit
+    character(len=:), allocatable, intent(out) :: line
+    integer, intent(out) :: ios
+    character(len=1024) :: buf
+    integer :: nread
+    line = ''
+    do
+      read (unit, '(a)', advance='no', iostat=ios, size=nread) buf
+      if (ios == iostat_end) return
+      line = line//buf(1:nread)
+      if (ios == iostat_eor) then
+        ios = 0
+        return
+      end if
+      if (ios /= 0) return
+    end do
+  end subroutine read_any_line
 
   !> ' (did you mean x?)' for the closest of `names` within a few edits, else ''.
   function suggestion(name, names) result(s)

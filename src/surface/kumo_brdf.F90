@@ -63,7 +63,7 @@ module kumo_brdf
   public :: brdf_table_init, brdf_albedo, brdf_table_eval, brdf_table_eval_dir, brdf_sample
   public :: lsrt_grid_t, lsrt_grid_init, brdf_table_init_grid
   public :: cox_munk_slope_variance, fresnel_reflectance, dsm_shadowing
-  public :: ross_thick_kernel, li_sparse_r_kernel, lsrt_kernel_albedos
+  public :: ross_thick_kernel, li_sparse_r_kernel, lsrt_kernel_albedos, lsrt_negative_fraction
 
   integer, parameter :: BRDF_BLACK = 0    !! no reflection
   integer, parameter :: BRDF_LAMBERT = 1  !! isotropic reflection, R = albedo/pi
@@ -83,6 +83,9 @@ module kumo_brdf
   !> evaluated at MU_NODE0 instead of 0, where RPV and LSRT diverge.
   integer, parameter :: BRDF_NMU = 21
   real(wp), parameter :: MU_NODE0 = 1.0e-10_wp
+  !> Largest accepted fraction of (cosine-weighted) direction pairs where the LSRT kernel sum
+  !> is negative and clamped to 0 (`brdf_validate`).
+  real(wp), parameter :: LSRT_NEG_MAX = 0.25_wp
   !> Nodes of the dense albedo table (`brdf_table_init`), uniform in sqrt(mu_in) like the
   !> envelope nodes: with cubic interpolation the albedo is within 1e-6 relative of the
   !> quadrature for DSM and RPV (measured in the unit tests); the envelopes keep BRDF_NMU.
@@ -228,10 +231,12 @@ contains
   !> Check a parameter set. The message names the model, the parameter, its value and bound.
   !> Ranges: Lambert albedo in [0, 1]; DSM a_d, f_d in [0, 1], n_r in [1, 100], n_i in
   !> [0, 100], sigma^2 in (0, 100] (MCARaTS limits 100); RPV rho0 in [0, 1], k in (0, 2],
-  !> |Theta| < 1, h > 0; LSRT weights >= 0 and finite.
+  !> |Theta| < 1, h > 0; LSRT weights >= 0 and finite, and a kernel sum negative (clamped to
+  !> 0) for at most LSRT_NEG_MAX of the direction pairs (`lsrt_negative_fraction`).
   subroutine brdf_validate(p, error)
     type(brdf_params_t), intent(in) :: p
     type(error_t), allocatable, intent(out) :: error
+    real(wp) :: frac
     select case (p%kind)
     case (BRDF_BLACK)
     case (BRDF_LAMBERT)
@@ -270,6 +275,17 @@ contains
       call non_negative(p%c(2), 'lsrt k_geo', error)
       if (allocated(error)) return
       call non_negative(p%c(3), 'lsrt k_vol', error)
+      if (allocated(error)) return
+      frac = lsrt_negative_fraction(p)
+      if (frac > LSRT_NEG_MAX) then
+        call set_error(error, 'brdf lsrt weights k_iso = '//str(p%c(1))//', k_geo = '// &
+                       str(p%c(2))//', k_vol = '//str(p%c(3))//' give a kernel sum that is '// &
+                       'negative for '//str(nint(100*frac))//' % of the pairs of incident '// &
+                       'and reflected directions (cosine-weighted; at most '// &
+                       str(nint(100*LSRT_NEG_MAX))//' % accepted); it would be clamped to 0 '// &
+                       'there, which changes the surface: check the weights and their order '// &
+                       '(k_iso, k_geo, k_vol)')
+      end if
     case default
       call set_error(error, 'brdf kind = '//str(p%kind)//' must be within [0, 4] '// &
                      '(0 black, 1 lambert, 2 dsm, 3 rpv, 4 lsrt)')
@@ -732,6 +748,34 @@ contains
       f = lsrt_sum(p, mu0, mu, mu0*mu - sgn*s0*s1)
     end if
   end function plane_fun
+
+  !> Fraction of the pairs of incident and reflected directions, weighted by mu_in mu_out
+  !> dOmega_in dOmega_out, where the LSRT kernel sum is negative (midpoint rule, 24 x 24 x 24
+  !> cells in mu_in, mu_out and dphi on [0, pi]).
+  pure function lsrt_negative_fraction(p) result(frac)
+    type(brdf_params_t), intent(in) :: p
+    real(wp) :: frac
+    integer, parameter :: N = 24
+    real(wp) :: mu0, mu1, s0, s1, w, wsum, wneg
+    integer :: i, j, k
+    wsum = 0.0_wp
+    wneg = 0.0_wp
+    do i = 1, N
+      mu0 = (i - 0.5_wp)/N
+      s0 = sin_of(mu0)
+      do j = 1, N
+        mu1 = (j - 0.5_wp)/N
+        s1 = sin_of(mu1)
+        w = mu0*mu1
+        do k = 1, N
+          wsum = wsum + w
+          if (lsrt_sum(p, mu0, mu1, mu0*mu1 - s0*s1*cos((k - 0.5_wp)*PI/N)) < 0.0_wp) &
+            wneg = wneg + w
+        end do
+      end do
+    end do
+    frac = wneg/wsum
+  end function lsrt_negative_fraction
 
   !> Unclipped LSRT kernel sum k_iso + k_geo f_g + k_vol f_v for cos(phase angle) cg.
   pure function lsrt_sum(p, mu0, mu1, cg) result(f)

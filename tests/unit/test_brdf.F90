@@ -17,7 +17,8 @@ module test_kumo_brdf
                        brdf_albedo_quad, brdf_table_init, brdf_albedo, brdf_table_eval, &
                        brdf_table_eval_dir, cox_munk_slope_variance, fresnel_reflectance, &
                        dsm_shadowing, ross_thick_kernel, li_sparse_r_kernel, &
-                       lsrt_kernel_albedos, lsrt_grid_t, lsrt_grid_init, brdf_table_init_grid, BRDF_NALB
+                       lsrt_kernel_albedos, lsrt_grid_t, lsrt_grid_init, brdf_table_init_grid, BRDF_NALB, &
+                       lsrt_negative_fraction
   use kumo_testing, only: error_t, unittest_t, new_unittest, check, check_close
   use kumo_error, only: str
   implicit none
@@ -290,6 +291,12 @@ contains
     call expect_error(error, err, 'brdf lsrt k_geo = -0.07 must be >= 0 and finite', 'k_geo')
     call brdf_validate(brdf_params(BRDF_LSRT, [0.3_wp, 0.07_wp, nan]), err)
     call expect_error(error, err, 'brdf lsrt k_vol = NaN must be >= 0 and finite', 'k_vol')
+    ! a kernel sum negative over most of the hemisphere (k_geo = k_iso) would be clamped to 0
+    ! there: refused with the fraction (typical weights: 1-4 %)
+    call brdf_validate(brdf_params(BRDF_LSRT, [0.1_wp, 0.1_wp, 0.05_wp]), err)
+    call expect_error(error, err, 'negative for 66 % of the pairs', 'lsrt mostly negative')
+    call check(error, lsrt_negative_fraction(brdf_params(BRDF_LSRT, [0.3_wp, 0.07_wp, &
+               0.03_wp])) < 0.05_wp, 'alb_N98 weights: few clamped pairs')
     call brdf_validate(brdf_params(7, [0.3_wp]), err)
     call expect_error(error, err, 'brdf kind = 7 must be within [0, 4]', 'kind')
     ! the table constructor validates too
@@ -769,7 +776,7 @@ contains
     ps(1) = brdf_params(BRDF_LSRT, [0.2_wp, 0.0_wp, 0.15_wp])      ! never clipped
     ps(2) = brdf_params(BRDF_LSRT, [0.3_wp, 0.07_wp, 0.03_wp])     ! alb_N98, clipped
     ps(3) = brdf_params(BRDF_LSRT, [0.1_wp, 0.02_wp, 0.6_wp])      ! volume dominated
-    ps(4) = brdf_params(BRDF_LSRT, [0.1_wp, 0.1_wp, 0.05_wp])       ! strongly clipped
+    ps(4) = brdf_params(BRDF_LSRT, [0.2_wp, 0.1_wp, 0.05_wp])       ! strongly clipped (21 %)
     ps(5) = brdf_params(BRDF_LSRT, [0.25_wp, 0.04_wp, 0.1_wp])     ! typical MODIS weights
     do k = 1, size(ps)
       call brdf_table_init_grid(tg, ps(k), grid, err)

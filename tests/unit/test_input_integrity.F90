@@ -363,6 +363,13 @@ contains
     call write_raw('integ.mys', MYS_TEXT(1:len(MYS_TEXT) - 1))
     call read_mystic_file('integ.mys', mys, err)
     call check_error_words(error, err, [character(len=32) :: 'integ.mys', 'no line end'])
+    ! absurd header sizes (1e16 points, beyond any address space): an error naming the file
+    ! and the sizes, not a crash
+    call write_raw('integ.lwc', '2 parameter LWC file'//NL//'100000000 100000000 1'//NL// &
+                   '0.1 0.1'//NL//'0.5 0.6'//NL//'280 279'//NL//'1 1 1 0.25 8'//NL)
+    call read_lwc_file('integ.lwc', lwc, err)
+    call check_error_words(error, err, [character(len=40) :: 'integ.lwc', 'cannot allocate', &
+                                        '100000000 x 100000000 x 1'])
     call write_raw('integ.txt', '0 1.0'//NL//'180 0.5'//NL)
     call read_two_columns('integ.txt', a, b, err)
     call no_error(error, err, 'complete table')

@@ -1009,7 +1009,7 @@ contains
   !> For RPV and LSRT the ratio is normalised by the interpolated albedo, as in the sampler,
   !> and the slope a1 of the proposal a1 mu + a0 is chosen per bin to minimise the bound (the
   !> expected number of tries). Nodes where the model albedo exceeds 1 are counted in
-  !> `n_clamped`. Cost: about 4 ms (RPV), 6-10 ms (DSM), 20-40 ms (LSRT with clipping).
+  !> `n_clamped`. (Cost of the whole table: see below.)
   !>
   !> The albedo is interpolated (cubic in sqrt(mu_in)) on BRDF_NALB = 121 nodes, measured
   !> against the quadrature at the midpoints between nodes for mu_in in [0.01, 1]: 2.5e-7 for
@@ -1017,7 +1017,7 @@ contains
   !> hot spot (the quadrature's own error), 8e-5 for LSRT where clipping of a negative kernel
   !> sum puts kinks in the albedo; `interp_err` reports the largest error at the envelope bin
   !> midpoints. With `mu0`, the albedo at mu_in = mu0 (the direct beam) is the quadrature
-  !> value itself. Cost: about 3 ms (RPV), 5 ms (DSM), 30-50 ms (LSRT) more than the envelopes.
+  !> value itself. Whole table, measured: about 6 ms (RPV), 18 ms (DSM), 56 ms (LSRT, alb_N98).
   subroutine brdf_table_init(tab, p, error, mu0)
     type(brdf_table_t), intent(out) :: tab
     type(brdf_params_t), intent(in) :: p

@@ -22,6 +22,9 @@ module kumo_config
   use kumo_cloud_input, only: cloud_input_t, cloud_request_t, read_cloud_input, &
                               cloud_format_check, CLOUD_OPTICS, CLOUD_MCARATS
   use kumo_mcarats_files, only: is_ctl_path, mcarats_request_t
+  use kumo_nml_text, only: nml_group_t, nml_scan, nml_diagnose, closest_name, nml_probe_i, &
+                           nml_find_nan, nml_find_long_string
+  use kumo_textio, only: read_line
   implicit none
   private
   public :: config_t, control_cfg_t, atmosphere_cfg_t, phase_cfg_t, surface_cfg_t, &
@@ -36,7 +39,13 @@ module kumo_config
   integer, parameter :: MAX_PHASE = 64      !! most phase functions
   integer, parameter :: MAX_DIR = 64        !! most radiance directions
   integer, parameter :: MAX_CAMERAS = 8     !! most cameras
-  integer, parameter :: PATH_LEN = 512
+  integer, parameter :: PATH_LEN = 4096  !! longest path a namelist can give
+  !> A Rayleigh atmosphere whose top is lower than this [m] was given in kilometres.
+  real(wp), parameter :: KM_HINT = 100.0_wp
+  !> Photon totals beyond 2^53 lose exactness in the double-precision tallies.
+  integer(i8), parameter :: MAX_TOTAL_PHOTONS = 2_i8**53
+  !> Largest rr_weight/rr_threshold: beyond it the roulette kills nearly every photon.
+  real(wp), parameter :: RR_RATIO_MAX = 1000.0_wp
   real(wp), parameter :: UNSET = -huge(1.0_wp)
   real(wp), parameter :: BIG = huge(1.0_wp)      !! largest finite value
   real(wp), parameter :: SMALL = tiny(1.0_wp)    !! smallest positive value
@@ -260,59 +269,89 @@ contains
     if (.not. allocated(error)) call consolidate(cfg, error)
   end subroutine read_config
 
-  !> Find which groups are present and reject unknown group names.
+  !> Find which groups are present (kumo_nml_text reads the layouts gfortran reads: &group ... /,
+  !> $group ... $end, tabs, several groups on a line). Unknown group names are errors with the
+  !> closest known name; a group given twice is an error naming both lines.
   subroutine scan_groups(unit, present_groups, error)
     integer, intent(in) :: unit
     logical, intent(out) :: present_groups(:)
     type(error_t), allocatable, intent(out) :: error
-    character(len=1024) :: line
-    character(len=64) :: name
-    integer :: ios, i, j
-    logical :: known
+    type(nml_group_t), allocatable :: groups(:)
+    character(len=:), allocatable :: text, hint
+    integer :: i, k, first_line(size(GROUP_NAMES))
     present_groups = .false.
-    rewind (unit)
-    do
-      read (unit, '(a)', iostat=ios) line
-      if (ios /= 0) exit
-      line = adjustl(line)
-      if (line(1:1) /= '&') cycle
-      j = scan(line(2:), ' ,/!')
-      if (j == 0) j = len_trim(line)
-      name = to_lower(line(2:j))
-      if (trim(name) == 'end' .or. len_trim(name) == 0) cycle
-      known = .false.
-      do i = 1, size(GROUP_NAMES)
-        if (trim(name) == trim(GROUP_NAMES(i))) then
-          if (present_groups(i)) then
-            call set_error(error, 'namelist group &'//trim(name)//' appears more than once')
-            return
-          end if
-          present_groups(i) = .true.
-          known = .true.
+    first_line = 0
+    text = unit_text(unit)
+    call nml_scan(text, groups, error)
+    if (allocated(error)) return
+    do i = 1, size(groups)
+      k = findloc(GROUP_NAMES, groups(i)%name, 1)
+      if (k == 0) then
+        hint = closest_name(groups(i)%name, GROUP_NAMES)
+        if (len(hint) > 0) then
+          hint = '; did you mean &'//hint//'?'
+        else
+          hint = '; known groups: '//join(GROUP_NAMES)
         end if
-      end do
-      if (.not. known) then
-        call set_error(error, 'unknown namelist group &'//trim(name)//'; known groups: '// &
-                       join(GROUP_NAMES))
+        call set_error(error, 'unknown namelist group &'//groups(i)%name//' (line '// &
+                       str(groups(i)%line)//')'//hint)
         return
       end if
+      if (present_groups(k)) then
+        call set_error(error, 'namelist group &'//groups(i)%name//' appears more than once '// &
+                       '(lines '//str(first_line(k))//' and '//str(groups(i)%line)// &
+                       '); give each group once')
+        return
+      end if
+      present_groups(k) = .true.
+      first_line(k) = groups(i)%line
     end do
     rewind (unit)
   end subroutine scan_groups
 
-  !> Turn the iostat of a namelist read into an error (or nothing).
-  subroutine check_read(group, present, ios, msg, error)
+  !> The whole text of the file open on `unit`, lines joined with line ends.
+  function unit_text(unit) result(text)
+    integer, intent(in) :: unit
+    character(len=:), allocatable :: text, line
+    integer :: ios
+    text = ''
+    rewind (unit)
+    do
+      call read_line(unit, line, ios)
+      if (ios /= 0) exit
+      text = text//line//new_line('a')
+    end do
+    rewind (unit)
+  end function unit_text
+
+  !> Turn the iostat of a namelist read into an error (or nothing). A value NaN is refused
+  !> wherever it is written (even where another form of the same setting would win). A failed
+  !> read is explained
+  !> by re-reading the group's assignments one at a time (`probe`): the message names the
+  !> group, the line, the variable and what it takes.
+  subroutine check_read(unit, group, present, ios, msg, error, probe)
+    integer, intent(in) :: unit
     character(len=*), intent(in) :: group, msg
     logical, intent(in) :: present
     integer, intent(in) :: ios
     type(error_t), allocatable, intent(out) :: error
-    if (ios == 0) return
+    procedure(nml_probe_i) :: probe
+    character(len=:), allocatable :: nan_message
+    if (ios == 0) then
+      if (present) then
+        nan_message = nml_find_nan(group, unit_text(unit))
+        if (len(nan_message) == 0) nan_message = nml_find_long_string(group, unit_text(unit), &
+                                                                      probe)
+        if (len(nan_message) > 0) call set_error(error, nan_message)
+      end if
+      return
+    end if
     if (ios == iostat_end .and. .not. present) return
     if (ios == iostat_end) then
       call set_error(error, 'namelist &'//group//' is malformed: a value could not be read '// &
                      '(check numbers, quotes and the closing /)')
     else
-      call set_error(error, 'namelist &'//group//': '//trim(msg))
+      call set_error(error, nml_diagnose(group, unit_text(unit), probe, msg))
     end if
   end subroutine check_read
 
@@ -343,7 +382,7 @@ contains
     rewind (unit)
     msg = ''
     read (unit, nml=kumo_control, iostat=ios, iomsg=msg)
-    call check_read('kumo_control', present, ios, msg, error)
+    call check_read(unit, 'kumo_control', present, ios, msg, error, probe)
     if (allocated(error)) return
     cfg%n_photons_per_batch = n_photons_per_batch
     cfg%n_batches = n_batches
@@ -365,10 +404,31 @@ contains
     call require(findloc(TARGET_NAMES, cfg%target_output, 1) > 0, CTX, 'target_output', &
                  target_output, 'must be one of '//join(TARGET_NAMES), error)
     call require(max_photons >= 1, CTX, 'max_photons', max_photons, 'must be >= 1', error)
+    if (.not. allocated(error)) then
+      call require(n_photons_per_batch <= MAX_TOTAL_PHOTONS/n_batches, CTX, &
+                   'n_photons_per_batch', n_photons_per_batch, 'times n_batches = '// &
+                   str(n_batches)//' must be <= 2^53 = '//str(MAX_TOTAL_PHOTONS)// &
+                   ' photons (beyond, counts overflow or lose exactness in the tallies)', error)
+      call require(max_photons <= MAX_TOTAL_PHOTONS, CTX, 'max_photons', max_photons, &
+                   'must be <= 2^53 = '//str(MAX_TOTAL_PHOTONS), error)
+    end if
     call require(max_events >= 1, CTX, 'max_events', max_events, 'must be >= 1', error)
     call require(findloc(MODE_NAMES, cfg%mode_3d, 1) > 0, CTX, 'mode_3d', mode_3d, &
                  'must be one of '//join(MODE_NAMES), error)
     call require(p3d_orders >= 0, CTX, 'p3d_orders', p3d_orders, 'must be >= 0', error)
+  contains
+    !> Read one assignment of &kumo_control (or write the namelist), for check_read.
+    subroutine probe(text, out_unit, ios, msg)
+      character(len=*), intent(in) :: text
+      integer, intent(in) :: out_unit
+      integer, intent(out) :: ios
+      character(len=*), intent(inout) :: msg
+      if (out_unit /= 0) then
+        write (out_unit, nml=kumo_control, iostat=ios, iomsg=msg)
+      else
+        read (text, nml=kumo_control, iostat=ios, iomsg=msg)
+      end if
+    end subroutine probe
   end subroutine read_control
 
   subroutine read_atmosphere(unit, present, cloud, cfg, error)
@@ -421,7 +481,7 @@ contains
     rewind (unit)
     msg = ''
     read (unit, nml=kumo_atmosphere, iostat=ios, iomsg=msg)
-    call check_read('kumo_atmosphere', present, ios, msg, error)
+    call check_read(unit, 'kumo_atmosphere', present, ios, msg, error, probe)
     if (allocated(error)) return
     if (rayleigh) then
       call rayleigh_profile_check(rayleigh_profile, error)
@@ -486,6 +546,14 @@ contains
     call require(within(lx, SMALL, BIG) .and. within(ly, SMALL, BIG), CTX, 'lx', lx, &
                  'and ly = '//str(ly)//' must be > 0 [m]', error)
     if (allocated(error)) return
+    ! Rayleigh layers are set from pressures over real heights: a top below KM_HINT looks like
+    ! kilometres given where metres are expected.
+    if (rayleigh .and. z_levels(nz) < KM_HINT) then
+      call set_error(error, CTX//'z_levels top = '//str(z_levels(nz))//' m with rayleigh = '// &
+                     '.true.: heights are in metres; '//str(z_levels(nz))//' km would be '// &
+                     str(1000.0_wp*z_levels(nz))//' m (the top must be >= '//str(KM_HINT)//' m)')
+      return
+    end if
     if (any(ext1d(nz + 1:, :) /= UNSET) .or. any(ext1d(:, n_components + 1:) /= UNSET) .or. &
         any(ssa1d(nz + 1:, :) /= UNSET) .or. any(ssa1d(:, n_components + 1:) /= UNSET) .or. &
         any(phase1d(nz + 1:, :) /= IUNSET) .or. any(phase1d(:, n_components + 1:) /= IUNSET)) then
@@ -558,6 +626,19 @@ contains
     cfg%phase3d = phase3d(1:n_components_3d)
     cfg%cp_air = cp_air
     call rayleigh_pressure(pressure_levels_hpa, cloud, cfg, error)
+  contains
+    !> Read one assignment of &kumo_atmosphere (or write the namelist), for check_read.
+    subroutine probe(text, out_unit, ios, msg)
+      character(len=*), intent(in) :: text
+      integer, intent(in) :: out_unit
+      integer, intent(out) :: ios
+      character(len=*), intent(inout) :: msg
+      if (out_unit /= 0) then
+        write (out_unit, nml=kumo_atmosphere, iostat=ios, iomsg=msg)
+      else
+        read (text, nml=kumo_atmosphere, iostat=ios, iomsg=msg)
+      end if
+    end subroutine probe
   end subroutine read_atmosphere
 
   !> The 3-D region of an MCARaTS atmosphere (cloud_format = 'mcarats'). As in MCARaTS, the
@@ -859,7 +940,7 @@ contains
     rewind (unit)
     msg = ''
     read (unit, nml=kumo_cloud, iostat=ios, iomsg=msg)
-    call check_read('kumo_cloud', present, ios, msg, error)
+    call check_read(unit, 'kumo_cloud', present, ios, msg, error, probe)
     if (allocated(error)) return
     call cloud_format_check(cloud_format, cfg%req%format, error)
     if (allocated(error)) then
@@ -933,6 +1014,19 @@ contains
     if (allocated(cfg%grid%ext)) deallocate (cfg%grid%ext)
     if (allocated(cfg%grid%ssa)) deallocate (cfg%grid%ssa)
     if (allocated(cfg%grid%iphase)) deallocate (cfg%grid%iphase)
+  contains
+    !> Read one assignment of &kumo_cloud (or write the namelist), for check_read.
+    subroutine probe(text, out_unit, ios, msg)
+      character(len=*), intent(in) :: text
+      integer, intent(in) :: out_unit
+      integer, intent(out) :: ios
+      character(len=*), intent(inout) :: msg
+      if (out_unit /= 0) then
+        write (out_unit, nml=kumo_cloud, iostat=ios, iomsg=msg)
+      else
+        read (text, nml=kumo_cloud, iostat=ios, iomsg=msg)
+      end if
+    end subroutine probe
   end subroutine read_cloud
 
   !> &kumo_cloud mcarats_*: checks, and the request for `from_mcarats`. They apply to
@@ -1037,7 +1131,7 @@ contains
     rewind (unit)
     msg = ''
     read (unit, nml=kumo_phase, iostat=ios, iomsg=msg)
-    call check_read('kumo_phase', present, ios, msg, error)
+    call check_read(unit, 'kumo_phase', present, ios, msg, error, probe)
     if (allocated(error)) return
     call require(n_phase >= 1 .and. n_phase <= MAX_PHASE, CTX, 'n_phase', n_phase, &
                  'must be within 1..'//str(MAX_PHASE), error)
@@ -1061,6 +1155,19 @@ contains
     cfg%g = phase_g(1:n_phase)
     cfg%file = phase_file(1:n_phase)
     cfg%n_table = n_table
+  contains
+    !> Read one assignment of &kumo_phase (or write the namelist), for check_read.
+    subroutine probe(text, out_unit, ios, msg)
+      character(len=*), intent(in) :: text
+      integer, intent(in) :: out_unit
+      integer, intent(out) :: ios
+      character(len=*), intent(inout) :: msg
+      if (out_unit /= 0) then
+        write (out_unit, nml=kumo_phase, iostat=ios, iomsg=msg)
+      else
+        read (text, nml=kumo_phase, iostat=ios, iomsg=msg)
+      end if
+    end subroutine probe
   end subroutine read_phase
 
   subroutine read_surface(unit, present, cfg, error)
@@ -1094,7 +1201,7 @@ contains
     rewind (unit)
     msg = ''
     read (unit, nml=kumo_surface, iostat=ios, iomsg=msg)
-    call check_read('kumo_surface', present, ios, msg, error)
+    call check_read(unit, 'kumo_surface', present, ios, msg, error, probe)
     if (allocated(error)) return
     call surface_file_settings(surface_file, surface_format, surface_nxb, surface_nyb, &
                                surface_mbrdf, surface_idread, albedo, albedo_file, brdf, &
@@ -1159,6 +1266,19 @@ contains
     cfg%brdf = trim(to_lower(adjustl(brdf)))
     cfg%brdf_param = brdf_param
     cfg%wind_speed = wind_speed
+  contains
+    !> Read one assignment of &kumo_surface (or write the namelist), for check_read.
+    subroutine probe(text, out_unit, ios, msg)
+      character(len=*), intent(in) :: text
+      integer, intent(in) :: out_unit
+      integer, intent(out) :: ios
+      character(len=*), intent(inout) :: msg
+      if (out_unit /= 0) then
+        write (out_unit, nml=kumo_surface, iostat=ios, iomsg=msg)
+      else
+        read (text, nml=kumo_surface, iostat=ios, iomsg=msg)
+      end if
+    end subroutine probe
   end subroutine read_surface
 
   !> &kumo_surface surface_file: a surface file of another code gives the kind and parameters
@@ -1218,7 +1338,7 @@ contains
     rewind (unit)
     msg = ''
     read (unit, nml=kumo_source, iostat=ios, iomsg=msg)
-    call check_read('kumo_source', present, ios, msg, error)
+    call check_read(unit, 'kumo_source', present, ios, msg, error, probe)
     if (allocated(error)) return
     call require(within(sza_deg, 0.0_wp, nearest(90.0_wp, -1.0_wp)), CTX, 'sza_deg', sza_deg, &
                  'must satisfy 0 <= sza_deg < 90', error)
@@ -1231,6 +1351,19 @@ contains
     cfg%sza_deg = sza_deg
     cfg%phi0_deg = phi0_deg
     cfg%solar_flux = solar_flux
+  contains
+    !> Read one assignment of &kumo_source (or write the namelist), for check_read.
+    subroutine probe(text, out_unit, ios, msg)
+      character(len=*), intent(in) :: text
+      integer, intent(in) :: out_unit
+      integer, intent(out) :: ios
+      character(len=*), intent(inout) :: msg
+      if (out_unit /= 0) then
+        write (out_unit, nml=kumo_source, iostat=ios, iomsg=msg)
+      else
+        read (text, nml=kumo_source, iostat=ios, iomsg=msg)
+      end if
+    end subroutine probe
   end subroutine read_source
 
   subroutine read_output(unit, present, nz, cfg, error)
@@ -1251,7 +1384,7 @@ contains
     rewind (unit)
     msg = ''
     read (unit, nml=kumo_output, iostat=ios, iomsg=msg)
-    call check_read('kumo_output', present, ios, msg, error)
+    call check_read(unit, 'kumo_output', present, ios, msg, error, probe)
     if (allocated(error)) return
     call require(len_trim(file) > 0, '&kumo_output: ', 'file', rule='must not be empty', &
                  error=error)
@@ -1262,6 +1395,19 @@ contains
     cfg%file = file
     cfg%column_fluxes = column_fluxes
     cfg%voxel_absorption = voxel_absorption
+  contains
+    !> Read one assignment of &kumo_output (or write the namelist), for check_read.
+    subroutine probe(text, out_unit, ios, msg)
+      character(len=*), intent(in) :: text
+      integer, intent(in) :: out_unit
+      integer, intent(out) :: ios
+      character(len=*), intent(inout) :: msg
+      if (out_unit /= 0) then
+        write (out_unit, nml=kumo_output, iostat=ios, iomsg=msg)
+      else
+        read (text, nml=kumo_output, iostat=ios, iomsg=msg)
+      end if
+    end subroutine probe
   end subroutine read_output
 
   subroutine read_vr(unit, present, cfg, error)
@@ -1302,7 +1448,7 @@ contains
     rewind (unit)
     msg = ''
     read (unit, nml=kumo_vr, iostat=ios, iomsg=msg)
-    call check_read('kumo_vr', present, ios, msg, error)
+    call check_read(unit, 'kumo_vr', present, ios, msg, error, probe)
     if (allocated(error)) return
     ! The preset gives every technique a value; a variable set in the namelist overrides it.
     ip = findloc(PRESET_NAMES, to_lower(adjustl(vr_preset)), 1)
@@ -1347,6 +1493,14 @@ contains
     call require(within(rr_weight, SMALL, BIG), CTX, 'rr_weight', rr_weight, 'must be > 0', error)
     call require(within(rr_threshold, 0.0_wp, rr_weight), CTX, 'rr_threshold', rr_threshold, &
                  'must be within [0, rr_weight = '//str(rr_weight)//']', error)
+    if (.not. allocated(error) .and. rr_threshold > 0.0_wp) then
+      call require(rr_weight <= RR_RATIO_MAX*rr_threshold, CTX, 'rr_weight', rr_weight, &
+                   'must be <= '//str(RR_RATIO_MAX)//' x rr_threshold = '//str(rr_threshold)// &
+                   ': a photon below rr_threshold survives the roulette with probability '// &
+                   'at most rr_threshold/rr_weight = '//str(rr_threshold/rr_weight)// &
+                   ', so nearly every photon is killed and the few survivors, of weight '// &
+                   'rr_weight, dominate the result (set rr_threshold = 0 for no roulette)', error)
+    end if
     call require(within(sv_fsupg, SMALL, BIG) .and. within(sv_fsupi, SMALL, BIG), CTX, &
                  'sv_fsupg and sv_fsupi', rule='must be > 0', error=error)
     call require(sv_max_layers >= 1, CTX, 'sv_max_layers', sv_max_layers, 'must be >= 1', error)
@@ -1359,6 +1513,19 @@ contains
     cfg%use_1d_layers = use_1d_layers
     cfg%use_absorbing_layers = use_absorbing_layers
     cfg%stratify_source = stratify_source
+  contains
+    !> Read one assignment of &kumo_vr (or write the namelist), for check_read.
+    subroutine probe(text, out_unit, ios, msg)
+      character(len=*), intent(in) :: text
+      integer, intent(in) :: out_unit
+      integer, intent(out) :: ios
+      character(len=*), intent(inout) :: msg
+      if (out_unit /= 0) then
+        write (out_unit, nml=kumo_vr, iostat=ios, iomsg=msg)
+      else
+        read (text, nml=kumo_vr, iostat=ios, iomsg=msg)
+      end if
+    end subroutine probe
   end subroutine read_vr
 
   subroutine read_radiance(unit, present, nz, cfg, error)
@@ -1380,7 +1547,7 @@ contains
     rewind (unit)
     msg = ''
     read (unit, nml=kumo_radiance, iostat=ios, iomsg=msg)
-    call check_read('kumo_radiance', present, ios, msg, error)
+    call check_read(unit, 'kumo_radiance', present, ios, msg, error, probe)
     if (allocated(error)) return
     n = count(rad_mu /= UNSET)
     call require(all(rad_mu(n + 1:) == UNSET), CTX, 'rad_mu', rule='must be a list without gaps', &
@@ -1403,6 +1570,19 @@ contains
     cfg%mu = rad_mu(1:n)
     cfg%phi_deg = rad_phi_deg(1:n)
     cfg%maps = radiance_maps
+  contains
+    !> Read one assignment of &kumo_radiance (or write the namelist), for check_read.
+    subroutine probe(text, out_unit, ios, msg)
+      character(len=*), intent(in) :: text
+      integer, intent(in) :: out_unit
+      integer, intent(out) :: ios
+      character(len=*), intent(inout) :: msg
+      if (out_unit /= 0) then
+        write (out_unit, nml=kumo_radiance, iostat=ios, iomsg=msg)
+      else
+        read (text, nml=kumo_radiance, iostat=ios, iomsg=msg)
+      end if
+    end subroutine probe
   end subroutine read_radiance
 
   subroutine read_camera(unit, present, atm, cfg, error)
@@ -1435,7 +1615,7 @@ contains
     rewind (unit)
     msg = ''
     read (unit, nml=kumo_camera, iostat=ios, iomsg=msg)
-    call check_read('kumo_camera', present, ios, msg, error)
+    call check_read(unit, 'kumo_camera', present, ios, msg, error, probe)
     if (allocated(error)) return
     call require(n_cameras >= 0 .and. n_cameras <= M, CTX, 'n_cameras', n_cameras, &
                  'must be within 0..'//str(M), error)
@@ -1469,6 +1649,19 @@ contains
     cfg%width = cam_width(1:n)
     cfg%npx = cam_npx(1:n)
     cfg%npy = cam_npy(1:n)
+  contains
+    !> Read one assignment of &kumo_camera (or write the namelist), for check_read.
+    subroutine probe(text, out_unit, ios, msg)
+      character(len=*), intent(in) :: text
+      integer, intent(in) :: out_unit
+      integer, intent(out) :: ios
+      character(len=*), intent(inout) :: msg
+      if (out_unit /= 0) then
+        write (out_unit, nml=kumo_camera, iostat=ios, iomsg=msg)
+      else
+        read (text, nml=kumo_camera, iostat=ios, iomsg=msg)
+      end if
+    end subroutine probe
   end subroutine read_camera
 
   !> Cross-group checks.

@@ -24,6 +24,7 @@ module kumo_les_netcdf
   use kumo_kinds, only: wp, sp, dp, vp
   use kumo_constants, only: PI
   use kumo_error, only: error_t, set_error, str, join
+  use kumo_file_check, only: check_netcdf_complete
   use kumo_units, only: unit_factor, QTY_WATER_CONTENT, QTY_LENGTH, QTY_RADIUS, QTY_NUMBER, &
                         QTY_TEMPERATURE, QTY_PRESSURE, QTY_AIR_DENSITY
   implicit none
@@ -224,6 +225,8 @@ contains
     end if
     f%path = trim(path)
     f%itime = time_index
+    call check_netcdf_complete(PROC//'('//f%path//')', f%path, error)
+    if (allocated(error)) return
     call nc_check(nf90_open(f%path, NF90_NOWRITE, f%ncid), PROC//'('//f%path//')', error)
     if (allocated(error)) return
     field%notes = ''

@@ -23,6 +23,7 @@ module kumo_mcarats_files
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use kumo_kinds, only: wp
   use kumo_error, only: error_t, set_error, str, to_lower
+  use kumo_textio, only: read_line
   use kumo_brdf, only: brdf_params_t, brdf_params, BRDF_BLACK, BRDF_LAMBERT, BRDF_DSM, BRDF_RPV, &
                        BRDF_LSRT
   implicit none
@@ -138,6 +139,7 @@ contains
     type(error_t), allocatable, intent(out) :: error  !! unallocated on success
     integer :: unit, ios, line_no, nvars, iv, k
     character(len=1024) :: line, key, word
+    character(len=:), allocatable :: full
     character(len=512) :: msg
     type(grads_var_t), allocatable :: vars(:)
     logical :: in_vars
@@ -153,10 +155,17 @@ contains
     in_vars = .false.
     allocate (vars(0))
     do
-      read (unit, '(a)', iostat=ios) line
+      call read_line(unit, full, ios)
       if (ios /= 0) exit
       line_no = line_no + 1
-      line = adjustl(line)
+      if (len_trim(full) > len(line)) then
+        call set_error(error, trim(path)//': line '//str(line_no)//' has '// &
+                       str(len_trim(full))//' characters; a descriptor line may have at most '// &
+                       str(len(line)))
+        close (unit)
+        return
+      end if
+      line = adjustl(full)
       if (len_trim(line) == 0 .or. line(1:1) == '*') cycle
       read (line, *, iostat=ios) key
       if (ios /= 0) then

@@ -28,6 +28,7 @@ module kumo_mie_table
                     NF90_CLOBBER, NF90_NETCDF4, NF90_CLASSIC_MODEL, NF90_GLOBAL, NF90_DOUBLE
   use kumo_kinds, only: wp
   use kumo_error, only: error_t, set_error, str
+  use kumo_file_check, only: check_netcdf_complete
   use kumo_mie, only: mie_table_t, mie_table_build, DIST_NAMES, DLNR_DEFAULT, RHO_WATER_G_M3
   use kumo_water_index, only: water_index, WATER_INDEX_SOURCE
   use kumo_netcdf, only: c_rename, c_remove
@@ -147,6 +148,8 @@ contains
     real(wp) :: m_re, m_im
 
     at = PROC//'('//trim(path)//')'
+    call check_netcdf_complete(at, trim(path), error)
+    if (allocated(error)) return
     call nc_check(nf90_open(trim(path), NF90_NOWRITE, ncid), at, error)
     if (allocated(error)) return
     call body()

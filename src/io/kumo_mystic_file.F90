@@ -20,7 +20,7 @@ module kumo_mystic_file
   use kumo_kinds, only: wp
   use kumo_error, only: error_t, set_error, str
   use kumo_shdom_files, only: text_file_t, text_open, text_close, text_next_line, &
-                              count_fields, read_line_reals, where_line, point_name
+                              count_fields, read_line_reals, where_line, point_name, size_error
   implicit none
   private
   public :: mystic_cloud_t, read_mystic_file
@@ -151,16 +151,21 @@ contains
     associate (nx => cloud%nx, ny => cloud%ny, nz => cloud%nz)
       select case (cloud%flag)
       case (MYSTIC_EXT_G_SSA)
-        allocate (cloud%ext(nx, ny, nz), cloud%g(nx, ny, nz), cloud%ssa(nx, ny, nz), source=0.0_wp)
+        allocate (cloud%ext(nx, ny, nz), cloud%g(nx, ny, nz), cloud%ssa(nx, ny, nz), &
+                  source=0.0_wp, stat=ios)
         ncol = 3
       case (MYSTIC_EXT_REFF)
-        allocate (cloud%ext(nx, ny, nz), cloud%reff(nx, ny, nz), source=0.0_wp)
+        allocate (cloud%ext(nx, ny, nz), cloud%reff(nx, ny, nz), source=0.0_wp, stat=ios)
         ncol = 2
       case default
-        allocate (cloud%lwc(nx, ny, nz), cloud%reff(nx, ny, nz), source=0.0_wp)
+        allocate (cloud%lwc(nx, ny, nz), cloud%reff(nx, ny, nz), source=0.0_wp, stat=ios)
         ncol = 2
       end select
-      allocate (first_line(nx, ny, nz), source=0)
+      if (ios == 0) allocate (first_line(nx, ny, nz), source=0, stat=ios)
+      if (ios /= 0) then
+        call size_error(tf, [nx, ny, nz], ncol + 1, error)
+        return
+      end if
     end associate
 
     do

@@ -25,6 +25,7 @@ module kumo_netcdf
                     NF90_FILL_BYTE, NF90_MAX_VAR_DIMS, NF90_MAX_NAME
   use kumo_kinds, only: wp, dp
   use kumo_error, only: error_t, set_error, join, str
+  use kumo_file_check, only: check_netcdf_complete
   use kumo_results, only: result_set_t
   use kumo_brdf, only: BRDF_NPAR, BRDF_NAMES, BRDF_DSM, cox_munk_slope_variance
   implicit none
@@ -1231,6 +1232,8 @@ contains
     integer, intent(out) :: ncid
     type(error_t), allocatable, intent(out) :: error
     ncid = -1
+    call check_netcdf_complete(where_text(routine, path, ''), path, error)
+    if (allocated(error)) return
     call nc_check(nf90_open(path, NF90_NOWRITE, ncid), where_text(routine, path, ''), error)
   end subroutine open_read
 

@@ -29,13 +29,14 @@ module kumo_shdom_files
   use kumo_kinds, only: wp
   use kumo_constants, only: PI
   use kumo_error, only: error_t, set_error, str
+  use kumo_file_check, only: check_text_complete
   implicit none
   private
   public :: lwc_field_t, prp_field_t, read_lwc_file, read_prp_file
   public :: reff_from_droplet_number, set_reff_from_droplet_number
   ! shared with kumo_mystic_file
   public :: text_file_t, text_open, text_close, text_next_line, text_next_token, count_fields
-  public :: read_line_reals, where_line, point_name, first_unlisted
+  public :: read_line_reals, where_line, point_name, first_unlisted, size_error
 
   real(wp), parameter :: KM = 1000.0_wp  !! default length unit of the files [m]
 
@@ -216,9 +217,15 @@ contains
 
     ! data lines
     ndata = 3 + field%n_params
-    allocate (field%lwc(field%nx, field%ny, field%nz), source=0.0_wp)
-    allocate (field%reff(field%nx, field%ny, field%nz), source=0.0_wp)
-    allocate (first_line(field%nx, field%ny, field%nz), source=0)
+    allocate (field%lwc(field%nx, field%ny, field%nz), field%reff(field%nx, field%ny, field%nz), &
+              first_line(field%nx, field%ny, field%nz), stat=ios)
+    if (ios /= 0) then
+      call size_error(tf, [field%nx, field%ny, field%nz], 3, error)
+      return
+    end if
+    field%lwc = 0.0_wp
+    field%reff = 0.0_wp
+    first_line = 0
     do
       call text_next_line(tf, found)
       if (.not. found) exit
@@ -479,9 +486,17 @@ contains
 
     ! grid points
     allocate (prp%temperature(prp%nx, prp%ny, prp%nz), prp%extinction(prp%nx, prp%ny, prp%nz), &
-              prp%ssa(prp%nx, prp%ny, prp%nz), source=0.0_wp)
-    allocate (prp%iphase(prp%nx, prp%ny, prp%nz), source=0)
-    allocate (first_line(prp%nx, prp%ny, prp%nz), source=0)
+              prp%ssa(prp%nx, prp%ny, prp%nz), prp%iphase(prp%nx, prp%ny, prp%nz), &
+              first_line(prp%nx, prp%ny, prp%nz), stat=ios)
+    if (ios /= 0) then
+      call size_error(tf, [prp%nx, prp%ny, prp%nz], 5, error)
+      return
+    end if
+    prp%temperature = 0.0_wp
+    prp%extinction = 0.0_wp
+    prp%ssa = 0.0_wp
+    prp%iphase = 0
+    first_line = 0
     do
       call text_next_line(tf, found)
       if (.not. found) exit
@@ -521,6 +536,18 @@ contains
   ! ------------------------------------------------------------------------------------------
   ! Checks shared by the readers
   ! ------------------------------------------------------------------------------------------
+
+  !> Memory for the grid of the header's sizes could not be had: name the file and the sizes.
+  subroutine size_error(tf, n, n_arrays, error)
+    type(text_file_t), intent(in) :: tf
+    integer, intent(in) :: n(3)          !! nx, ny, nz from the header
+    integer, intent(in) :: n_arrays      !! arrays of that size the reader needs
+    type(error_t), allocatable, intent(out) :: error
+    call set_error(error, tf%path//': cannot allocate '//str(n_arrays)//' arrays of nx*ny*nz '// &
+                   '= '//str(n(1))//' x '//str(n(2))//' x '//str(n(3))//' = '// &
+                   str(product(int(n, kind(1_8))))//' points (header sizes; too large for '// &
+                   'the memory: a wrong header?)')
+  end subroutine size_error
 
   !> The file ended inside `part` (truncated file).
   subroutine ended_in(tf, part, error)
@@ -691,6 +718,9 @@ contains
     integer :: ios
     character(len=512) :: msg
     tf%path = trim(path)
+    tf%line = ''
+    call check_text_complete(path, error)   ! (before the open: a file is open on one unit only)
+    if (allocated(error)) return
     open (newunit=tf%unit, file=path, status='old', action='read', form='formatted', &
           access='sequential', iostat=ios, iomsg=msg)
     if (ios /= 0) then
@@ -698,7 +728,6 @@ contains
     else
       tf%is_open = .true.
     end if
-    tf%line = ''
   end subroutine text_open
 
   !> Close the file (no-op when closed).

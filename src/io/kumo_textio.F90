@@ -1,12 +1,13 @@
 ! SPDX-License-Identifier: BSD-3-Clause
 !> Small text-file readers: two-column tables (e.g. tabulated phase functions) and whole files.
 module kumo_textio
-  use, intrinsic :: iso_fortran_env, only: iostat_end
+  use, intrinsic :: iso_fortran_env, only: iostat_end, iostat_eor
   use kumo_kinds, only: wp
   use kumo_error, only: error_t, set_error, str
+  use kumo_file_check, only: check_text_complete
   implicit none
   private
-  public :: read_two_columns, read_whole_file
+  public :: read_two_columns, read_whole_file, read_line
 
 contains
 
@@ -17,8 +18,11 @@ contains
     real(wp), allocatable, intent(out) :: a(:), b(:)
     type(error_t), allocatable, intent(out) :: error
     integer :: unit, ios, n, line_no, pass
-    character(len=1024) :: line, msg
+    character(len=1024) :: msg
+    character(len=:), allocatable :: line
     real(wp) :: va, vb
+    call check_text_complete(path, error)   ! (before the open: a file is open on one unit only)
+    if (allocated(error)) return
     open (newunit=unit, file=path, status='old', action='read', iostat=ios, iomsg=msg)
     if (ios /= 0) then
       call set_error(error, 'cannot open table file "'//trim(path)//'": '//trim(msg))
@@ -29,7 +33,7 @@ contains
       line_no = 0
       rewind (unit)
       do
-        read (unit, '(a)', iostat=ios) line
+        call read_line(unit, line, ios)
         if (ios == iostat_end) exit
         line_no = line_no + 1
         if (ios /= 0) then
@@ -38,7 +42,8 @@ contains
           return
         end if
         line = adjustl(line)
-        if (len_trim(line) == 0 .or. line(1:1) == '#' .or. line(1:1) == '!') cycle
+        if (len_trim(line) == 0) cycle
+        if (line(1:1) == '#' .or. line(1:1) == '!') cycle
         read (line, *, iostat=ios) va, vb
         if (ios /= 0) then
           call set_error(error, trim(path)//': line '//str(line_no)// &
@@ -64,7 +69,7 @@ contains
     character(len=:), allocatable, intent(out) :: text
     type(error_t), allocatable, intent(out) :: error
     integer :: unit, ios
-    character(len=4096) :: line
+    character(len=:), allocatable :: line
     character(len=512) :: msg
     open (newunit=unit, file=path, status='old', action='read', iostat=ios, iomsg=msg)
     if (ios /= 0) then
@@ -73,10 +78,31 @@ contains
     end if
     text = ''
     do
-      read (unit, '(a)', iostat=ios) line
+      call read_line(unit, line, ios)
       if (ios /= 0) exit
       text = text//trim(line)//new_line('a')
     end do
     close (unit)
   end subroutine read_whole_file
+
+  !> Read one line of any length from a formatted sequential unit. `ios` is 0, iostat_end at
+  !> the end of the file, or another error code.
+  subroutine read_line(unit, line, ios)
+    integer, intent(in) :: unit
+    character(len=:), allocatable, intent(out) :: line
+    integer, intent(out) :: ios
+    character(len=1024) :: buf
+    integer :: nread
+    line = ''
+    do
+      read (unit, '(a)', advance='no', iostat=ios, size=nread) buf
+      if (ios == iostat_end) return
+      line = line//buf(1:nread)
+      if (ios == iostat_eor) then
+        ios = 0
+        return
+      end if
+      if (ios /= 0) return
+    end do
+  end subroutine read_line
 end module kumo_textio

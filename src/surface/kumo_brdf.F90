@@ -56,14 +56,14 @@ module kumo_brdf
   implicit none
   private
   public :: BRDF_BLACK, BRDF_LAMBERT, BRDF_DSM, BRDF_RPV, BRDF_LSRT, BRDF_NAMES, BRDF_NPAR
-  public :: BRDF_NPAR_USED, BRDF_NMU
+  public :: BRDF_NPAR_USED, BRDF_NMU, BRDF_NALB
   public :: brdf_params_t, brdf_table_t
   public :: brdf_params, brdf_kind_from_name, brdf_validate
   public :: brdf_eval, brdf_eval_dir, brdf_albedo_quad
   public :: brdf_table_init, brdf_albedo, brdf_table_eval, brdf_table_eval_dir, brdf_sample
   public :: lsrt_grid_t, lsrt_grid_init, brdf_table_init_grid
   public :: cox_munk_slope_variance, fresnel_reflectance, dsm_shadowing
-  public :: ross_thick_kernel, li_sparse_r_kernel, lsrt_kernel_albedos
+  public :: ross_thick_kernel, li_sparse_r_kernel, lsrt_kernel_albedos, lsrt_negative_fraction
 
   integer, parameter :: BRDF_BLACK = 0    !! no reflection
   integer, parameter :: BRDF_LAMBERT = 1  !! isotropic reflection, R = albedo/pi
@@ -83,6 +83,13 @@ module kumo_brdf
   !> evaluated at MU_NODE0 instead of 0, where RPV and LSRT diverge.
   integer, parameter :: BRDF_NMU = 21
   real(wp), parameter :: MU_NODE0 = 1.0e-10_wp
+  !> Largest accepted fraction of (cosine-weighted) direction pairs where the LSRT kernel sum
+  !> is negative and clamped to 0 (`brdf_validate`).
+  real(wp), parameter :: LSRT_NEG_MAX = 0.25_wp
+  !> Nodes of the dense albedo table (`brdf_table_init`), uniform in sqrt(mu_in) like the
+  !> envelope nodes: with cubic interpolation the albedo is within 1e-6 relative of the
+  !> quadrature for DSM and RPV (measured in the unit tests); the envelopes keep BRDF_NMU.
+  integer, parameter :: BRDF_NALB = 121
 
   !> Hemispheric quadrature for RPV and LSRT: panels of N_A Gauss-Legendre nodes in mu_out
   !> (split at the hot spot mu_out = mu_in and, for LSRT, where the Li-Sparse overlap clamp
@@ -139,6 +146,13 @@ module kumo_brdf
     !> the nodes mu_j. RPV: t_pow = 1 - k; LSRT: 1; DSM: 0 and T is the specular albedo.
     real(wp) :: t_pow = 0.0_wp
     real(wp) :: t(BRDF_NMU) = 0.0_wp
+    !> The same on BRDF_NALB nodes (used instead of t when n_alb = BRDF_NALB).
+    integer :: n_alb = BRDF_NMU
+    real(wp) :: ta(BRDF_NALB) = 0.0_wp
+    !> Exact model albedo (quadrature) at the solar mu_in given at setup: every direct-beam
+    !> photon arrives with exactly this mu_in, so its albedo carries no interpolation error.
+    real(wp) :: mu_sun = -1.0_wp
+    real(wp) :: alpha_sun = 0.0_wp
     !> Envelopes per bin of mu_in (the intervals [mu_j, mu_j+1], the first one split at
     !> GRAZ_EDGES): slope a1 of the linear envelope (RPV, LSRT) and bound b on the ratio of
     !> target to proposal (RPV, LSRT: mu R/(alpha (a1 mu + a0)); DSM: R_F f_s cos(v)/mu_n of
@@ -217,10 +231,12 @@ contains
   !> Check a parameter set. The message names the model, the parameter, its value and bound.
   !> Ranges: Lambert albedo in [0, 1]; DSM a_d, f_d in [0, 1], n_r in [1, 100], n_i in
   !> [0, 100], sigma^2 in (0, 100] (MCARaTS limits 100); RPV rho0 in [0, 1], k in (0, 2],
-  !> |Theta| < 1, h > 0; LSRT weights >= 0 and finite.
+  !> |Theta| < 1, h > 0; LSRT weights >= 0 and finite, and a kernel sum negative (clamped to
+  !> 0) for at most LSRT_NEG_MAX of the direction pairs (`lsrt_negative_fraction`).
   subroutine brdf_validate(p, error)
     type(brdf_params_t), intent(in) :: p
     type(error_t), allocatable, intent(out) :: error
+    real(wp) :: frac
     select case (p%kind)
     case (BRDF_BLACK)
     case (BRDF_LAMBERT)
@@ -259,6 +275,17 @@ contains
       call non_negative(p%c(2), 'lsrt k_geo', error)
       if (allocated(error)) return
       call non_negative(p%c(3), 'lsrt k_vol', error)
+      if (allocated(error)) return
+      frac = lsrt_negative_fraction(p)
+      if (frac > LSRT_NEG_MAX) then
+        call set_error(error, 'brdf lsrt weights k_iso = '//str(p%c(1))//', k_geo = '// &
+                       str(p%c(2))//', k_vol = '//str(p%c(3))//' give a kernel sum that is '// &
+                       'negative for '//str(nint(100*frac))//' % of the pairs of incident '// &
+                       'and reflected directions (cosine-weighted; at most '// &
+                       str(nint(100*LSRT_NEG_MAX))//' % accepted); it would be clamped to 0 '// &
+                       'there, which changes the surface: check the weights and their order '// &
+                       '(k_iso, k_geo, k_vol)')
+      end if
     case default
       call set_error(error, 'brdf kind = '//str(p%kind)//' must be within [0, 4] '// &
                      '(0 black, 1 lambert, 2 dsm, 3 rpv, 4 lsrt)')
@@ -722,6 +749,34 @@ contains
     end if
   end function plane_fun
 
+  !> Fraction of the pairs of incident and reflected directions, weighted by mu_in mu_out
+  !> dOmega_in dOmega_out, where the LSRT kernel sum is negative (midpoint rule, 24 x 24 x 24
+  !> cells in mu_in, mu_out and dphi on [0, pi]).
+  pure function lsrt_negative_fraction(p) result(frac)
+    type(brdf_params_t), intent(in) :: p
+    real(wp) :: frac
+    integer, parameter :: N = 24
+    real(wp) :: mu0, mu1, s0, s1, w, wsum, wneg
+    integer :: i, j, k
+    wsum = 0.0_wp
+    wneg = 0.0_wp
+    do i = 1, N
+      mu0 = (i - 0.5_wp)/N
+      s0 = sin_of(mu0)
+      do j = 1, N
+        mu1 = (j - 0.5_wp)/N
+        s1 = sin_of(mu1)
+        w = mu0*mu1
+        do k = 1, N
+          wsum = wsum + w
+          if (lsrt_sum(p, mu0, mu1, mu0*mu1 - s0*s1*cos((k - 0.5_wp)*PI/N)) < 0.0_wp) &
+            wneg = wneg + w
+        end do
+      end do
+    end do
+    frac = wneg/wsum
+  end function lsrt_negative_fraction
+
   !> Unclipped LSRT kernel sum k_iso + k_geo f_g + k_vol f_v for cos(phase angle) cg.
   pure function lsrt_sum(p, mu0, mu1, cg) result(f)
     type(brdf_params_t), intent(in) :: p
@@ -954,15 +1009,21 @@ contains
   !> For RPV and LSRT the ratio is normalised by the interpolated albedo, as in the sampler,
   !> and the slope a1 of the proposal a1 mu + a0 is chosen per bin to minimise the bound (the
   !> expected number of tries). Nodes where the model albedo exceeds 1 are counted in
-  !> `n_clamped`. Cost: about 4 ms (RPV), 6-10 ms (DSM), 20-40 ms (LSRT with clipping).
+  !> `n_clamped`. (Cost of the whole table: see below.)
   !>
-  !> Interpolation of the albedo (cubic in sqrt(mu_in)), measured against the quadrature for
-  !> mu_in in [0.05, 1]: 1e-5 for RPV, up to 5e-4 for DSM and 1.5e-3 for LSRT where clipping
-  !> sets in; `interp_err` reports the largest error at the bin midpoints.
-  subroutine brdf_table_init(tab, p, error)
+  !> The albedo is interpolated (cubic in sqrt(mu_in)) on BRDF_NALB = 121 nodes, measured
+  !> against the quadrature at the midpoints between nodes for mu_in in [0.01, 1]: 2.5e-7 for
+  !> DSM (Cox-Munk ocean, 5 m/s), 5e-7 for RPV and unclipped LSRT, 5e-6 for RPV with a sharp
+  !> hot spot (the quadrature's own error), 8e-5 for LSRT where clipping of a negative kernel
+  !> sum puts kinks in the albedo; `interp_err` reports the largest error at the envelope bin
+  !> midpoints. With `mu0`, the albedo at mu_in = mu0 (the direct beam) is the quadrature
+  !> value itself. Whole table, measured: about 6 ms (RPV), 18 ms (DSM), 56 ms (LSRT, alb_N98).
+  subroutine brdf_table_init(tab, p, error, mu0)
     type(brdf_table_t), intent(out) :: tab
     type(brdf_params_t), intent(in) :: p
     type(error_t), allocatable, intent(out) :: error
+    !> cosine of the solar zenith angle (-uz of the direct beam): its albedo is stored exactly
+    real(wp), intent(in), optional :: mu0
     real(wp) :: edge(N_ENV + 1), al_e(N_ENV + 1), rm_e(N_ENV + 1)
     real(wp) :: pm_e(N_PROF, N_ENV + 1), py_e(N_PROF, N_ENV + 1)
     real(wp) :: mu_s(5), al_s(5), rm_s(5), pm_s(N_PROF, 5), py_s(N_PROF, 5)
@@ -976,6 +1037,7 @@ contains
       tab%t = merge(p%c(1), 0.0_wp, p%kind == BRDF_LAMBERT)
       return
     end if
+    call set_sun(tab, mu0)
     select case (p%kind)
     case (BRDF_RPV)
       tab%t_pow = 1.0_wp - p%c(2)
@@ -995,6 +1057,18 @@ contains
       e = merge(1, j + N_GRAZ, j == 1)     ! node j is edge e
       tab%t(j) = al_e(e)*edge(e)**tab%t_pow
     end do
+    ! The dense albedo table (every fourth dense mu_in node r^2, r = (j-1)/(BRDF_NALB-1), is
+    ! a node of t: the same values are reused).
+    do j = 1, BRDF_NALB
+      if (mod(j - 1, (BRDF_NALB - 1)/(BRDF_NMU - 1)) == 0) then
+        tab%ta(j) = tab%t((j - 1)/((BRDF_NALB - 1)/(BRDF_NMU - 1)) + 1)
+      else
+        a_node = (real(j - 1, wp)/(BRDF_NALB - 1))**2
+        call scan_at(a_node, .true., a_ref, rm, pm, py)
+        tab%ta(j) = a_ref*a_node**tab%t_pow
+      end if
+    end do
+    tab%n_alb = BRDF_NALB
 
     ! Envelope per bin from its two edges and three inner samples.
     do e = 1, N_ENV
@@ -1142,20 +1216,22 @@ contains
   !> many distinct LSRT pixels). The table has the layout and meaning of `brdf_table_init`'s;
   !> the albedo nodes come from the shared quadrature and the envelopes from the kernels'
   !> row extremes (see `lsrt_grid_t`); `interp_err` is not measured (0).
-  subroutine brdf_table_init_grid(tab, p, grid, error)
+  subroutine brdf_table_init_grid(tab, p, grid, error, mu0)
     type(brdf_table_t), intent(out) :: tab
     type(brdf_params_t), intent(in) :: p
     type(lsrt_grid_t), intent(in) :: grid
     type(error_t), allocatable, intent(out) :: error
+    real(wp), intent(in), optional :: mu0  !! solar mu_in, stored exactly (brdf_table_init)
     real(wp) :: py(N_PROF, 5), al_s(5), mu_s(5), a
     integer :: j, e, is, n, nr
     if (p%kind /= BRDF_LSRT) then
-      call brdf_table_init(tab, p, error)
+      call brdf_table_init(tab, p, error, mu0)
       return
     end if
     call brdf_validate(p, error)
     if (allocated(error)) return
     tab%p = p
+    call set_sun(tab, mu0)
     tab%t_pow = 1.0_wp
     do j = 1, BRDF_NMU
       n = grid%n_pts(j)
@@ -1184,6 +1260,16 @@ contains
       tab%env(e) = ENV_MARGIN*tab%env(e)
     end do
   end subroutine brdf_table_init_grid
+
+  !> Store the exact (quadrature) model albedo at the solar mu_in, if given and in (0, 1].
+  subroutine set_sun(tab, mu0)
+    type(brdf_table_t), intent(inout) :: tab
+    real(wp), intent(in), optional :: mu0
+    if (.not. present(mu0)) return
+    if (.not. (mu0 > 0.0_wp .and. mu0 <= 1.0_wp)) return
+    tab%mu_sun = mu0
+    tab%alpha_sun = brdf_albedo_quad(tab%p, mu0)
+  end subroutine set_sun
 
   !> Lower edge of envelope bin e (e = N_ENV + 1: the upper edge 1): the grazing edges, then
   !> the table nodes (the first at MU_NODE0).
@@ -1269,14 +1355,18 @@ contains
 
   !> Interval index j (mu in [mu_j, mu_j+1]) and the 4-point Lagrange weights in
   !> x = sqrt(mu) of nodes j0 ... j0+3 for mu.
-  pure subroutine interp_weights(mu, j, j0, w)
+  pure subroutine interp_weights(mu, j, j0, w, n_nodes)
     real(wp), intent(in) :: mu
     integer, intent(out) :: j, j0
     real(wp), intent(out) :: w(4)
+    integer, intent(in), optional :: n_nodes  !! nodes of the table (default BRDF_NMU)
     real(wp) :: x, d
-    x = sqrt(min(1.0_wp, max(0.0_wp, mu)))*(BRDF_NMU - 1)
-    j = min(int(x), BRDF_NMU - 2) + 1
-    j0 = min(max(j - 1, 1), BRDF_NMU - 3)
+    integer :: nn
+    nn = BRDF_NMU
+    if (present(n_nodes)) nn = n_nodes
+    x = sqrt(min(1.0_wp, max(0.0_wp, mu)))*(nn - 1)
+    j = min(int(x), nn - 2) + 1
+    j0 = min(max(j - 1, 1), nn - 3)
     d = x - (j0 - 1)     ! position relative to node j0, in node spacings
     w(1) = -(d - 1.0_wp)*(d - 2.0_wp)*(d - 3.0_wp)/6.0_wp
     w(2) = d*(d - 2.0_wp)*(d - 3.0_wp)/2.0_wp
@@ -1295,9 +1385,18 @@ contains
     case (BRDF_LAMBERT)
       alpha = tab%p%c(1)
     case (BRDF_DSM, BRDF_RPV, BRDF_LSRT)
+      if (mu_in == tab%mu_sun) then          ! the direct beam: exact
+        alpha = tab%alpha_sun
+        return
+      end if
       mu = min(1.0_wp, max(mu_in, MU_NODE0))
-      call interp_weights(mu, j, j0, w)
-      alpha = max(0.0_wp, dot_product(w, tab%t(j0:j0 + 3)))
+      if (tab%n_alb == BRDF_NALB) then
+        call interp_weights(mu, j, j0, w, BRDF_NALB)
+        alpha = max(0.0_wp, dot_product(w, tab%ta(j0:j0 + 3)))
+      else
+        call interp_weights(mu, j, j0, w)
+        alpha = max(0.0_wp, dot_product(w, tab%t(j0:j0 + 3)))
+      end if
       if (tab%p%kind == BRDF_DSM) then
         alpha = tab%p%c(2)*tab%p%c(1) + (1.0_wp - tab%p%c(2))*alpha
       else if (tab%t_pow == 1.0_wp) then
@@ -1399,8 +1498,15 @@ contains
     real(wp) :: a
     real(wp) :: w(4)
     integer :: j, j0
-    call interp_weights(mu0, j, j0, w)
-    a = max(0.0_wp, dot_product(w, tab%t(j0:j0 + 3)))
+    if (mu0 == tab%mu_sun .and. tab%p%c(2) < 1.0_wp) then
+      a = max(0.0_wp, (tab%alpha_sun - tab%p%c(2)*tab%p%c(1))/(1.0_wp - tab%p%c(2)))
+    else if (tab%n_alb == BRDF_NALB) then
+      call interp_weights(mu0, j, j0, w, BRDF_NALB)
+      a = max(0.0_wp, dot_product(w, tab%ta(j0:j0 + 3)))
+    else
+      call interp_weights(mu0, j, j0, w)
+      a = max(0.0_wp, dot_product(w, tab%t(j0:j0 + 3)))
+    end if
   end function model_albedo_spec
 
   !> Cosine-weighted upward direction.

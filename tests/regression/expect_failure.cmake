@@ -4,7 +4,7 @@
 # output file behind.
 # Variables: KUMO (program), NML (namelist), REGEX, OUT (output file that must not exist),
 # optional CDL_DIR (every <name>.cdl there, netCDF in CDL text, becomes <name>.nc with ncgen
-# before the run).
+# before the run; <name>_cut.cdl loses its last 8 bytes, a file cut short).
 file(REMOVE ${OUT} ${OUT}.tmp)
 if(CDL_DIR)
   file(GLOB cdls ${CDL_DIR}/*.cdl)
@@ -13,6 +13,13 @@ if(CDL_DIR)
     execute_process(COMMAND ncgen -o ${stem}.nc ${cdl} RESULT_VARIABLE rc_gen)
     if(NOT rc_gen EQUAL 0)
       message(FATAL_ERROR "ncgen failed on ${cdl}")
+    endif()
+    # <name>_cut.cdl: a partly copied file, its last 8 bytes (inside the data) missing
+    if(stem MATCHES "_cut$")
+      execute_process(COMMAND truncate -s -8 ${stem}.nc RESULT_VARIABLE rc_cut)
+      if(NOT rc_cut EQUAL 0)
+        message(FATAL_ERROR "truncate failed on ${stem}.nc")
+      endif()
     endif()
   endforeach()
 endif()

@@ -17,8 +17,10 @@ module test_kumo_brdf
                        brdf_albedo_quad, brdf_table_init, brdf_albedo, brdf_table_eval, &
                        brdf_table_eval_dir, cox_munk_slope_variance, fresnel_reflectance, &
                        dsm_shadowing, ross_thick_kernel, li_sparse_r_kernel, &
-                       lsrt_kernel_albedos, lsrt_grid_t, lsrt_grid_init, brdf_table_init_grid
+                       lsrt_kernel_albedos, lsrt_grid_t, lsrt_grid_init, brdf_table_init_grid, BRDF_NALB, &
+                       lsrt_negative_fraction
   use kumo_testing, only: error_t, unittest_t, new_unittest, check, check_close
+  use kumo_error, only: str
   implicit none
   private
   public :: collect_brdf
@@ -46,6 +48,7 @@ contains
              new_unittest('dsm_albedo_fresnel_limit', test_dsm_fresnel_limit), &
              new_unittest('lambert_and_black_albedo', test_lambert_black), &
              new_unittest('table_interpolation', test_table_interp), &
+             new_unittest('table_albedo_midpoints', test_table_midpoints), &
              new_unittest('albedo_clamped_to_one', test_clamp), &
              new_unittest('map_tables_of_lsrt', test_lsrt_grid)]
   end function collect_brdf
@@ -288,6 +291,12 @@ contains
     call expect_error(error, err, 'brdf lsrt k_geo = -0.07 must be >= 0 and finite', 'k_geo')
     call brdf_validate(brdf_params(BRDF_LSRT, [0.3_wp, 0.07_wp, nan]), err)
     call expect_error(error, err, 'brdf lsrt k_vol = NaN must be >= 0 and finite', 'k_vol')
+    ! a kernel sum negative over most of the hemisphere (k_geo = k_iso) would be clamped to 0
+    ! there: refused with the fraction (typical weights: 1-4 %)
+    call brdf_validate(brdf_params(BRDF_LSRT, [0.1_wp, 0.1_wp, 0.05_wp]), err)
+    call expect_error(error, err, 'negative for 66 % of the pairs', 'lsrt mostly negative')
+    call check(error, lsrt_negative_fraction(brdf_params(BRDF_LSRT, [0.3_wp, 0.07_wp, &
+               0.03_wp])) < 0.05_wp, 'alb_N98 weights: few clamped pairs')
     call brdf_validate(brdf_params(7, [0.3_wp]), err)
     call expect_error(error, err, 'brdf kind = 7 must be within [0, 4]', 'kind')
     ! the table constructor validates too
@@ -663,6 +672,52 @@ contains
     end do
   end subroutine test_table_interp
 
+  !> The dense albedo table at the midpoints (in sqrt(mu_in)) between its nodes, where cubic
+  !> interpolation errs most, against the quadrature `brdf_albedo_quad` (itself checked against
+  !> midpoint rules in test_albedo_quad), for every kind including the Cox-Munk ocean of a
+  !> 5 m/s wind. mu_in from 0.01 to 1. Tolerance 1e-6 relative for Lambert, DSM and RPV; LSRT
+  !> with clipping of a negative kernel sum has kinks where interpolation converges slowly
+  !> (its bound is the measured worst times 2). At the solar mu_in given to the table the
+  !> albedo is the quadrature value exactly.
+  subroutine test_table_midpoints(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(error_t), allocatable :: err
+    type(brdf_params_t) :: ps(N_SET + 1)
+    type(brdf_table_t) :: tab
+    real(wp) :: mu, a, q, worst, mu0, tol
+    integer :: k, j
+    character(len=96) :: label
+    ps(1:N_SET) = model_set()
+    ps(N_SET + 1) = brdf_params(BRDF_DSM, [0.0_wp, 0.0_wp, 1.334_wp, 0.0_wp, &
+                                           cox_munk_slope_variance(5.0_wp)])
+    mu0 = cos(37.3_wp*PI/180.0_wp)
+    do k = 1, size(ps)
+      call brdf_table_init(tab, ps(k), err, mu0=mu0)
+      call check(error, .not. allocated(err), 'table init')
+      if (allocated(error)) return
+      worst = 0.0_wp
+      do j = 1, BRDF_NALB - 1
+        mu = ((j - 0.5_wp)/(BRDF_NALB - 1))**2
+        if (mu < 0.01_wp) cycle
+        a = brdf_albedo(tab, mu)
+        q = min(1.0_wp, brdf_albedo_quad(ps(k), mu))
+        worst = max(worst, abs(a - q)/q)
+      end do
+      tol = 1.0e-6_wp
+      ! set 3 (RPV, k = 1.4, sharp hot spot): the quadrature's own error (5e-6, unchanged
+      ! within 30 % with twice the nodes) dominates
+      if (k == 3) tol = 1.0e-5_wp
+      if (ps(k)%kind == BRDF_LSRT) tol = 2.0e-4_wp
+      write (label, '(a, i0, a, i0, a, es9.2)') 'set ', k, ' (kind ', ps(k)%kind, &
+        '): max rel. error at the midpoints ', worst
+      print '(a)', '  '//trim(label)
+      call check(error, worst < tol, 'dense table '//trim(label))
+      call check(error, brdf_albedo(tab, mu0) == min(1.0_wp, brdf_albedo_quad(ps(k), mu0)), &
+                 'exact albedo at the solar mu_in, set '//str(k))
+      if (allocated(error)) return
+    end do
+  end subroutine test_table_midpoints
+
   !> RPV with small k has a model albedo above 1 at grazing incidence: the table counts the
   !> clamped nodes, brdf_albedo is 1 there and brdf_table_eval is the model BRDF divided by the
   !> model albedo (so that it integrates to 1).
@@ -721,7 +776,7 @@ contains
     ps(1) = brdf_params(BRDF_LSRT, [0.2_wp, 0.0_wp, 0.15_wp])      ! never clipped
     ps(2) = brdf_params(BRDF_LSRT, [0.3_wp, 0.07_wp, 0.03_wp])     ! alb_N98, clipped
     ps(3) = brdf_params(BRDF_LSRT, [0.1_wp, 0.02_wp, 0.6_wp])      ! volume dominated
-    ps(4) = brdf_params(BRDF_LSRT, [0.1_wp, 0.1_wp, 0.05_wp])       ! strongly clipped
+    ps(4) = brdf_params(BRDF_LSRT, [0.2_wp, 0.1_wp, 0.05_wp])       ! strongly clipped (21 %)
     ps(5) = brdf_params(BRDF_LSRT, [0.25_wp, 0.04_wp, 0.1_wp])     ! typical MODIS weights
     do k = 1, size(ps)
       call brdf_table_init_grid(tg, ps(k), grid, err)

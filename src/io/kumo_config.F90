@@ -175,6 +175,7 @@ module kumo_config
     integer, allocatable :: flux_levels(:)         !! levels (0..nz) written; default all
     logical :: column_fluxes = .true.              !! per-column flux maps (3-D scenes)
     logical :: voxel_absorption = .true.           !! absorption/heating per voxel (3-D scenes)
+    integer :: deflate_level = 0                   !! netCDF deflate level of the results (0: off)
   end type output_cfg_t
 
   !> &kumo_vr: Russian roulette and the tracer's fast paths.
@@ -1373,11 +1374,12 @@ contains
     type(output_cfg_t), intent(inout) :: cfg
     type(error_t), allocatable, intent(out) :: error
     character(len=PATH_LEN) :: file
-    integer :: flux_levels(MAX_LAYERS + 1), ios, i
+    integer :: flux_levels(MAX_LAYERS + 1), ios, i, deflate_level
     logical :: column_fluxes, voxel_absorption
     character(len=512) :: msg
-    namelist /kumo_output/ file, flux_levels, column_fluxes, voxel_absorption
+    namelist /kumo_output/ file, flux_levels, column_fluxes, voxel_absorption, deflate_level
     file = cfg%file
+    deflate_level = cfg%deflate_level
     flux_levels = IUNSET
     column_fluxes = cfg%column_fluxes
     voxel_absorption = cfg%voxel_absorption
@@ -1392,6 +1394,10 @@ contains
     call level_list('kumo_output', 'flux_levels', flux_levels, nz, [(i, i=0, nz)], &
                     cfg%flux_levels, error)
     if (allocated(error)) return
+    call require(deflate_level >= 0 .and. deflate_level <= 9, '&kumo_output: ', 'deflate_level', &
+                 deflate_level, 'must be within 0..9 (0: no compression)', error)
+    if (allocated(error)) return
+    cfg%deflate_level = deflate_level
     cfg%file = file
     cfg%column_fluxes = column_fluxes
     cfg%voxel_absorption = voxel_absorption
@@ -1833,6 +1839,7 @@ contains
            'kumo_output.flux_levels = '//join(cfg%output%flux_levels)//nl// &
            'kumo_output.column_fluxes = '//merge('T', 'F', cfg%output%column_fluxes)//nl// &
            'kumo_output.voxel_absorption = '//merge('T', 'F', cfg%output%voxel_absorption)//nl// &
+           'kumo_output.deflate_level = '//str(cfg%output%deflate_level)//nl// &
            'kumo_vr.rr_threshold = '//str(cfg%vr%rr_threshold)//nl// &
            'kumo_vr.rr_weight = '//str(cfg%vr%rr_weight)//nl// &
            'kumo_vr.use_supervoxels = '//merge('T', 'F', cfg%vr%use_supervoxels)//nl// &

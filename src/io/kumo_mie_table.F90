@@ -25,7 +25,7 @@ module kumo_mie_table
                     nf90_def_var, nf90_put_att, nf90_get_att, nf90_put_var, nf90_get_var, &
                     nf90_inq_dimid, nf90_inq_varid, nf90_inquire_dimension, &
                     nf90_inquire_attribute, nf90_strerror, NF90_NOERR, NF90_NOWRITE, &
-                    NF90_CLOBBER, NF90_NETCDF4, NF90_CLASSIC_MODEL, NF90_GLOBAL, NF90_DOUBLE
+                    NF90_NOCLOBBER, NF90_NETCDF4, NF90_CLASSIC_MODEL, NF90_GLOBAL, NF90_DOUBLE
   use kumo_kinds, only: wp
   use kumo_error, only: error_t, set_error, str
   use kumo_file_check, only: check_netcdf_complete
@@ -38,7 +38,8 @@ module kumo_mie_table
 
   !> Version of the file layout and of the computation; a file of another version is rebuilt.
   integer, parameter :: MIE_TABLE_VERSION = 1
-  integer, parameter :: CREATE_MODE = ior(NF90_CLOBBER, ior(NF90_NETCDF4, NF90_CLASSIC_MODEL))
+  !> Created exclusively after a stale `<path>.tmp` is removed: a link there is never followed.
+  integer, parameter :: CREATE_MODE = ior(NF90_NOCLOBBER, ior(NF90_NETCDF4, NF90_CLASSIC_MODEL))
 
 contains
 
@@ -58,6 +59,7 @@ contains
       call set_error(error, at//': the table is empty')
       return
     end if
+    status = c_remove(tmp//c_null_char)   ! a stale one (or a link of that name) goes first
     call nc_check(nf90_create(tmp, CREATE_MODE, ncid), PROC//'('//tmp//')', error)
     if (allocated(error)) return
     call define()

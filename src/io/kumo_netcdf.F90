@@ -19,7 +19,7 @@ module kumo_netcdf
                     nf90_put_att, nf90_get_att, nf90_put_var, nf90_get_var, nf90_inq_dimid, &
                     nf90_inq_varid, nf90_inquire_dimension, nf90_inquire_variable, &
                     nf90_inquire_attribute, nf90_strerror, NF90_NOERR, NF90_ENOTATT, &
-                    NF90_NOWRITE, NF90_CLOBBER, NF90_NETCDF4, NF90_CLASSIC_MODEL, NF90_GLOBAL, &
+                    NF90_NOWRITE, NF90_NOCLOBBER, NF90_NETCDF4, NF90_CLASSIC_MODEL, NF90_GLOBAL, &
                     NF90_DOUBLE, NF90_FLOAT, NF90_INT, NF90_SHORT, NF90_BYTE, NF90_CHAR, &
                     NF90_FILL_DOUBLE, NF90_FILL_FLOAT, NF90_FILL_INT, NF90_FILL_SHORT, &
                     NF90_FILL_BYTE, NF90_MAX_VAR_DIMS, NF90_MAX_NAME

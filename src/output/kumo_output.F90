@@ -230,6 +230,7 @@ contains
       end do
     end associate
     call cf_annotate(set)
+    set%deflate = cfg%output%deflate_level
 
   contains
 

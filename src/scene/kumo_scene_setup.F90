@@ -150,6 +150,9 @@ contains
       if (allocated(error)) return
     end if
 
+    ! the beam first: BRDF tables store the albedo at its mu0 = -uz exactly (every direct-beam
+    ! photon arrives at that angle, bit for bit)
+    scene%src = solar_source(cfg%source%sza_deg, cfg%source%phi0_deg)
     if (len_trim(cfg%surface%albedo_file) > 0) then
       call read_albedo_on_root(resolve_path(cfg%surface%albedo_file, nml_path), &
                                trim(cfg%surface%albedo_var), alb, error)
@@ -162,23 +165,25 @@ contains
       call mcarats_surface_on_root(cfg, resolve_path(cfg%surface%surface_file, nml_path), bmap, &
                                    sfc_notes, error)
       if (allocated(error)) return
-      call surface_init_brdf_map(scene%sfc, bmap, cfg%atm%lx, cfg%atm%ly, error)
+      call surface_init_brdf_map(scene%sfc, bmap, cfg%atm%lx, cfg%atm%ly, error, &
+                                 mu0=-scene%src%uz)
       call add_context(error, trim(cfg%surface%surface_file))
       scene%notes = scene%notes//sfc_notes
     else if (len_trim(cfg%surface%brdf_file) > 0) then
       call brdf_map_on_root(resolve_path(cfg%surface%brdf_file, nml_path), cfg%surface%model%kind, &
                             bmap, error)
       if (allocated(error)) return
-      call surface_init_brdf_map(scene%sfc, bmap, cfg%atm%lx, cfg%atm%ly, error)
+      call surface_init_brdf_map(scene%sfc, bmap, cfg%atm%lx, cfg%atm%ly, error, &
+                                 mu0=-scene%src%uz)
       call add_context(error, trim(cfg%surface%brdf_file))
     else if (cfg%surface%brdf == 'lambert') then
       call surface_init(scene%sfc, alb, cfg%atm%lx, cfg%atm%ly, error)
     else
-      call surface_init_brdf(scene%sfc, cfg%surface%model, cfg%atm%lx, cfg%atm%ly, error)
+      call surface_init_brdf(scene%sfc, cfg%surface%model, cfg%atm%lx, cfg%atm%ly, error, &
+                             mu0=-scene%src%uz)
     end if
     if (allocated(error)) return
 
-    scene%src = solar_source(cfg%source%sza_deg, cfg%source%phi0_deg)
     if (cfg%vr%stratify_source) then
       ! entry cells: the 3-D region's columns, or else the surface map's pixels
       if (scene%atm%n3 > 0) then

@@ -65,11 +65,13 @@ contains
 
   !> A uniform BRDF surface over the domain [0, lx) x [0, ly). A Lambert or black model gives
   !> the ordinary Lambert surface.
-  subroutine surface_init_brdf(sfc, model, lx, ly, error)
+  !> `mu0` (-uz of the direct beam) gets its directional albedo stored exactly.
+  subroutine surface_init_brdf(sfc, model, lx, ly, error, mu0)
     type(surface_t), intent(out) :: sfc
     type(brdf_params_t), intent(in) :: model
     real(wp), intent(in) :: lx, ly          !! domain size [m]
     type(error_t), allocatable, intent(out) :: error
+    real(wp), intent(in), optional :: mu0
     select case (model%kind)
     case (BRDF_BLACK)
       call surface_init(sfc, reshape([0.0_wp], [1, 1]), lx, ly, error)
@@ -79,7 +81,7 @@ contains
       call surface_init(sfc, reshape([1.0_wp], [1, 1]), lx, ly, error)
       if (allocated(error)) return
       allocate (sfc%tabs(1))
-      call brdf_table_init(sfc%tabs(1), model, error)
+      call brdf_table_init(sfc%tabs(1), model, error, mu0)
       sfc%use_brdf = .true.
     end select
   end subroutine surface_init_brdf
@@ -89,12 +91,13 @@ contains
   !> come from `brdf_table_init` (4-10 ms each), those of LSRT classes from the shared kernel
   !> grid (`brdf_table_init_grid`, about 0.1 ms each). A map of Lambert and black pixels only
   !> becomes an albedo map; a map with one class is a uniform surface.
-  subroutine surface_init_brdf_map(sfc, params, lx, ly, error, n_classes)
+  subroutine surface_init_brdf_map(sfc, params, lx, ly, error, n_classes, mu0)
     type(surface_t), intent(out) :: sfc
     type(brdf_params_t), intent(in) :: params(:, :)   !! parameters per pixel (nxs, nys)
     real(wp), intent(in) :: lx, ly                    !! domain size [m]
     type(error_t), allocatable, intent(out) :: error
     integer, intent(out), optional :: n_classes       !! number of distinct parameter sets
+    real(wp), intent(in), optional :: mu0             !! -uz of the direct beam (exact albedo)
     integer, allocatable :: order(:), cls(:)
     real(wp), allocatable :: alb(:, :)
     type(lsrt_grid_t) :: grid
@@ -147,9 +150,9 @@ contains
       if (p%kind == BRDF_LSRT) then
         if (.not. have_grid) call lsrt_grid_init(grid)
         have_grid = .true.
-        call brdf_table_init_grid(sfc%tabs(k), p, grid, error)
+        call brdf_table_init_grid(sfc%tabs(k), p, grid, error, mu0)
       else
-        call brdf_table_init(sfc%tabs(k), p, error)
+        call brdf_table_init(sfc%tabs(k), p, error, mu0)
       end if
       if (allocated(error)) then
         call add_context(error, 'surface pixel (xs,ys) = ('//str(mod(order(i) - 1, nxs) + 1)// &

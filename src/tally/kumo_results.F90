@@ -6,6 +6,7 @@
 !> written generically.
 module kumo_results
   use kumo_kinds, only: dp
+  use kumo_error, only: str
   implicit none
   private
   public :: result_dim_t, result_var_t, result_attr_t, result_set_t
@@ -37,7 +38,8 @@ module kumo_results
     character(len=:), allocatable :: coordinates     !! CF auxiliary/scalar coordinates (if allocated)
   end type result_var_t
 
-  !> A global attribute: text, or a number when `num` is allocated.
+  !> A global attribute: text, or a number when `num` is allocated (then `value` holds the
+  !> number as text too, for code that reads attributes as text).
   type :: result_attr_t
     character(len=NAME_LEN) :: name = ''             !! attribute name
     character(len=:), allocatable :: value           !! attribute text
@@ -111,6 +113,7 @@ contains
     type(result_attr_t) :: a
     a%name = name
     a%num = [value]
+    a%value = str(value)
     if (.not. allocated(set%attrs)) allocate (set%attrs(0))
     set%attrs = [set%attrs, a]
   end subroutine add_num_attr

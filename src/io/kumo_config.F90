@@ -1,12 +1,16 @@
 ! SPDX-License-Identifier: BSD-3-Clause
 !> Namelist configuration: one group per area, read into validated `*_cfg_t` types.
 !>
-!> Groups: &kumo_control (photon budget, seed, stopping rule), &kumo_atmosphere (levels, 1-D
-!> layers, 3-D region), &kumo_phase (phase functions), &kumo_surface, &kumo_source,
-!> &kumo_output, &kumo_vr (roulette and tracer fast paths). Every variable, its default, units
-!> and range is listed in namelists/reference.nml. Namelist variables are local variables copied
+!> Groups: &kumo_control (photon budget, seed, stopping rule, solver mode), &kumo_atmosphere
+!> (levels, 1-D layers, 3-D region, Rayleigh layers), &kumo_cloud (model output and other codes'
+!> cloud files), &kumo_phase (phase functions), &kumo_surface (Lambert, BRDF, maps),
+!> &kumo_source, &kumo_output, &kumo_vr (variance reduction and tracer fast paths),
+!> &kumo_radiance, &kumo_camera. Every variable, its default, units and range is listed in
+!> namelists/reference.nml. The groups are found by kumo's own scanner (kumo_nml_text), which
+!> names unknown, misspelt and repeated groups; namelist variables are local variables copied
 !> into the types, so the file syntax does not depend on component names. Every rank reads and
-!> validates the namelist itself, so all ranks fail the same way.
+!> validates the namelist itself, so all ranks fail the same way. A cloud file's grid and
+!> pressure are still read here (to check the levels against it), not only in scene set-up.
 module kumo_config
   use, intrinsic :: iso_fortran_env, only: iostat_end
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite

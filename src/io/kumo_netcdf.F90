@@ -1,7 +1,10 @@
 ! SPDX-License-Identifier: BSD-3-Clause
-!> netCDF input and output: the 3-D scene, surface albedo maps and the result file.
+!> netCDF input and output: the 3-D scene, surface albedo and BRDF maps, 1-D variables, and the
+!> result file (any result set of kumo_results, with its CF attributes).
 !>
-!> This is the only module that uses the netCDF library. Every library call is checked; a failure
+!> The LES reader (kumo_les_netcdf), the Mie-table cache (kumo_mie_table) and the RRTMGP reader
+!> (kumo_rrtmgp_file) use the netCDF library too, through the helpers here. Every library call
+!> is checked; a failure
 !> returns an `error_t` whose message reads `<routine>(<file>:<variable>): <netCDF message>`, and
 !> nothing here stops the program.
 !>
@@ -12,6 +15,8 @@
 !> Files are written atomically: the data go to `<path>.tmp` in the same directory, which is
 !> renamed to `<path>` only after it was closed without error, and removed on any error. A failed
 !> write therefore never leaves a partial file behind, and an older file at `<path>` stays intact.
+!> The temporary file is created exclusively after a stale one is removed (a link there is never
+!> followed). Files read are first checked for data cut short (kumo_file_check).
 module kumo_netcdf
   use, intrinsic :: iso_c_binding, only: c_char, c_int, c_null_char
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite, ieee_is_nan

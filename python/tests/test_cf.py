@@ -33,13 +33,14 @@ def cf_case(tmp_path):
 
 
 def test_output_passes_cf_checker(exe, tmp_path):
-    """No error of the CF-1.8 checks on a file with every kind of product (the checker's
-    warnings about dimension order are advice, not errors, and are not counted)."""
+    """Every high-priority (required) CF-1.8 check passes on a file with every kind of product;
+    the checker's medium-priority advice (the T, Z, Y, X order it recommends for dimensions
+    ahead of kumo's direction dimension) is not counted."""
     kumo.run(cf_case(tmp_path), tmp_path, exe=exe)
     CheckSuite.load_all_available_checkers()
     report = tmp_path / "cf_report.json"
     passed, errors = ComplianceChecker.run_checker(
-        str(tmp_path / "cf.nc"), ["cf:1.8"], verbose=0, criteria="strict",
+        str(tmp_path / "cf.nc"), ["cf:1.8"], verbose=0, criteria="normal",
         output_filename=str(report), output_format="json")
     assert not errors, "the compliance checker failed to run"
     text = report.read_text()

@@ -7,8 +7,7 @@ module kumo_cli
   use, intrinsic :: iso_fortran_env, only: compiler_version, compiler_options
   use kumo_error, only: error_t, set_error, str
   use kumo_constants, only: KUMO_VERSION
-  use kumo_phase, only: PHASE_TABLE
-  use kumo_config, only: config_t, read_config, config_echo, resolve_path
+  use kumo_config, only: config_t, read_config, config_echo, input_file_t, config_inputs
   use kumo_netcdf, only: check_writable
   use kumo_parallel, only: PAR_IS_MPI
   use kumo_build_info, only: BUILD_GIT_COMMIT, BUILD_TYPE
@@ -138,6 +137,7 @@ contains
     type(config_t) :: cfg
     type(error_t), allocatable :: err
     character(len=:), allocatable :: files, problems, cache
+    type(input_file_t), allocatable :: inputs(:)
     integer :: i, n_problems
     logical :: exists
 
@@ -146,42 +146,11 @@ contains
     if (allocated(error)) return
     files = ''
     problems = ''
-    do i = 1, cfg%phase%n_phase
-      if (cfg%phase%kind(i) == PHASE_TABLE) then
-        call check_input('&kumo_phase phase_file('//str(i)//')', &
-                         resolve_path(cfg%phase%file(i), path), files, problems)
-      end if
+    inputs = config_inputs(cfg, path)
+    do i = 2, size(inputs)   ! the namelist itself was read above
+      call check_input(inputs(i)%label, inputs(i)%path, files, problems)
     end do
-    if (len_trim(cfg%atm%scene_file) > 0) then
-      call check_input('&kumo_atmosphere scene_file', resolve_path(cfg%atm%scene_file, path), &
-                       files, problems)
-    end if
-    if (len_trim(cfg%surface%albedo_file) > 0) then
-      call check_input('&kumo_surface albedo_file', resolve_path(cfg%surface%albedo_file, path), &
-                       files, problems)
-    end if
-    if (len_trim(cfg%surface%brdf_file) > 0) then
-      call check_input('&kumo_surface brdf_file', resolve_path(cfg%surface%brdf_file, path), &
-                       files, problems)
-    end if
-    if (len_trim(cfg%surface%surface_file) > 0) then
-      call check_input('&kumo_surface surface_file', resolve_path(cfg%surface%surface_file, path), &
-                       files, problems)
-    end if
     if (cfg%cloud%enabled) then
-      if (allocated(cfg%cloud%req%path)) then
-        call check_input('&kumo_cloud cloud_file', cfg%cloud%req%path, files, problems)
-      end if
-      if (allocated(cfg%cloud%req%mcarats%phase_path)) then
-        if (len_trim(cfg%cloud%req%mcarats%phase_path) > 0) then
-          call check_input('&kumo_cloud mcarats_phase_file', cfg%cloud%req%mcarats%phase_path, &
-                           files, problems)
-        end if
-      end if
-      if (len_trim(cfg%cloud%ice_optics_file) > 0) then
-        call check_input('&kumo_cloud ice_optics_file', trim(cfg%cloud%ice_optics_file), files, &
-                         problems)
-      end if
       if (len_trim(cfg%cloud%mie_cache) > 0) then
         cache = trim(cfg%cloud%mie_cache)
         inquire (file=cache, exist=exists)

@@ -17,8 +17,8 @@ module kumo_driver
   use kumo_scene, only: scene_t
   use kumo_transport, only: trace_batch
   use kumo_results, only: result_set_t, add_attr
-  use kumo_config, only: config_t, read_config, config_echo
-  use kumo_textio, only: read_whole_file
+  use kumo_config, only: config_t, read_config, config_echo, input_file_t, config_inputs
+  use kumo_textio, only: read_whole_file, same_file
   use kumo_netcdf, only: write_results, check_writable
   use kumo_parallel, only: par_rank, par_size, par_is_root, par_sum_to_root, par_allreduce_sum, &
                            par_wtime, par_bcast_int
@@ -51,6 +51,8 @@ contains
     integer :: status(1)
 
     call read_config(path, cfg, error)
+    if (allocated(error)) return
+    call refuse_input_as_output(cfg, path, error)
     if (allocated(error)) return
     call read_whole_file(path, nml_text, error)
     if (allocated(error)) return
@@ -214,6 +216,32 @@ contains
     call build_results(cfg, scene, lay, st, rec(:, 1:nb_done), summary, set)
     if (present(nml_text)) call add_attr(set, 'namelist', nml_text)
   end subroutine simulate
+
+  !> The output file must not be one of the run's own inputs (the namelist, a scene, surface,
+  !> cloud or phase file) nor its Mie cache: writing it would destroy what the run is made from.
+  subroutine refuse_input_as_output(cfg, path, error)
+    type(config_t), intent(in) :: cfg
+    character(len=*), intent(in) :: path
+    type(error_t), allocatable, intent(out) :: error
+    type(input_file_t), allocatable :: inputs(:)
+    character(len=:), allocatable :: out
+    integer :: i
+    out = trim(cfg%output%file)
+    inputs = config_inputs(cfg, path)
+    do i = 1, size(inputs)
+      if (same_file(out, inputs(i)%path)) then
+        call set_error(error, '&kumo_output file = '''//out//''' is this run''s '// &
+                       inputs(i)%label//' ('//inputs(i)%path//'); kumo does not overwrite '// &
+                       'its own input: choose another output file')
+        return
+      end if
+    end do
+    if (cfg%cloud%enabled .and. len_trim(cfg%cloud%mie_cache) > 0) then
+      if (same_file(out, trim(cfg%cloud%mie_cache))) call set_error(error, &
+        '&kumo_output file = '''//out//''' is this run''s &kumo_cloud mie_cache; '// &
+        'choose another output file')
+    end if
+  end subroutine refuse_input_as_output
 
   !> A progress line on standard error when it is due: batches done (estimated over all ranks
   !> from rank 0's own), photons per second, and the time left (fixed batch count) or the

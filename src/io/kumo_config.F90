@@ -16,7 +16,7 @@ module kumo_config
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use kumo_kinds, only: wp, i8
   use kumo_error, only: error_t, set_error, add_context, str, to_lower, join
-  use kumo_phase, only: phase_kind_from_name
+  use kumo_phase, only: phase_kind_from_name, PHASE_TABLE
   use kumo_math, only: within
   use kumo_brdf, only: brdf_params_t, brdf_params, brdf_kind_from_name, brdf_validate, &
                        cox_munk_slope_variance, BRDF_BLACK, BRDF_LAMBERT, BRDF_DSM, BRDF_NPAR
@@ -33,7 +33,7 @@ module kumo_config
   private
   public :: config_t, control_cfg_t, atmosphere_cfg_t, phase_cfg_t, surface_cfg_t, &
             source_cfg_t, output_cfg_t, vr_cfg_t, radiance_cfg_t, camera_cfg_t, cloud_cfg_t, &
-            read_config, config_echo, resolve_path
+            read_config, config_echo, resolve_path, input_file_t, config_inputs
   public :: MAX_LAYERS, MAX_COMP, MAX_PHASE, MAX_DIR, MAX_CAMERAS, TARGET_NAMES, PRESET_NAMES, &
             MODE_NAMES
   public :: RAYLEIGH_LEVELS, RAYLEIGH_CLOUD_FILE
@@ -75,6 +75,12 @@ module kumo_config
   real(wp), parameter :: PRESET_CF_TAU(4) = [0.0_wp, 1.0_wp, 2.0_wp, 3.0_wp]
   real(wp), parameter :: PRESET_DIFF(4) = [0.0_wp, 0.0_wp, 60.0_wp, 150.0_wp]
   real(wp), parameter :: PRESET_DDIS(4) = [0.0_wp, 0.1_wp, 0.1_wp, 0.1_wp]
+
+  !> An input file a configuration names, and the namelist entry that names it.
+  type :: input_file_t
+    character(len=:), allocatable :: label   !! e.g. '&kumo_atmosphere scene_file'
+    character(len=:), allocatable :: path    !! as kumo opens it (relative to the namelist)
+  end type input_file_t
 
   !> &kumo_control: photon budget, seeding and stopping rule.
   type :: control_cfg_t
@@ -1103,6 +1109,49 @@ contains
     req%phase_path = ''
     if (len_trim(phase_file) > 0) req%phase_path = resolve_path(phase_file, nml_path)
   end subroutine mcarats_cloud_settings
+
+  !> Every input file the configuration `cfg` (read from `nml_path`) names, the namelist
+  !> first; the Mie cache is not among them (the run may write it).
+  function config_inputs(cfg, nml_path) result(inputs)
+    type(config_t), intent(in) :: cfg
+    character(len=*), intent(in) :: nml_path
+    type(input_file_t), allocatable :: inputs(:)
+    integer :: i
+    allocate (inputs(0))
+    call add('namelist', nml_path)
+    do i = 1, cfg%phase%n_phase
+      if (cfg%phase%kind(i) == PHASE_TABLE) &
+        call add('&kumo_phase phase_file('//str(i)//')', resolve_path(cfg%phase%file(i), nml_path))
+    end do
+    if (len_trim(cfg%atm%scene_file) > 0) &
+      call add('&kumo_atmosphere scene_file', resolve_path(cfg%atm%scene_file, nml_path))
+    if (len_trim(cfg%surface%albedo_file) > 0) &
+      call add('&kumo_surface albedo_file', resolve_path(cfg%surface%albedo_file, nml_path))
+    if (len_trim(cfg%surface%brdf_file) > 0) &
+      call add('&kumo_surface brdf_file', resolve_path(cfg%surface%brdf_file, nml_path))
+    if (len_trim(cfg%surface%surface_file) > 0) &
+      call add('&kumo_surface surface_file', resolve_path(cfg%surface%surface_file, nml_path))
+    if (.not. cfg%cloud%enabled) return
+    if (allocated(cfg%cloud%req%path)) call add('&kumo_cloud cloud_file', cfg%cloud%req%path)
+    if (allocated(cfg%cloud%req%mcarats%phase_path)) then
+      if (len_trim(cfg%cloud%req%mcarats%phase_path) > 0) &
+        call add('&kumo_cloud mcarats_phase_file', cfg%cloud%req%mcarats%phase_path)
+    end if
+    if (len_trim(cfg%cloud%ice_optics_file) > 0) &
+      call add('&kumo_cloud ice_optics_file', trim(cfg%cloud%ice_optics_file))
+  contains
+    subroutine add(label, path)
+      character(len=*), intent(in) :: label, path
+      type(input_file_t), allocatable :: more(:)
+      integer :: n
+      n = size(inputs)
+      allocate (more(n + 1))
+      more(1:n) = inputs
+      more(n + 1)%label = label
+      more(n + 1)%path = path
+      call move_alloc(more, inputs)
+    end subroutine add
+  end function config_inputs
 
   !> A path from the namelist: relative paths are relative to the namelist's folder.
   function resolve_path(path, nml_path) result(full)

@@ -2,12 +2,23 @@
 !> Small text-file readers: two-column tables (e.g. tabulated phase functions) and whole files.
 module kumo_textio
   use, intrinsic :: iso_fortran_env, only: iostat_end, iostat_eor
+  use, intrinsic :: iso_c_binding, only: c_char, c_ptr, c_null_char, c_associated
   use kumo_kinds, only: wp
   use kumo_error, only: error_t, set_error, str
   use kumo_file_check, only: check_text_complete
   implicit none
   private
-  public :: read_two_columns, read_whole_file, read_line
+  public :: read_two_columns, read_whole_file, read_line, same_file
+
+  interface
+    !> realpath(3): the canonical absolute path (links resolved), or a null pointer.
+    function c_realpath(path, resolved) bind(c, name='realpath') result(p)
+      import :: c_char, c_ptr
+      character(kind=c_char), intent(in) :: path(*)
+      character(kind=c_char), intent(out) :: resolved(*)
+      type(c_ptr) :: p
+    end function c_realpath
+  end interface
 
 contains
 
@@ -105,4 +116,54 @@ contains
       if (ios /= 0) return
     end do
   end subroutine read_line
+  !> True when paths `a` and `b` name the same file (after resolving links, `.` and `..`); a
+  !> path that does not exist yet is resolved through its directory.
+  logical function same_file(a, b)
+    character(len=*), intent(in) :: a, b
+    same_file = canonical(a) == canonical(b)
+  end function same_file
+
+  !> Canonical absolute form of a path (itself, unchanged, when it cannot be resolved).
+  function canonical(path) result(c)
+    character(len=*), intent(in) :: path
+    character(len=:), allocatable :: c, dir, base
+    integer :: slash
+    c = resolved(path)
+    if (len(c) > 0) return
+    slash = index(path, '/', back=.true.)
+    if (slash == 0) then
+      dir = '.'
+      base = path
+    else
+      dir = path(1:max(1, slash - 1))
+      base = path(slash + 1:)
+    end if
+    c = resolved(dir)
+    if (len(c) > 0) then
+      c = c//'/'//base
+    else
+      c = path
+    end if
+  end function canonical
+
+  !> realpath of an existing path, '' if it cannot be resolved.
+  function resolved(path) result(c)
+    character(len=*), intent(in) :: path
+    character(len=:), allocatable :: c
+    character(kind=c_char) :: buf(4097)
+    integer :: n, i
+    buf = c_null_char
+    c = ''
+    if (.not. c_associated(c_realpath(trim(path)//c_null_char, buf))) return
+    n = 0
+    do while (n < size(buf))
+      if (buf(n + 1) == c_null_char) exit
+      n = n + 1
+    end do
+    c = repeat(' ', n)
+    do i = 1, n
+      c(i:i) = buf(i)
+    end do
+  end function resolved
+
 end module kumo_textio

@@ -72,7 +72,7 @@ def read_base(path):
     for name, group in nml.items():
         variables = {}
         for key, value in group.items():
-            start = group.start_index.get(key, [1])
+            start = [1 if i is None else i for i in group.start_index.get(key, [1])]
             if isinstance(value, list) and value and isinstance(value[0], list):
                 if any(i != 1 for i in start):
                     raise ValueError(f'{path}: {key} does not start at index 1')

@@ -36,24 +36,21 @@ import numpy as np
 
 # The Landsat field reader, vertical grid, extinction and scene writer are shared with the I3RC
 # examples: examples/i3rc/i3rc_cases.py.
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
-                                'examples', 'i3rc'))
-from i3rc_cases import (DX_M, N_FIELD, default_data_dir, levels_km,
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.join(REPO, 'examples', 'i3rc'))
+sys.path.insert(0, os.path.join(REPO, 'python', 'src'))   # the kumo package of this tree
+import kumo  # noqa: E402
+from i3rc_cases import (DX_M, N_FIELD, default_data_dir, levels_km,  # noqa: E402
                         read_landsat_field, voxel_extinction, write_scene)
 
 
-def atm_group(z_km, nx, ny, lx_m, ly_m):
-    """The &kumo_atmosphere group for the scene (layer 1 clear, layers 2.. the 3-D region)."""
+def atm_group(z_km, nx, ny, lx_m, ly_m, scene):
+    """The &kumo_atmosphere group for the scene (layer 1 clear, layers 2.. the 3-D region), as
+    a dict for kumo.write_namelist."""
     nz = len(z_km) - 1
-    zl = ', '.join(f'{1000.0 * z:.6f}' for z in z_km)
-    return ('&kumo_atmosphere\n'
-            f'  nz = {nz}\n'
-            f'  z_levels = {zl}\n'
-            f'  lx = {lx_m:.1f}, ly = {ly_m:.1f}\n'
-            "  scene_file = 'SCENE'\n"
-            f'  k3d_bottom = 2, nx = {nx}, ny = {ny}, nz3 = {nz - 1}\n'
-            '  n_components_3d = 1, phase3d = 1\n'
-            '/\n')
+    return {'nz': nz, 'z_levels': np.round(1000.0 * np.asarray(z_km), 6),
+            'lx': round(lx_m, 1), 'ly': round(ly_m, 1), 'scene_file': scene, 'k3d_bottom': 2,
+            'nx': nx, 'ny': ny, 'nz3': nz - 1, 'n_components_3d': 1, 'phase3d': 1}
 
 
 def main():
@@ -79,9 +76,8 @@ def main():
                 'bench/make_landsat_scene.py from scene43.tau.128x128, scene43.dz.128x128')
     ny, nx = ext.shape[1:]
     if a.atm_group:
-        with open(a.atm_group, 'w') as f:
-            f.write(atm_group(z_km, nx, ny, N_FIELD * DX_M, N_FIELD * DX_M)
-                    .replace('SCENE', os.path.basename(a.out)))
+        kumo.write_namelist({'atmosphere': atm_group(z_km, nx, ny, N_FIELD * DX_M, N_FIELD * DX_M,
+                                                     os.path.basename(a.out))}, a.atm_group)
     print(f'{a.out}: {nx} x {ny} x {ext.shape[0]} voxels, mean column optical depth '
           f'{tau.mean():.4f}, max extinction {ext.max():.6g} m-1')
 

@@ -29,6 +29,8 @@ import sys
 import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, os.path.join(os.path.dirname(HERE), 'python', 'src'))   # the kumo package
+import kumo  # noqa: E402
 
 # ------------------------------------------------------------------------------------------------
 # Cases
@@ -37,10 +39,11 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 #: Plane-parallel slabs: (title, optical depth, single-scattering albedo, phase group, sza, albedo)
 SLABS = {
     'mcpp_slab': dict(title='isotropic slab, tau 2, omega 0.99, SZA 60, Lambert albedo 0.2',
-                      tau=2.0, ssa=0.99, phase="phase_kind = 'isotropic'", sza=60.0, albedo=0.2),
+                      tau=2.0, ssa=0.99, phase={'phase_kind': 'isotropic'}, sza=60.0,
+                      albedo=0.2),
     'hg_slab': dict(title='Henyey-Greenstein g 0.85 slab, tau 10, omega 0.99, SZA 30, '
                           'black surface',
-                    tau=10.0, ssa=0.99, phase="phase_kind = 'hg'\n  phase_g = 0.85", sza=30.0,
+                    tau=10.0, ssa=0.99, phase={'phase_kind': 'hg', 'phase_g': 0.85}, sza=30.0,
                     albedo=0.0),
 }
 LANDSAT_TITLE = ('I3RC Landsat cloud (case 3), 128 x 128 x 20 voxels, HG g 0.85, omega 0.99, '
@@ -61,70 +64,40 @@ QUICK_SERIES = {
 
 
 def control_group(npb, nb, seed=1, target=0.0):
-    s = ('&kumo_control\n'
-         f'  n_photons_per_batch = {npb}\n'
-         f'  n_batches = {nb}\n'
-         f'  seed = {seed}\n'
-         '  verbose = 0\n')
+    group = {'n_photons_per_batch': npb, 'n_batches': nb, 'seed': seed, 'verbose': 0}
     if target > 0.0:
-        s += f"  target_rel_error = {target}\n  target_output = 'reflectance'\n"
-    return s + '/\n'
+        group.update(target_rel_error=target, target_output='reflectance')
+    return group
 
 
 def slab_namelist(case, out, npb, nb, seed=1, target=0.0):
+    """Namelist groups (kumo.write_namelist) of a plane-parallel slab case."""
     c = SLABS[case]
     depth = 1000.0
-    return (f'! kumo benchmark: {c["title"]}\n' + control_group(npb, nb, seed, target) +
-            '&kumo_atmosphere\n'
-            '  nz = 1\n'
-            f'  z_levels = 0.0, {depth}\n'
-            '  lx = 1000.0, ly = 1000.0\n'
-            f'  ext1d(1,1) = {c["tau"] / depth!r}\n'
-            f'  ssa1d(1,1) = {c["ssa"]}\n'
-            '  phase1d(1,1) = 1\n'
-            '/\n'
-            '&kumo_phase\n'
-            '  n_phase = 1\n'
-            f'  {c["phase"]}\n'
-            '/\n'
-            '&kumo_surface\n'
-            f'  albedo = {c["albedo"]}\n'
-            '/\n'
-            '&kumo_source\n'
-            f'  sza_deg = {c["sza"]}\n'
-            '  phi0_deg = 0.0\n'
-            '/\n'
-            '&kumo_output\n'
-            f"  file = '{out}'\n"
-            '/\n')
+    return {
+        'control': control_group(npb, nb, seed, target),
+        'atmosphere': {'nz': 1, 'z_levels': [0.0, depth], 'lx': 1000.0, 'ly': 1000.0,
+                       'ext1d': [[c['tau'] / depth]], 'ssa1d': [[c['ssa']]], 'phase1d': [[1]]},
+        'phase': {'n_phase': 1, **c['phase']},
+        'surface': {'albedo': c['albedo']},
+        'source': {'sza_deg': c['sza'], 'phi0_deg': 0.0},
+        'output': {'file': out},
+    }
 
 
 def landsat_namelist(atm_group, out, npb, nb, seed=1, target=0.0, supervoxels=True):
-    nz = int([ln for ln in atm_group.splitlines() if ln.strip().startswith('nz =')][0]
-             .split('=')[1])
-    return (f'! kumo benchmark: {LANDSAT_TITLE}\n' + control_group(npb, nb, seed, target) +
-            atm_group +
-            '&kumo_phase\n'
-            '  n_phase = 1\n'
-            "  phase_kind = 'hg'\n"
-            '  phase_g = 0.85\n'
-            '/\n'
-            '&kumo_surface\n'
-            '  albedo = 0.0\n'
-            '/\n'
-            '&kumo_source\n'
-            '  sza_deg = 60.0\n'
-            '  phi0_deg = 0.0\n'
-            '/\n'
-            '&kumo_output\n'
-            f"  file = '{out}'\n"
-            f'  flux_levels = 0, {nz}\n'
-            '  column_fluxes = .true.\n'
-            '  voxel_absorption = .true.\n'
-            '/\n'
-            '&kumo_vr\n'
-            f'  use_supervoxels = {".true." if supervoxels else ".false."}\n'
-            '/\n')
+    """Namelist groups of the Landsat case; `atm_group` is its &kumo_atmosphere group (a dict,
+    as make_landsat_scene.py --atm-group writes it)."""
+    return {
+        'control': control_group(npb, nb, seed, target),
+        'atmosphere': atm_group,
+        'phase': {'n_phase': 1, 'phase_kind': 'hg', 'phase_g': 0.85},
+        'surface': {'albedo': 0.0},
+        'source': {'sza_deg': 60.0, 'phi0_deg': 0.0},
+        'output': {'file': out, 'flux_levels': [0, atm_group['nz']], 'column_fluxes': True,
+                   'voxel_absorption': True},
+        'vr': {'use_supervoxels': supervoxels},
+    }
 
 
 # ------------------------------------------------------------------------------------------------
@@ -213,19 +186,21 @@ class Bench:
                 if self.a.data:
                     cmd += ['--data', self.a.data]
                 subprocess.run(cmd, check=True)
-            with open(group) as f:
-                self.atm[n] = f.read()
+            self.atm[n] = kumo.read_namelist(group)['atmosphere']
 
     def namelist(self, case, name, npb, nb, seed=1, target=0.0, supervoxels=True):
         out = name + '.nc'
         if case in SLABS:
-            text = slab_namelist(case, out, npb, nb, seed, target)
+            title = SLABS[case]['title']
+            groups = slab_namelist(case, out, npb, nb, seed, target)
         else:
             n = 256 if case == 'landsat256' else 128
-            text = landsat_namelist(self.atm[n], out, npb, nb, seed, target, supervoxels)
+            title = LANDSAT_TITLE
+            groups = landsat_namelist(self.atm[n], out, npb, nb, seed, target, supervoxels)
         path = os.path.join(self.raw, name + '.nml')
         with open(path, 'w') as f:
-            f.write(text)
+            f.write(f'! kumo benchmark: {title}\n')
+            kumo.to_namelist(groups).write(f)
         return path, os.path.join(self.raw, out)
 
     def kumo_run(self, part, case, name, npb, nb, seed=1, target=0.0, supervoxels=True,

@@ -33,6 +33,8 @@ from netCDF4 import Dataset
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(HERE)
+sys.path.insert(0, os.path.join(REPO, "python", "src"))   # the kumo package of this tree
+import kumo  # noqa: E402
 
 
 def make_les(path, nx=256, ny=256, nz=100, seed=1):
@@ -72,9 +74,9 @@ def make_les(path, nx=256, ny=256, nz=100, seed=1):
     return 4 * lwc.nbytes
 
 
-def run(kumo, nml, cwd):
+def run(kumo_exe, nml, cwd):
     """Run kumo under /usr/bin/time; return (log, peak RSS in MB)."""
-    p = subprocess.run(["/usr/bin/time", "-f", "MAXRSS %M", kumo, nml], cwd=cwd,
+    p = subprocess.run(["/usr/bin/time", "-f", "MAXRSS %M", kumo_exe, nml], cwd=cwd,
                        capture_output=True, text=True)
     if p.returncode != 0:
         sys.exit(f"kumo failed on {nml}:\n{p.stdout[-2000:]}\n{p.stderr[-2000:]}")
@@ -87,30 +89,29 @@ def attr(path, name):
         return float(getattr(nc, name))
 
 
-def setup_bar(kumo, work):
+def setup_bar(kumo_exe, work):
     les = os.path.join(work, "les_256.nc")
     nbytes = make_les(les)
-    common = ("&kumo_control n_photons_per_batch = 10, n_batches = 2, verbose = 0 /\n"
-              "&kumo_source sza_deg = 30.0, wavelength_um = 0.67 /\n"
-              "&kumo_output file = '{out}', column_fluxes = .false., "
-              "voxel_absorption = .false. /\n")
+    def case(out, cloud):
+        return {"control": {"n_photons_per_batch": 10, "n_batches": 2, "verbose": 0},
+                "source": {"sza_deg": 30.0, "wavelength_um": 0.67},
+                "output": {"file": out, "column_fluxes": False, "voxel_absorption": False},
+                "cloud": {"cloud_file": "les_256.nc", **cloud}}
+
     # the ice stand-in table, then warm the water cache
-    with open(os.path.join(work, "ice.nml"), "w") as f:
-        f.write(common.format(out="ice_out.nc") +
-                "&kumo_cloud cloud_file = 'les_256.nc', les_iwc = 'none', "
-                "mie_cache = 'ice_standin.nc', reff_min_um = 10.0, reff_max_um = 60.0, "
-                "n_reff = 20 /\n")
-    run(kumo, "ice.nml", work)
-    nml = (common.format(out="les_out.nc") +
-           "&kumo_cloud cloud_file = 'les_256.nc', mie_cache = 'water.nc', "
-           "reff_min_um = 2.0, reff_max_um = 30.0, n_reff = 30, "
-           "ice_optics_file = 'ice_standin.nc' /\n")
-    with open(os.path.join(work, "les.nml"), "w") as f:
-        f.write(nml)
-    run(kumo, "les.nml", work)          # computes the water table
+    kumo.write_namelist(case("ice_out.nc", {"les_iwc": "none", "mie_cache": "ice_standin.nc",
+                                            "reff_min_um": 10.0, "reff_max_um": 60.0,
+                                            "n_reff": 20}),
+                        os.path.join(work, "ice.nml"))
+    run(kumo_exe, "ice.nml", work)
+    kumo.write_namelist(case("les_out.nc", {"mie_cache": "water.nc", "reff_min_um": 2.0,
+                                            "reff_max_um": 30.0, "n_reff": 30,
+                                            "ice_optics_file": "ice_standin.nc"}),
+                        os.path.join(work, "les.nml"))
+    run(kumo_exe, "les.nml", work)          # computes the water table
     times, rss = [], []
     for _ in range(3):
-        log, r = run(kumo, "les.nml", work)
+        log, r = run(kumo_exe, "les.nml", work)
         times.append(attr(os.path.join(work, "les_out.nc"), "setup_time_s"))
         rss.append(r)
     return nbytes / 1e6, statistics.median(times), statistics.median(rss)
@@ -149,35 +150,34 @@ def cpu_and_r(log):
     return cpu, float(m.group(1)), float(m.group(2))
 
 
-def flux_bar(kumo, shared, work):
+def flux_bar(kumo_exe, shared, work):
     """t01 of the 3-D scene, and side by side with each run, a plane-parallel slab with the
     scene's mean optical depth, albedo and asymmetry (Henyey-Greenstein) traced by kumo's 1-D
     path: the ratio of CPU time per photon, and the slab's own t01."""
     prp = os.path.join(shared, "data", "i3rc", "les_examples", "les_stcu_w213.prp")
     n_ph = 1e6
-    nml = ("&kumo_control n_photons_per_batch = 10000, n_batches = 100, seed = {seed}, "
-           "verbose = 1 /\n"
-           f"&kumo_cloud cloud_file = '{prp}', cloud_format = 'prp' /\n"
-           "&kumo_source sza_deg = 60.0 /\n"
-           "&kumo_output file = 'prp_out.nc', column_fluxes = .false., "
-           "voxel_absorption = .false. /\n")
+    control = {"n_photons_per_batch": 10000, "n_batches": 100, "verbose": 1}
+    nml = {"control": control,
+           "cloud": {"cloud_file": prp, "cloud_format": "prp"},
+           "source": {"sza_deg": 60.0},
+           "output": {"file": "prp_out.nc", "column_fluxes": False, "voxel_absorption": False}}
     tau, omega, g = prp_means(prp)
-    slab = ("&kumo_control n_photons_per_batch = 10000, n_batches = 100, seed = {seed}, "
-            "verbose = 1 /\n"
-            f"&kumo_atmosphere nz = 1, z_levels = 0.0, 1000.0, ext1d(1,1) = {tau / 1000.0:.6e}, "
-            f"ssa1d(1,1) = {omega:.6f}, phase1d(1,1) = 1 /\n"
-            f"&kumo_phase n_phase = 1, phase_kind = 'hg', phase_g = {g:.4f} /\n"
-            "&kumo_source sza_deg = 60.0 /\n"
-            "&kumo_output file = 'slab_out.nc' /\n")
+    # the slab's optical properties as the run log reports them (7, 7 and 4 digits)
+    slab = {"control": control,
+            "atmosphere": {"nz": 1, "z_levels": [0.0, 1000.0],
+                           "ext1d": [[float(f"{tau / 1000.0:.6e}")]],
+                           "ssa1d": [[float(f"{omega:.6f}")]], "phase1d": [[1]]},
+            "phase": {"n_phase": 1, "phase_kind": "hg", "phase_g": float(f"{g:.4f}")},
+            "source": {"sza_deg": 60.0},
+            "output": {"file": "slab_out.nc"}}
     t01, relvar, ratio, t01_slab = [], [], [], []
     cpus = []
     for seed in (1, 2, 3, 4, 5):
-        with open(os.path.join(work, "prp.nml"), "w") as f:
-            f.write(nml.format(seed=seed))
-        with open(os.path.join(work, "slab.nml"), "w") as f:
-            f.write(slab.format(seed=seed))
-        cpu, r, s = cpu_and_r(run(kumo, "prp.nml", work)[0])
-        cpu1, r1, s1 = cpu_and_r(run(kumo, "slab.nml", work)[0])
+        control["seed"] = seed
+        kumo.write_namelist(nml, os.path.join(work, "prp.nml"))
+        kumo.write_namelist(slab, os.path.join(work, "slab.nml"))
+        cpu, r, s = cpu_and_r(run(kumo_exe, "prp.nml", work)[0])
+        cpu1, r1, s1 = cpu_and_r(run(kumo_exe, "slab.nml", work)[0])
         t01.append(cpu * (s / r / 0.001) ** 2)
         cpus.append(cpu)
         relvar.append((s / r) ** 2 * n_ph)
@@ -197,11 +197,11 @@ def main():
     ap.add_argument("--shared", default=os.path.join(REPO, "..", "shared"))
     ap.add_argument("--out", default=os.path.join(HERE, "results"))
     a = ap.parse_args()
-    kumo = os.path.abspath(a.kumo)
+    kumo_exe = os.path.abspath(a.kumo)
     work = os.path.join(a.out, "les_bench_work")
     os.makedirs(work, exist_ok=True)
-    mb, t_setup, rss = setup_bar(kumo, work)
-    fb = flux_bar(kumo, os.path.abspath(a.shared), work)
+    mb, t_setup, rss = setup_bar(kumo_exe, work)
+    fb = flux_bar(kumo_exe, os.path.abspath(a.shared), work)
     text = (
         "# Cloud-file bars (bench/run_les_bench.py)\n\n"
         "| bar | required | measured | met |\n|---|---|---|---|\n"

@@ -45,15 +45,21 @@ sys.path.insert(0, os.path.join(REPO, 'examples', 'i3rc'))
 import i3rc_cases  # noqa: E402
 from plot_i3rc import Run, FLUXES, RADIANCES  # noqa: E402
 
+sys.path.insert(0, os.path.join(REPO, 'python', 'src'))   # the kumo package of this tree
+import kumo  # noqa: E402
+
 MODES = (('f3d', 0), ('ica', 0), ('p3d', 1))
 
 
-def run_kumo(kumo, nml, cwd):
+def run_kumo(kumo_exe, nml, cwd):
+    """Run kumo on a namelist file in `cwd`; returns the wall time of the process and its
+    standard output."""
     t0 = time.perf_counter()
-    p = subprocess.run([kumo, os.path.basename(nml)], cwd=cwd, capture_output=True, text=True)
-    if p.returncode != 0:
-        sys.exit(f'run_modes_bench: kumo failed on {nml}:\n{p.stderr}')
-    return time.perf_counter() - t0, p.stdout
+    try:
+        done = kumo.run_kumo(nml, cwd, exe=kumo_exe)
+    except kumo.KumoError as err:
+        sys.exit(f'run_modes_bench: kumo failed on {nml}:\n{err}')
+    return time.perf_counter() - t0, done.stdout
 
 
 def time_to(rel, t, target):
@@ -102,16 +108,18 @@ def flux_only(case, exp_no, mode, photons, batches, target, raw):
     """A case namelist without radiances, optionally in target-error mode."""
     path = i3rc_cases.write_case(case, [exp_no], [(mode, 0)], photons, batches, 7,
                                  i3rc_cases.default_data_dir(), raw)[0]
-    text = open(path).read()
-    text = re.sub(r'&kumo_radiance.*?\n/\n', '', text, flags=re.S)
+    with open(path) as f:   # the first two comment lines: the case, the experiment, the mode
+        header = ''.join([line for line in f if line.startswith('!')][:2])
+    header += '! Fluxes only (no radiances); written by bench/run_modes_bench.py.\n'
+    groups = kumo.read_namelist(path)
+    del groups['radiance']
     if target:
-        text = text.replace('&kumo_control\n', f'&kumo_control\n  target_rel_error = {target}\n'
-                            '  max_photons = 100000000\n', 1)
+        groups['control'].update(target_rel_error=target, max_photons=100000000)
     tag = f'{os.path.splitext(path)[0]}_flux{photons}'
-    text = text.replace(os.path.basename(os.path.splitext(path)[0]) + '.nc',
-                        os.path.basename(tag) + '.nc')
+    groups['output']['file'] = os.path.basename(tag) + '.nc'
     with open(tag + '.nml', 'w') as f:
-        f.write(text)
+        f.write(header)
+        kumo.to_namelist(groups).write(f)
     return tag + '.nml'
 
 

@@ -31,53 +31,57 @@ or build kumo in Release (`cmake -B build -DCMAKE_BUILD_TYPE=Release && cmake --
 import argparse
 import csv
 import os
-import re
 import subprocess
 import sys
 
-import numpy as np
+import f90nml
 import netCDF4
+import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 
-SLAB_NML = """&kumo_control
-  n_photons_per_batch = {nphot}
-  n_batches = {nb}
-  seed = {seed}
-  verbose = 0
-/
-&kumo_atmosphere
-  nz = 1
-  z_levels = 0.0, 1000.0
-  ext1d(1,1) = 0.01
-  ssa1d(1,1) = 0.99
-/
-&kumo_phase
-  phase_kind = 'hg'
-  phase_g = 0.85
-/
-&kumo_source
-  sza_deg = 30.0
-/
-&kumo_output
-  file = '{out}'
-  flux_levels = 0, 1
-/
-&kumo_radiance
-  rad_mu = 1.0
-  rad_levels = 1
-/
-&kumo_vr
-  vr_preset = '{preset}'
-/
-"""
+sys.path.insert(0, os.path.join(ROOT, 'python', 'src'))   # the kumo package of this tree
+import kumo
 
 
-def run(kumo, nml_path):
-    """Run kumo on a namelist; return the output dataset's figures."""
-    subprocess.run([kumo, nml_path], check=True, stdout=subprocess.DEVNULL,
-                   cwd=os.path.dirname(nml_path))
+def slab_namelist(nphot, nb, seed, out, preset):
+    """The Henyey-Greenstein slab case (namelist groups for kumo.write_namelist)."""
+    return {
+        'control': {'n_photons_per_batch': nphot, 'n_batches': nb, 'seed': seed, 'verbose': 0},
+        'atmosphere': {'nz': 1, 'z_levels': [0.0, 1000.0], 'ext1d': [[0.01]],
+                       'ssa1d': [[0.99]]},
+        'phase': {'phase_kind': 'hg', 'phase_g': 0.85},
+        'source': {'sza_deg': 30.0},
+        'output': {'file': out, 'flux_levels': [0, 1]},
+        'radiance': {'rad_mu': 1.0, 'rad_levels': 1},
+        'vr': {'vr_preset': preset},
+    }
+
+
+def run(kumo_exe, nml_path):
+    """Run kumo on a namelist file in its folder (kumo's message on failure)."""
+    kumo.run_kumo(nml_path, os.path.dirname(nml_path), exe=kumo_exe)
+
+
+def read_base(path):
+    """The generated LES namelist as groups: lists start at index 1 (missing leading elements
+    are None), 2-D arrays are indexed a[i, j] = a(i, j)."""
+    nml = f90nml.read(path)
+    groups = {}
+    for name, group in nml.items():
+        variables = {}
+        for key, value in group.items():
+            start = [1 if i is None else i for i in group.start_index.get(key, [1])]
+            if isinstance(value, list) and value and isinstance(value[0], list):
+                if any(i != 1 for i in start):
+                    raise ValueError(f'{path}: {key} does not start at index 1')
+                value = np.asarray(value).T
+            elif isinstance(value, list) and start[0] > 1:
+                value = [None] * (start[0] - 1) + value
+            variables[key] = value
+        groups[name[len('kumo_'):]] = variables
+    return groups
 
 
 def figures(nc_path):
@@ -95,23 +99,31 @@ def figures(nc_path):
     return rec
 
 
-def les_namelist(base_text, preset, nphot, nb, seed, out, hg=False, lean=True):
-    """A variant of the generated LES namelist."""
-    t = base_text
-    t = re.sub(r"n_photons_per_batch = \d+", f"n_photons_per_batch = {nphot}", t)
-    t = re.sub(r"n_batches = \d+", f"n_batches = {nb}", t)
-    t = re.sub(r"seed = \d+", f"seed = {seed}", t)
-    if 'seed =' not in t:
-        t = t.replace('&kumo_control', f'&kumo_control\n  seed = {seed}', 1)
-    t = re.sub(r"vr_preset = '\w+'", f"vr_preset = '{preset}'", t)
-    t = re.sub(r"(&kumo_output\n)(.*?)(/)", lambda m: m.group(1) + f"  file = '{out}'\n" +
-               ("  column_fluxes = .false.\n  voxel_absorption = .false.\n" if lean else '') +
-               m.group(3), t, flags=re.S)
+def les_namelist(base, preset, nphot, nb, seed, out, hg=False, lean=True):
+    """A variant of the generated LES namelist (groups as read_base gives them)."""
+    groups = {name: dict(variables) for name, variables in base.items()}
+    groups['control'].update(n_photons_per_batch=nphot, n_batches=nb, seed=seed)
+    groups['vr'] = {**groups.get('vr', {}), 'vr_preset': preset}
+    groups['output'] = {'file': out}
+    if lean:
+        groups['output'].update(column_fluxes=False, voxel_absorption=False)
     if hg:
         # every tabulated cloud phase function becomes Henyey-Greenstein g 0.85
-        t = re.sub(r"phase_kind\((\d+)\) = 'table', phase_file\(\d+\) = '[^']*'",
-                   lambda m: f"phase_kind({m.group(1)}) = 'hg', phase_g({m.group(1)}) = 0.85", t)
-    return t
+        phase = groups['phase']
+        kinds = list(phase['phase_kind'])
+        files = list(phase.get('phase_file') or [None] * len(kinds))
+        files += [None] * (len(kinds) - len(files))
+        g = list(phase.get('phase_g') or [None] * len(kinds))
+        g += [None] * (len(kinds) - len(g))
+        for i, kind in enumerate(kinds):
+            if kind == 'table':
+                kinds[i], files[i], g[i] = 'hg', None, 0.85
+        phase['phase_kind'], phase['phase_g'] = kinds, g
+        if any(f is not None for f in files):
+            phase['phase_file'] = files
+        else:
+            phase.pop('phase_file', None)
+    return groups
 
 
 def pooled(recs):
@@ -127,7 +139,7 @@ def main():
     ap.add_argument('--quick', action='store_true', help='small budgets (a smoke test)')
     ap.add_argument('--repeats', type=int, default=3)
     args = ap.parse_args()
-    kumo = os.path.abspath(args.kumo)
+    kumo_exe = os.path.abspath(args.kumo)
     raw = os.path.join(args.out, 'raw', 'radiance')
     os.makedirs(raw, exist_ok=True)
     scale = 0.05 if args.quick else 1.0
@@ -135,7 +147,7 @@ def main():
     # the LES case
     subprocess.run([sys.executable, os.path.join(HERE, 'make_les_scene.py'), '--out-dir', raw],
                    check=True, stdout=subprocess.DEVNULL)
-    base = open(os.path.join(raw, 'les_stcu_w213.nml')).read()
+    base = read_base(os.path.join(raw, 'les_stcu_w213.nml'))
 
     rows = []
 
@@ -153,10 +165,9 @@ def main():
         seed = 101 + rep
         name = f'hg_slab_unbiased_{seed}'
         path = os.path.join(raw, name + '.nml')
-        with open(path, 'w') as f:
-            f.write(SLAB_NML.format(nphot=int(50000 * scale), nb=20, seed=seed,
-                                    out=name + '.nc', preset='unbiased'))
-        run(kumo, path)
+        kumo.write_namelist(slab_namelist(int(50000 * scale), 20, seed, name + '.nc',
+                                          'unbiased'), path)
+        run(kumo_exe, path)
         record('hg_slab', 'unbiased', 'speed', figures(os.path.join(raw, name + '.nc')), seed)
 
     # 2. LES (Mie tables) and LES with HG: speed of each preset, interleaved
@@ -167,10 +178,9 @@ def main():
                 seed = 201 + rep
                 name = f'{case}_{preset}_speed_{seed}'
                 path = os.path.join(raw, name + '.nml')
-                with open(path, 'w') as f:
-                    f.write(les_namelist(base, preset, int(20000 * scale), 20, seed,
-                                         name + '.nc', hg=hg))
-                run(kumo, path)
+                kumo.write_namelist(les_namelist(base, preset, int(20000 * scale), 20, seed,
+                                                 name + '.nc', hg=hg), path)
+                run(kumo_exe, path)
                 rec = figures(os.path.join(raw, name + '.nc'))
                 record(case, preset, 'speed', rec, seed)
                 results.setdefault((case, preset, 'speed'), []).append(rec)
@@ -180,20 +190,18 @@ def main():
             seed = 301
             name = f'{case}_{preset}_long'
             path = os.path.join(raw, name + '.nml')
-            with open(path, 'w') as f:
-                f.write(les_namelist(base, preset, int(nphot * scale), 20, seed, name + '.nc',
-                                     hg=hg, lean=False))
-            run(kumo, path)
+            kumo.write_namelist(les_namelist(base, preset, int(nphot * scale), 20, seed,
+                                             name + '.nc', hg=hg, lean=False), path)
+            run(kumo_exe, path)
             rec = figures(os.path.join(raw, name + '.nc'))
             record(case, preset, 'long', rec, seed)
             results[(case, preset, 'long')] = [rec]
         # per-pixel noise of the standard preset at 1e6 photons
         name = f'{case}_standard_1e6'
         path = os.path.join(raw, name + '.nml')
-        with open(path, 'w') as f:
-            f.write(les_namelist(base, 'standard', int(50000 * scale), 20, 401, name + '.nc',
-                                 hg=hg))
-        run(kumo, path)
+        kumo.write_namelist(les_namelist(base, 'standard', int(50000 * scale), 20, 401,
+                                         name + '.nc', hg=hg), path)
+        run(kumo_exe, path)
         rec = figures(os.path.join(raw, name + '.nc'))
         record(case, 'standard', 'pixel', rec, 401)
         results[(case, 'standard', 'pixel')] = [rec]

@@ -33,7 +33,8 @@ For each selected case this writes into the run folder (default `examples/i3rc/r
 
 Modes (`mode_3d` in `&kumo_control`): `f3d` (full 3-D), `ica` (independent columns), `p3d`
 with `--p3d-orders N` (photons move horizontally during the direct beam and after scatterings
-1 .. N-1, and stay in their column afterwards; files `..._p3d<N>.nml`). The namelists ask for the I3RC products:
+1 .. N-1, and stay in their column afterwards; files `..._p3d<N>.nml`). The namelists (written
+with the kumo Python package of python/, a comment header on top) ask for the I3RC products:
 flux maps at the ground and the top (R, T), absorption per column (A) and net horizontal
 transport (H) of the 3-D region, which spans the whole atmosphere, and radiance maps (Iu, Id,
 I601, I602); plot_i3rc.py extracts them. As in the I3RC definitions (and the consensus files),
@@ -63,6 +64,8 @@ import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(os.path.dirname(HERE))
+sys.path.insert(0, os.path.join(REPO, 'python', 'src'))   # the kumo package of this tree
+import kumo
 
 # ------------------------------------------------------------------------------------------------
 # Input data
@@ -152,27 +155,15 @@ def read_mmcr_field(data_dir):
 
 
 def write_scene(path, ext, ssa, title, source, dz_m=None):
-    """Write a one-component kumo scene file: extinction (nz3, ny, nx) [m-1], a uniform
-    single-scattering albedo, and optionally the layer thicknesses dz(z) [m] (ignored by kumo,
-    used by --check). Written to `path`.tmp first, then renamed."""
+    """Write a one-component kumo scene file (kumo.write_scene): extinction (nz3, ny, nx)
+    [m-1], a uniform single-scattering albedo, and optionally the layer thicknesses dz(z) [m]
+    (ignored by kumo, used by --check). Written to `path`.tmp first, then renamed."""
     from netCDF4 import Dataset
-    nz3, ny, nx = ext.shape
     tmp = path + '.tmp'
-    with Dataset(tmp, 'w', format='NETCDF4_CLASSIC') as nc:
+    kumo.write_scene(tmp, ext, np.full(ext.shape, ssa))
+    with Dataset(tmp, 'a') as nc:
         nc.title = title
         nc.source = source
-        nc.createDimension('component', 1)
-        nc.createDimension('z', nz3)
-        nc.createDimension('y', ny)
-        nc.createDimension('x', nx)
-        v = nc.createVariable('extinction', 'f8', ('component', 'z', 'y', 'x'))
-        v.long_name = 'volume extinction coefficient'
-        v.units = 'm-1'
-        v[0] = ext
-        v = nc.createVariable('ssa', 'f8', ('component', 'z', 'y', 'x'))
-        v.long_name = 'single-scattering albedo'
-        v.units = '1'
-        v[0] = np.full(ext.shape, ssa)
         if dz_m is not None:
             v = nc.createVariable('dz', 'f8', ('z',))
             v.long_name = 'layer thickness'
@@ -285,69 +276,51 @@ def mode_tag(mode, p3d_orders):
     return f'p3d{p3d_orders}' if mode == 'p3d' else mode
 
 
-def namelist_text(scene, scene_file, case, exp_no, exp, mode, p3d_orders, photons, batches,
-                  seed):
-    """The kumo namelist of one case, experiment and mode."""
+def namelist_groups(scene, scene_file, case, exp_no, exp, mode, p3d_orders, photons, batches,
+                    seed):
+    """The kumo namelist groups (kumo.write_namelist) of one case, experiment and mode."""
     nz3, ny, nx = scene.shape
-    nz = nz3
-    tag = mode_tag(mode, p3d_orders)
-    out = f'case{case}_exp{exp_no}_{tag}.nc'
-    zl = ', '.join(f'{z:.6f}' for z in scene.z_m)
-    levels = ', '.join(str(k) for k in scene.detector_levels)
+    levels = scene.detector_levels
+    control = {'n_photons_per_batch': max(1, photons // batches), 'n_batches': batches,
+               'seed': seed, 'mode_3d': mode}
+    if mode == 'p3d':
+        control['p3d_orders'] = p3d_orders
+    if exp.phase == 'hg':
+        phase = {'n_phase': 1, 'phase_kind': 'hg', 'phase_g': 0.85}
+    else:
+        phase = {'n_phase': 1, 'phase_kind': 'table', 'phase_file': C1_FILE}
+    return {
+        'control': control,
+        'atmosphere': {'nz': nz3, 'z_levels': np.round(scene.z_m, 6),
+                       'lx': round(scene.lx, 3), 'ly': round(scene.ly, 3),
+                       'scene_file': scene_file, 'k3d_bottom': 1, 'nx': nx, 'ny': ny,
+                       'nz3': nz3, 'n_components_3d': 1, 'phase3d': 1},
+        'phase': phase,
+        'surface': {'albedo': exp.albedo},
+        'source': {'sza_deg': exp.sza, 'phi0_deg': 0.0, 'solar_flux': 1.0},
+        'output': {'file': f'case{case}_exp{exp_no}_{mode_tag(mode, p3d_orders)}.nc',
+                   'flux_levels': levels},
+        'radiance': {'rad_mu': [1.0, -1.0, 0.5, 0.5], 'rad_phi_deg': [0.0, 0.0, 0.0, 180.0],
+                     'rad_levels': levels},
+    }
+
+
+def namelist_header(scene, case, exp_no, exp, mode, p3d_orders):
+    """Comment lines that open the namelist file: what the case is and what the detectors are."""
     base = scene.base_level
     base_text = (f'level {base} = {scene.z_m[base]:g} m' if base > 0 else
                  'level 0, the ground: the cloud starts there')
-    npb = max(1, photons // batches)
-    mode_lines = f"  mode_3d = '{mode}'\n"
-    if mode == 'p3d':
-        mode_lines += f'  p3d_orders = {p3d_orders}\n'
-    if exp.phase == 'hg':
-        phase = "  n_phase = 1\n  phase_kind = 'hg'\n  phase_g = 0.85\n"
-    else:
-        phase = f"  n_phase = 1\n  phase_kind = 'table'\n  phase_file = '{C1_FILE}'\n"
     return (
         f'! I3RC Phase 1 case {case} ({CASE_TITLES[case]}), experiment {exp_no}: '
         f'{exp.describe()}.\n'
-        f'! Transport mode {tag}. Written by i3rc_cases.py; run kumo in this folder.\n'
-        '&kumo_control\n'
-        f'  n_photons_per_batch = {npb}\n'
-        f'  n_batches = {batches}\n'
-        f'  seed = {seed}\n'
-        f'{mode_lines}'
-        '/\n'
-        '&kumo_atmosphere\n'
-        f'  nz = {nz}\n'
-        f'  z_levels = {zl}\n'
-        f'  lx = {scene.lx:.3f}, ly = {scene.ly:.3f}\n'
-        f"  scene_file = '{scene_file}'\n"
-        f'  k3d_bottom = 1, nx = {nx}, ny = {ny}, nz3 = {nz3}\n'
-        '  n_components_3d = 1, phase3d = 1\n'
-        '/\n'
-        '&kumo_phase\n'
-        f'{phase}'
-        '/\n'
-        '&kumo_surface\n'
-        f'  albedo = {exp.albedo:g}\n'
-        '/\n'
-        '&kumo_source\n'
-        f'  sza_deg = {exp.sza:g}\n'
-        '  phi0_deg = 0.0            ! photons travel towards +x (sun at low x)\n'
-        '  solar_flux = 1.0\n'
-        '/\n'
-        f'! R: flux map at the top; T: at the cloud base ({base_text}), as I3RC defines it;\n'
-        '! the ground level closes the budget. A, H: absorptance_column and\n'
-        '! horizontal_transport_map (the 3-D region spans levels 0..nz)\n'
-        '&kumo_output\n'
-        f"  file = '{out}'\n"
-        f'  flux_levels = {levels}\n'
-        '/\n'
-        '! Iu: mu 1 at the top; Id: mu -1 at the cloud base; I601, I602: mu 0.5 at the top, light\n'
-        '! travelling towards +x (phi 0, forward side) and -x (phi 180)\n'
-        '&kumo_radiance\n'
-        '  rad_mu = 1.0, -1.0, 0.5, 0.5\n'
-        '  rad_phi_deg = 0.0, 0.0, 0.0, 180.0\n'
-        f'  rad_levels = {levels}\n'
-        '/\n')
+        f'! Transport mode {mode_tag(mode, p3d_orders)}. Written by i3rc_cases.py; run kumo in '
+        'this folder.\n'
+        '! Sun: phi0_deg = 0, the photons travel towards +x (sun at low x).\n'
+        f'! kumo_output: R is the flux map at the top; T at the cloud base ({base_text}), as\n'
+        '! I3RC defines it; the ground level closes the budget. A, H: absorptance_column and\n'
+        '! horizontal_transport_map (the 3-D region spans levels 0..nz).\n'
+        '! kumo_radiance: Iu is mu 1 at the top; Id mu -1 at the cloud base; I601, I602 mu 0.5\n'
+        '! at the top, light travelling towards +x (phi 0, forward side) and -x (phi 180).\n')
 
 
 def write_case(case, exps, modes, photons, batches, seed, data_dir, run_dir):
@@ -366,11 +339,12 @@ def write_case(case, exps, modes, photons, batches, seed, data_dir, run_dir):
     for e in exps:
         exp = EXPERIMENTS[case][e]
         for mode, orders in modes:
-            text = namelist_text(scene, scene_file_name(case, exp.ssa), case, e, exp, mode,
-                                 orders, photons or default_photons(case, e), batches, seed)
+            groups = namelist_groups(scene, scene_file_name(case, exp.ssa), case, e, exp, mode,
+                                     orders, photons or default_photons(case, e), batches, seed)
             path = os.path.join(run_dir, f'case{case}_exp{e}_{mode_tag(mode, orders)}.nml')
             with open(path, 'w') as f:
-                f.write(text)
+                f.write(namelist_header(scene, case, e, exp, mode, orders))
+                kumo.to_namelist(groups).write(f)
             written.append(path)
     return written
 

@@ -16,6 +16,9 @@ def test_group_names():
         kumo.namelist.group_name("sun")
     with pytest.raises(ValueError, match="is required"):
         kumo.to_namelist({"control": {"seed": 1}})
+    # with a cloud file the levels may come from the file alone (docs/namelist.md)
+    nml = kumo.to_namelist({"cloud": {"cloud_file": "les.nc"}})
+    assert "kumo_atmosphere" not in nml and nml["kumo_cloud"]["cloud_file"] == "les.nc"
 
 
 def test_array_index_order(tmp_path):

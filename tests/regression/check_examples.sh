@@ -8,8 +8,9 @@
 #   4. `les_stcu`, `mcarats_les05`: the example script runs end to end with 10 photons per batch
 #      (its namelists parse, its input files are found and read, kumo writes the outputs);
 #   5. `i3rc`: i3rc_cases.py writes every case and experiment (column optical depths checked
-#      against the published values) and kumo runs every namelist with 20 photons. Needs numpy
-#      and netCDF4 for python3; without them the test is skipped (exit 77).
+#      against the published values) and kumo runs every namelist with 20 photons. Needs numpy,
+#      netCDF4, xarray and f90nml for python3 (i3rc_cases.py uses the kumo package in python/);
+#      without them the test is skipped (exit 77).
 #
 #   check_examples.sh REPO KUMO WORKDIR files|les_stcu|mcarats_les05|i3rc
 set -euo pipefail
@@ -64,8 +65,9 @@ case $what in
     echo "check_examples: $what ran ${#nmls[@]} namelists, ${#outs[@]} netCDF files in $work"
     ;;
   i3rc)
-    if ! python3 -c 'import numpy, netCDF4' 2>/dev/null; then
-      echo "check_examples: python3 lacks numpy or netCDF4; i3rc example not checked" >&2
+    if ! python3 -c 'import numpy, netCDF4, xarray, f90nml' 2>/dev/null; then
+      echo "check_examples: python3 lacks numpy, netCDF4, xarray or f90nml; i3rc example not" \
+        "checked" >&2
       exit 77
     fi
     rm -rf "$work" && mkdir -p "$work"

@@ -72,8 +72,9 @@ def to_namelist(groups: Mapping[str, Mapping]) -> f90nml.Namelist:
             variables = {}
         nml[full] = f90nml.Namelist({key.lower(): _fortran_value(value)
                                      for key, value in variables.items()})
-    if "kumo_atmosphere" not in nml:
-        raise ValueError("the namelist group 'atmosphere' (kumo_atmosphere) is required")
+    if "kumo_atmosphere" not in nml and "kumo_cloud" not in nml:
+        raise ValueError("the namelist group 'atmosphere' (kumo_atmosphere) is required "
+                         "(it may be left out only with a cloud file, group 'cloud')")
     return nml
 
 

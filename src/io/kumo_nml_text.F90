@@ -7,8 +7,9 @@
 !> several groups on one line, blanks or tabs anywhere, `!` comments. Text outside groups is
 !> ignored (as the compiler's reader does). Quoted strings may hold any character.
 module kumo_nml_text
-  use, intrinsic :: iso_fortran_env, only: iostat_end, iostat_eor
+  use, intrinsic :: iso_fortran_env, only: iostat_end
   use kumo_error, only: error_t, set_error, str, to_lower
+  use kumo_textio, only: read_line
   implicit none
   private
   public :: nml_group_t, nml_assign_t, nml_scan, nml_assignments, nml_diagnose, closest_name, &
@@ -421,7 +422,7 @@ contains
     call probe('', u, ios, msg)
     rewind (u)
     do
-      call read_any_line(u, line, ios)
+      call read_line(u, line, ios)
       if (ios /= 0) exit
       line = adjustl(line)
       k = index(line, '=')
@@ -432,26 +433,6 @@ contains
     end do
     close (u)
   end subroutine string_lengths
-
-  !> One line of any length.
-  subroutine read_any_line(unit, line, ios)
-    integer, intent(in) :: unit
-    character(len=:), allocatable, intent(out) :: line
-    integer, intent(out) :: ios
-    character(len=1024) :: buf
-    integer :: nread
-    line = ''
-    do
-      read (unit, '(a)', advance='no', iostat=ios, size=nread) buf
-      if (ios == iostat_end) return
-      line = line//buf(1:nread)
-      if (ios == iostat_eor) then
-        ios = 0
-        return
-      end if
-      if (ios /= 0) return
-    end do
-  end subroutine read_any_line
 
   !> ' (did you mean x?)' for the closest of `names` within a few edits, else ''.
   function suggestion(name, names) result(s)

@@ -116,6 +116,7 @@ contains
       if (ios /= 0) return
     end do
   end subroutine read_line
+
   !> True when paths `a` and `b` name the same file (after resolving links, `.` and `..`); a
   !> path that does not exist yet is resolved through its directory.
   logical function same_file(a, b)

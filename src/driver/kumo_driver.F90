@@ -120,7 +120,7 @@ contains
     if (cfg%cam%n > 0) cam_npix = cfg%cam%npx*cfg%cam%npy
     call layout_init(lay, scene%atm%nz, scene%atm%nx*scene%atm%ny, scene%atm%n3, map_levels, &
                      voxel, scene%det%n_dir, scene%det%levels, rad_maps, cam_npix, &
-                     [scene%atm%k3_lo - 1, scene%atm%k3_hi])
+                     [scene%atm%k3_lo - 1, scene%atm%k3_hi], thermal=scene%src%em%on)
     if (par_is_root() .and. len(scene%notes) > 0 .and. cfg%control%verbose >= 1) then
       write (output_unit, '(a)', advance='no') scene%notes
       flush (output_unit)

@@ -33,6 +33,7 @@ module kumo_config
   private
   public :: config_t, control_cfg_t, atmosphere_cfg_t, phase_cfg_t, surface_cfg_t, &
             source_cfg_t, output_cfg_t, vr_cfg_t, radiance_cfg_t, camera_cfg_t, cloud_cfg_t, &
+            thermal_cfg_t, &
             read_config, config_echo, resolve_path, input_file_t, config_inputs
   public :: MAX_LAYERS, MAX_COMP, MAX_PHASE, MAX_DIR, MAX_CAMERAS, TARGET_NAMES, PRESET_NAMES, &
             MODE_NAMES
@@ -58,9 +59,10 @@ module kumo_config
     [character(len=16) :: 'reflectance', 'transmittance', 'absorptance']
   !> Transport modes: full 3-D, independent columns, 3-D for the first scattering orders.
   character(len=8), parameter :: MODE_NAMES(3) = [character(len=8) :: 'f3d', 'ica', 'p3d']
-  character(len=16), parameter :: GROUP_NAMES(10) = &
+  character(len=16), parameter :: GROUP_NAMES(11) = &
     [character(len=16) :: 'kumo_control', 'kumo_atmosphere', 'kumo_phase', 'kumo_surface', &
-     'kumo_source', 'kumo_output', 'kumo_vr', 'kumo_radiance', 'kumo_camera', 'kumo_cloud']
+     'kumo_source', 'kumo_output', 'kumo_vr', 'kumo_radiance', 'kumo_camera', 'kumo_cloud', &
+     'kumo_thermal']
   !> Pressure profiles of the Rayleigh layers besides the named standard atmospheres: the
   !> namelist's sounding (pressure_levels_hpa) and the pressure of the &kumo_cloud LES file.
   character(len=*), parameter :: RAYLEIGH_LEVELS = 'levels'
@@ -231,6 +233,23 @@ module kumo_config
     integer, allocatable :: npx(:), npy(:)         !! pixels along the image x and y axes
   end type camera_cfg_t
 
+  !> &kumo_thermal: thermal emission by the atmosphere, the surface and the top.
+  type :: thermal_cfg_t
+    logical :: enabled = .false.                   !! thermal emission is a source
+    real(wp), allocatable :: t_levels(:)           !! (nz + 1) temperature at levels 0..nz [K]
+    real(wp) :: t_surface = -1.0_wp                !! surface temperature [K]
+    real(wp) :: t_top = 0.0_wp                     !! brightness temperature of the isotropic
+                                                   !! downward radiance at the top [K]; 0: none
+    real(wp) :: wavenumber_lo = -1.0_wp            !! band [cm-1] (both or neither)
+    real(wp) :: wavenumber_hi = -1.0_wp
+    real(wp) :: wavelength_um = 0.0_wp             !! single wavelength [um] (0: band or source's)
+    real(wp), allocatable :: planck_levels(:)      !! (nz + 1) Planck radiances given directly
+    real(wp) :: planck_surface = -1.0_wp           !! (with planck_levels)
+    real(wp) :: planck_top = 0.0_wp                !! (with planck_levels)
+    logical :: include_sun = .false.               !! the solar beam of &kumo_source too
+    real(wp) :: emission_floor = 0.1_wp            !! share of photons spread by capacity
+  end type thermal_cfg_t
+
   type :: config_t
     character(len=:), allocatable :: path          !! namelist file
     type(control_cfg_t) :: control
@@ -243,6 +262,7 @@ module kumo_config
     type(radiance_cfg_t) :: rad
     type(camera_cfg_t) :: cam
     type(cloud_cfg_t) :: cloud
+    type(thermal_cfg_t) :: thermal
   end type config_t
 
 contains
@@ -276,6 +296,8 @@ contains
                                                    cfg%rad, error)
     if (.not. allocated(error)) call read_camera(unit, present_groups(9), cfg%atm, cfg%cam, &
                                                  error)
+    if (.not. allocated(error)) call read_thermal(unit, present_groups(11), cfg%atm%nz, &
+                                                  cfg%thermal, error)
     close (unit)
     if (.not. allocated(error)) call consolidate(cfg, error)
   end subroutine read_config
@@ -1739,7 +1761,19 @@ contains
                  'phase3d values', rule='must be within 1..n_phase = '//str(np)//' (&kumo_phase)', &
                  error=error)
     if (allocated(error)) return
-    if (allocated(cfg%atm%air_density) .and. cfg%source%solar_flux <= 0.0_wp) then
+    if (cfg%thermal%enabled .and. cfg%thermal%include_sun .and. &
+        cfg%source%solar_flux <= 0.0_wp) then
+      call set_error(error, '&kumo_thermal: include_sun = .true. needs &kumo_source: '// &
+                     'solar_flux > 0 [W m-2] (thermal results are in absolute units)')
+    else if (cfg%thermal%enabled .and. cfg%thermal%wavenumber_lo < 0.0_wp .and. &
+             cfg%thermal%wavelength_um <= 0.0_wp .and. &
+             .not. allocated(cfg%thermal%planck_levels) .and. &
+             cfg%source%wavelength_um <= 0.0_wp) then
+      call set_error(error, '&kumo_thermal: no spectral interval: give wavenumber_lo and '// &
+                     'wavenumber_hi [cm-1], or wavelength_um (here or in &kumo_source), or the '// &
+                     'Planck radiances themselves (planck_levels, planck_surface)')
+    else if (allocated(cfg%atm%air_density) .and. cfg%source%solar_flux <= 0.0_wp .and. &
+             .not. cfg%thermal%enabled) then
       call set_error(error, '&kumo_atmosphere: air_density is given but &kumo_source: '// &
                      'solar_flux is not; heating rates in K/day need both')
     else if (cfg%atm%rayleigh .and. cfg%source%wavelength_um <= 0.0_wp) then
@@ -1753,6 +1787,121 @@ contains
                      'in &kumo_source wavelength_um, which is not given')
     end if
   end subroutine consolidate
+
+  !> &kumo_thermal: temperatures (or Planck radiances) of the levels, the surface and the top,
+  !> and the spectral interval. The group's presence switches emission on (thermal = .false.
+  !> keeps it off).
+  subroutine read_thermal(unit, present, nz, cfg, error)
+    integer, intent(in) :: unit
+    logical, intent(in) :: present
+    integer, intent(in) :: nz
+    type(thermal_cfg_t), intent(inout) :: cfg
+    type(error_t), allocatable, intent(out) :: error
+    real(wp) :: t_levels(MAX_LAYERS + 1), planck_levels(MAX_LAYERS + 1)
+    real(wp) :: t_surface, t_top, wavenumber_lo, wavenumber_hi, wavelength_um, planck_surface, &
+                planck_top, emission_floor
+    logical :: thermal, include_sun
+    integer :: ios, n, i
+    character(len=512) :: msg
+    character(len=*), parameter :: CTX = '&kumo_thermal: '
+    namelist /kumo_thermal/ thermal, t_levels, t_surface, t_top, wavenumber_lo, wavenumber_hi, &
+      wavelength_um, planck_levels, planck_surface, planck_top, include_sun, emission_floor
+    thermal = present
+    t_levels = UNSET
+    planck_levels = UNSET
+    t_surface = UNSET
+    t_top = cfg%t_top
+    wavenumber_lo = UNSET
+    wavenumber_hi = UNSET
+    wavelength_um = cfg%wavelength_um
+    planck_surface = UNSET
+    planck_top = cfg%planck_top
+    include_sun = cfg%include_sun
+    emission_floor = cfg%emission_floor
+    rewind (unit)
+    msg = ''
+    read (unit, nml=kumo_thermal, iostat=ios, iomsg=msg)
+    call check_read(unit, 'kumo_thermal', present, ios, msg, error, probe)
+    if (allocated(error)) return
+    cfg%enabled = thermal
+    if (.not. thermal) return
+    n = count(planck_levels /= UNSET)
+    if (n > 0) then
+      call require(n == nz + 1 .and. all(planck_levels(n + 1:) == UNSET), CTX, 'planck_levels', &
+                   rule='needs nz + 1 = '//str(nz + 1)//' values (levels 0..nz, from the '// &
+                   'surface up), '//str(n)//' given', error=error)
+      do i = 1, n
+        call require(within(planck_levels(i), 0.0_wp, BIG), CTX, 'planck_levels('//str(i)//')', &
+                     planck_levels(i), 'must be finite and >= 0', error)
+      end do
+      call require(planck_surface /= UNSET, CTX, 'planck_surface', &
+                   rule='is needed with planck_levels', error=error)
+      call require(within(planck_surface, 0.0_wp, BIG), CTX, 'planck_surface', planck_surface, &
+                   'must be finite and >= 0', error)
+      call require(within(planck_top, 0.0_wp, BIG), CTX, 'planck_top', planck_top, &
+                   'must be finite and >= 0', error)
+      call require(count(t_levels /= UNSET) == 0 .and. t_surface == UNSET, CTX, 't_levels', &
+                   rule='and t_surface cannot be given with planck_levels: give temperatures '// &
+                   'or Planck radiances', error=error)
+      if (allocated(error)) return
+      cfg%planck_levels = planck_levels(1:n)
+      cfg%planck_surface = planck_surface
+      cfg%planck_top = planck_top
+    else
+      n = count(t_levels /= UNSET)
+      call require(n == nz + 1 .and. all(t_levels(n + 1:) == UNSET), CTX, 't_levels', &
+                   rule='needs nz + 1 = '//str(nz + 1)//' temperatures [K] (levels 0..nz, from '// &
+                   'the surface up), '//str(n)//' given', error=error)
+      do i = 1, n
+        call require(within(t_levels(i), 0.0_wp, BIG), CTX, 't_levels('//str(i)//')', &
+                     t_levels(i), 'must be a temperature in K (finite, >= 0)', error)
+      end do
+      call require(t_surface /= UNSET, CTX, 't_surface', &
+                   rule='is needed: the surface temperature [K]', error=error)
+      call require(within(t_surface, 0.0_wp, BIG), CTX, 't_surface', t_surface, &
+                   'must be a temperature in K (finite, >= 0)', error)
+      call require(within(t_top, 0.0_wp, BIG), CTX, 't_top', t_top, &
+                   'must be a temperature in K (finite, >= 0; 0: no radiance from above)', error)
+      if (allocated(error)) return
+      cfg%t_levels = t_levels(1:n)
+      cfg%t_surface = t_surface
+      cfg%t_top = t_top
+    end if
+    if (wavenumber_lo /= UNSET .or. wavenumber_hi /= UNSET) then
+      call require(wavenumber_lo /= UNSET .and. wavenumber_hi /= UNSET, CTX, 'wavenumber_lo', &
+                   rule='and wavenumber_hi go together', error=error)
+      call require(within(wavenumber_lo, 0.0_wp, BIG), CTX, 'wavenumber_lo', wavenumber_lo, &
+                   'must be finite and >= 0 [cm-1]', error)
+      call require(wavenumber_hi > wavenumber_lo, CTX, &
+                   'wavenumber_hi', wavenumber_hi, 'must be larger than wavenumber_lo = '// &
+                   str(wavenumber_lo)//' [cm-1]', error)
+      call require(wavelength_um <= 0.0_wp, CTX, 'wavelength_um', wavelength_um, &
+                   'cannot be given with a wavenumber band', error)
+      if (allocated(error)) return
+      cfg%wavenumber_lo = wavenumber_lo
+      cfg%wavenumber_hi = wavenumber_hi
+    end if
+    call require(within(wavelength_um, 0.0_wp, BIG), CTX, 'wavelength_um', wavelength_um, &
+                 'must be finite and >= 0 [um]', error)
+    call require(within(emission_floor, 0.0_wp, nearest(1.0_wp, -1.0_wp)), CTX, &
+                 'emission_floor', emission_floor, 'must satisfy 0 <= emission_floor < 1', error)
+    cfg%wavelength_um = wavelength_um
+    cfg%include_sun = include_sun
+    cfg%emission_floor = emission_floor
+  contains
+    !> Read one assignment of &kumo_thermal (or write the namelist), for check_read.
+    subroutine probe(text, out_unit, ios, msg)
+      character(len=*), intent(in) :: text
+      integer, intent(in) :: out_unit
+      integer, intent(out) :: ios
+      character(len=*), intent(inout) :: msg
+      if (out_unit /= 0) then
+        write (out_unit, nml=kumo_thermal, iostat=ios, iomsg=msg)
+      else
+        read (text, nml=kumo_thermal, iostat=ios, iomsg=msg)
+      end if
+    end subroutine probe
+  end subroutine read_thermal
 
   !> The grid of an MCARaTS 3-D region, which the binary file lacks, from &kumo_atmosphere:
   !> column widths lx/nx, ly/ny, the layer edges of layers k3d_bottom .. k3d_bottom + nz3 - 1,
@@ -1924,6 +2073,23 @@ contains
              str(cfg%cam%fov_deg(i))//' width '//str(cfg%cam%width(i))//' pixels '// &
              str(cfg%cam%npx(i))//' x '//str(cfg%cam%npy(i))//nl
     end do
+    if (cfg%thermal%enabled) then
+      text = text//'kumo_thermal.thermal = T'//nl
+      if (allocated(cfg%thermal%t_levels)) text = text// &
+        'kumo_thermal.t_levels = '//join(cfg%thermal%t_levels)//nl// &
+        'kumo_thermal.t_surface = '//str(cfg%thermal%t_surface)//nl// &
+        'kumo_thermal.t_top = '//str(cfg%thermal%t_top)//nl
+      if (allocated(cfg%thermal%planck_levels)) text = text// &
+        'kumo_thermal.planck_levels = '//join(cfg%thermal%planck_levels)//nl// &
+        'kumo_thermal.planck_surface = '//str(cfg%thermal%planck_surface)//nl// &
+        'kumo_thermal.planck_top = '//str(cfg%thermal%planck_top)//nl
+      if (cfg%thermal%wavenumber_lo >= 0.0_wp) text = text// &
+        'kumo_thermal.wavenumber_lo = '//str(cfg%thermal%wavenumber_lo)//nl// &
+        'kumo_thermal.wavenumber_hi = '//str(cfg%thermal%wavenumber_hi)//nl
+      text = text//'kumo_thermal.wavelength_um = '//str(cfg%thermal%wavelength_um)//nl// &
+             'kumo_thermal.include_sun = '//merge('T', 'F', cfg%thermal%include_sun)//nl// &
+             'kumo_thermal.emission_floor = '//str(cfg%thermal%emission_floor)//nl
+    end if
   end function config_echo
 
   !> One validation rule of a namelist variable. Unless an earlier check has failed (`error`

@@ -6,7 +6,8 @@ module kumo_output
   use, intrinsic :: iso_fortran_env, only: output_unit
   use kumo_kinds, only: wp, dp, i8
   use kumo_constants, only: KUMO_VERSION, SECONDS_PER_DAY, PI
-  use kumo_error, only: str, join
+  use kumo_error, only: error_t, str, join
+  use kumo_planck, only: band_brightness_temperature, band_dradiance_dt
   use kumo_atmosphere, only: LAYER_CLASS_NAMES
   use kumo_tally, only: tally_layout_t, stats_t, stats_mean, stats_stderr, N_ANOMALIES, &
                         ANOMALY_NAMES
@@ -48,8 +49,16 @@ contains
     real(dp), allocatable :: z(:), zmid(:), dz(:), m(:), e(:), fac(:)
     real(dp) :: f_hor
     integer :: tv(8)
-    character(len=*), parameter :: NORM = ' normalised by the incident solar flux on a horizontal plane'
+    character(len=:), allocatable :: NORM, fu, band_kind
     character(len=32) :: stamp
+    logical :: thermal
+    thermal = scene%src%em%on
+    NORM = ' normalised by the incident solar flux on a horizontal plane'
+    fu = 'W m-2'
+    if (thermal) then
+      NORM = ' divided by the total source power per unit area (source_power)'
+      fu = trim(scene%src%em%flux_units)
+    end if
     associate (atm => scene%atm)
       nz = atm%nz
       z = atm%z
@@ -59,6 +68,8 @@ contains
       n_out = size(lev)
       ncol = lay%ncol
       f_hor = cfg%source%solar_flux*scene%mu0   ! incident flux on a horizontal plane [W m-2]
+      ! with emission the tallies are in units of the total source power per unit area
+      if (thermal) f_hor = scene%src%em%power
 
       call add_dim(set, 'level', n_out, coord=z(lev), units='m', &
                    long_name='height of the flux levels')
@@ -92,17 +103,18 @@ contains
         fac = f_hor/dz
         m = stats_mean(st, lay%i_abs + 1, lay%i_abs + nz)*fac
         e = stats_stderr(st, lay%i_abs + 1, lay%i_abs + nz)*fac
-        call add_var(set, 'flux_up_wm2', 'upward flux', 'W m-2', ['level'], &
+        call add_var(set, 'flux_up_wm2', 'upward flux', fu, ['level'], &
                      stats_mean1(lay%i_up + lev + 1)*f_hor, stats_err1(lay%i_up + lev + 1)*f_hor)
-        call add_var(set, 'flux_down_wm2', 'downward flux (direct + diffuse)', 'W m-2', &
+        call add_var(set, 'flux_down_wm2', 'downward flux (direct + diffuse)', fu, &
                      ['level'], stats_mean1(lay%i_dn + lev + 1)*f_hor, &
                      stats_err1(lay%i_dn + lev + 1)*f_hor)
-        call add_var(set, 'flux_down_direct_wm2', 'downward direct flux', 'W m-2', ['level'], &
+        call add_var(set, 'flux_down_direct_wm2', 'downward direct flux', fu, ['level'], &
                      stats_mean1(lay%i_dir + lev + 1)*f_hor, stats_err1(lay%i_dir + lev + 1)*f_hor)
-        call add_var(set, 'flux_down_diffuse_wm2', 'downward diffuse flux', 'W m-2', ['level'], &
+        call add_var(set, 'flux_down_diffuse_wm2', 'downward diffuse flux', fu, ['level'], &
                      stats_mean1(lay%i_dif + lev + 1)*f_hor, stats_err1(lay%i_dif + lev + 1)*f_hor)
         call add_var(set, 'absorbed_power_density_layer', 'layer-mean absorbed power per volume', &
-                     'W m-3', ['layer'], m, e)
+                     'W m-3'//fu(6:), ['layer'], m, e)
+        if (thermal) call thermal_layer_results()
         if (allocated(scene%air_density)) then
           fac = SECONDS_PER_DAY/(scene%air_density*cfg%atm%cp_air)
           call add_var(set, 'heating_rate_layer', 'layer-mean heating rate', 'K day-1', &
@@ -147,7 +159,18 @@ contains
         e = stats_stderr(st, lay%i_vox + 1, lay%i_vox + atm%n3*ncol)*fac
         if (f_hor > 0.0_dp) then
           call add_var(set, 'absorbed_power_density_voxel', 'absorbed power per volume', &
-                       'W m-3', ['x  ', 'y  ', 'z3d'], m*f_hor, e*f_hor)
+                       'W m-3'//fu(6:), ['x  ', 'y  ', 'z3d'], m*f_hor, e*f_hor)
+          if (thermal) then
+            ! heating from the net power (net exchange), not from what is absorbed
+            call add_var(set, 'emitted_power_density_voxel', 'emitted power per volume '// &
+                         '(exact)', 'W m-3'//fu(6:), ['x  ', 'y  ', 'z3d'], &
+                         scene%src%em%emit_vox*fac)
+            m = stats_mean(st, lay%i_vnet + 1, lay%i_vnet + atm%n3*ncol)*fac
+            e = stats_stderr(st, lay%i_vnet + 1, lay%i_vnet + atm%n3*ncol)*fac
+            call add_var(set, 'net_power_density_voxel', 'absorbed minus emitted power per '// &
+                         'volume (net exchange estimator)', 'W m-3'//fu(6:), &
+                         ['x  ', 'y  ', 'z3d'], m*f_hor, e*f_hor)
+          end if
           if (allocated(scene%air_density)) then
             do kr = 1, atm%n3
               fac((kr - 1)*ncol + 1:kr*ncol) = f_hor*SECONDS_PER_DAY/ &
@@ -208,9 +231,19 @@ contains
         call add_var(set, 'wavelength', 'wavelength of the radiation', 'um', &
                      [character(len=1) ::], [real(cfg%source%wavelength_um, dp)])
       end if
-      call add_attr(set, 'normalisation', 'fluxes and absorptances are divided by the incident'// &
-                    ' solar flux on a horizontal plane, mu0*F0; *_wm2 and power densities use F0 = '// &
-                    str(cfg%source%solar_flux)//' W m-2')
+      if (thermal) then
+        call add_attr(set, 'normalisation', 'fluxes and absorptances are divided by the total '// &
+                      'source power per unit area P = '//str(scene%src%em%power)//' '//fu// &
+                      ' (source_power); *_wm2, *_power_* and radiance_wm2sr are absolute')
+        call add_attr(set, 'thermal_emission', 'atmosphere, surface and top emit (Planck '// &
+                      'radiances in '//trim(scene%src%em%radiance_units)//'); heating from the '// &
+                      'net-exchange estimator; emission_floor = '//str(cfg%thermal%emission_floor))
+        call add_num_attr(set, 'surface_emissivity', real(scene%src%em%eps_mean, dp))
+      else
+        call add_attr(set, 'normalisation', 'fluxes and absorptances are divided by the incident'// &
+                      ' solar flux on a horizontal plane, mu0*F0; *_wm2 and power densities use F0 = '// &
+                      str(cfg%source%solar_flux)//' W m-2')
+      end if
       call add_num_attr(set, 'flight_steps_per_photon', &
                         real(summary%flight_steps, dp)/real(max(1_i8, summary%n_photons), dp))
       call add_num_attr(set, 'events_per_photon', &
@@ -229,7 +262,12 @@ contains
         call add_num_attr(set, 'anomaly_'//trim(ANOMALY_NAMES(i)), real(summary%anomalies(i), dp))
       end do
     end associate
-    call cf_annotate(set)
+    band_kind = 'shortwave'
+    if (thermal) then
+      band_kind = 'longwave'
+      if (scene%src%em%solar_power > 0.0_dp .or. fu /= 'W m-2') band_kind = ''
+    end if
+    call cf_annotate(set, band_kind)
     set%deflate = cfg%output%deflate_level
 
   contains
@@ -239,10 +277,16 @@ contains
     subroutine radiance_results()
       integer :: nd, nl, nn, c, np
       real(dp), allocatable :: mr(:), er(:)
-      character(len=:), allocatable :: cn
-      character(len=*), parameter :: RNORM = 'pi times radiance divided by the incident solar'// &
+      character(len=:), allocatable :: cn, RNORM, ru
+      RNORM = 'pi times radiance divided by the incident solar'// &
         ' flux on a horizontal plane (diffuse light only; the bidirectional reflectance factor'// &
         ' for upward light at the top)'
+      ru = 'W m-2 sr-1'
+      if (thermal) then
+        RNORM = 'pi times radiance divided by the total source power per unit area '// &
+                '(source_power; the direct solar beam left out)'
+        ru = trim(scene%src%em%radiance_units)
+      end if
       nd = lay%n_rad_dir
       nl = lay%n_rad_lev
       if (nd > 0) then
@@ -258,13 +302,17 @@ contains
         call add_dim(set, 'rad_level', nl, coord=z(cfg%rad%levels), units='m', &
                      long_name='height of the radiance levels')
         nn = nd*nl
-        call put('radiance', RNORM, [(lay%i_rad + i, i=1, nn)], &
-                 dims=['rad_level', 'direction'])
+        mr = stats_mean1([(lay%i_rad + i, i=1, nn)])
+        er = stats_err1([(lay%i_rad + i, i=1, nn)])
+        if (thermal) call add_top(mr, 1)
+        call add_var(set, 'radiance', RNORM, '1', ['rad_level', 'direction'], mr, er)
         if (f_hor > 0.0_dp) then
-          mr = stats_mean1([(lay%i_rad + i, i=1, nn)])*f_hor/PI
-          er = stats_err1([(lay%i_rad + i, i=1, nn)])*f_hor/PI
-          call add_var(set, 'radiance_wm2sr', 'diffuse radiance', 'W m-2 sr-1', &
+          mr = mr*f_hor/PI
+          er = er*f_hor/PI
+          call add_var(set, 'radiance_wm2sr', 'diffuse radiance', ru, &
                        ['rad_level', 'direction'], mr, er)
+          if (thermal) call brightness(mr, er, 'brightness_temperature', &
+                                       ['rad_level', 'direction'])
         end if
         if (lay%do_rad_maps) then
           if (.not. (lay%do_maps .or. lay%do_voxel)) then
@@ -273,9 +321,11 @@ contains
             call add_dim(set, 'y', scene%atm%ny, units='m', long_name='y of the column centres', &
                          coord=[((i - 0.5_dp)*scene%atm%dy, i=1, scene%atm%ny)])
           end if
-          call put('radiance_map', RNORM//', per column', &
-                   [(lay%i_rad_map + i, i=1, nn*ncol)], &
-                   dims=['x        ', 'y        ', 'rad_level', 'direction'])
+          mr = stats_mean1([(lay%i_rad_map + i, i=1, nn*ncol)])
+          if (thermal) call add_top(mr, ncol)
+          call add_var(set, 'radiance_map', RNORM//', per column', '1', &
+                       ['x        ', 'y        ', 'rad_level', 'direction'], mr, &
+                       stats_err1([(lay%i_rad_map + i, i=1, nn*ncol)]))
         end if
       end if
       do c = 1, size(lay%i_cam)
@@ -288,13 +338,88 @@ contains
         call put(cn//'_radiance', RNORM//', mean over each pixel of camera '//str(c), &
                  [(lay%i_cam(c) + i, i=1, np)], dims=[cn//'_x', cn//'_y'])
         if (f_hor > 0.0_dp) then
+          mr = stats_mean1([(lay%i_cam(c) + i, i=1, np)])*f_hor/PI
+          er = stats_err1([(lay%i_cam(c) + i, i=1, np)])*f_hor/PI
           call add_var(set, cn//'_radiance_wm2sr', 'radiance, mean over each pixel', &
-                       'W m-2 sr-1', [cn//'_x', cn//'_y'], &
-                       stats_mean1([(lay%i_cam(c) + i, i=1, np)])*f_hor/PI, &
-                       stats_err1([(lay%i_cam(c) + i, i=1, np)])*f_hor/PI)
+                       ru, [cn//'_x', cn//'_y'], mr, er)
+          if (thermal) call brightness(mr, er, cn//'_brightness_temperature', &
+                                       [cn//'_x', cn//'_y'])
         end if
       end do
     end subroutine radiance_results
+
+    !> Thermal emission: emitted (exact), absorbed and net power of each layer and of the
+    !> surface in absolute units; the layer heating that follows uses the net power.
+    subroutine thermal_layer_results()
+      real(dp), allocatable :: mn(:), en(:)
+      associate (em => scene%src%em)
+        call add_var(set, 'source_power', 'total source power per unit area (emission by the '// &
+                     'atmosphere, the surface and the top, and the sun if it shines)', fu, &
+                     [character(len=1) ::], [em%power])
+        call add_var(set, 'emitted_power_layer', 'power emitted by each layer per unit area '// &
+                     '(exact)', fu, ['layer'], em%emit_layer)
+        call add_var(set, 'absorbed_power_layer', 'power absorbed by each layer per unit area', &
+                     fu, ['layer'], stats_mean(st, lay%i_abs + 1, lay%i_abs + nz)*f_hor, &
+                     stats_stderr(st, lay%i_abs + 1, lay%i_abs + nz)*f_hor)
+        mn = stats_mean(st, lay%i_net + 1, lay%i_net + nz)*f_hor
+        en = stats_stderr(st, lay%i_net + 1, lay%i_net + nz)*f_hor
+        call add_var(set, 'net_power_layer', 'absorbed minus emitted power of each layer per '// &
+                     'unit area (net exchange estimator)', fu, ['layer'], mn, en)
+        call add_var(set, 'emitted_power_surface', 'power emitted by the surface per unit area '// &
+                     '(exact)', fu, [character(len=1) ::], [em%emit_sfc])
+        call add_var(set, 'net_power_surface', 'absorbed minus emitted power of the surface '// &
+                     'per unit area (net exchange estimator)', fu, [character(len=1) ::], &
+                     stats_mean1([lay%i_snet + 1])*f_hor, stats_err1([lay%i_snet + 1])*f_hor)
+        call add_var(set, 'net_power_density_layer', 'layer-mean absorbed minus emitted power '// &
+                     'per volume (net exchange estimator)', 'W m-3'//fu(6:), ['layer'], mn/dz, &
+                     en/dz)
+        ! the heating rates below follow from the net power
+        m = mn/dz
+        e = en/dz
+      end associate
+    end subroutine thermal_layer_results
+
+    !> Thermal runs: downward at the top level, the radiance coming in from above (exact, in
+    !> the units of `v`: pi B_top/P), for `nc` values per level and direction.
+    subroutine add_top(v, nc)
+      real(dp), intent(inout) :: v(:)
+      integer, intent(in) :: nc
+      integer :: d, i0, ts
+      ts = findloc(cfg%rad%levels, scene%atm%nz, 1)
+      if (ts == 0) return
+      do d = 1, lay%n_rad_dir
+        if (cfg%rad%mu(d) >= 0.0_wp) cycle
+        i0 = ((d - 1)*lay%n_rad_lev + ts - 1)*nc
+        v(i0 + 1:i0 + nc) = v(i0 + 1:i0 + nc) + PI*scene%src%em%b_top/f_hor
+      end do
+    end subroutine add_top
+
+    !> Brightness temperatures of radiances `r` with standard errors `er` (to first order,
+    !> er/(dB/dT)), when the spectral interval is known.
+    subroutine brightness(r, er, name, dims)
+      real(dp), intent(in) :: r(:), er(:)
+      character(len=*), intent(in) :: name, dims(:)
+      real(dp) :: t(size(r)), et(size(r)), db
+      type(error_t), allocatable :: err
+      integer :: j
+      associate (em => scene%src%em)
+        if (.not. em%has_band) return
+        do j = 1, size(r)
+          t(j) = 0.0_dp
+          et(j) = 0.0_dp
+          if (r(j) <= 0.0_dp) cycle
+          call band_brightness_temperature(em%band, r(j)*em%to_band_units, t(j), err)
+          if (allocated(err)) then
+            t(j) = 0.0_dp
+            cycle
+          end if
+          db = band_dradiance_dt(em%band, t(j))/em%to_band_units
+          if (db > 0.0_dp) et(j) = er(j)/db
+        end do
+      end associate
+      call add_var(set, name, 'brightness temperature of the radiance (the temperature whose '// &
+                   'Planck radiance in the spectral interval equals it)', 'K', dims, t, et)
+    end subroutine brightness
 
     subroutine put(name, long_name, idx, dims)
       character(len=*), intent(in) :: name, long_name
@@ -379,8 +504,10 @@ contains
   !> heating rates), and the auxiliary and scalar coordinates of every result (the direction's
   !> mu and phi, the wavelength). The standard errors get their link (ancillary_variables) and
   !> the `standard_error` modifier from the writer.
-  subroutine cf_annotate(set)
+  subroutine cf_annotate(set, band_kind)
     type(result_set_t), intent(inout) :: set
+    !> 'shortwave', 'longwave', or '' (both in one run: no standard name for the fluxes)
+    character(len=*), intent(in) :: band_kind
     integer :: i, j
     logical :: has_wl
     character(len=:), allocatable :: coords
@@ -394,19 +521,21 @@ contains
     has_wl = find_var(set, 'wavelength') > 0
     do i = 1, size(set%vars)
       associate (v => set%vars(i))
-        select case (trim(v%name))
-        case ('flux_up_wm2')
-          v%standard_name = 'upwelling_shortwave_flux_in_air'
-        case ('flux_down_wm2')
-          v%standard_name = 'downwelling_shortwave_flux_in_air'
-        case ('flux_down_direct_wm2')
-          v%standard_name = 'direct_downwelling_shortwave_flux_in_air'
-        case ('flux_down_diffuse_wm2')
-          v%standard_name = 'diffuse_downwelling_shortwave_flux_in_air'
-        case default
-          if (index(v%name, 'heating_rate') == 1) &
-            v%standard_name = 'tendency_of_air_temperature_due_to_shortwave_heating'
-        end select
+        if (len(band_kind) > 0) then
+          select case (trim(v%name))
+          case ('flux_up_wm2')
+            v%standard_name = 'upwelling_'//band_kind//'_flux_in_air'
+          case ('flux_down_wm2')
+            v%standard_name = 'downwelling_'//band_kind//'_flux_in_air'
+          case ('flux_down_direct_wm2')
+            if (band_kind == 'shortwave') v%standard_name = 'direct_downwelling_shortwave_flux_in_air'
+          case ('flux_down_diffuse_wm2')
+            if (band_kind == 'shortwave') v%standard_name = 'diffuse_downwelling_shortwave_flux_in_air'
+          case default
+            if (index(v%name, 'heating_rate') == 1) &
+              v%standard_name = 'tendency_of_air_temperature_due_to_'//band_kind//'_heating'
+          end select
+        end if
         if (.not. allocated(v%stderr)) cycle
         coords = ''
         do j = 1, v%ndims

@@ -20,6 +20,9 @@ module kumo_scene_setup
   use kumo_surface, only: surface_init, surface_init_brdf, surface_init_brdf_map
   use kumo_brdf, only: brdf_params_t, BRDF_NPAR
   use kumo_source, only: solar_source, source_stratify
+  use kumo_emission, only: emission_init
+  use kumo_planck, only: spectral_band_t, band_from_wavenumbers, band_monochromatic_wavelength, &
+                         band_radiance, band_units
   use kumo_vr, only: collision_forcing, ddis_phases, spiky_without_vr, SPIKY_PEAK, DDIS_CONE_DEG
   use kumo_scene, only: scene_t
   use kumo_config, only: config_t, resolve_path
@@ -195,6 +198,10 @@ contains
       end if
     end if
     scene%mu0 = cos(cfg%source%sza_deg*DEG2RAD)
+    if (cfg%thermal%enabled) then
+      call setup_thermal(cfg, scene, error)
+      if (allocated(error)) return
+    end if
     scene%vr%rr_threshold = cfg%vr%rr_threshold
     scene%vr%rr_weight = cfg%vr%rr_weight
     scene%max_events = cfg%control%max_events
@@ -212,6 +219,81 @@ contains
 
     call setup_estimators(cfg, scene, error)
   end subroutine setup_scene
+
+  !> Thermal emission: the Planck radiances of the levels, the surface and the top (from the
+  !> temperatures and the spectral interval, or given), the emission table, and an isotropic
+  !> phase function for the local estimates of emission by cells when radiances are wanted.
+  subroutine setup_thermal(cfg, scene, error)
+    type(config_t), intent(in) :: cfg
+    type(scene_t), intent(inout) :: scene
+    type(error_t), allocatable, intent(out) :: error
+    real(wp), allocatable :: b_lev(:)
+    real(wp) :: b_sfc, b_top, solar_power, lambda_um, scale
+    type(spectral_band_t) :: band
+    logical :: has_band
+    character(len=24) :: units
+    character(len=:), allocatable :: what
+    associate (th => cfg%thermal)
+      has_band = .not. allocated(th%planck_levels)
+      if (has_band) then
+        if (th%wavenumber_lo >= 0.0_wp) then
+          call band_from_wavenumbers(th%wavenumber_lo, th%wavenumber_hi, band, error)
+          what = 'band '//str(th%wavenumber_lo)//'-'//str(th%wavenumber_hi)//' cm-1'
+        else
+          lambda_um = th%wavelength_um
+          if (lambda_um <= 0.0_wp) lambda_um = cfg%source%wavelength_um
+          call band_monochromatic_wavelength(lambda_um*1.0e-6_wp, band, error)
+          what = 'wavelength '//str(lambda_um)//' um'
+        end if
+        if (allocated(error)) then
+          call add_context(error, '&kumo_thermal')
+          return
+        end if
+        ! a single wavelength: radiances per um rather than per m
+        scale = 1.0_wp
+        units = band_units(band)
+        if (units == 'W m-2 sr-1 m-1') then
+          scale = 1.0e-6_wp
+          units = 'W m-2 sr-1 um-1'
+        end if
+        b_lev = scale*band_radiance(band, th%t_levels)
+        b_sfc = scale*band_radiance(band, th%t_surface)
+        b_top = 0.0_wp
+        if (th%t_top > 0.0_wp) b_top = scale*band_radiance(band, th%t_top)
+        what = what//', Planck radiances in '//trim(units)
+      else
+        b_lev = th%planck_levels
+        b_sfc = th%planck_surface
+        b_top = th%planck_top
+        what = 'Planck radiances given (planck_levels)'
+      end if
+    end associate
+    solar_power = 0.0_wp
+    if (cfg%thermal%include_sun) solar_power = cfg%source%solar_flux*scene%mu0
+    call emission_init(scene%src%em, scene%atm, scene%sfc, b_lev, b_sfc, b_top, solar_power, &
+                       cfg%thermal%emission_floor, error)
+    if (allocated(error)) then
+      call add_context(error, '&kumo_thermal')
+      return
+    end if
+    scene%src%em%has_band = has_band
+    if (has_band) then
+      scene%src%em%band = band
+      scene%src%em%to_band_units = 1.0_wp/scale
+      scene%src%em%radiance_units = units
+      scene%src%em%flux_units = 'W m-2'//units(len('W m-2 sr-1') + 1:)
+    end if
+    if (allocated(cfg%rad%mu) .or. cfg%cam%n > 0) then
+      scene%atm%phases = [scene%atm%phases, new_phase_isotropic()]
+      scene%src%em%iph_iso = size(scene%atm%phases)
+    end if
+    associate (em => scene%src%em)
+      scene%notes = scene%notes//'thermal emission: '//what//new_line('a')// &
+        '  source power per unit area '//str(em%power)//' W m-2 (atmosphere '// &
+        str(sum(em%emit_layer))//', surface '//str(em%emit_sfc)//', top '//str(em%emit_top)// &
+        ', sun '//str(em%solar_power)//'); surface emissivity '//str(em%eps_mean)//new_line('a')
+    end associate
+  end subroutine setup_thermal
 
   !> Radiance detectors, cameras and the variance reduction that serves them. Truncation and
   !> collision forcing act on local estimates only, so they are set up only when radiances or

@@ -18,6 +18,13 @@ module kumo_photon
     logical :: secondary = .false. !! a DDIS secondary (does not split again)
     integer(i8) :: n_events = 0_i8 !! collisions and reflections so far
     integer(i8) :: n_steps = 0_i8  !! flight steps so far (null collisions and faces included)
+    ! Thermal emission (kumo_emission): where the photon was emitted, for the net-exchange
+    ! bookkeeping of heating rates; all zero for solar photons.
+    integer :: emitter = 0        !! EMIT_* kind of its source (0: the sun)
+    integer :: em_k = 0           !! layer of the emission point (atmospheric emission)
+    integer :: em_v = 0           !! voxel of the emission point (1 .. ncol*n3; 0: a 1-D layer)
+    real(wp) :: rbe = 0.0_wp      !! 1/B at the emission point (0: not a thermal photon)
+    real(wp) :: w_entry = 0.0_wp  !! weight of its table entry (before a surface's eps(mu)/<eps>)
   end type photon_t
 
 end module kumo_photon

@@ -5,6 +5,10 @@
 !> Kinds today:
 !> * SOURCE_SOLAR: a parallel beam entering at the top of the domain (seed text section 3.2.4),
 !>   with optional stratified entry points.
+!> * Thermal emission (kumo_emission): cells, the surface and the top, from one stratified table
+!>   in which the sun, when it shines in the same run, is the first entry. Photon j of a batch of
+!>   n takes the entry holding (j - 1 + U)/n, so the first n_sol photons of a batch are solar
+!>   and keep the beam's own stratified entry points.
 !>
 !> A new kind (thermal emission from cells and the surface, a point or cone source, a lidar
 !> transmitter) is a new kind code, its set-up routine and its branch in `source_launch` (and in
@@ -16,7 +20,10 @@ module kumo_source
   use kumo_rng, only: rng_t, rng_uniform
   use kumo_math, only: wrap
   use kumo_atmosphere, only: atmosphere_t
+  use kumo_surface, only: surface_t
   use kumo_photon, only: photon_t
+  use kumo_emission, only: emission_t, emission_entry, emission_launch, emission_weight, &
+                           EMIT_SOLAR
   implicit none
   private
   public :: source_t, launch_plan_t, SOURCE_SOLAR, solar_source, source_stratify, &
@@ -42,6 +49,7 @@ module kumo_source
     real(wp) :: ux = 0.0_wp, uy = 0.0_wp, uz = -1.0_wp  !! propagation direction of the beam
     integer :: nsx = 1, nsy = 1                         !! grid of entry cells (1 x 1: off)
     real(wp) :: shift_x = 0.0_wp, shift_y = 0.0_wp      !! grid offset [m]
+    type(emission_t) :: em                              !! thermal emission (em%on: a source)
   end type source_t
 
   !> What a source decides once per batch (stratified beam: the first entry cell, the photons
@@ -54,6 +62,10 @@ module kumo_source
     integer(i8) :: n_left = 0_i8   !! photons after them, on the lattice (r)
     integer(i8) :: g = 0_i8        !! lattice generator, coprime with n_left
     real(wp) :: u1 = 0.0_wp, u2 = 0.0_wp  !! random shift of the lattice
+    ! thermal emission: photon j takes the table entry holding (j - 1 + u_em)/n
+    integer(i8) :: n = 0_i8        !! photons of the batch
+    integer(i8) :: n_sol = 0_i8    !! the first n_sol of them are solar
+    real(wp) :: u_em = 0.0_wp
   end type launch_plan_t
 
   !> The golden ratio's fractional part: lattice generators near r/phi spread points evenly.
@@ -93,12 +105,22 @@ contains
     integer(i8), intent(in) :: n_photons
     type(rng_t), intent(inout) :: rng
     type(launch_plan_t), intent(out) :: plan
+    integer(i8) :: n_beam
+    plan%n = n_photons
+    n_beam = n_photons
+    if (src%em%on) then
+      plan%u_em = rng_uniform(rng)
+      plan%n_sol = 0
+      if (src%em%solar_power > 0.0_wp) plan%n_sol = max(0_i8, min(n_photons, &
+        int(ceiling(real(n_photons, wp)*src%em%cdf(1) - plan%u_em), i8)))
+      n_beam = plan%n_sol
+    end if
     plan%ns = src%nsx*src%nsy
     plan%stratify = plan%ns > 1
     plan%s_first = 0
     if (.not. plan%stratify) return
-    plan%n_left = mod(n_photons, int(plan%ns, i8))
-    plan%n_cells = n_photons - plan%n_left
+    plan%n_left = mod(n_beam, int(plan%ns, i8))
+    plan%n_cells = n_beam - plan%n_left
     if (plan%n_cells > 0) &
       plan%s_first = min(int(rng_uniform(rng)*plan%ns, i8), int(plan%ns - 1, i8))
     if (plan%n_left > 0) then
@@ -125,18 +147,28 @@ contains
     gcd = x
   end function gcd
 
-  !> Launch photon `ip` (1-based) of the batch: position, direction, weight 1, no events yet.
-  subroutine source_launch(src, plan, atm, rng, ip, p)
+  !> Launch photon `ip` (1-based) of the batch: position, direction, weight (1 for the sun
+  !> alone), no events yet.
+  subroutine source_launch(src, plan, atm, sfc, rng, ip, p)
     type(source_t), intent(in) :: src
     type(launch_plan_t), intent(in) :: plan
     type(atmosphere_t), intent(in) :: atm
+    type(surface_t), intent(in) :: sfc
     type(rng_t), intent(inout) :: rng
     integer(i8), intent(in) :: ip
     type(photon_t), intent(inout) :: p
     integer :: s_cell
     integer(i8) :: k
     real(wp) :: fy
-    ! SOURCE_SOLAR (the only kind so far): the beam enters at the top
+    if (src%em%on) then
+      if (ip > plan%n_sol) then
+        call emission_launch(src%em, atm, sfc, rng, emission_entry(src%em, &
+                             (real(ip - 1, wp) + plan%u_em)/real(plan%n, wp)), plan%n, &
+                             plan%u_em, p)
+        return
+      end if
+    end if
+    ! SOURCE_SOLAR: the beam enters at the top
     if (plan%stratify .and. ip > plan%n_cells) then
       ! a photon left over: point k of the shifted lattice
       k = ip - plan%n_cells - 1
@@ -167,6 +199,13 @@ contains
     p%n_events = 0
     p%n_steps = 0
     p%secondary = .false.
+    if (src%em%on) then
+      p%w = emission_weight(src%em, 1, plan%n, plan%u_em)
+      p%emitter = EMIT_SOLAR
+      p%em_k = 0
+      p%em_v = 0
+      p%rbe = 0.0_wp
+    end if
   end subroutine source_launch
 
 end module kumo_source

@@ -47,6 +47,13 @@ module kumo_tally
     integer :: i_dn = 0        !! derived per batch: total down flux at level k (direct + diffuse)
     integer :: i_atm = 0       !! derived per batch: absorbed by the whole atmosphere
     integer :: i_closure = 0   !! derived per batch: R + A_atm + A_sfc - roulette + lost (= 1)
+    ! Thermal emission (sizes 0 without it): launched weight, net power (absorbed - emitted)
+    ! of the layers, of the surface and of the voxels, by net exchange (kumo_emission)
+    logical :: thermal = .false.
+    integer :: i_src = 0       !! weight launched: buf(i_src + 1)
+    integer :: i_net = 0       !! net power of layer k: buf(i_net + k), k = 1..nz
+    integer :: i_snet = 0      !! net power of the surface: buf(i_snet + 1)
+    integer :: i_vnet = 0      !! net power per voxel: buf(i_vnet + (kr-1)*ncol + icol)
     integer :: i_map_up = 0    !! map: buf(i_map_up + (slot-1)*ncol + icol)
     integer :: i_map_dir = 0
     integer :: i_map_dif = 0
@@ -95,7 +102,7 @@ contains
   !> (the levels below and above the 3-D region) give the column budget when both have maps
   !> and voxel absorption is on.
   subroutine layout_init(lay, nz, ncol, n3, map_levels, do_voxel, n_rad_dir, rad_levels, &
-                         rad_maps, cam_npix, region_levels)
+                         rad_maps, cam_npix, region_levels, thermal)
     type(tally_layout_t), intent(out) :: lay
     integer, intent(in) :: nz, ncol, n3
     integer, intent(in) :: map_levels(:)
@@ -104,6 +111,7 @@ contains
     logical, intent(in), optional :: rad_maps
     integer, intent(in), optional :: cam_npix(:)
     integer, intent(in), optional :: region_levels(2)
+    logical, intent(in), optional :: thermal   !! thermal emission: net-exchange tallies
     integer :: i, pos
     lay%nz = nz
     lay%ncol = ncol
@@ -137,6 +145,15 @@ contains
     pos = pos + 1
     lay%i_closure = pos
     pos = pos + 1
+    if (present(thermal)) lay%thermal = thermal
+    lay%i_src = pos
+    lay%i_net = pos
+    lay%i_snet = pos
+    if (lay%thermal) then
+      lay%i_net = pos + 1
+      lay%i_snet = lay%i_net + nz
+      pos = lay%i_snet + 1
+    end if
     allocate (lay%rad_slot(0:nz))
     lay%rad_slot = 0
     if (present(n_rad_dir) .and. present(rad_levels)) then
@@ -158,6 +175,8 @@ contains
     pos = pos + lay%n_map*ncol
     lay%i_vox = pos
     if (lay%do_voxel) pos = pos + n3*ncol
+    lay%i_vnet = pos
+    if (lay%do_voxel .and. lay%thermal) pos = pos + n3*ncol
     lay%i_rad_map = pos
     if (present(rad_maps)) lay%do_rad_maps = rad_maps .and. lay%n_rad_dir > 0
     if (lay%do_rad_maps) pos = pos + lay%n_rad_dir*lay%n_rad_lev*ncol
@@ -225,6 +244,8 @@ contains
     xd(lay%i_atm + 1) = sum(xd(lay%i_abs + 1:lay%i_abs + nz))
     xd(lay%i_closure + 1) = xd(lay%i_up + nz + 1) + xd(lay%i_atm + 1) + xd(lay%i_sfc + 1) &
                             - xd(lay%i_rr + 1) + xd(lay%i_lost + 1)
+    ! with emission, photons carry unequal launch weights: the closure is relative to them
+    if (lay%thermal) xd(lay%i_closure + 1) = xd(lay%i_closure + 1)/xd(lay%i_src + 1)
     st%s1(1:lay%i_map_up) = st%s1(1:lay%i_map_up) + xd
     st%s2(1:lay%i_map_up) = st%s2(1:lay%i_map_up) + xd*xd
     do i = lay%i_map_up + 1, lay%i_cam0

@@ -39,9 +39,11 @@ module kumo_local_estimate
   use kumo_tally, only: tally_layout_t, tally_t
   use kumo_surface, only: surface_t
   use kumo_brdf, only: brdf_albedo, brdf_table_eval_dir
+  use kumo_emission, only: emission_surface_eps
   implicit none
   private
-  public :: detectors_t, detectors_init, le_particle, le_surface, ddis_factor, ddis_direction
+  public :: detectors_t, detectors_init, le_particle, le_surface, le_boundary_emission, &
+            ddis_factor, ddis_direction
 
   real(wp), parameter :: INV_4PI = 0.25_wp/PI
 
@@ -271,6 +273,58 @@ contains
       end do
     end do
   end subroutine le_surface
+
+  !> Local estimates of thermal emission by a boundary at (x, y): the surface (`top` false),
+  !> whose emission has the angular density eps(mu) mu/(pi <eps>) per steradian for the weight
+  !> `w` of the table entry, or the top, whose isotropic downward radiance has mu/pi.
+  subroutine le_boundary_emission(det, atm, lay, tal, rng, sfc, top, x, y, w, eps_mean, column)
+    type(detectors_t), intent(in) :: det
+    type(atmosphere_t), intent(in) :: atm
+    type(tally_layout_t), intent(in) :: lay
+    type(tally_t), intent(inout) :: tal
+    type(rng_t), intent(inout) :: rng
+    type(surface_t), intent(in) :: sfc
+    logical, value :: top
+    real(wp), value :: x, y, w, eps_mean
+    logical, value :: column   !! as in le_particle
+    integer :: d, c, mx, my, ipix, iz, k_up
+    real(wp) :: a, vx, vy, vz, dist, factor, z0, s
+    logical :: hit
+    if (top) then
+      z0 = atm%z(atm%nz)
+      iz = atm%nz
+      k_up = atm%nz + 1
+      s = -1.0_wp
+    else
+      z0 = atm%z(0)
+      iz = 1
+      k_up = 0
+      s = 1.0_wp
+    end if
+    do d = 1, det%n_dir
+      if (s*det%uz(d) <= 0.0_wp) cycle
+      a = boundary_density(det%uz(d))
+      call level_estimate(det, atm, lay, tal, rng, x, y, z0, iz, k_up, d, a, 1.0_wp, 1, column)
+    end do
+    do c = 1, size(det%cams)
+      do my = det%cams(c)%my_lo, det%cams(c)%my_hi
+        do mx = det%cams(c)%mx_lo, det%cams(c)%mx_hi
+          call camera_project(det%cams(c), x + mx*atm%lx, y + my*atm%ly, z0, ipix, dist, &
+                              vx, vy, vz, factor, hit)
+          if (.not. hit .or. s*vz <= 0.0_wp) cycle
+          a = boundary_density(vz)
+          call camera_estimate(det, atm, tal, rng, x, y, z0, iz, vx, vy, vz, dist, &
+                               factor, a, 1.0_wp, 1, lay%i_cam(c) + ipix, column)
+        end do
+      end do
+    end do
+  contains
+    real(wp) function boundary_density(uz) result(dens)
+      real(wp), intent(in) :: uz
+      dens = w*abs(uz)/PI
+      if (.not. top .and. eps_mean > 0.0_wp) dens = dens*emission_surface_eps(sfc, x, y, uz)/eps_mean
+    end function boundary_density
+  end subroutine le_boundary_emission
 
   !> Angular density times weight, a = w P^(mu)/(4 pi), of a particle scattering by the cosine
   !> `mu` of the scattering angle, and the truncation level the light has afterwards.

@@ -25,7 +25,7 @@ module kumo_transport
   use kumo_phase, only: phase_sample_mu
   use kumo_truncation, only: trunc_sample_mu
   use kumo_local_estimate, only: detectors_t, le_particle, le_surface, ddis_factor, &
-                                 ddis_direction
+                                 ddis_direction, le_boundary_emission
   use kumo_atmosphere, only: atmosphere_t, column_of, column_xy, LAYER_CLEAR, &
                              LAYER_ABSORBING, LAYER_SCATTERING, LAYER_3D
   use kumo_brdf, only: brdf_albedo, brdf_sample
@@ -33,6 +33,8 @@ module kumo_transport
                         ANOM_STEP_CAP, ANOM_POSITION_REPAIR, ANOM_BRDF_ENVELOPE
   use kumo_photon, only: photon_t
   use kumo_source, only: launch_plan_t, source_begin_batch, source_launch
+  use kumo_emission, only: emission_b_point, emission_b_segment, EMIT_SOLAR, EMIT_TOP, &
+                           EMIT_SURFACE
   use kumo_vr, only: roulette
   use kumo_scene, only: scene_t
   implicit none
@@ -52,6 +54,7 @@ module kumo_transport
     logical :: forced    !! collision forcing on
     logical :: plain     !! no local estimates, forcing or truncation: the plain scattering
     real(wp) :: inv_cf   !! 1/(collision-forcing factor)
+    logical :: thermal   !! thermal emission: net-exchange tallies (kumo_emission)
   end type batch_t
 
   !> DDIS secondaries of the current photon waiting to be traced, last in first out: position,
@@ -86,10 +89,15 @@ contains
     bat%forced = scn%vr%cf_factor > 1.0_wp
     bat%inv_cf = 1.0_wp/scn%vr%cf_factor
     bat%plain = .not. (scn%det%active .or. bat%forced .or. scn%atm%truncated)
+    bat%thermal = scn%src%em%on
     call source_begin_batch(scn%src, n_photons, rng, plan)
     do ip = 1, n_photons
-      call source_launch(scn%src, plan, scn%atm, rng, ip, p)
-      call tally_level(scn%atm, lay, tal, scn%atm%nz, .false., 0, p%w, p%x, p%y)
+      call source_launch(scn%src, plan, scn%atm, scn%sfc, rng, ip, p)
+      if (bat%thermal) then
+        call start_emitted(scn, lay, tal, rng, p)
+      else
+        call tally_level(scn%atm, lay, tal, scn%atm%nz, .false., 0, p%w, p%x, p%y)
+      end if
       pend%n = 0
       history: do
         call trace_photon(scn, bat, lay, rng, tal, p, pend)
@@ -150,7 +158,11 @@ contains
           end if
           if (.not. alive) return
           exit flight
-        case default   ! EV_ESCAPE, EV_KILLED
+        case (EV_ESCAPE)
+          ! the top absorbs what leaves, and emits B_top
+          if (bat%thermal) call score_net(lay, tal, p, p%w, scn%src%em%b_top, 0, 0)
+          return
+        case default   ! EV_KILLED
           return
         end select
       end do flight
@@ -212,6 +224,9 @@ contains
     case (LAYER_ABSORBING)
       wn = p%w*exp(-scn%atm%ext1(p%iz)*d)
       tal%buf(lay%i_abs + p%iz) = tal%buf(lay%i_abs + p%iz) + (p%w - wn)
+      if (bat%thermal) call score_net(lay, tal, p, p%w - wn, &
+        emission_b_segment(scn%src%em, scn%atm, p%iz, p%z, zb, scn%atm%ext1(p%iz)*d), &
+        lay%i_net + p%iz, 0)
       p%w = wn
     case default ! LAYER_CLEAR
     end select
@@ -247,6 +262,8 @@ contains
     p%n_events = p%n_events + 1
     if (scn%sfc%black) then
       tal%buf(lay%i_sfc + 1) = tal%buf(lay%i_sfc + 1) + p%w
+      if (scn%src%em%on) call score_net(lay, tal, p, p%w, scn%src%em%b_sfc, &
+                                        lay%i_snet + 1, 0)
       return
     end if
     kb = 1
@@ -257,6 +274,8 @@ contains
       albedo = scn%sfc%albedo_at(p%x, p%y)
     end if
     tal%buf(lay%i_sfc + 1) = tal%buf(lay%i_sfc + 1) + p%w*(1.0_wp - albedo)
+    if (scn%src%em%on) call score_net(lay, tal, p, p%w*(1.0_wp - albedo), &
+                                      scn%src%em%b_sfc, lay%i_snet + 1, 0)
     p%w = p%w*albedo
     if (p%w <= 0.0_wp) return
     if (scn%det%active) call le_surface(scn%det, scn%atm, lay, tal, rng, scn%sfc, kb, p%x, p%y, &
@@ -332,6 +351,19 @@ contains
     if (in3d .and. lay%do_voxel) then
       ic = lay%i_vox + (kr - 1)*lay%ncol + ix + (iy - 1)*scn%atm%nx
       tal%buf(ic) = tal%buf(ic) + (p%w - wn)
+    end if
+    if (bat%thermal) then
+      if (in3d .and. lay%do_voxel) then
+        call score_net(lay, tal, p, p%w - wn, emission_b_point(scn%src%em, scn%atm, p%iz, &
+                       p%z, ix, iy, kr), lay%i_net + p%iz, &
+                       lay%i_vnet + (kr - 1)*lay%ncol + ix + (iy - 1)*scn%atm%nx)
+      else if (in3d) then
+        call score_net(lay, tal, p, p%w - wn, emission_b_point(scn%src%em, scn%atm, p%iz, &
+                       p%z, ix, iy, kr), lay%i_net + p%iz, 0)
+      else
+        call score_net(lay, tal, p, p%w - wn, emission_b_point(scn%src%em, scn%atm, p%iz, &
+                       p%z, 0, 0, 0), lay%i_net + p%iz, 0)
+      end if
     end if
     p%w = wn
     if (p%w <= 0.0_wp) return
@@ -843,6 +875,72 @@ contains
       if (ev /= 0 .or. iz < atm%k3_lo .or. iz > atm%k3_hi) return
     end do
   end subroutine fly_column
+
+  !> A photon from a run with thermal emission starts: its launch weight is booked, levels it
+  !> starts on are tallied (the sun and the top: downward at the top; the surface: upward at
+  !> the ground), and emission is seen by the radiance detectors.
+  subroutine start_emitted(scn, lay, tal, rng, p)
+    type(scene_t), intent(in) :: scn
+    type(tally_layout_t), intent(in) :: lay
+    type(tally_t), intent(inout) :: tal
+    type(rng_t), intent(inout) :: rng
+    type(photon_t), intent(inout) :: p
+    tal%buf(lay%i_src + 1) = tal%buf(lay%i_src + 1) + p%w
+    p%column = p%order >= scn%n_3d
+    select case (p%emitter)
+    case (EMIT_SOLAR)
+      call tally_level(scn%atm, lay, tal, scn%atm%nz, .false., 0, p%w, p%x, p%y)
+      return
+    case (EMIT_TOP)
+      call tally_level(scn%atm, lay, tal, scn%atm%nz, .false., p%order, p%w, p%x, p%y)
+    case (EMIT_SURFACE)
+      call tally_level(scn%atm, lay, tal, 0, .true., p%order, p%w, p%x, p%y)
+    end select
+    if (.not. scn%det%active) return
+    select case (p%emitter)
+    case (EMIT_TOP)
+      call le_boundary_emission(scn%det, scn%atm, lay, tal, rng, scn%sfc, .true., p%x, p%y, &
+                                p%w, 1.0_wp, p%column)
+    case (EMIT_SURFACE)
+      call le_boundary_emission(scn%det, scn%atm, lay, tal, rng, scn%sfc, .false., p%x, p%y, &
+                                p%w_entry, scn%src%em%eps_mean, p%column)
+    case default
+      call le_particle(scn%det, scn%atm, lay, tal, rng, p%x, p%y, p%z, p%iz, p%ux, p%uy, p%uz, &
+                       p%w, scn%src%em%iph_iso, 1, 1.0_wp, p%column)
+    end select
+  end subroutine start_emitted
+
+  !> Net-exchange bookkeeping (kumo_emission) of weight `dw` absorbed where the Planck radiance
+  !> is `b_abs`; i_cell and i_vcell are the buffer positions of the absorbing layer (or the
+  !> surface) and voxel, 0 for none. A thermal photon adds dw (b_abs/B_e - 1) to the net power
+  !> of its emitter; what a cell that does not emit absorbs, and what solar photons deposit,
+  !> is net power of the absorbing cell itself.
+  subroutine score_net(lay, tal, p, dw, b_abs, i_cell, i_vcell)
+    type(tally_layout_t), intent(in) :: lay
+    type(tally_t), intent(inout) :: tal
+    type(photon_t), intent(in) :: p
+    real(wp), intent(in) :: dw, b_abs
+    integer, intent(in) :: i_cell, i_vcell
+    real(wp) :: x
+    integer :: ie
+    if (p%rbe > 0.0_wp) then
+      x = dw*(b_abs*p%rbe - 1.0_wp)
+      select case (p%emitter)
+      case (EMIT_SURFACE)
+        tal%buf(lay%i_snet + 1) = tal%buf(lay%i_snet + 1) + x
+      case (EMIT_TOP)
+      case default
+        tal%buf(lay%i_net + p%em_k) = tal%buf(lay%i_net + p%em_k) + x
+        if (p%em_v > 0 .and. lay%do_voxel) then
+          ie = lay%i_vnet + p%em_v
+          tal%buf(ie) = tal%buf(ie) + x
+        end if
+      end select
+      if (b_abs > 0.0_wp) return
+    end if
+    if (i_cell > 0) tal%buf(i_cell) = tal%buf(i_cell) + dw
+    if (i_vcell > 0) tal%buf(i_vcell) = tal%buf(i_vcell) + dw
+  end subroutine score_net
 
   !> Stop a photon at a loop cap: its weight is counted as lost, never silently dropped.
   subroutine lose_photon(lay, tal, which, w)

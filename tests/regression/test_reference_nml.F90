@@ -24,8 +24,9 @@ module test_reference_nml_suite
   !> Variables that reference.nml lists only as a commented-out assignment, because setting
   !> them would change the defaults (air_density needs solar_flux > 0; the default of
   !> flux_levels is "all levels", which has no literal form).
-  character(len=16), parameter :: NAMES_COMMENTED(2) = [character(len=16) :: 'air_density', &
-                                                       'flux_levels']
+  character(len=16), parameter :: NAMES_COMMENTED(4) = [character(len=16) :: 'air_density', &
+                                                       'flux_levels', 'planck_levels', &
+                                                       'planck_surface']
 
   character(len=:), allocatable :: ref_path, config_src_path, doc_path
 

@@ -1,0 +1,447 @@
+! SPDX-License-Identifier: BSD-3-Clause
+!> Thermal emission as a source of photons (seed text sections 3.2.4 b, 3.8, 3.9): every
+!> absorbing cell, the surface and the top of the domain emit, by Kirchhoff's law, and in a run
+!> with the sun too the solar beam is one more entry of the same table.
+!>
+!> **Planck source.** B is a radiance (W m-2 sr-1 for a band; per unit wavelength or wavenumber
+!> for a single one), given at the levels and, optionally, per voxel of the 3-D region. Inside a
+!> layer without voxel values it varies linearly in optical depth between the level values
+!> (DISORT's convention; in a homogeneous layer, linearly in height), which keeps optically thick
+!> layers right. The surface emits eps B_s, with eps = 1 - albedo (Lambert) or the directional
+!> emissivity 1 - alpha(mu) (BRDF), and the top emits an isotropic downward radiance B_top.
+!>
+!> **One table, stratified.** Entry i has the power P_i per unit domain area [W m-2]: the sun
+!> mu0 F0, the top pi B_top, the surface pi <eps> B_s, a 1-D layer 4 pi k_a dz <B>, a voxel
+!> 4 pi k_a dz <B>/ncol. Photon j of a batch of n takes the entry holding u_j = (j - 1 + U)/n on
+!> the cumulative table (systematic sampling: every entry gets floor or ceil of n q_i photons),
+!> so photons go where the energy is. The probabilities are q_i = (1 - f) P_i/P + f C_i/C over
+!> the emitting cells, with C_i = 4 pi k_a dz their emission per unit Planck radiance: the
+!> fraction f (`emission_floor`) keeps cold cells sampled, which the net-exchange heating
+!> estimator below needs. A photon carries the weight (P_i/P)/q_i in units of P, the total power
+!> per unit area: every tally times P is in W m-2.
+!>
+!> **Heating rates by net exchange.** The heating of a cell is absorbed minus emitted power, in
+!> optically thick cells a small difference of two large numbers. kumo scores it by reciprocity
+!> (the emission-based reciprocity method, ERM, of Tesse et al. 2002, and the net-exchange
+!> formulation of Green 1967 and Cherkaoui et al. 1996): the power emitted at r and absorbed at r'
+!> is G(r, r') B(r), the reverse G(r, r') B(r'), so a photon emitted at r whose weight dw is
+!> absorbed at r' (or escapes through the top, B = B_top, or is absorbed by the surface, B = B_s)
+!> adds dw (B(r')/B(r) - 1) to the net power of the cell it came from. Photons absorbed where
+!> they were emitted, and every exchange between cells at the same temperature, add nothing:
+!> thick cells and isothermal regions get their net power without the noise of the two large
+!> terms. A cell that does not emit (B = 0) has no photons of its own; its net power is what it
+!> absorbs, scored directly. Solar photons add what they deposit, where they deposit it.
+module kumo_emission
+  use kumo_kinds, only: wp, vp, i8
+  use kumo_constants, only: PI, FOUR_PI
+  use kumo_error, only: error_t, set_error, str
+  use kumo_rng, only: rng_t, rng_uniform, sample_azimuth
+  use kumo_math, only: UZ_MIN, gauss_legendre01
+  use kumo_atmosphere, only: atmosphere_t, LAYER_3D
+  use kumo_surface, only: surface_t
+  use kumo_brdf, only: brdf_albedo
+  use kumo_photon, only: photon_t
+  use kumo_planck, only: spectral_band_t
+  implicit none
+  private
+  public :: emission_t, emission_init, emission_entry, emission_launch, emission_weight, &
+            emission_b_point, &
+            emission_b_segment, emission_surface_eps
+  public :: EMIT_SOLAR, EMIT_TOP, EMIT_SURFACE, EMIT_LAYER, EMIT_VOXEL
+
+  !> Kinds of table entries (and of a photon's source).
+  integer, parameter :: EMIT_SOLAR = 0, EMIT_TOP = 1, EMIT_SURFACE = 2, EMIT_LAYER = 3, &
+                        EMIT_VOXEL = 4
+
+  !> The emission table of a scene and the Planck values the photon loop reads.
+  type :: emission_t
+    logical :: on = .false.                !! thermal emission is a source
+    real(wp) :: power = 0.0_wp             !! P: total source power per unit area [W m-2]
+    real(wp) :: solar_power = 0.0_wp       !! mu0 F0 of the sun in the same run (0: none)
+    real(wp), allocatable :: b_lev(:)      !! (0:nz) Planck radiance at the levels
+    real(vp), allocatable :: b3(:, :, :)   !! (nx, ny, n3) per voxel, if given
+    real(wp) :: b_sfc = 0.0_wp             !! Planck radiance of the surface temperature
+    real(wp) :: b_top = 0.0_wp             !! isotropic downward radiance at the top
+    real(wp) :: eps_mean = 1.0_wp          !! surface emissivity, mean over the domain
+    real(wp), allocatable :: eps_h(:)      !! hemispherical emissivity per BRDF class
+    real(wp) :: floor = 0.0_wp             !! share f of the photons spread by capacity
+    integer :: nz = 0, ncol = 1, n3 = 0
+    integer :: e_lay = 3                   !! entry of layer k: e_lay + k
+    integer :: e_vox = 0                   !! entry of voxel v (1 .. ncol*n3): e_vox + v
+    integer :: n_ent = 0
+    real(wp), allocatable :: cdf(:)        !! (0:n_ent) cumulative probabilities q
+    real(wp), allocatable :: ratio(:)      !! (n_ent) launch weight (P_i/P)/q_i
+    real(wp), allocatable :: emit_layer(:) !! (nz) emitted power per unit area [W m-2]
+    real(wp), allocatable :: emit_vox(:)   !! (ncol*n3) per unit column area [W m-2]
+    real(wp) :: emit_sfc = 0.0_wp          !! emitted by the surface [W m-2]
+    real(wp) :: emit_top = 0.0_wp          !! entering at the top, pi B_top [W m-2]
+    logical :: has_band = .false.          !! the spectral interval is known (temperatures
+                                           !! given): brightness temperatures can be formed
+    type(spectral_band_t) :: band
+    !> units of the Planck radiances (the band's, per um for a single wavelength) and the
+    !> factor that turns them into the band's own units (kumo_planck)
+    character(len=24) :: radiance_units = 'W m-2 sr-1'
+    character(len=24) :: flux_units = 'W m-2'
+    real(wp) :: to_band_units = 1.0_wp
+    integer :: iph_iso = 0                 !! isotropic phase function (local estimates of
+                                           !! emission by cells); 0: no radiances
+  end type emission_t
+
+contains
+
+  !> Build the emission table. `b_lev(0:nz)` Planck radiances at the levels, `b_sfc` of the
+  !> surface, `b_top` the isotropic radiance entering at the top, optional `b3` per voxel of
+  !> the 3-D region, `solar_power` = mu0 F0 of the sun in the same run (0: thermal alone),
+  !> `floor` the share of photons spread over the emitting cells by capacity.
+  subroutine emission_init(em, atm, sfc, b_lev, b_sfc, b_top, solar_power, floor, error, b3)
+    type(emission_t), intent(out) :: em
+    type(atmosphere_t), intent(in) :: atm
+    type(surface_t), intent(in) :: sfc
+    real(wp), intent(in) :: b_lev(0:), b_sfc, b_top, solar_power, floor
+    type(error_t), allocatable, intent(out) :: error
+    real(wp), intent(in), optional :: b3(:, :, :)
+    real(wp), allocatable :: pw(:), cap(:)
+    real(wp) :: dz, ka, bb, ptot, ctot, q
+    integer :: k, kr, ix, iy, v, i, nz, ncol
+
+    nz = atm%nz
+    ncol = atm%nx*atm%ny
+    if (size(b_lev) /= nz + 1) then
+      call set_error(error, 'thermal emission: '//str(size(b_lev))//' level Planck values for '// &
+                     str(nz + 1)//' levels')
+      return
+    end if
+    if (any(.not. (b_lev >= 0.0_wp)) .or. .not. (b_sfc >= 0.0_wp) .or. .not. (b_top >= 0.0_wp)) then
+      call set_error(error, 'thermal emission: Planck radiances must be finite and >= 0')
+      return
+    end if
+    if (.not. (floor >= 0.0_wp .and. floor < 1.0_wp)) then
+      call set_error(error, 'thermal emission: emission_floor = '//str(floor)// &
+                     ' must satisfy 0 <= emission_floor < 1')
+      return
+    end if
+    em%on = .true.
+    em%nz = nz
+    em%ncol = ncol
+    em%n3 = atm%n3
+    em%b_lev = b_lev
+    em%b_sfc = b_sfc
+    em%b_top = b_top
+    em%floor = floor
+    em%solar_power = solar_power
+    if (present(b3)) then
+      if (any(shape(b3) /= [atm%nx, atm%ny, atm%n3])) then
+        call set_error(error, 'thermal emission: voxel Planck values have shape ('// &
+                       str(size(b3, 1))//','//str(size(b3, 2))//','//str(size(b3, 3))// &
+                       '), the 3-D region ('//str(atm%nx)//','//str(atm%ny)//','//str(atm%n3)//')')
+        return
+      end if
+      if (any(.not. (b3 >= 0.0_wp))) then
+        call set_error(error, 'thermal emission: voxel Planck radiances must be finite and >= 0')
+        return
+      end if
+      em%b3 = real(b3, vp)
+    end if
+    call surface_emissivity(em, sfc)
+
+    em%e_lay = 3
+    em%e_vox = em%e_lay + nz
+    em%n_ent = em%e_vox + ncol*atm%n3
+    allocate (pw(em%n_ent), cap(em%n_ent))
+    pw = 0.0_wp
+    cap = 0.0_wp
+    pw(1) = solar_power
+    pw(2) = PI*b_top
+    pw(3) = PI*em%eps_mean*b_sfc
+    allocate (em%emit_layer(nz), em%emit_vox(ncol*atm%n3))
+    em%emit_layer = 0.0_wp
+    em%emit_vox = 0.0_wp
+    do k = 1, nz
+      if (atm%layer_class(k) == LAYER_3D) cycle
+      dz = atm%z(k) - atm%z(k - 1)
+      ka = atm%ext1(k)*(1.0_wp - atm%omg1(k))
+      cap(em%e_lay + k) = FOUR_PI*ka*dz
+      pw(em%e_lay + k) = cap(em%e_lay + k)*0.5_wp*(b_lev(k - 1) + b_lev(k))
+      em%emit_layer(k) = pw(em%e_lay + k)
+    end do
+    do kr = 1, atm%n3
+      k = atm%k3_lo + kr - 1
+      dz = atm%z(k) - atm%z(k - 1)
+      do iy = 1, atm%ny
+        do ix = 1, atm%nx
+          v = ix + (iy - 1)*atm%nx + (kr - 1)*ncol
+          ka = real(atm%ext3(ix, iy, kr), wp)*(1.0_wp - real(atm%omg3(ix, iy, kr), wp))
+          if (allocated(em%b3)) then
+            bb = real(em%b3(ix, iy, kr), wp)
+          else
+            bb = 0.5_wp*(b_lev(k - 1) + b_lev(k))
+          end if
+          cap(em%e_vox + v) = FOUR_PI*ka*dz/ncol
+          pw(em%e_vox + v) = cap(em%e_vox + v)*bb
+          em%emit_vox(v) = pw(em%e_vox + v)*ncol
+          em%emit_layer(k) = em%emit_layer(k) + pw(em%e_vox + v)
+        end do
+      end do
+    end do
+    em%emit_sfc = pw(3)
+    em%emit_top = pw(2)
+    ptot = sum(pw)
+    if (.not. (ptot > 0.0_wp)) then
+      call set_error(error, 'thermal emission: nothing emits (every Planck radiance, absorption '// &
+                     'coefficient and surface emissivity is zero) and there is no sun')
+      return
+    end if
+    em%power = ptot
+    ! capacity only of the cells that emit: a cell with B = 0 is scored by what it absorbs
+    where (pw <= 0.0_wp) cap = 0.0_wp
+    cap(1:3) = 0.0_wp
+    ctot = sum(cap)
+    allocate (em%cdf(0:em%n_ent), em%ratio(em%n_ent))
+    em%cdf(0) = 0.0_wp
+    do i = 1, em%n_ent
+      q = pw(i)/ptot
+      if (ctot > 0.0_wp) q = (1.0_wp - floor)*q + floor*cap(i)/ctot
+      em%cdf(i) = em%cdf(i - 1) + q
+      if (q > 0.0_wp) then
+        em%ratio(i) = (pw(i)/ptot)/q
+      else
+        em%ratio(i) = 0.0_wp
+      end if
+    end do
+    em%cdf = em%cdf/em%cdf(em%n_ent)
+    em%cdf(em%n_ent) = 1.0_wp
+  end subroutine emission_init
+
+  !> Surface emissivity: 1 - albedo per pixel (Lambert), 1 - alpha(mu) per class (BRDF, its
+  !> hemispherical value 1 - 2 int alpha(mu) mu dmu by 64-point Gauss-Legendre quadrature), and
+  !> its mean over the domain.
+  subroutine surface_emissivity(em, sfc)
+    type(emission_t), intent(inout) :: em
+    type(surface_t), intent(in) :: sfc
+    real(wp) :: x(64), w(64)
+    integer :: kb
+    if (sfc%use_brdf) then
+      call gauss_legendre01(64, x, w)
+      allocate (em%eps_h(size(sfc%tabs)))
+      do kb = 1, size(sfc%tabs)
+        em%eps_h(kb) = 1.0_wp - 2.0_wp*sum(w*x*brdf_albedo(sfc%tabs(kb), x))
+      end do
+      if (sfc%uniform .or. .not. allocated(sfc%cls)) then
+        em%eps_mean = em%eps_h(1)
+      else
+        em%eps_mean = sum(em%eps_h(reshape(sfc%cls, [size(sfc%cls)])))/size(sfc%cls)
+      end if
+    else
+      em%eps_mean = 1.0_wp - sum(sfc%albedo)/size(sfc%albedo)
+    end if
+    em%eps_mean = max(0.0_wp, min(1.0_wp, em%eps_mean))
+  end subroutine surface_emissivity
+
+  !> Directional emissivity of the surface at (x, y) for the emission cosine mu.
+  real(wp) function emission_surface_eps(sfc, x, y, mu) result(eps)
+    type(surface_t), intent(in) :: sfc
+    real(wp), intent(in) :: x, y, mu
+    if (sfc%use_brdf) then
+      eps = 1.0_wp - brdf_albedo(sfc%tabs(sfc%class_at(x, y)), mu)
+    else
+      eps = 1.0_wp - sfc%albedo_at(x, y)
+    end if
+  end function emission_surface_eps
+
+  !> The table entry that holds u in [0, 1): the smallest i with cdf(i) > u (bisection).
+  pure integer function emission_entry(em, u) result(i)
+    type(emission_t), intent(in) :: em
+    real(wp), intent(in) :: u
+    integer :: lo, hi, mid
+    lo = 0             ! cdf(lo) <= u
+    hi = em%n_ent      ! cdf(hi) > u (cdf(n_ent) = 1 > u)
+    do while (hi - lo > 1)
+      mid = (lo + hi)/2
+      if (em%cdf(mid) > u) then
+        hi = mid
+      else
+        lo = mid
+      end if
+    end do
+    i = hi
+  end function emission_entry
+
+  !> Launch weight of a photon from entry `ie` in a batch of `n` photons with the table shift
+  !> `u`: (P_i/P) n/n_i, with n_i the photons the entry gets in this batch, when every batch
+  !> gives it at least one (n q_i >= 1), so that its photons carry exactly its power in every
+  !> batch; else (P_i/P)/q_i, exact on average over the shift.
+  pure real(wp) function emission_weight(em, ie, n, u) result(w)
+    type(emission_t), intent(in) :: em
+    integer, intent(in) :: ie
+    integer(i8), intent(in) :: n
+    real(wp), intent(in) :: u
+    real(wp) :: q, rn
+    integer(i8) :: ni
+    q = em%cdf(ie) - em%cdf(ie - 1)
+    rn = real(n, wp)
+    if (rn*q >= 1.0_wp) then
+      ni = int(ceiling(rn*em%cdf(ie) - u), i8) - int(ceiling(rn*em%cdf(ie - 1) - u), i8)
+      w = em%ratio(ie)*q*rn/real(max(1_i8, ni), wp)
+    else
+      w = em%ratio(ie)
+    end if
+  end function emission_weight
+
+  !> Launch a thermal photon from table entry `ie` (not the sun) of a batch of `n` photons with
+  !> table shift `u`: position, direction, weight and its emitter. Levels crossed at the launch
+  !> are the caller's to tally.
+  subroutine emission_launch(em, atm, sfc, rng, ie, n, u, p)
+    type(emission_t), intent(in) :: em
+    type(atmosphere_t), intent(in) :: atm
+    type(surface_t), intent(in) :: sfc
+    type(rng_t), intent(inout) :: rng
+    integer, intent(in) :: ie
+    integer(i8), intent(in) :: n
+    real(wp), intent(in) :: u
+    type(photon_t), intent(inout) :: p
+    real(wp) :: mu, cphi, sphi, st, b
+    integer :: v, ix, iy, kr, k
+
+    p%w = emission_weight(em, ie, n, u)
+    p%w_entry = p%w
+    p%order = 1
+    p%lev = 1
+    p%n_events = 0
+    p%n_steps = 0
+    p%secondary = .false.
+    p%em_k = 0
+    p%em_v = 0
+    if (ie == 2) then
+      ! the top: cosine-weighted downward directions
+      p%emitter = EMIT_TOP
+      p%x = rng_uniform(rng)*atm%lx
+      p%y = rng_uniform(rng)*atm%ly
+      p%z = atm%z(atm%nz)
+      p%iz = atm%nz
+      mu = sqrt(1.0_wp - rng_uniform(rng))
+      call set_direction(p, -mu)
+      b = em%b_top
+    else if (ie == 3) then
+      ! the surface: cosine-weighted upward directions, weight times eps(x, y, mu)/<eps>
+      p%emitter = EMIT_SURFACE
+      p%x = rng_uniform(rng)*atm%lx
+      p%y = rng_uniform(rng)*atm%ly
+      p%z = atm%z(0)
+      p%iz = 1
+      mu = sqrt(1.0_wp - rng_uniform(rng))
+      call set_direction(p, mu)
+      if (em%eps_mean > 0.0_wp) p%w = p%w*emission_surface_eps(sfc, p%x, p%y, p%uz)/em%eps_mean
+      b = em%b_sfc
+    else if (ie <= em%e_vox) then
+      ! a 1-D layer: uniform in x, y; in height with density proportional to B
+      k = ie - em%e_lay
+      p%emitter = EMIT_LAYER
+      p%em_k = k
+      p%iz = k
+      p%x = rng_uniform(rng)*atm%lx
+      p%y = rng_uniform(rng)*atm%ly
+      p%z = atm%z(k - 1) + linear_fraction(em%b_lev(k - 1), em%b_lev(k), rng_uniform(rng))* &
+            (atm%z(k) - atm%z(k - 1))
+      call isotropic(p)
+      b = emission_b_point(em, atm, k, p%z, 0, 0, 0)
+    else
+      ! a voxel: uniform in x, y; in height uniform (voxel value) or linear in B (levels)
+      v = ie - em%e_vox
+      kr = (v - 1)/em%ncol + 1
+      iy = (v - 1 - (kr - 1)*em%ncol)/atm%nx + 1
+      ix = v - (kr - 1)*em%ncol - (iy - 1)*atm%nx
+      k = atm%k3_lo + kr - 1
+      p%emitter = EMIT_VOXEL
+      p%em_k = k
+      p%em_v = v
+      p%iz = k
+      p%x = (ix - 1 + rng_uniform(rng))*atm%dx
+      p%y = (iy - 1 + rng_uniform(rng))*atm%dy
+      p%x = min(p%x, nearest(ix*atm%dx, -1.0_wp))
+      p%y = min(p%y, nearest(iy*atm%dy, -1.0_wp))
+      if (allocated(em%b3)) then
+        p%z = atm%z(k - 1) + rng_uniform(rng)*(atm%z(k) - atm%z(k - 1))
+        b = real(em%b3(ix, iy, kr), wp)
+      else
+        p%z = atm%z(k - 1) + linear_fraction(em%b_lev(k - 1), em%b_lev(k), rng_uniform(rng))* &
+              (atm%z(k) - atm%z(k - 1))
+        b = emission_b_point(em, atm, k, p%z, 0, 0, 0)
+      end if
+      call isotropic(p)
+    end if
+    p%rbe = 0.0_wp
+    if (b > 0.0_wp) p%rbe = 1.0_wp/b
+
+  contains
+
+    subroutine isotropic(q)
+      type(photon_t), intent(inout) :: q
+      call set_direction(q, 2.0_wp*rng_uniform(rng) - 1.0_wp)
+    end subroutine isotropic
+
+    subroutine set_direction(q, uz)
+      type(photon_t), intent(inout) :: q
+      real(wp), intent(in) :: uz
+      q%uz = uz
+      if (abs(q%uz) < UZ_MIN) q%uz = sign(UZ_MIN, q%uz)
+      st = sqrt(max(0.0_wp, 1.0_wp - q%uz*q%uz))
+      call sample_azimuth(rng, cphi, sphi)
+      q%ux = st*cphi
+      q%uy = st*sphi
+    end subroutine set_direction
+  end subroutine emission_launch
+
+  !> Fraction t in [0, 1] of a layer's height drawn with density proportional to the linear
+  !> function a + (b - a) t (a, b >= 0, not both 0), by inverting its cumulative distribution
+  !> in a form without cancellation.
+  pure real(wp) function linear_fraction(a, b, u) result(t)
+    real(wp), intent(in) :: a, b, u
+    real(wp) :: d
+    d = a + sqrt(max(0.0_wp, a*a + u*(b*b - a*a)))
+    if (d > 0.0_wp) then
+      t = u*(a + b)/d
+    else
+      t = u
+    end if
+    t = min(1.0_wp, max(0.0_wp, t))
+  end function linear_fraction
+
+  !> Planck radiance at height z in layer k: the voxel value (ix, iy, kr) > 0 when voxel values
+  !> are given and the point is in the 3-D region, else linear between the level values.
+  pure real(wp) function emission_b_point(em, atm, k, z, ix, iy, kr) result(b)
+    type(emission_t), intent(in) :: em
+    type(atmosphere_t), intent(in) :: atm
+    integer, intent(in) :: k, ix, iy, kr
+    real(wp), intent(in) :: z
+    real(wp) :: t
+    if (kr > 0 .and. allocated(em%b3)) then
+      b = real(em%b3(ix, iy, kr), wp)
+      return
+    end if
+    t = (z - atm%z(k - 1))/(atm%z(k) - atm%z(k - 1))
+    t = min(1.0_wp, max(0.0_wp, t))
+    b = em%b_lev(k - 1) + (em%b_lev(k) - em%b_lev(k - 1))*t
+  end function emission_b_point
+
+  !> Mean Planck radiance of what is absorbed along a straight path through a homogeneous 1-D
+  !> layer k from height z0 to z1 with absorption optical path tau: the absorption density
+  !> k e^(-k s) times B, linear along the path, integrates to B0 + (B1 - B0) g(tau) with
+  !> g = (1 - e^-tau (1 + tau))/(tau (1 - e^-tau)) (series below tau = 1e-3).
+  pure real(wp) function emission_b_segment(em, atm, k, z0, z1, tau) result(b)
+    type(emission_t), intent(in) :: em
+    type(atmosphere_t), intent(in) :: atm
+    integer, intent(in) :: k
+    real(wp), intent(in) :: z0, z1, tau
+    real(wp) :: b0, b1, g, e
+    b0 = emission_b_point(em, atm, k, z0, 0, 0, 0)
+    b1 = emission_b_point(em, atm, k, z1, 0, 0, 0)
+    if (tau < 1.0e-3_wp) then
+      g = 0.5_wp - tau/12.0_wp
+    else
+      e = exp(-tau)
+      g = (1.0_wp - e*(1.0_wp + tau))/(tau*(1.0_wp - e))
+    end if
+    b = b0 + (b1 - b0)*g
+  end function emission_b_segment
+
+end module kumo_emission

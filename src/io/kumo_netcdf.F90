@@ -36,7 +36,8 @@ module kumo_netcdf
   implicit none
   private
   public :: write_results, check_writable
-  public :: read_scene_3d, write_scene_3d, read_albedo_map, read_brdf_map
+  public :: read_scene_3d, write_scene_3d, read_albedo_map, read_brdf_map, &
+            read_scene_temperature
   public :: BRDF_MAP_VARS
   public :: c_rename, c_remove
   public :: read_var_1d, read_text_attr
@@ -164,13 +165,14 @@ contains
   !> The arrays are validated with the reader's rules first, so a file written here always reads
   !> back. `ext_units` selects the units stored in the file ("m-1", the default, or "km-1"); the
   !> values passed in are always in m-1.
-  subroutine write_scene_3d(path, ext, ssa, phase_index, error, ext_units)
+  subroutine write_scene_3d(path, ext, ssa, phase_index, error, ext_units, temperature)
     character(len=*), intent(in) :: path                !! output file
     real(wp), intent(in) :: ext(:, :, :, :)             !! extinction (nx, ny, nz3, ncomp) [m-1]
     real(wp), intent(in) :: ssa(:, :, :, :)             !! single-scattering albedo, same shape [1]
     integer, intent(in), optional :: phase_index(:, :, :, :) !! 1-based phase function index
     type(error_t), allocatable, intent(out) :: error
     character(len=*), intent(in), optional :: ext_units !! "m-1" (default) or "km-1"
+    real(wp), intent(in), optional :: temperature(:, :, :) !! voxel temperatures (nx, ny, nz3) [K]
     character(len=*), parameter :: PROC = 'write_scene_3d'
     real(wp), parameter :: FILL = real(NF90_FILL_DOUBLE, wp)
     character(len=:), allocatable :: fname, units, at_ext, at_ssa, at_phase
@@ -215,7 +217,15 @@ contains
 
     call create_temp(PROC, fname, ncid, error)
     if (allocated(error)) return
-    call write_scene_body(PROC, fname, ncid, ext, units, ssa, phase_index, error)
+    if (present(temperature)) then
+      if (any(shape(temperature) /= shape(ext(:, :, :, 1)))) then
+        call set_error(error, where_text(PROC, fname, 'temperature')//': shape '// &
+                       join(shape(temperature), ',', '()')//' differs from the grid '// &
+                       join(shape(ext(:, :, :, 1)), ',', '()'))
+        return
+      end if
+    end if
+    call write_scene_body(PROC, fname, ncid, ext, units, ssa, phase_index, error, temperature)
     call commit_temp(PROC, fname, ncid, error)
   end subroutine write_scene_3d
 
@@ -256,6 +266,68 @@ contains
       has_phase_index = .false.
     end if
   end subroutine read_scene_3d
+
+  !> Read the optional voxel temperatures of a scene file: variable `temperature` (z, y, x) in
+  !> ncdump order, units "K", finite and >= 0; `found` is false when the file has no such
+  !> variable. Its dimensions must be the scene's x, y and z of the expected sizes.
+  subroutine read_scene_temperature(path, nx, ny, nz3, t, found, error)
+    character(len=*), intent(in) :: path
+    integer, intent(in) :: nx, ny, nz3
+    real(wp), allocatable, intent(out) :: t(:, :, :)   !! (nx, ny, nz3) [K]
+    logical, intent(out) :: found
+    type(error_t), allocatable, intent(out) :: error
+    character(len=*), parameter :: PROC = 'read_scene_temperature'
+    integer :: ncid, varid, dimids(3), i, length, status
+    integer :: expected(3)
+    real(wp) :: fill
+    real(wp), allocatable :: t4(:, :, :, :)
+    character(len=:), allocatable :: at, units
+    logical :: has_units
+
+    found = .false.
+    expected = [nx, ny, nz3]
+    call open_read(PROC, trim(path), ncid, error)
+    if (allocated(error)) return
+    at = where_text(PROC, trim(path), 'temperature')
+    status = nf90_inq_varid(ncid, 'temperature', varid)
+    if (status /= NF90_NOERR) then
+      call close_read(PROC, trim(path), ncid, error)
+      return
+    end if
+    found = .true.
+    do i = 1, 3
+      call nc_check(nf90_inq_dimid(ncid, trim(SCENE_DIM_NAMES(i)), dimids(i)), at, error)
+      if (allocated(error)) exit
+      call nc_check(nf90_inquire_dimension(ncid, dimids(i), len=length), at, error)
+      if (allocated(error)) exit
+      if (length /= expected(i)) then
+        call set_error(error, at//': dimension '//trim(SCENE_DIM_NAMES(i))//' has size '// &
+                       str(length)//', the 3-D region '//str(expected(i)))
+        exit
+      end if
+    end do
+    if (.not. allocated(error)) call check_real_var(at, ncid, varid, dimids, '(z, y, x)', fill, &
+                                                    error)
+    if (.not. allocated(error)) then
+      call get_text_att(PROC, trim(path), ncid, varid, 'units', units, has_units, error)
+      if (.not. allocated(error) .and. (.not. has_units .or. units /= 'K')) &
+        call set_error(error, at//': units must be "K"')
+    end if
+    if (.not. allocated(error)) then
+      allocate (t(nx, ny, nz3))
+      call nc_check(nf90_get_var(ncid, varid, t), at, error)
+    end if
+    if (.not. allocated(error)) then
+      t4 = reshape(t, [nx, ny, nz3, 1])
+      call check_real_4d(at, t4, fill, .false., error)
+    end if
+    if (allocated(error)) then
+      status = nf90_close(ncid)
+      if (allocated(t)) deallocate (t)
+      return
+    end if
+    call close_read(PROC, trim(path), ncid, error)
+  end subroutine read_scene_temperature
 
   !> Read a 2-D surface albedo map `albedo(ys, xs)` (ncdump order) on its own grid.
   !>
@@ -631,7 +703,8 @@ contains
     end subroutine def_result_var
   end subroutine write_results_body
 
-  subroutine write_scene_body(routine, path, ncid, ext, units, ssa, phase_index, error)
+  subroutine write_scene_body(routine, path, ncid, ext, units, ssa, phase_index, error, &
+                              temperature)
     character(len=*), intent(in) :: routine, path
     integer, intent(in) :: ncid
     real(wp), intent(in) :: ext(:, :, :, :)
@@ -639,7 +712,8 @@ contains
     real(wp), intent(in) :: ssa(:, :, :, :)
     integer, intent(in), optional :: phase_index(:, :, :, :)
     type(error_t), allocatable, intent(out) :: error
-    integer :: dimids(4), shp(4), ext_id, ssa_id, pi_id, i
+    real(wp), intent(in), optional :: temperature(:, :, :)
+    integer :: dimids(4), shp(4), ext_id, ssa_id, pi_id, i, t_id
     logical :: in_km
 
     shp = shape(ext)
@@ -665,8 +739,24 @@ contains
                          'index of the phase function in the namelist list (1-based)', '', pi_id)
       if (allocated(error)) return
     end if
+    if (present(temperature)) then
+      call nc_check(nf90_def_var(ncid, 'temperature', NF90_DOUBLE, dimids(1:3), t_id), &
+                    where_text(routine, path, 'temperature'), error)
+      if (allocated(error)) return
+      call put_text_att_if_set(where_text(routine, path, 'temperature'), ncid, t_id, &
+                               'long_name', 'air temperature (thermal emission)', error)
+      if (allocated(error)) return
+      call put_text_att_if_set(where_text(routine, path, 'temperature'), ncid, t_id, 'units', &
+                               'K', error)
+      if (allocated(error)) return
+    end if
     call nc_check(nf90_enddef(ncid), where_text(routine, path, ''), error)
     if (allocated(error)) return
+    if (present(temperature)) then
+      call nc_check(nf90_put_var(ncid, t_id, temperature), &
+                    where_text(routine, path, 'temperature'), error)
+      if (allocated(error)) return
+    end if
 
     if (in_km) then
       call nc_check(nf90_put_var(ncid, ext_id, ext/PER_KM_TO_PER_M), &

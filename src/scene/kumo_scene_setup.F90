@@ -29,7 +29,7 @@ module kumo_scene_setup
   use kumo_cloud_scene, only: build_cloud_atmosphere, rayleigh_layers
   use kumo_rayleigh, only: depol_from_king, king_factor_air
   use kumo_textio, only: read_two_columns
-  use kumo_netcdf, only: read_scene_3d, read_albedo_map, read_brdf_map
+  use kumo_netcdf, only: read_scene_3d, read_albedo_map, read_brdf_map, read_scene_temperature
   use kumo_mcarats_files, only: mcarats_surface_t, read_mcarats_surface, mcarats_surface_npsfc, &
                                 mcarats_surface_brdf
   use kumo_parallel, only: par_size, par_is_root, par_bcast_int, par_bcast_real
@@ -232,6 +232,8 @@ contains
     type(spectral_band_t) :: band
     logical :: has_band
     character(len=24) :: units
+    real(wp), allocatable :: t3(:, :, :)
+    character(len=:), allocatable :: nml_path
     character(len=:), allocatable :: what
     associate (th => cfg%thermal)
       has_band = .not. allocated(th%planck_levels)
@@ -270,8 +272,27 @@ contains
     end associate
     solar_power = 0.0_wp
     if (cfg%thermal%include_sun) solar_power = cfg%source%solar_flux*scene%mu0
-    call emission_init(scene%src%em, scene%atm, scene%sfc, b_lev, b_sfc, b_top, solar_power, &
-                       cfg%thermal%emission_floor, error)
+    ! voxel temperatures of the scene file, if it has them (then the voxels emit uniformly)
+    if (len_trim(cfg%atm%scene_file) > 0 .and. .not. cfg%cloud%enabled .and. has_band) then
+      nml_path = ''
+      if (allocated(cfg%path)) nml_path = cfg%path
+      call scene_temperature_on_root(resolve_path(cfg%atm%scene_file, nml_path), cfg, t3, error)
+      if (allocated(error)) return
+    end if
+    if (allocated(t3)) then
+      if (cfg%atm%k3d_bottom /= scene%atm%k3_lo .or. size(t3, 3) /= scene%atm%n3) then
+        call set_error(error, '&kumo_thermal: voxel temperatures need the 3-D region of the '// &
+                       'scene file as it is (not use_1d_layers = .false.)')
+        return
+      end if
+      call emission_init(scene%src%em, scene%atm, scene%sfc, b_lev, b_sfc, b_top, solar_power, &
+                         cfg%thermal%emission_floor, error, b3=scale*band_radiance(band, t3))
+      what = what//new_line('a')//'  voxel temperatures: variable temperature of the scene '// &
+             'file, '//str(minval(t3))//' to '//str(maxval(t3))//' K'
+    else
+      call emission_init(scene%src%em, scene%atm, scene%sfc, b_lev, b_sfc, b_top, solar_power, &
+                         cfg%thermal%emission_floor, error)
+    end if
     if (allocated(error)) then
       call add_context(error, '&kumo_thermal')
       return
@@ -534,6 +555,30 @@ contains
       end do
     end do
   end subroutine mcarats_surface_on_root
+
+  !> Rank 0 reads the voxel temperatures of the scene file, if it has them, and broadcasts them
+  !> (t3 not allocated when the file has none).
+  subroutine scene_temperature_on_root(path, cfg, t3, error)
+    character(len=*), intent(in) :: path
+    type(config_t), intent(in) :: cfg
+    real(wp), allocatable, intent(out) :: t3(:, :, :)
+    type(error_t), allocatable, intent(out) :: error
+    integer :: status(2)
+    logical :: found
+    status = 0
+    if (par_is_root()) then
+      call read_scene_temperature(path, cfg%atm%nx, cfg%atm%ny, cfg%atm%nz3, t3, found, error)
+      if (allocated(error)) status(1) = 1
+      if (found) status(2) = 1
+    end if
+    call share_read_status(status, path, error)
+    if (allocated(error) .or. status(2) == 0) then
+      if (allocated(t3)) deallocate (t3)
+      return
+    end if
+    if (.not. par_is_root()) allocate (t3(cfg%atm%nx, cfg%atm%ny, cfg%atm%nz3))
+    call share_reals(t3, size(t3))
+  end subroutine scene_temperature_on_root
 
   !> Rank 0 reads the albedo map and broadcasts it.
   subroutine read_albedo_on_root(path, varname, alb, error)

@@ -98,7 +98,8 @@ contains
   end subroutine set_phases
 
   !> Write a 3-D region (nx, ny, nz3, 1) to `path` and point the configuration at it.
-  subroutine attach_scene(cfg, path, k3d_bottom, ext, ssa, phase_index, error, write_file)
+  subroutine attach_scene(cfg, path, k3d_bottom, ext, ssa, phase_index, error, write_file, &
+                          temperature)
     type(config_t), intent(inout) :: cfg
     character(len=*), intent(in) :: path
     integer, intent(in) :: k3d_bottom
@@ -106,6 +107,7 @@ contains
     integer, intent(in) :: phase_index
     type(error_t), allocatable, intent(out) :: error
     logical, intent(in), optional :: write_file  !! .false.: only point at the file (other ranks)
+    real(wp), intent(in), optional :: temperature(:, :, :)  !! voxel temperatures [K]
     real(wp), allocatable :: e4(:, :, :, :), s4(:, :, :, :)
     logical :: do_write
     do_write = .true.
@@ -113,7 +115,7 @@ contains
     if (do_write) then
       e4 = reshape(ext, [shape(ext), 1])
       s4 = reshape(ssa, [shape(ssa), 1])
-      call write_scene_3d(path, e4, s4, error=error)
+      call write_scene_3d(path, e4, s4, error=error, temperature=temperature)
       if (allocated(error)) return
     end if
     cfg%atm%scene_file = path

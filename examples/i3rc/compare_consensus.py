@@ -26,7 +26,7 @@ import sys
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from plot_i3rc import Run  # noqa: E402
+from plot_i3rc import Run
 
 NAME = re.compile(r'I3RC_cons_res_case(\d)_exp(\d)_(R|T|A|H|Iu|Id|I601|I602)\.txt$')
 ORDER = ('R', 'T', 'A', 'H', 'Iu', 'Id', 'I601', 'I602')

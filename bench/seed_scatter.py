@@ -7,7 +7,9 @@ Runs one case of examples/mcarats_les05 (the MCARaTS LES scene, SZA 60 by defaul
 standard errors kumo reports (the standard error of the mean over the batches of one run):
 
   chi2      sum over seeds of ((x_s - m) / sigma_s)^2, m the weighted mean, with N - 1 degrees of
-            freedom, and its upper tail probability
+            freedom, and its upper tail probability (a chi-square one: with sigma_s estimated
+            from B batches each term has the mean (B - 1)/(B - 3), 1.12 for 20 batches, so this
+            p is somewhat small; F below is the sharper test)
   ratio     standard deviation of the seed means over the rms of the reported sigmas (1 when
             the sigmas are right; its own 1-sigma spread is about 1 / sqrt(2 (N - 1)))
   sigma sd  relative standard deviation of the reported sigmas, against 1 / sqrt(2 (B - 1)) for

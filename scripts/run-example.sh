@@ -4,7 +4,7 @@
 #   bash scripts/run-example.sh [hg_slab|les_stcu|mcarats_les05|i3rc]
 # hg_slab (default): build/kumo examples/hg_slab/hg_slab.nml (7 s of CPU time)
 # les_stcu:          examples/les_stcu/run_les_stcu.sh (30 s)
-# mcarats_les05:     examples/mcarats_les05/run_mcarats_les05.sh (33 s)
+# mcarats_les05:     examples/mcarats_les05/run_mcarats_les05.sh (27 s)
 # i3rc:              examples/i3rc/run_i3rc.sh --case 1 (30 s; the other cases: see its README)
 # Every example reads only files of the repository (its inputs are in examples/data).
 set -euo pipefail

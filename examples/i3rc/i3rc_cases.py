@@ -203,7 +203,7 @@ EXPERIMENTS = {
 
 CASE_TITLES = {1: 'step cloud', 2: 'MMCR cloud', 3: 'Landsat cloud'}
 
-#: Default photons per run: on one core each run takes about 5 to 20 s. The tabulated C.1
+#: Default photons per run: on one core each run takes about 5 to 45 s. The tabulated C.1
 #: phase function makes the radiances about 3 times as costly, so those runs get half.
 DEFAULT_PHOTONS = {1: 2_000_000, 2: 1_000_000, 3: 2_000_000}
 DEFAULT_BATCHES = 10

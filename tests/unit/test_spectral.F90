@@ -1,0 +1,493 @@
+! SPDX-License-Identifier: BSD-3-Clause
+!> Unit tests of kumo_spectral: the g-point sampling plan (systematic allocation, weights, floor
+!> share; exact expectations over the batch offset; an estimator of a broadband transmission
+!> within 4 standard errors of the exact sum over g-points) and the spectral columns against the
+!> per-g-point optical depths of jax-rrtmgp that the 1-D reference fluxes of
+!> tests/data/broadband/sw_gpoint_reference.txt were computed with
+!> (bench/broadband/make_gpoint_reference.py).
+!>
+!> Tolerance of the column comparison: as in test_gas_optics (same gas optics, both codes in
+!> double precision, the file keeps 10 significant digits): 1e-8 relative plus 1e-12 of the
+!> largest value of the row.
+!>
+!> Arguments: the folder of the k-distribution files (CMake KUMO_RRTMGP_DIR, filled by
+!> scripts/fetch-rrtmgp.sh) and the reference file.
+module test_spectral_suite
+  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
+  use kumo_kinds, only: wp, i8
+  use kumo_constants, only: PI, STEFAN_BOLTZMANN, FOUR_PI
+  use kumo_error, only: str
+  use kumo_rng, only: rng_t, rng_init, rng_uniform
+  use kumo_gas_optics, only: gas_kdist_t, gas_index
+  use kumo_rrtmgp_file, only: read_rrtmgp_kdist
+  use kumo_spectral, only: spectral_column_t, spectral_sw_column, spectral_lw_column, &
+                           spectral_column_bytes, spectral_plan_t, spectral_plan_init, &
+                           spectral_batch_t, spectral_begin_batch, spectral_batch_from_u, &
+                           spectral_photon_gpoint
+  use kumo_testing, only: error_t, unittest_t, new_unittest, check, check_close, check_sigma, &
+                          check_error_words
+  implicit none
+  private
+  public :: collect_spectral, rrtmgp_dir, reference_file
+
+  real(wp), parameter :: REL_TOL = 1.0e-8_wp
+  real(wp), parameter :: ROW_FLOOR = 1.0e-12_wp
+  character(len=:), allocatable :: rrtmgp_dir, reference_file
+
+  !> One column of the reference file.
+  type :: ref_column_t
+    character(len=32) :: name = ''
+    character(len=64) :: kdist = ''
+    integer :: nl = 0, ng = 0
+    real(wp) :: mu0 = 0, albedo = 0, tsi = 0
+    real(wp), allocatable :: plev(:), tlev(:), play(:), tlay(:), cd(:), vmr(:, :)
+    real(wp), allocatable :: solar(:), tau(:, :), tray(:, :)
+  end type ref_column_t
+
+contains
+
+  function collect_spectral() result(tests)
+    type(unittest_t), allocatable :: tests(:)
+    tests = [new_unittest('floor_rule', test_floor_rule), &
+             new_unittest('counts_sum_and_bounds', test_counts), &
+             new_unittest('exact_expectation_over_u', test_expectation), &
+             new_unittest('batch_total_exact', test_total_exact), &
+             new_unittest('estimator_within_4_sigma', test_estimator), &
+             new_unittest('plan_bad_inputs', test_plan_errors), &
+             new_unittest('sw_column_vs_reference', test_sw_reference), &
+             new_unittest('lw_column', test_lw_column)]
+  end function collect_spectral
+
+  !> Energies spanning eleven decades, with two g-points without energy.
+  pure function test_energies() result(e)
+    real(wp) :: e(24)
+    integer :: g
+    do g = 1, size(e)
+      e(g) = 10.0_wp**(2 - mod(7 * g, 12)) * (1 + 0.1_wp * g)
+    end do
+    e(5) = 0
+    e(24) = 0
+  end function test_energies
+
+  subroutine test_floor_rule(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(spectral_plan_t) :: plan
+    type(error_t), allocatable :: err
+    real(wp) :: e(24), a
+    integer :: k
+    e = test_energies()
+    do k = 0, 2
+      a = 0.25_wp * k
+      call spectral_plan_init(e, plan, err, floor_share=a)
+      call check(error, .not. allocated(err), 'plan_init failed')
+      if (allocated(error)) return
+      call check_close(error, sum(plan%prob), 1.0_wp, rel_tol=1.0e-14_wp, label='sum of p_g')
+      call check(error, plan%n_active == 22, 'n_active = ' // str(plan%n_active))
+      call check(error, all(pack(plan%prob, e > 0) >= a / 22 * (1 - 1.0e-14_wp)), &
+                 'a g-point with energy has p_g < a / N+ for a = ' // str(a))
+      call check(error, all(pack(plan%prob, e <= 0) == 0), 'a g-point without energy has p_g > 0')
+      call check_close(error, plan%prob(3), (1 - a) * e(3) / sum(e) + a / 22, rel_tol=1.0e-13_wp, &
+                       label='p_3')
+      call check(error, plan%cum(0) == 0 .and. plan%cum(24) == 1 .and. plan%cum(23) == 1, &
+                 'cumulative table does not run from 0 to exactly 1')
+      call check(error, all(plan%cum(1:) >= plan%cum(:23)), 'cumulative table decreases')
+    end do
+  end subroutine test_floor_rule
+
+  !> Counts add up to n, lie within 1 of n p_g, g-points without energy get none; the photons
+  !> of a g-point are consecutive (spectral_photon_gpoint agrees with first/count).
+  subroutine test_counts(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(spectral_plan_t) :: plan
+    type(spectral_batch_t) :: batch
+    type(error_t), allocatable :: err
+    integer(i8), parameter :: NS(6) = [1_i8, 2_i8, 7_i8, 100_i8, 12345_i8, 10000000019_i8]
+    real(wp) :: e(24), u, dev
+    integer :: k, iu, ia, g
+    integer(i8) :: ip
+    e = test_energies()
+    do ia = 0, 1
+      call spectral_plan_init(e, plan, err, floor_share=0.1_wp * ia)
+      do k = 1, size(NS)
+        do iu = 0, 40
+          u = min(iu / 40.0_wp, 1 - epsilon(1.0_wp))
+          call spectral_batch_from_u(plan, NS(k), u, batch)
+          call check(error, sum(batch%count) == NS(k), 'counts add up to ' // str(sum(batch%count)) // &
+                     ', not n = ' // str(NS(k)))
+          call check(error, all(batch%count >= 0), 'negative count')
+          dev = maxval(abs(real(batch%count, wp) - real(NS(k), wp) * plan%prob))
+          call check(error, dev < 1 + 1.0e-6_wp, 'a count is ' // str(dev) // ' from n p_g, n = ' // &
+                     str(NS(k)) // ', u = ' // str(u))
+          call check(error, all(pack(batch%count, e <= 0) == 0), 'a g-point without energy got photons')
+          if (allocated(error)) return
+          if (NS(k) <= 12345) then
+            do ip = 1, NS(k)
+              g = spectral_photon_gpoint(batch, ip)
+              call check(error, ip >= batch%first(g) .and. ip < batch%first(g) + batch%count(g), &
+                         'photon ' // str(ip) // ' maps to g-point ' // str(g) // ' outside its range')
+            end do
+            if (allocated(error)) return
+          end if
+        end do
+      end do
+    end do
+  end subroutine test_counts
+
+  !> E_u[n_g w_g] = S_g for every g-point and E_u[sum of the weights] = S, integrated exactly
+  !> over the offset u (the counts are constant between the points u = frac(n C_g)).
+  subroutine test_expectation(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(spectral_plan_t) :: plan
+    type(spectral_batch_t) :: batch
+    type(error_t), allocatable :: err
+    integer(i8), parameter :: NS(4) = [1_i8, 5_i8, 37_i8, 1000_i8]
+    real(wp) :: e(24), brk(26), expect(24), pcount(24), x, tmp
+    integer :: k, ia, g, i, j, nb
+    e = test_energies()
+    do ia = 0, 1
+      call spectral_plan_init(e, plan, err, floor_share=0.2_wp * ia)
+      do k = 1, size(NS)
+        brk(1) = 0
+        brk(2) = 1
+        do g = 1, 24
+          x = real(NS(k), wp) * plan%cum(g)
+          brk(2 + g) = x - floor(x)
+        end do
+        nb = 26
+        do i = 2, nb                                 ! insertion sort
+          tmp = brk(i)
+          j = i - 1
+          do while (j >= 1)
+            if (brk(j) <= tmp) exit
+            brk(j + 1) = brk(j)
+            j = j - 1
+          end do
+          brk(j + 1) = tmp
+        end do
+        expect = 0
+        pcount = 0
+        do i = 1, nb - 1
+          if (brk(i + 1) <= brk(i)) cycle
+          call spectral_batch_from_u(plan, NS(k), 0.5_wp * (brk(i) + brk(i + 1)), batch)
+          expect = expect + (brk(i + 1) - brk(i)) * batch%count * batch%weight
+          pcount = pcount + (brk(i + 1) - brk(i)) * batch%count
+        end do
+        do g = 1, 24
+          call check_close(error, expect(g), e(g), rel_tol=1.0e-12_wp, abs_tol=1.0e-14_wp * sum(e), &
+                           label='E[n_g w_g] of g-point ' // str(g) // ', n = ' // str(NS(k)))
+          call check_close(error, pcount(g), NS(k) * plan%prob(g), rel_tol=1.0e-12_wp, &
+                           abs_tol=1.0e-12_wp, label='E[n_g] of g-point ' // str(g))
+        end do
+        call check_close(error, sum(expect), sum(e), rel_tol=1.0e-12_wp, label='E[sum of weights]')
+        if (allocated(error)) return
+      end do
+    end do
+  end subroutine test_expectation
+
+  !> When every g-point with energy has n p_g >= 1 (floor share a and n >= N+ / a, or a = 0 and
+  !> n large), every one gets a photon in every batch and the weights add up to S exactly.
+  subroutine test_total_exact(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(spectral_plan_t) :: plan
+    type(spectral_batch_t) :: batch
+    type(error_t), allocatable :: err
+    real(wp) :: e(24)
+    integer :: iu, g
+    e = test_energies()
+    call spectral_plan_init(e, plan, err, floor_share=0.2_wp)
+    do iu = 0, 20
+      call spectral_batch_from_u(plan, 110_i8, iu / 21.0_wp, batch)   ! N+ / a = 110
+      call check(error, all(pack(batch%count, e > 0) >= 1), 'a g-point with energy got no photon')
+      call check_close(error, sum(batch%count * batch%weight), sum(e), rel_tol=1.0e-13_wp, &
+                       label='sum of weights, a = 0.2')
+    end do
+    e = [(1.0_wp + g, g = 1, 24)]
+    call spectral_plan_init(e, plan, err)
+    do iu = 0, 20
+      call spectral_batch_from_u(plan, 1000_i8, iu / 21.0_wp, batch)
+      call check_close(error, sum(batch%count * batch%weight), sum(e), rel_tol=1.0e-13_wp, &
+                       label='sum of weights, a = 0')
+    end do
+  end subroutine test_total_exact
+
+  !> The plan as it will be used: a photon of g-point g crosses a layer with probability
+  !> T_g = exp(-tau_g / mu0) and scores w_g if it does. The batch means estimate
+  !> sum_g S_g T_g, which must lie within 4 standard errors (from the spread of 400 batches).
+  subroutine test_estimator(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(spectral_plan_t) :: plan
+    type(spectral_batch_t) :: batch
+    type(rng_t) :: rng
+    type(error_t), allocatable :: err
+    integer, parameter :: NB = 400
+    integer(i8), parameter :: NS(3) = [2000_i8, 20_i8, 150_i8]
+    real(wp), parameter :: SHARE(3) = [0.0_wp, 0.0_wp, 0.3_wp]
+    real(wp) :: e(24), trans(24), est, s1, s2, mean, sig, exact
+    integer :: k, b, g
+    integer(i8) :: ip
+    e = test_energies()
+    trans = [(exp(-0.3_wp * g), g = 1, 24)]
+    exact = sum(e * trans)
+    do k = 1, 3
+      call spectral_plan_init(e, plan, err, floor_share=SHARE(k))
+      s1 = 0
+      s2 = 0
+      do b = 1, NB
+        call rng_init(rng, 20261127_i8, int(b + 1000 * k, i8))
+        call spectral_begin_batch(plan, NS(k), rng, batch, err)
+        est = 0
+        do g = 1, 24
+          do ip = 1, batch%count(g)
+            if (rng_uniform(rng) < trans(g)) est = est + batch%weight(g)
+          end do
+        end do
+        s1 = s1 + est
+        s2 = s2 + est**2
+      end do
+      mean = s1 / NB
+      sig = sqrt(max(s2 / NB - mean**2, 0.0_wp) / (NB - 1))
+      write (*, '(a, i0, a, f5.2, a, es12.5, a, es12.5, a, es9.2)') '  n = ', NS(k), ', a = ', &
+        SHARE(k), ': estimate ', mean, ', exact ', exact, ', sigma ', sig
+      call check(error, sig > 0, 'no spread between batches')
+      call check_sigma(error, mean, exact, sig, 4.0_wp, 'broadband transmission, n = ' // str(NS(k)))
+    end do
+  end subroutine test_estimator
+
+  subroutine test_plan_errors(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(spectral_plan_t) :: plan
+    type(spectral_batch_t) :: batch
+    type(rng_t) :: rng
+    type(error_t), allocatable :: err
+    real(wp) :: e(3)
+    e = [1.0_wp, -2.0_wp, 3.0_wp]
+    call spectral_plan_init(e, plan, err)
+    call check_error_words(error, err, [character(len=24) :: 'g-point 2', '-2', '>= 0'])
+    e = [1.0_wp, ieee_value(1.0_wp, ieee_quiet_nan), 3.0_wp]
+    call spectral_plan_init(e, plan, err)
+    call check_error_words(error, err, [character(len=24) :: 'g-point 2', 'finite'])
+    e = 0
+    call spectral_plan_init(e, plan, err)
+    call check_error_words(error, err, [character(len=24) :: 'add up to', 'positive'])
+    e = 1
+    call spectral_plan_init(e, plan, err, floor_share=1.0_wp)
+    call check_error_words(error, err, [character(len=24) :: 'floor_share', '[0, 1)'])
+    call spectral_plan_init(e, plan, err)
+    call rng_init(rng, 1_i8, 1_i8)
+    call spectral_begin_batch(plan, 0_i8, rng, batch, err)
+    call check_error_words(error, err, [character(len=24) :: 'n = 0', '>= 1'])
+  end subroutine test_plan_errors
+
+  ! ------------------------------------------------------------------------------------------
+
+
+  !> The columns of the reference file, their gases mapped onto the k-distribution `kd`.
+  subroutine read_reference(kd, cols, error)
+    type(gas_kdist_t), intent(in) :: kd
+    type(ref_column_t), allocatable, intent(out) :: cols(:)
+    type(error_t), allocatable, intent(out) :: error
+    integer, parameter :: LINE_LEN = 8192
+    character(len=LINE_LEN) :: line
+    character(len=32) :: key
+    character(len=32), allocatable :: names(:)
+    type(ref_column_t) :: c
+    real(wp), allocatable :: row(:)
+    integer :: u, ios, ngas, idx, i, nq, nqc
+    allocate (cols(0))
+    open (newunit=u, file=reference_file, status='old', action='read', iostat=ios)
+    call check(error, ios == 0, 'cannot open the reference file ' // reference_file)
+    if (allocated(error)) return
+    do
+      read (u, '(a)', iostat=ios) line
+      if (ios /= 0) exit
+      if (len_trim(line) == 0 .or. line(1:1) == '#') cycle
+      read (line, *) key
+      select case (trim(key))
+      case ('case')
+        c = ref_column_t()
+        read (line, *) key, c%name, c%kdist, c%nl, ngas, c%ng
+        allocate (names(ngas), c%plev(0:c%nl), c%tlev(0:c%nl), c%play(c%nl), c%tlay(c%nl), &
+                  c%cd(c%nl), c%vmr(c%nl, kd%n_gas), c%solar(c%ng), c%tau(c%nl, c%ng), &
+                  c%tray(c%nl, c%ng), row(3 + ngas))
+        c%vmr = 0
+      case ('gases')
+        read (line, *) key, names
+      case ('setup')
+        read (line, *) key, c%mu0, c%albedo, c%tsi, nq, nqc
+      case ('level')
+        read (line, *) key, idx, c%plev(idx), c%tlev(idx)
+      case ('layer')
+        read (line, *) key, idx, row
+        c%play(idx) = row(1)
+        c%tlay(idx) = row(2)
+        c%cd(idx) = row(3)
+        do i = 1, size(names)
+          call check(error, gas_index(kd, names(i)) > 0, 'unknown gas ' // trim(names(i)))
+          if (allocated(error)) return
+          c%vmr(idx, gas_index(kd, names(i))) = row(3 + i)
+        end do
+      case ('solar_flux')
+        read (line, *) key, idx, c%solar
+      case ('tau')
+        read (line, *) key, idx, c%tau(idx, :)
+      case ('tau_rayleigh')
+        read (line, *) key, idx, c%tray(idx, :)
+      case ('end')
+        cols = [cols, c]
+        deallocate (names, row)
+      end select
+    end do
+    close (u)
+    call check(error, size(cols) > 0, 'no columns in ' // reference_file)
+  end subroutine read_reference
+
+  !> Largest difference relative to REL_TOL |ref| + ROW_FLOOR max|row| over a (n_layer, n_gpt)
+  !> table, rows being the layers (<= 1: passes).
+  pure real(wp) function worst_ratio(got, ref) result(w)
+    real(wp), intent(in) :: got(:, :), ref(:, :)
+    integer :: l
+    w = 0
+    do l = 1, size(ref, 1)
+      w = max(w, maxval(abs(got(l, :) - ref(l, :)) / &
+                        (REL_TOL * abs(ref(l, :)) + ROW_FLOOR * maxval(abs(ref(l, :))) + tiny(1.0_wp))))
+    end do
+  end function worst_ratio
+
+  subroutine load(name, kd, error)
+    character(len=*), intent(in) :: name
+    type(gas_kdist_t), intent(out) :: kd
+    type(error_t), allocatable, intent(out) :: error
+    type(error_t), allocatable :: err
+    call read_rrtmgp_kdist(rrtmgp_dir // '/' // name, kd, err)
+    if (allocated(err)) call check(error, .false., err%message // &
+                                   ' (run scripts/fetch-rrtmgp.sh to fetch the files)')
+  end subroutine load
+
+  !> The shortwave column reproduces the optical depths, single-scattering albedos and solar
+  !> fluxes of the reference; the broadband TOA flux on a horizontal surface is TSI mu0.
+  subroutine test_sw_reference(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(gas_kdist_t) :: kd
+    type(ref_column_t), allocatable :: cols(:)
+    type(spectral_column_t) :: col, col2
+    type(error_t), allocatable :: err
+    real(wp), allocatable :: ssa_ref(:, :)
+    real(wp) :: w
+    integer :: i
+    call load('rrtmgp-gas-sw-g112.nc', kd, error)
+    if (allocated(error)) return
+    call read_reference(kd, cols, error)
+    if (allocated(error)) return
+    do i = 1, size(cols)
+      associate (c => cols(i))
+        call spectral_sw_column(kd, c%plev, c%play, c%tlay, c%vmr, c%mu0, col, err, col_dry=c%cd, &
+                                tsi=c%tsi)
+        call check(error, .not. allocated(err), 'spectral_sw_column failed')
+        if (allocated(error)) return
+        w = worst_ratio(col%tau_abs, c%tau)
+        write (*, '(a, es9.2)') '  ' // trim(c%name) // ': absorption optical depth, worst / tolerance ', w
+        call check(error, w <= 1, trim(c%name) // ': absorption optical depth off by ' // str(w) // &
+                   ' times the tolerance')
+        w = worst_ratio(col%tau_rayleigh, c%tray)
+        call check(error, w <= 1, trim(c%name) // ': Rayleigh optical depth off by ' // str(w) // &
+                   ' times the tolerance')
+        ssa_ref = c%tray / (c%tau + c%tray)
+        call check(error, maxval(abs(col%ssa - ssa_ref)) < 1.0e-8_wp, trim(c%name) // &
+                   ': single-scattering albedo off by ' // str(maxval(abs(col%ssa - ssa_ref))))
+        call check(error, worst_ratio(reshape(col%solar_flux, [1, c%ng]), reshape(c%solar, [1, c%ng])) &
+                   <= 1, trim(c%name) // ': solar flux per g-point differs')
+        call check_close(error, sum(col%energy), c%tsi * c%mu0, rel_tol=1.0e-13_wp, &
+                         label=trim(c%name) // ': broadband TOA flux vs TSI mu0')
+        call check_close(error, col%tsi, c%tsi, rel_tol=1.0e-13_wp, label='tsi')
+        call check(error, size(col%tau_abs, 1) == c%nl .and. size(col%tau_abs, 2) == 112, &
+                   'tau_abs is not (n_layer, n_gpt)')
+        ! The dry-air column from the level pressures (no col_dry given) is the reference's.
+        call spectral_sw_column(kd, c%plev, c%play, c%tlay, c%vmr, c%mu0, col2, err)
+        call check(error, .not. allocated(err), 'spectral_sw_column without col_dry failed')
+        if (allocated(error)) return
+        call check(error, maxval(abs(col2%col_dry / c%cd - 1)) < 1.0e-12_wp, trim(c%name) // &
+                   ': dry-air column from the levels differs by ' // str(maxval(abs(col2%col_dry / c%cd - 1))))
+        if (i == 1) write (*, '(a, i0, a, i0, a, f0.1, a)') '  column of ', c%nl, ' layers, ', c%ng, &
+          ' g-points: ', spectral_column_bytes(col) / 1.0e3_wp, ' kB'
+      end associate
+    end do
+    ! Bad inputs name the input and the bound.
+    associate (c => cols(1))
+      call spectral_sw_column(kd, c%plev, c%play, c%tlay, c%vmr, 0.0_wp, col, err)
+      call check_error_words(error, err, [character(len=24) :: 'mu0 = 0', '(0, 1]'])
+      call spectral_sw_column(kd, c%plev(1:), c%play, c%tlay, c%vmr, 0.5_wp, col, err)
+      call check_error_words(error, err, [character(len=24) :: 'plev has', 'levels'])
+      call spectral_lw_column(kd, c%plev, c%tlev, c%play, c%tlay, 290.0_wp, c%vmr, col, err)
+      call check_error_words(error, err, [character(len=24) :: 'shortwave one'])
+    end associate
+  end subroutine test_sw_reference
+
+  !> Longwave column of the first reference profile: shapes, the surface emission summed over
+  !> g-points against eps sigma T^4, the emitted power of the layers, input checks.
+  subroutine test_lw_column(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(gas_kdist_t) :: kd, kd_sw
+    type(ref_column_t), allocatable :: cols(:)
+    type(spectral_column_t) :: col
+    type(spectral_plan_t) :: plan
+    type(error_t), allocatable :: err
+    real(wp), parameter :: TSFC = 294.2_wp, EPS = 0.96_wp
+    real(wp) :: layer_power, opaque
+    integer :: g, l
+    call load('rrtmgp-gas-sw-g112.nc', kd_sw, error)
+    if (allocated(error)) return
+    call read_reference(kd_sw, cols, error)
+    if (allocated(error)) return
+    call load('rrtmgp-gas-lw-g128.nc', kd, error)
+    if (allocated(error)) return
+    associate (c => cols(1))
+      call spectral_lw_column(kd, c%plev, c%tlev, c%play, c%tlay, TSFC, c%vmr, col, err, &
+                              emissivity=EPS)
+      call check(error, .not. allocated(err), 'spectral_lw_column failed')
+      if (allocated(error)) return
+      call check(error, all(shape(col%lev_src_top) == [c%nl, 128]), 'source arrays not (n_layer, n_gpt)')
+      ! The fractions and the tables' band integrals close to sigma T^4 within 1 %.
+      call check_close(error, sum(col%emission_sfc), EPS * STEFAN_BOLTZMANN * TSFC**4, rel_tol=1.0e-2_wp, &
+                       label='surface emission summed over g-points')
+      ! Emitted power of the layers: 4 pi tau (B_bot + B_top) / 2, checked for one g-point by a
+      ! loop written out here, and positive for every g-point.
+      g = 37
+      layer_power = 0
+      do l = 1, c%nl
+        layer_power = layer_power + 2 * PI * col%tau_abs(l, g) * (col%lev_src_bot(l, g) + col%lev_src_top(l, g))
+      end do
+      call check_close(error, col%emission_atm(g), layer_power, rel_tol=1.0e-13_wp, label='layer emission')
+      call check(error, all(col%energy > 0), 'a g-point emits nothing')
+      call check_close(error, sum(col%energy), sum(col%emission_sfc) + sum(col%emission_atm), &
+                       rel_tol=1.0e-14_wp, label='energy')
+      call spectral_plan_init(col%energy, plan, err)
+      call check(error, .not. allocated(err), 'plan of the longwave column failed')
+      ! How much of the emitted power comes from g-points whose column is opaque (tau > 10).
+      opaque = sum(col%energy, mask=sum(col%tau_abs, dim=1) > 10) / sum(col%energy)
+      write (*, '(a, es11.4, a, es11.4, a, f6.3)') '  longwave: surface emission ', sum(col%emission_sfc), &
+        ' W m-2, column emission ', sum(col%emission_atm), ' W m-2; share of g-points with column tau > 10: ', &
+        opaque
+      call spectral_lw_column(kd, c%plev, c%tlev, c%play, c%tlay, TSFC, c%vmr, col, err, emissivity=1.5_wp)
+      call check_error_words(error, err, [character(len=24) :: 'emissivity = 1.5', '[0, 1]'])
+    end associate
+  end subroutine test_lw_column
+
+end module test_spectral_suite
+
+program test_spectral
+  use test_spectral_suite, only: collect_spectral, rrtmgp_dir, reference_file
+  use kumo_testing, only: run_unittests
+  implicit none
+  integer :: n_failed
+  character(len=4096) :: arg
+  if (command_argument_count() < 2) then
+    write (*, '(a)') 'usage: test_spectral <rrtmgp folder> <reference file>'
+    error stop 1
+  end if
+  call get_command_argument(1, arg)
+  rrtmgp_dir = trim(arg)
+  call get_command_argument(2, arg)
+  reference_file = trim(arg)
+  call run_unittests('spectral', collect_spectral(), n_failed)
+  if (n_failed > 0) error stop 1
+end program test_spectral

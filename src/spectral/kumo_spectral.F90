@@ -16,7 +16,15 @@
 !>          S_g = pi eps B_sfc,g + sum_l 4 pi tau_l,g (B_bot,l,g + B_top,l,g) / 2,
 !>      the emission of a layer whose Planck radiance is linear in optical depth between its
 !>      level values (kumo's thermal convention, `kumo_thermal_column`) and of a Lambert surface
-!>      of emissivity eps.
+!>      of emissivity eps. Also the power that leaves each layer through its faces (the rest is
+!>      absorbed again inside the emitting layer),
+!>          E_g = pi eps B_sfc,g + sum_l 4 pi (B_bot,l,g + B_top,l,g) / 2 (1/2 - E_3(tau_l,g)),
+!>      exact for the linear source (the slope terms of the two faces cancel); E_3 is the
+!>      exponential integral, 1/2 - E_3(tau) -> tau for thin layers and 1/2 for opaque ones.
+!>      In the RFMIP column of the tests (lw-g128) the layers emit 2.6e6 W m-2, 99.9 % of it in
+!>      g-points whose column optical depth exceeds 10, and almost all of it is absorbed again
+!>      in the emitting layer; 9.6e3 W m-2 leave the layers, the surface emits 408 W m-2
+!>      (docs/broadband.md discusses what this means for longwave sampling).
 !>    Arrays are (n_layer, n_gpt): the column of one g-point is contiguous, as a photon of that
 !>    g-point reads it. A column of 100 layers takes 100 x 112 x 8 bytes = 90 kB per quantity
 !>    in the shortwave (g112), 102 kB in the longwave (g128).
@@ -28,6 +36,8 @@
 !>    (default 0: pure source-proportional sampling). The mixture with the uniform distribution
 !>    (a defensive mixture, Hesterberg 1995, Technometrics 37, 185) gives every g-point with
 !>    energy at least the probability a / N+ and bounds every weight by S / (n (1 - a)).
+!>    Optionally the probabilities follow an importance I_g instead of S_g (same formula with I
+!>    in place of S; I_g > 0 wherever S_g > 0); the weights below still carry S_g.
 !>
 !> 3. A batch (`spectral_batch_t`, `spectral_begin_batch`): n photons are spread over the
 !>    g-points by systematic sampling of the cumulative table C_g = p_1 + ... + p_g with one
@@ -49,6 +59,7 @@ module kumo_spectral
   use kumo_constants, only: PI, FOUR_PI
   use kumo_error, only: error_t, set_error, str
   use kumo_rng, only: rng_t, rng_uniform
+  use kumo_expint, only: expint_d
   use kumo_gas_optics, only: gas_kdist_t, gas_optical_depth, gas_planck_source, &
                              gas_solar_source, gas_col_dry, gas_index
   implicit none
@@ -82,6 +93,8 @@ module kumo_spectral
     real(wp), allocatable :: sfc_src(:)             !! (n_gpt) W m-2 sr-1 at tsfc
     real(wp), allocatable :: emission_sfc(:)        !! (n_gpt) pi eps sfc_src, W m-2
     real(wp), allocatable :: emission_atm(:)        !! (n_gpt) emitted by the layers, W m-2
+    real(wp), allocatable :: escape_atm(:)          !! (n_gpt) leaving the emitting layers, W m-2
+    real(wp), allocatable :: energy_escape(:)       !! (n_gpt) emission_sfc + escape_atm, W m-2
     ! Both
     real(wp), allocatable :: energy(:)              !! (n_gpt) source energy S_g, W m-2
   end type spectral_column_t
@@ -93,6 +106,7 @@ module kumo_spectral
     real(wp) :: floor_share = 0.0_wp                !! a
     real(wp) :: total = 0.0_wp                      !! S, W m-2
     real(wp), allocatable :: energy(:)              !! (n_gpt) S_g, W m-2
+    real(wp), allocatable :: importance(:)          !! (n_gpt) I_g (= S_g by default)
     real(wp), allocatable :: prob(:)                !! (n_gpt) p_g
     real(wp), allocatable :: cum(:)                 !! (0:n_gpt) C_g, C_0 = 0, C_n_gpt = 1
   end type spectral_plan_t
@@ -200,12 +214,15 @@ contains
                            col%lev_src_top, col%sfc_src, error)
     if (allocated(error)) return
     col%emission_sfc = PI * col%emissivity * col%sfc_src
-    allocate (col%emission_atm(kd%n_gpt))
+    allocate (col%emission_atm(kd%n_gpt), col%escape_atm(kd%n_gpt))
     do g = 1, kd%n_gpt
       col%emission_atm(g) = FOUR_PI * sum(col%tau_abs(:, g) * 0.5_wp * &
                                           (col%lev_src_bot(:, g) + col%lev_src_top(:, g)))
+      col%escape_atm(g) = FOUR_PI * sum(expint_d(3, col%tau_abs(:, g)) * 0.5_wp * &
+                                        (col%lev_src_bot(:, g) + col%lev_src_top(:, g)))
     end do
     col%energy = col%emission_sfc + col%emission_atm
+    col%energy_escape = col%emission_sfc + col%escape_atm
   end subroutine spectral_lw_column
 
   !> Bytes held by the arrays of a column.
@@ -224,6 +241,8 @@ contains
     if (allocated(col%sfc_src)) nbytes = nbytes + 8_i8 * size(col%sfc_src, kind=i8)
     if (allocated(col%emission_sfc)) nbytes = nbytes + 8_i8 * size(col%emission_sfc, kind=i8)
     if (allocated(col%emission_atm)) nbytes = nbytes + 8_i8 * size(col%emission_atm, kind=i8)
+    if (allocated(col%escape_atm)) nbytes = nbytes + 8_i8 * size(col%escape_atm, kind=i8)
+    if (allocated(col%energy_escape)) nbytes = nbytes + 8_i8 * size(col%energy_escape, kind=i8)
     if (allocated(col%energy)) nbytes = nbytes + 8_i8 * size(col%energy, kind=i8)
   end function spectral_column_bytes
 
@@ -305,13 +324,15 @@ contains
     end where
   end function spectral_probabilities
 
-  !> Plan of a run from the source energy of each g-point (W m-2; e.g. `col%energy`) and the
-  !> floor share a (default 0).
-  subroutine spectral_plan_init(energy, plan, error, floor_share)
+  !> Plan of a run from the source energy of each g-point (W m-2; e.g. `col%energy`), the
+  !> floor share a (default 0) and optionally an importance I_g that the probabilities follow
+  !> instead of the energies (e.g. `col%energy_escape` in the longwave).
+  subroutine spectral_plan_init(energy, plan, error, floor_share, importance)
     real(wp), intent(in) :: energy(:)
     type(spectral_plan_t), intent(out) :: plan
     type(error_t), allocatable, intent(out) :: error
     real(wp), intent(in), optional :: floor_share
+    real(wp), intent(in), optional :: importance(:)
     integer :: g, ng
 
     ng = size(energy)
@@ -339,11 +360,34 @@ contains
       end if
       plan%floor_share = floor_share
     end if
+    plan%importance = energy
+    if (present(importance)) then
+      if (size(importance) /= ng) then
+        call set_error(error, 'spectral_plan_init: importance has ' // str(size(importance)) // &
+                       ' values for ' // str(ng) // ' g-points')
+        return
+      end if
+      do g = 1, ng
+        if (.not. ieee_is_finite(importance(g)) .or. importance(g) < 0 .or. &
+            (energy(g) > 0 .and. .not. importance(g) > 0)) then
+          call set_error(error, 'spectral_plan_init: importance of g-point ' // str(g) // ' = ' // &
+                         str(importance(g)) // ' must be finite, >= 0, and > 0 where the ' // &
+                         'energy is > 0 (energy ' // str(energy(g)) // ' W m-2)')
+          return
+        end if
+      end do
+      if (.not. ieee_is_finite(sum(importance))) then
+        call set_error(error, 'spectral_plan_init: the importances add up to ' // &
+                       str(sum(importance)) // '; need a finite total')
+        return
+      end if
+      plan%importance = importance
+    end if
     plan%n_gpt = ng
     plan%energy = energy
     plan%total = sum(energy)
-    plan%n_active = count(energy > 0)
-    plan%prob = spectral_probabilities(energy, plan%floor_share)
+    plan%n_active = count(plan%importance > 0)
+    plan%prob = spectral_probabilities(plan%importance, plan%floor_share)
     allocate (plan%cum(0:ng))
     plan%cum(0) = 0
     do g = 1, ng

@@ -18,6 +18,7 @@ module test_spectral_suite
   use kumo_constants, only: PI, STEFAN_BOLTZMANN, FOUR_PI
   use kumo_error, only: str
   use kumo_rng, only: rng_t, rng_init, rng_uniform
+  use kumo_expint, only: expint_e
   use kumo_gas_optics, only: gas_kdist_t, gas_index
   use kumo_rrtmgp_file, only: read_rrtmgp_kdist
   use kumo_spectral, only: spectral_column_t, spectral_sw_column, spectral_lw_column, &
@@ -141,11 +142,23 @@ contains
     type(spectral_batch_t) :: batch
     type(error_t), allocatable :: err
     integer(i8), parameter :: NS(4) = [1_i8, 5_i8, 37_i8, 1000_i8]
-    real(wp) :: e(24), brk(26), expect(24), pcount(24), x, tmp
+    real(wp) :: e(24), brk(26), expect(24), pcount(24), x, tmp, imp(24)
     integer :: k, ia, g, i, j, nb
     e = test_energies()
-    do ia = 0, 1
-      call spectral_plan_init(e, plan, err, floor_share=0.2_wp * ia)
+    do ia = 0, 2
+      if (ia < 2) then
+        call spectral_plan_init(e, plan, err, floor_share=0.2_wp * ia)
+      else
+        ! Probabilities that follow an importance other than the energy (sqrt(S_g), and a
+        ! g-point without energy but with importance).
+        imp = sqrt(e)
+        imp(24) = 1
+        call spectral_plan_init(e, plan, err, floor_share=0.1_wp, importance=imp)
+        call check(error, .not. allocated(err) .and. plan%n_active == 23, 'plan with importance')
+        call check_close(error, plan%prob(3), 0.9_wp * imp(3) / sum(imp) + 0.1_wp / 23, &
+                         rel_tol=1.0e-13_wp, label='p_3 from the importance')
+        if (allocated(error)) return
+      end if
       do k = 1, size(NS)
         brk(1) = 0
         brk(2) = 1
@@ -276,6 +289,10 @@ contains
     call rng_init(rng, 1_i8, 1_i8)
     call spectral_begin_batch(plan, 0_i8, rng, batch, err)
     call check_error_words(error, err, [character(len=24) :: 'n = 0', '>= 1'])
+    call spectral_plan_init(e, plan, err, importance=[1.0_wp, 0.0_wp, 1.0_wp])
+    call check_error_words(error, err, [character(len=24) :: 'importance of g-point 2', '> 0 where'])
+    call spectral_plan_init(e, plan, err, importance=[1.0_wp, 1.0_wp])
+    call check_error_words(error, err, [character(len=24) :: 'importance has 2', '3 g-points'])
   end subroutine test_plan_errors
 
   ! ------------------------------------------------------------------------------------------
@@ -432,8 +449,8 @@ contains
     type(spectral_plan_t) :: plan
     type(error_t), allocatable :: err
     real(wp), parameter :: TSFC = 294.2_wp, EPS = 0.96_wp
-    real(wp) :: layer_power, opaque
-    integer :: g, l
+    real(wp) :: layer_power, opaque, tmax
+    integer :: g, l, gt, go
     call load('rrtmgp-gas-sw-g112.nc', kd_sw, error)
     if (allocated(error)) return
     call read_reference(kd_sw, cols, error)
@@ -462,11 +479,37 @@ contains
                        rel_tol=1.0e-14_wp, label='energy')
       call spectral_plan_init(col%energy, plan, err)
       call check(error, .not. allocated(err), 'plan of the longwave column failed')
+      ! Power leaving the emitting layers: 4 pi Bmean (1/2 - E3(tau)), here with E3 itself;
+      ! thin layers let all of it out, opaque ones pi (B_bot + B_top).
+      layer_power = 0
+      do l = 1, c%nl
+        layer_power = layer_power + 2 * PI * (0.5_wp - expint_e(3, col%tau_abs(l, g))) * &
+                      (col%lev_src_bot(l, g) + col%lev_src_top(l, g))
+      end do
+      call check_close(error, col%escape_atm(g), layer_power, rel_tol=1.0e-10_wp, label='escaping power')
+      call check(error, all(col%escape_atm <= col%emission_atm * (1 + 1.0e-12_wp)), &
+                 'more power escapes than is emitted')
+      gt = minloc(maxval(col%tau_abs, dim=1), dim=1)
+      ! 1/2 - E3(tau) = tau (1 + (tau/2) (ln tau + 0.5772 - 3/2) + O(tau^2))
+      tmax = maxval(col%tau_abs(:, gt))
+      call check(error, tmax < 0.05_wp, 'no g-point transparent in every layer')
+      call check_close(error, col%escape_atm(gt), col%emission_atm(gt), rel_tol=tmax * (1 + abs(log(tmax))), &
+                       label='escaping power of the most transparent g-point')
+      go = maxloc(minval(col%tau_abs, dim=1), dim=1)
+      call check(error, minval(col%tau_abs(:, go)) > 40, 'no g-point opaque in every layer')
+      call check_close(error, col%escape_atm(go), PI * sum(col%lev_src_bot(:, go) + col%lev_src_top(:, go)), &
+                       rel_tol=1.0e-15_wp, label='escaping power of an opaque g-point')
+      call check_close(error, sum(col%energy_escape), sum(col%emission_sfc) + sum(col%escape_atm), &
+                       rel_tol=1.0e-14_wp, label='energy_escape')
+      call spectral_plan_init(col%energy, plan, err, importance=col%energy_escape)
+      call check(error, .not. allocated(err), 'plan with the escaping power as importance failed')
       ! How much of the emitted power comes from g-points whose column is opaque (tau > 10).
       opaque = sum(col%energy, mask=sum(col%tau_abs, dim=1) > 10) / sum(col%energy)
-      write (*, '(a, es11.4, a, es11.4, a, f6.3)') '  longwave: surface emission ', sum(col%emission_sfc), &
-        ' W m-2, column emission ', sum(col%emission_atm), ' W m-2; share of g-points with column tau > 10: ', &
-        opaque
+      write (*, '(a, es11.4, a, es11.4, a, es11.4, a, f6.3, a, f6.3)') '  longwave: surface emission ', &
+        sum(col%emission_sfc), ' W m-2, column emission ', sum(col%emission_atm), ', leaving the layers ', &
+        sum(col%escape_atm), ' W m-2; share of g-points with column tau > 10 in the emission: ', &
+        opaque, ', in the escaping power: ', &
+        sum(col%energy_escape, mask=sum(col%tau_abs, dim=1) > 10) / sum(col%energy_escape)
       call spectral_lw_column(kd, c%plev, c%tlev, c%play, c%tlay, TSFC, c%vmr, col, err, emissivity=1.5_wp)
       call check_error_words(error, err, [character(len=24) :: 'emissivity = 1.5', '[0, 1]'])
     end associate

@@ -2,8 +2,8 @@
 !> Unit tests of kumo_spectral: the g-point sampling plan (systematic allocation, weights, floor
 !> share; exact expectations over the batch offset; an estimator of a broadband transmission
 !> within 4 standard errors of the exact sum over g-points) and the spectral columns against the
-!> per-g-point optical depths of jax-rrtmgp that the 1-D reference fluxes of
-!> tests/data/broadband/sw_gpoint_reference.txt were computed with
+!> per-g-point optical depths and sources of jax-rrtmgp that the 1-D reference fluxes of
+!> tests/data/broadband/{sw,lw}_gpoint_reference.txt were computed with
 !> (bench/broadband/make_gpoint_reference.py).
 !>
 !> Tolerance of the column comparison: as in test_gas_optics (same gas optics, both codes in
@@ -11,7 +11,7 @@
 !> largest value of the row.
 !>
 !> Arguments: the folder of the k-distribution files (CMake KUMO_RRTMGP_DIR, filled by
-!> scripts/fetch-rrtmgp.sh) and the reference file.
+!> scripts/fetch-rrtmgp.sh) and the folder of the reference files.
 module test_spectral_suite
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use kumo_kinds, only: wp, i8
@@ -29,20 +29,20 @@ module test_spectral_suite
                           check_error_words
   implicit none
   private
-  public :: collect_spectral, rrtmgp_dir, reference_file
+  public :: collect_spectral, rrtmgp_dir, reference_dir
 
   real(wp), parameter :: REL_TOL = 1.0e-8_wp
   real(wp), parameter :: ROW_FLOOR = 1.0e-12_wp
-  character(len=:), allocatable :: rrtmgp_dir, reference_file
+  character(len=:), allocatable :: rrtmgp_dir, reference_dir
 
   !> One column of the reference file.
   type :: ref_column_t
     character(len=32) :: name = ''
     character(len=64) :: kdist = ''
     integer :: nl = 0, ng = 0
-    real(wp) :: mu0 = 0, albedo = 0, tsi = 0
+    real(wp) :: mu0 = 0, albedo = 0, tsi = 0, tsfc = 0, emissivity = 0
     real(wp), allocatable :: plev(:), tlev(:), play(:), tlay(:), cd(:), vmr(:, :)
-    real(wp), allocatable :: solar(:), tau(:, :), tray(:, :)
+    real(wp), allocatable :: solar(:), tau(:, :), tray(:, :), sfc(:), bot(:, :), top(:, :)
   end type ref_column_t
 
 contains
@@ -56,7 +56,8 @@ contains
              new_unittest('estimator_within_4_sigma', test_estimator), &
              new_unittest('plan_bad_inputs', test_plan_errors), &
              new_unittest('sw_column_vs_reference', test_sw_reference), &
-             new_unittest('lw_column', test_lw_column)]
+             new_unittest('lw_column', test_lw_column), &
+             new_unittest('lw_column_vs_reference', test_lw_reference)]
   end function collect_spectral
 
   !> Energies spanning eleven decades, with two g-points without energy.
@@ -298,9 +299,10 @@ contains
   ! ------------------------------------------------------------------------------------------
 
 
-  !> The columns of the reference file, their gases mapped onto the k-distribution `kd`.
-  subroutine read_reference(kd, cols, error)
+  !> The columns of a reference file, their gases mapped onto the k-distribution `kd`.
+  subroutine read_reference(kd, reference_file, cols, error)
     type(gas_kdist_t), intent(in) :: kd
+    character(len=*), intent(in) :: reference_file
     type(ref_column_t), allocatable, intent(out) :: cols(:)
     type(error_t), allocatable, intent(out) :: error
     integer, parameter :: LINE_LEN = 8192
@@ -325,12 +327,17 @@ contains
         read (line, *) key, c%name, c%kdist, c%nl, ngas, c%ng
         allocate (names(ngas), c%plev(0:c%nl), c%tlev(0:c%nl), c%play(c%nl), c%tlay(c%nl), &
                   c%cd(c%nl), c%vmr(c%nl, kd%n_gas), c%solar(c%ng), c%tau(c%nl, c%ng), &
-                  c%tray(c%nl, c%ng), row(3 + ngas))
+                  c%tray(c%nl, c%ng), c%sfc(c%ng), c%bot(c%nl, c%ng), c%top(c%nl, c%ng), &
+                  row(3 + ngas))
         c%vmr = 0
       case ('gases')
         read (line, *) key, names
       case ('setup')
-        read (line, *) key, c%mu0, c%albedo, c%tsi, nq, nqc
+        if (kd%longwave) then
+          read (line, *) key, c%tsfc, c%emissivity, nq, nqc
+        else
+          read (line, *) key, c%mu0, c%albedo, c%tsi, nq, nqc
+        end if
       case ('level')
         read (line, *) key, idx, c%plev(idx), c%tlev(idx)
       case ('layer')
@@ -349,6 +356,12 @@ contains
         read (line, *) key, idx, c%tau(idx, :)
       case ('tau_rayleigh')
         read (line, *) key, idx, c%tray(idx, :)
+      case ('sfc_src')
+        read (line, *) key, idx, c%sfc
+      case ('lev_src_bot')
+        read (line, *) key, idx, c%bot(idx, :)
+      case ('lev_src_top')
+        read (line, *) key, idx, c%top(idx, :)
       case ('end')
         cols = [cols, c]
         deallocate (names, row)
@@ -390,10 +403,11 @@ contains
     type(error_t), allocatable :: err
     real(wp), allocatable :: ssa_ref(:, :)
     real(wp) :: w
-    integer :: i
+    integer :: i, rep
+    integer(i8) :: t0, t1, rate
     call load('rrtmgp-gas-sw-g112.nc', kd, error)
     if (allocated(error)) return
-    call read_reference(kd, cols, error)
+    call read_reference(kd, reference_dir // '/sw_gpoint_reference.txt', cols, error)
     if (allocated(error)) return
     do i = 1, size(cols)
       associate (c => cols(i))
@@ -424,8 +438,18 @@ contains
         if (allocated(error)) return
         call check(error, maxval(abs(col2%col_dry / c%cd - 1)) < 1.0e-12_wp, trim(c%name) // &
                    ': dry-air column from the levels differs by ' // str(maxval(abs(col2%col_dry / c%cd - 1))))
-        if (i == 1) write (*, '(a, i0, a, i0, a, f0.1, a)') '  column of ', c%nl, ' layers, ', c%ng, &
-          ' g-points: ', spectral_column_bytes(col) / 1.0e3_wp, ' kB'
+        if (i == 1) then
+          write (*, '(a, i0, a, i0, a, f0.1, a)') '  column of ', c%nl, ' layers, ', c%ng, &
+            ' g-points: ', spectral_column_bytes(col) / 1.0e3_wp, ' kB'
+          ! Cost of building a column (reported, not checked).
+          call system_clock(t0, rate)
+          do rep = 1, 50
+            call spectral_sw_column(kd, c%plev, c%play, c%tlay, c%vmr, c%mu0, col2, err, col_dry=c%cd)
+          end do
+          call system_clock(t1)
+          write (*, '(a, f0.3, a, f0.1, a)') '  spectral_sw_column: ', real(t1 - t0, wp) / rate / 50 * 1.0e3_wp, &
+            ' ms per column, ', real(t1 - t0, wp) / rate / 50 / (c%nl * c%ng) * 1.0e9_wp, ' ns per layer and g-point'
+        end if
       end associate
     end do
     ! Bad inputs name the input and the bound.
@@ -453,7 +477,7 @@ contains
     integer :: g, l, gt, go
     call load('rrtmgp-gas-sw-g112.nc', kd_sw, error)
     if (allocated(error)) return
-    call read_reference(kd_sw, cols, error)
+    call read_reference(kd_sw, reference_dir // '/sw_gpoint_reference.txt', cols, error)
     if (allocated(error)) return
     call load('rrtmgp-gas-lw-g128.nc', kd, error)
     if (allocated(error)) return
@@ -515,22 +539,57 @@ contains
     end associate
   end subroutine test_lw_column
 
+  !> The longwave column reproduces the optical depths and Planck sources of the longwave
+  !> reference (layers, bottom and top levels, surface) and its emission adds them up.
+  subroutine test_lw_reference(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(gas_kdist_t) :: kd
+    type(ref_column_t), allocatable :: cols(:)
+    type(spectral_column_t) :: col
+    type(error_t), allocatable :: err
+    real(wp) :: w
+    integer :: i
+    call load('rrtmgp-gas-lw-g128.nc', kd, error)
+    if (allocated(error)) return
+    call read_reference(kd, reference_dir // '/lw_gpoint_reference.txt', cols, error)
+    if (allocated(error)) return
+    do i = 1, size(cols)
+      associate (c => cols(i))
+        call spectral_lw_column(kd, c%plev, c%tlev, c%play, c%tlay, c%tsfc, c%vmr, col, err, &
+                                col_dry=c%cd, emissivity=c%emissivity)
+        call check(error, .not. allocated(err), 'spectral_lw_column failed')
+        if (allocated(error)) return
+        w = max(worst_ratio(col%tau_abs, c%tau), worst_ratio(col%lev_src_bot, c%bot), &
+                worst_ratio(col%lev_src_top, c%top), &
+                worst_ratio(reshape(col%sfc_src, [1, c%ng]), reshape(c%sfc, [1, c%ng])))
+        write (*, '(a, es9.2)') '  ' // trim(c%name) // ' (longwave): optical depths and sources, ' // &
+          'worst / tolerance ', w
+        call check(error, w <= 1, trim(c%name) // ': longwave optics off by ' // str(w) // &
+                   ' times the tolerance')
+        call check_close(error, sum(col%emission_sfc), PI * c%emissivity * sum(c%sfc), rel_tol=1.0e-8_wp, &
+                         label='surface emission')
+        call check_close(error, sum(col%emission_atm), 2 * PI * sum(c%tau * (c%bot + c%top)), &
+                         rel_tol=1.0e-8_wp, label='emission of the layers')
+      end associate
+    end do
+  end subroutine test_lw_reference
+
 end module test_spectral_suite
 
 program test_spectral
-  use test_spectral_suite, only: collect_spectral, rrtmgp_dir, reference_file
+  use test_spectral_suite, only: collect_spectral, rrtmgp_dir, reference_dir
   use kumo_testing, only: run_unittests
   implicit none
   integer :: n_failed
   character(len=4096) :: arg
   if (command_argument_count() < 2) then
-    write (*, '(a)') 'usage: test_spectral <rrtmgp folder> <reference file>'
+    write (*, '(a)') 'usage: test_spectral <rrtmgp folder> <reference folder>'
     error stop 1
   end if
   call get_command_argument(1, arg)
   rrtmgp_dir = trim(arg)
   call get_command_argument(2, arg)
-  reference_file = trim(arg)
+  reference_dir = trim(arg)
   call run_unittests('spectral', collect_spectral(), n_failed)
   if (n_failed > 0) error stop 1
 end program test_spectral

@@ -43,6 +43,7 @@ module test_spectral_suite
     real(wp) :: mu0 = 0, albedo = 0, tsi = 0, tsfc = 0, emissivity = 0
     real(wp), allocatable :: plev(:), tlev(:), play(:), tlay(:), cd(:), vmr(:, :)
     real(wp), allocatable :: solar(:), tau(:, :), tray(:, :), sfc(:), bot(:, :), top(:, :)
+    real(wp) :: direct_sfc = 0                      !! broadband direct flux at the surface
   end type ref_column_t
 
 contains
@@ -57,7 +58,8 @@ contains
              new_unittest('plan_bad_inputs', test_plan_errors), &
              new_unittest('sw_column_vs_reference', test_sw_reference), &
              new_unittest('lw_column', test_lw_column), &
-             new_unittest('lw_column_vs_reference', test_lw_reference)]
+             new_unittest('lw_column_vs_reference', test_lw_reference), &
+             new_unittest('sw_direct_sampled_vs_disort', test_sw_direct_sampled)]
   end function collect_spectral
 
   !> Energies spanning eleven decades, with two g-points without energy.
@@ -356,6 +358,10 @@ contains
         read (line, *) key, idx, c%tau(idx, :)
       case ('tau_rayleigh')
         read (line, *) key, idx, c%tray(idx, :)
+      case ('broadband')
+        read (line, *) key, idx
+        if (idx == 0 .and. .not. kd%longwave) read (line, *) key, idx, row(1:3)
+        if (idx == 0 .and. .not. kd%longwave) c%direct_sfc = row(3)
       case ('sfc_src')
         read (line, *) key, idx, c%sfc
       case ('lev_src_bot')
@@ -573,6 +579,63 @@ contains
       end associate
     end do
   end subroutine test_lw_reference
+
+  !> End to end without the photon loop: kumo's shortwave column and the sampling plan estimate
+  !> the broadband direct flux at the surface of the reference columns (photons of g-point g
+  !> reach the surface with probability exp(-tau_g / mu0)), within 4 standard errors of the
+  !> discrete-ordinates value; the sum over g-points of kumo's Beer's law matches it to 1e-8.
+  subroutine test_sw_direct_sampled(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(gas_kdist_t) :: kd
+    type(ref_column_t), allocatable :: cols(:)
+    type(spectral_column_t) :: col
+    type(spectral_plan_t) :: plan
+    type(spectral_batch_t) :: batch
+    type(rng_t) :: rng
+    type(error_t), allocatable :: err
+    integer, parameter :: NB = 100
+    integer(i8), parameter :: N = 4000
+    real(wp), allocatable :: trans(:)
+    real(wp) :: s1, s2, est, mean, sig
+    integer :: i, k, b, g
+    integer(i8) :: ip
+    call load('rrtmgp-gas-sw-g112.nc', kd, error)
+    if (allocated(error)) return
+    call read_reference(kd, reference_dir // '/sw_gpoint_reference.txt', cols, error)
+    if (allocated(error)) return
+    do i = 1, size(cols)
+      associate (c => cols(i))
+        call spectral_sw_column(kd, c%plev, c%play, c%tlay, c%vmr, c%mu0, col, err, tsi=c%tsi)
+        call check(error, .not. allocated(err), 'spectral_sw_column failed')
+        if (allocated(error)) return
+        trans = exp(-sum(col%tau_abs + col%tau_rayleigh, dim=1) / c%mu0)
+        call check_close(error, sum(col%energy * trans), c%direct_sfc, rel_tol=1.0e-8_wp, &
+                         label=trim(c%name) // ': direct flux at the surface, sum over g-points')
+        do k = 0, 1
+          call spectral_plan_init(col%energy, plan, err, floor_share=0.1_wp * k)
+          s1 = 0
+          s2 = 0
+          do b = 1, NB
+            call rng_init(rng, 77_i8 + i, int(b + 1000 * k, i8))
+            call spectral_begin_batch(plan, N, rng, batch, err)
+            est = 0
+            do g = 1, plan%n_gpt
+              do ip = 1, batch%count(g)
+                if (rng_uniform(rng) < trans(g)) est = est + batch%weight(g)
+              end do
+            end do
+            s1 = s1 + est
+            s2 = s2 + est**2
+          end do
+          mean = s1 / NB
+          sig = sqrt(max(s2 / NB - mean**2, 0.0_wp) / (NB - 1))
+          write (*, '(a, f4.1, a, f10.4, a, f10.4, a, f7.4, a)') '  ' // trim(c%name) // ', a = ', 0.1_wp * k, &
+            ': sampled direct flux ', mean, ', DISORT ', c%direct_sfc, ' +- ', sig, ' W m-2'
+          call check_sigma(error, mean, c%direct_sfc, sig, 4.0_wp, trim(c%name) // ': sampled direct flux')
+        end do
+      end associate
+    end do
+  end subroutine test_sw_direct_sampled
 
 end module test_spectral_suite
 

@@ -149,7 +149,7 @@ contains
                      ' is a longwave one')
       return
     end if
-    if (.not. (mu0 > 0 .and. mu0 <= 1)) then
+    if (outside(mu0, tiny(1.0_wp), 1.0_wp)) then
       call set_error(error, 'spectral_sw_column: mu0 = ' // str(mu0) // ' must be within (0, 1]')
       return
     end if
@@ -195,7 +195,7 @@ contains
       return
     end if
     if (present(emissivity)) then
-      if (.not. (emissivity >= 0 .and. emissivity <= 1)) then
+      if (outside(emissivity, 0.0_wp, 1.0_wp)) then
         call set_error(error, 'spectral_lw_column: emissivity = ' // str(emissivity) // &
                        ' must be within [0, 1]')
         return
@@ -296,6 +296,17 @@ contains
     end if
   end subroutine column_common
 
+  !> True unless x is finite and within [lo, hi]; safe for NaN under floating-point traps (no
+  !> ordered comparison is made with a NaN).
+  elemental logical function outside(x, lo, hi)
+    real(wp), intent(in) :: x, lo, hi
+    if (.not. ieee_is_finite(x)) then
+      outside = .true.
+    else
+      outside = x < lo .or. x > hi
+    end if
+  end function outside
+
   function source_name(kd) result(name)
     type(gas_kdist_t), intent(in) :: kd
     character(len=:), allocatable :: name
@@ -341,19 +352,19 @@ contains
       return
     end if
     do g = 1, ng
-      if (.not. ieee_is_finite(energy(g)) .or. energy(g) < 0) then
+      if (outside(energy(g), 0.0_wp, huge(1.0_wp))) then
         call set_error(error, 'spectral_plan_init: energy of g-point ' // str(g) // ' = ' // &
                        str(energy(g)) // ' W m-2 must be finite and >= 0')
         return
       end if
     end do
-    if (.not. (sum(energy) > 0) .or. .not. ieee_is_finite(sum(energy))) then
+    if (outside(sum(energy), tiny(1.0_wp), huge(1.0_wp))) then
       call set_error(error, 'spectral_plan_init: the energies add up to ' // str(sum(energy)) // &
                      ' W m-2; need a positive, finite total')
       return
     end if
     if (present(floor_share)) then
-      if (.not. (floor_share >= 0 .and. floor_share < 1)) then
+      if (outside(floor_share, 0.0_wp, nearest(1.0_wp, -1.0_wp))) then
         call set_error(error, 'spectral_plan_init: floor_share = ' // str(floor_share) // &
                        ' must be within [0, 1)')
         return
@@ -368,7 +379,7 @@ contains
         return
       end if
       do g = 1, ng
-        if (.not. ieee_is_finite(importance(g)) .or. importance(g) < 0 .or. &
+        if (outside(importance(g), 0.0_wp, huge(1.0_wp)) .or. &
             (energy(g) > 0 .and. .not. importance(g) > 0)) then
           call set_error(error, 'spectral_plan_init: importance of g-point ' // str(g) // ' = ' // &
                          str(importance(g)) // ' must be finite, >= 0, and > 0 where the ' // &

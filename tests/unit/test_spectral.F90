@@ -288,6 +288,8 @@ contains
     e = 1
     call spectral_plan_init(e, plan, err, floor_share=1.0_wp)
     call check_error_words(error, err, [character(len=24) :: 'floor_share', '[0, 1)'])
+    call spectral_plan_init(e, plan, err, floor_share=ieee_value(1.0_wp, ieee_quiet_nan))
+    call check_error_words(error, err, [character(len=24) :: 'floor_share = NaN', '[0, 1)'])
     call spectral_plan_init(e, plan, err)
     call rng_init(rng, 1_i8, 1_i8)
     call spectral_begin_batch(plan, 0_i8, rng, batch, err)
@@ -462,6 +464,8 @@ contains
     associate (c => cols(1))
       call spectral_sw_column(kd, c%plev, c%play, c%tlay, c%vmr, 0.0_wp, col, err)
       call check_error_words(error, err, [character(len=24) :: 'mu0 = 0', '(0, 1]'])
+      call spectral_sw_column(kd, c%plev, c%play, c%tlay, c%vmr, ieee_value(1.0_wp, ieee_quiet_nan), col, err)
+      call check_error_words(error, err, [character(len=24) :: 'mu0 = NaN', '(0, 1]'])
       call spectral_sw_column(kd, c%plev(1:), c%play, c%tlay, c%vmr, 0.5_wp, col, err)
       call check_error_words(error, err, [character(len=24) :: 'plev has', 'levels'])
       call spectral_lw_column(kd, c%plev, c%tlev, c%play, c%tlay, 290.0_wp, c%vmr, col, err)

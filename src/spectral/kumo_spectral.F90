@@ -162,7 +162,7 @@ contains
     if (allocated(error)) return
     where (col%tau_abs + col%tau_rayleigh > 0)
       col%ssa = col%tau_rayleigh / (col%tau_abs + col%tau_rayleigh)
-    elsewhere
+    else where
       col%ssa = 0
     end where
     call gas_solar_source(kd, col%solar_flux, error, tsi, mg_index, sb_index)
@@ -330,7 +330,7 @@ contains
     n_active = count(energy > 0)
     where (energy > 0)
       prob = (1 - floor_share) * (energy / total) + floor_share / n_active
-    elsewhere
+    else where
       prob = 0
     end where
   end function spectral_probabilities

@@ -373,6 +373,8 @@ contains
       case ('end')
         cols = [cols, c]
         deallocate (names, row)
+      case default
+        continue                                     ! per-g-point fluxes, heating: not used here
       end select
     end do
     close (u)

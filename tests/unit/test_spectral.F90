@@ -10,14 +10,29 @@
 !> double precision, the file keeps 10 significant digits): 1e-8 relative plus 1e-12 of the
 !> largest value of the row.
 !>
+!> With the third argument `mc` the program runs instead the Monte Carlo check of the chain
+!> (label bench): kumo's photon loop (`trace_batch`, one plane-parallel scene per g-point built
+!> from kumo's spectral column) with the g-points and weights of the plan reproduces the
+!> broadband shortwave fluxes at every level and the heating rate of every layer of the
+!> discrete-ordinates reference within 4.5 standard errors.
+!>
 !> Arguments: the folder of the k-distribution files (CMake KUMO_RRTMGP_DIR, filled by
-!> scripts/fetch-rrtmgp.sh) and the folder of the reference files.
+!> scripts/fetch-rrtmgp.sh), the folder of the reference files, optionally `mc`.
 module test_spectral_suite
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use kumo_kinds, only: wp, i8
-  use kumo_constants, only: PI, STEFAN_BOLTZMANN, FOUR_PI
+  use kumo_constants, only: PI, STEFAN_BOLTZMANN, RAD2DEG
   use kumo_error, only: str
   use kumo_rng, only: rng_t, rng_init, rng_uniform
+  use kumo_phase, only: new_phase_rayleigh
+  use kumo_atmosphere, only: atmosphere_options_t, atmosphere_init
+  use kumo_surface, only: surface_init
+  use kumo_camera, only: camera_t
+  use kumo_local_estimate, only: detectors_init
+  use kumo_tally, only: tally_layout_t, tally_t, layout_init, tally_reset
+  use kumo_source, only: solar_source
+  use kumo_scene, only: scene_t
+  use kumo_transport, only: trace_batch
   use kumo_expint, only: expint_e
   use kumo_gas_optics, only: gas_kdist_t, gas_index
   use kumo_rrtmgp_file, only: read_rrtmgp_kdist
@@ -29,7 +44,7 @@ module test_spectral_suite
                           check_error_words
   implicit none
   private
-  public :: collect_spectral, rrtmgp_dir, reference_dir
+  public :: collect_spectral, collect_spectral_mc, rrtmgp_dir, reference_dir
 
   real(wp), parameter :: REL_TOL = 1.0e-8_wp
   real(wp), parameter :: ROW_FLOOR = 1.0e-12_wp
@@ -44,6 +59,8 @@ module test_spectral_suite
     real(wp), allocatable :: plev(:), tlev(:), play(:), tlay(:), cd(:), vmr(:, :)
     real(wp), allocatable :: solar(:), tau(:, :), tray(:, :), sfc(:), bot(:, :), top(:, :)
     real(wp) :: direct_sfc = 0                      !! broadband direct flux at the surface
+    real(wp), allocatable :: bb(:, :)               !! (0:nl, 5) broadband row (SW: up, dif, dir, errors)
+    real(wp), allocatable :: heat(:, :)             !! (nl, 2) heating K/day and its error
   end type ref_column_t
 
 contains
@@ -61,6 +78,11 @@ contains
              new_unittest('lw_column_vs_reference', test_lw_reference), &
              new_unittest('sw_direct_sampled_vs_disort', test_sw_direct_sampled)]
   end function collect_spectral
+
+  function collect_spectral_mc() result(tests)
+    type(unittest_t), allocatable :: tests(:)
+    tests = [new_unittest('sw_broadband_mc_vs_disort', test_sw_broadband_mc)]
+  end function collect_spectral_mc
 
   !> Energies spanning eleven decades, with two g-points without energy.
   pure function test_energies() result(e)
@@ -332,7 +354,8 @@ contains
         allocate (names(ngas), c%plev(0:c%nl), c%tlev(0:c%nl), c%play(c%nl), c%tlay(c%nl), &
                   c%cd(c%nl), c%vmr(c%nl, kd%n_gas), c%solar(c%ng), c%tau(c%nl, c%ng), &
                   c%tray(c%nl, c%ng), c%sfc(c%ng), c%bot(c%nl, c%ng), c%top(c%nl, c%ng), &
-                  row(3 + ngas))
+                  c%bb(0:c%nl, 5), c%heat(c%nl, 2), row(3 + ngas))
+        c%bb = 0
         c%vmr = 0
       case ('gases')
         read (line, *) key, names
@@ -362,8 +385,14 @@ contains
         read (line, *) key, idx, c%tray(idx, :)
       case ('broadband')
         read (line, *) key, idx
-        if (idx == 0 .and. .not. kd%longwave) read (line, *) key, idx, row(1:3)
-        if (idx == 0 .and. .not. kd%longwave) c%direct_sfc = row(3)
+        if (kd%longwave) then
+          read (line, *) key, idx, c%bb(idx, 1:4)
+        else
+          read (line, *) key, idx, c%bb(idx, 1:5)
+        end if
+        if (idx == 0 .and. .not. kd%longwave) c%direct_sfc = c%bb(0, 3)
+      case ('heating')
+        read (line, *) key, idx, c%heat(idx, :)
       case ('sfc_src')
         read (line, *) key, idx, c%sfc
       case ('lev_src_bot')
@@ -643,10 +672,159 @@ contains
     end do
   end subroutine test_sw_direct_sampled
 
+  !> The whole chain in kumo's photon loop: for each reference column, one plane-parallel scene
+  !> per g-point (kumo's optical depths and single-scattering albedos, Rayleigh phase function,
+  !> Lambert surface, the reference's sun), photons spread over the g-points by the plan, each
+  !> g-point's tallies weighted by w_g. Broadband up, diffuse and direct down fluxes at every
+  !> level and the heating rate of every layer within 4.5 standard errors (100 batches) of the
+  !> discrete-ordinates reference; with the floor share the TOA incoming flux is TSI mu0 in every
+  !> batch.
+  subroutine test_sw_broadband_mc(error)
+    type(error_t), allocatable, intent(out) :: error
+    real(wp), parameter :: G0 = 9.80665_wp, CP = 1004.64_wp, DAY = 86400.0_wp
+    integer, parameter :: NB = 100
+    integer(i8), parameter :: N = 20000
+    !> 3 (nz + 1) + nz = 243 (RFMIP) and 143 (U.S. Standard) comparisons: K_SIGMA = 4.5 keeps the
+    !> chance that a correct code fails one of them at 0.7 % (Student t with 99 degrees of
+    !> freedom, Bonferroni; at 4 sigma it would be 4 %).
+    real(wp), parameter :: K_SIGMA = 4.5_wp
+    type(gas_kdist_t) :: kd
+    type(ref_column_t), allocatable :: cols(:)
+    type(spectral_column_t) :: col
+    type(spectral_plan_t) :: plan
+    type(spectral_batch_t) :: batch
+    type(scene_t), allocatable :: scn(:)
+    type(tally_layout_t) :: lay
+    type(tally_t) :: tal
+    type(rng_t) :: rng
+    type(error_t), allocatable :: err
+    real(wp), allocatable :: acc(:), q(:, :), s1(:), s2(:), ref(:), ref_err(:)
+    character(len=40), allocatable :: names(:)
+    real(wp) :: mean, sig, worst, dp
+    integer :: i, g, b, k, nl, nq, iw
+    integer(i8) :: t0, t1, rate
+    call load('rrtmgp-gas-sw-g112.nc', kd, error)
+    if (allocated(error)) return
+    call read_reference(kd, reference_dir // '/sw_gpoint_reference.txt', cols, error)
+    if (allocated(error)) return
+    do i = 1, size(cols)
+      associate (c => cols(i))
+        call system_clock(t0, rate)
+        nl = c%nl
+        call spectral_sw_column(kd, c%plev, c%play, c%tlay, c%vmr, c%mu0, col, err, tsi=c%tsi)
+        call check(error, .not. allocated(err), 'spectral_sw_column failed')
+        if (allocated(error)) return
+        ! RFMIP column: floor share 0.05, so that N >= N+ / a and the incoming flux of every
+        ! batch is exact; U.S. Standard: pure source-proportional sampling.
+        call spectral_plan_init(col%energy, plan, err, floor_share=merge(0.05_wp, 0.0_wp, i == 1))
+        if (allocated(scn)) deallocate (scn)
+        allocate (scn(col%n_gpt))
+        do g = 1, col%n_gpt
+          call gpoint_scene(col, g, c%albedo, acos(c%mu0) * RAD2DEG, scn(g), err)
+          call check(error, .not. allocated(err), 'scene of g-point ' // str(g))
+          if (allocated(error)) return
+        end do
+        call layout_init(lay, nl, 1, 0, [integer ::], .false.)
+        if (allocated(tal%buf)) deallocate (tal%buf)   ! tally_reset keeps a buffer of another size
+        ! Quantities: up, diffuse down, direct down at levels 0..nl; heating of layers 1..nl.
+        nq = 3 * (nl + 1) + nl
+        allocate (acc(lay%n), q(nq, NB), s1(nq), s2(nq), ref(nq), ref_err(nq), names(nq))
+        do b = 1, NB
+          call rng_init(rng, 424242_i8 + i, int(b, i8))
+          call spectral_begin_batch(plan, N, rng, batch, err)
+          acc = 0
+          do g = 1, col%n_gpt
+            if (batch%count(g) == 0) cycle
+            call tally_reset(tal, lay)
+            call trace_batch(scn(g), lay, rng, batch%count(g), tal)
+            acc = acc + batch%weight(g) * tal%buf
+          end do
+          if (plan%floor_share > 0) call check_close(error, acc(lay%i_dir + nl + 1), c%tsi * c%mu0, &
+                                                     rel_tol=1.0e-12_wp, label='incoming flux of batch ' // str(b))
+          q(1:nl + 1, b) = acc(lay%i_up + 1:lay%i_up + nl + 1)
+          q(nl + 2:2 * nl + 2, b) = acc(lay%i_dif + 1:lay%i_dif + nl + 1)
+          q(2 * nl + 3:3 * nl + 3, b) = acc(lay%i_dir + 1:lay%i_dir + nl + 1)
+          do k = 1, nl
+            dp = c%plev(k - 1) - c%plev(k)
+            q(3 * nl + 3 + k, b) = G0 / CP * acc(lay%i_abs + k) / dp * DAY
+          end do
+        end do
+        do k = 0, nl
+          ref(k + 1) = c%bb(k, 1)
+          ref_err(k + 1) = c%bb(k, 4)
+          names(k + 1) = 'up flux at level ' // str(k)
+          ref(nl + 2 + k) = c%bb(k, 2)
+          ref_err(nl + 2 + k) = c%bb(k, 5)
+          names(nl + 2 + k) = 'diffuse down flux at level ' // str(k)
+          ref(2 * nl + 3 + k) = c%bb(k, 3)
+          ref_err(2 * nl + 3 + k) = 0
+          names(2 * nl + 3 + k) = 'direct flux at level ' // str(k)
+        end do
+        do k = 1, nl
+          ref(3 * nl + 3 + k) = c%heat(k, 1)
+          ref_err(3 * nl + 3 + k) = c%heat(k, 2)
+          names(3 * nl + 3 + k) = 'heating rate of layer ' // str(k)
+        end do
+        s1 = sum(q, dim=2) / NB
+        s2 = sum(q**2, dim=2) / NB
+        worst = 0
+        iw = 1
+        do k = 1, nq
+          mean = s1(k)
+          sig = sqrt(max(s2(k) - mean**2, 0.0_wp) / (NB - 1))
+          call check_sigma(error, mean, ref(k), sig, K_SIGMA, trim(c%name) // ': ' // trim(names(k)), &
+                           abs_floor=ref_err(k) + 1.0e-9_wp * c%tsi)
+          if (sig > 0) then
+            if (abs(mean - ref(k)) / sig > worst) then
+              worst = abs(mean - ref(k)) / sig
+              iw = k
+            end if
+          end if
+        end do
+        call system_clock(t1)
+        write (*, '(a, 3(f0.3, a), es9.2, a)') '  ' // trim(c%name) // ': TOA up ', s1(nl + 1), ' +- ', &
+          sqrt(max(s2(nl + 1) - s1(nl + 1)**2, 0.0_wp) / (NB - 1)), ' W m-2 (DISORT ', ref(nl + 1), &
+          '), sigma of the surface heating rate ', sqrt(max(s2(3 * nl + 4) - s1(3 * nl + 4)**2, 0.0_wp) / (NB - 1)), &
+          ' K/day'
+        write (*, '(a, f0.2, a, f0.1, a, i0, a)') '    largest deviation ', worst, ' sigma (' // trim(names(iw)) // &
+          '); ', real(t1 - t0, wp) / rate, ' s for ', NB * N, ' photons'
+        deallocate (acc, q, s1, s2, ref, ref_err, names)
+        if (allocated(error)) return
+      end associate
+    end do
+  end subroutine test_sw_broadband_mc
+
+  !> Plane-parallel scene of g-point g of a shortwave column: layers 1 km thick (only optical
+  !> depths matter) with the gas's extinction and single-scattering albedo and the Rayleigh
+  !> phase function, a Lambert surface, the sun at `sza_deg`.
+  subroutine gpoint_scene(col, g, albedo, sza_deg, scn, error)
+    type(spectral_column_t), intent(in) :: col
+    integer, intent(in) :: g
+    real(wp), intent(in) :: albedo, sza_deg
+    type(scene_t), intent(out) :: scn
+    type(error_t), allocatable, intent(out) :: error
+    real(wp), parameter :: DZ = 1000.0_wp
+    type(atmosphere_options_t) :: aopts
+    type(camera_t) :: cams(0)
+    integer :: k, nz
+    nz = col%n_layer
+    call atmosphere_init(scn%atm, [(DZ * k, k = 0, nz)], DZ, DZ, &
+                         reshape((col%tau_abs(:, g) + col%tau_rayleigh(:, g)) / DZ, [nz, 1]), &
+                         reshape(col%ssa(:, g), [nz, 1]), reshape([(1, k = 1, nz)], [nz, 1]), &
+                         [new_phase_rayleigh()], aopts, error)
+    if (allocated(error)) return
+    call surface_init(scn%sfc, reshape([albedo], [1, 1]), DZ, DZ, error)
+    if (allocated(error)) return
+    scn%src = solar_source(sza_deg, 0.0_wp)
+    scn%mu0 = -scn%src%uz
+    call detectors_init(scn%det, [real(wp) ::], [real(wp) ::], [integer ::], cams, 0.0_wp, &
+                        scn%atm%lx, scn%atm%ly)
+  end subroutine gpoint_scene
+
 end module test_spectral_suite
 
 program test_spectral
-  use test_spectral_suite, only: collect_spectral, rrtmgp_dir, reference_dir
+  use test_spectral_suite, only: collect_spectral, collect_spectral_mc, rrtmgp_dir, reference_dir
   use kumo_testing, only: run_unittests
   implicit none
   integer :: n_failed
@@ -659,6 +837,12 @@ program test_spectral
   rrtmgp_dir = trim(arg)
   call get_command_argument(2, arg)
   reference_dir = trim(arg)
-  call run_unittests('spectral', collect_spectral(), n_failed)
+  arg = ''
+  if (command_argument_count() >= 3) call get_command_argument(3, arg)
+  if (trim(arg) == 'mc') then
+    call run_unittests('spectral: Monte Carlo broadband', collect_spectral_mc(), n_failed)
+  else
+    call run_unittests('spectral', collect_spectral(), n_failed)
+  end if
   if (n_failed > 0) error stop 1
 end program test_spectral

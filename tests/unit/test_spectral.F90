@@ -17,7 +17,8 @@
 !> discrete-ordinates reference within 4.5 standard errors.
 !>
 !> Arguments: the folder of the k-distribution files (CMake KUMO_RRTMGP_DIR, filled by
-!> scripts/fetch-rrtmgp.sh), the folder of the reference files, optionally `mc`.
+!> scripts/fetch-rrtmgp.sh), the folder of the reference files, optionally `mc` and then
+!> optionally a floor share for both columns of the Monte Carlo check (docs/broadband.md).
 module test_spectral_suite
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use kumo_kinds, only: wp, i8
@@ -44,11 +45,14 @@ module test_spectral_suite
                           check_error_words
   implicit none
   private
-  public :: collect_spectral, collect_spectral_mc, rrtmgp_dir, reference_dir
+  public :: collect_spectral, collect_spectral_mc, rrtmgp_dir, reference_dir, mc_floor_share
 
   real(wp), parameter :: REL_TOL = 1.0e-8_wp
   real(wp), parameter :: ROW_FLOOR = 1.0e-12_wp
   character(len=:), allocatable :: rrtmgp_dir, reference_dir
+  !> Floor share of the Monte Carlo check for both columns (4th argument); negative: the test's
+  !> own choice (0.05 for RFMIP, 0 for the U.S. Standard).
+  real(wp) :: mc_floor_share = -1
 
   !> One column of the reference file.
   type :: ref_column_t
@@ -716,7 +720,13 @@ contains
         if (allocated(error)) return
         ! RFMIP column: floor share 0.05, so that N >= N+ / a and the incoming flux of every
         ! batch is exact; U.S. Standard: pure source-proportional sampling.
-        call spectral_plan_init(col%energy, plan, err, floor_share=merge(0.05_wp, 0.0_wp, i == 1))
+        if (mc_floor_share >= 0) then
+          call spectral_plan_init(col%energy, plan, err, floor_share=mc_floor_share)
+        else
+          call spectral_plan_init(col%energy, plan, err, floor_share=merge(0.05_wp, 0.0_wp, i == 1))
+        end if
+        call check(error, .not. allocated(err), 'plan of the Monte Carlo check')
+        if (allocated(error)) return
         if (allocated(scn)) deallocate (scn)
         allocate (scn(col%n_gpt))
         do g = 1, col%n_gpt
@@ -781,6 +791,13 @@ contains
             end if
           end if
         end do
+        ! Noise summary: relative standard error of the TOA up flux, rms and largest standard
+        ! error of the heating rates.
+        associate (sg => sqrt(max(s2 - s1**2, 0.0_wp) / (NB - 1)))
+          write (*, '(a, f4.2, a, es9.2, a, f6.3, a, f6.3, a)') '    a = ', plan%floor_share, &
+            ': relative sigma of TOA up ', sg(nl + 1) / s1(nl + 1), ', heating rates: rms sigma ', &
+            sqrt(sum(sg(3 * nl + 4:)**2) / nl), ' K/day, largest ', maxval(sg(3 * nl + 4:)), ' K/day'
+        end associate
         call system_clock(t1)
         write (*, '(a, 3(f0.3, a), es9.2, a)') '  ' // trim(c%name) // ': TOA up ', s1(nl + 1), ' +- ', &
           sqrt(max(s2(nl + 1) - s1(nl + 1)**2, 0.0_wp) / (NB - 1)), ' W m-2 (DISORT ', ref(nl + 1), &
@@ -824,7 +841,8 @@ contains
 end module test_spectral_suite
 
 program test_spectral
-  use test_spectral_suite, only: collect_spectral, collect_spectral_mc, rrtmgp_dir, reference_dir
+  use test_spectral_suite, only: collect_spectral, collect_spectral_mc, rrtmgp_dir, reference_dir, &
+                                 mc_floor_share
   use kumo_testing, only: run_unittests
   implicit none
   integer :: n_failed
@@ -840,6 +858,10 @@ program test_spectral
   arg = ''
   if (command_argument_count() >= 3) call get_command_argument(3, arg)
   if (trim(arg) == 'mc') then
+    if (command_argument_count() >= 4) then
+      call get_command_argument(4, arg)
+      read (arg, *) mc_floor_share
+    end if
     call run_unittests('spectral: Monte Carlo broadband', collect_spectral_mc(), n_failed)
   else
     call run_unittests('spectral', collect_spectral(), n_failed)

@@ -6,9 +6,10 @@ broadband layer.
 For each column, jax-rrtmgp 0.5.0 (PyPI `jax-rrtmgp`, run on the CPU with `jax[cpu]` in double
 precision; an independent implementation of the RRTMGP gas optics of Pincus, Mlawer and Delamere
 2019, JAMES 11, 3074, doi:10.1029/2019MS001621) gives, for every layer and every g-point of the
-k-distribution `rrtmgp-gas-sw-g112.nc`, the gas absorption optical depth, the Rayleigh optical
-depth and the solar flux of the g-point scaled to the column's total solar irradiance. Each
-g-point's plane-parallel problem is then solved with the discrete-ordinates code PythonicDISORT
+k-distribution `rrtmgp-gas-sw-g112.nc` (file sw_gpoint_reference.txt), the gas absorption
+optical depth, the Rayleigh optical depth and the solar flux of the g-point scaled to the
+column's total solar irradiance. Each g-point's plane-parallel problem is then solved with the
+discrete-ordinates code PythonicDISORT
 (PyPI `PythonicDISORT`, D. J. Ho 2024, J. Open Source Softw. 9, 6442; a reimplementation of
 DISORT, Stamnes et al. 1988, Appl. Opt. 27, 2502, written independently of kumo):
 
@@ -48,7 +49,7 @@ wheel; RFMIP atmospheric states, Pincus, Forster and Stevens 2016, GMD 9, 3447, 
 RCEMIP ozone profile, both as built by bench/gas_optics/make_gas_reference.py (imported from
 there, so the two sets of test data describe the same atmospheres).
 
-Usage (about two minutes on one core):
+Usage (about three minutes on one core):
     python3 -m venv /tmp/venv && /tmp/venv/bin/pip install "jax[cpu]" "jax-rrtmgp==0.5.0" \\
         "PythonicDISORT==1.8"
     /tmp/venv/bin/python bench/broadband/make_gpoint_reference.py [output folder]

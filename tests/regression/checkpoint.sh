@@ -7,7 +7,8 @@
 # NP2 (the results are those of a run on NP1 ranks). The kill is the test hook
 # KUMO_TEST_KILL_AFTER_CHECKPOINT=2. Then: the checkpoint is removed when the output is
 # written; a checkpoint of another configuration (namelist text, an input file) is refused
-# with a message naming what differs; --resume without a checkpoint starts from the beginning.
+# with a message naming what differs, and so is a checkpoint cut short; a link at the temporary
+# checkpoint name is not followed; --resume without a checkpoint starts from the beginning.
 #   checkpoint.sh KUMO NP1 NP2 [MPIEXEC [MPIEXEC_PREFLAGS...]]   (NP1 = NP2 = 1: no MPIEXEC)
 set -uo pipefail
 kumo=$1 np1=$2 np2=$3
@@ -84,6 +85,20 @@ kumo_on "$np2" --resume case.nml > input.log 2>&1 && { echo "FAIL: a changed inp
 grep -q 'the input file &kumo_phase phase_file(2) differs' input.log || {
   cat input.log; echo "FAIL: no message naming the changed input file"; fail=1; }
 mv phase.orig phase.txt
+
+# a checkpoint cut short (a partial copy) is refused
+head -c $(($(wc -c < saved.ckpt) - 20)) saved.ckpt > out.nc.ckpt
+kumo_on "$np2" --resume case.nml > cut.log 2>&1 && { echo "FAIL: a cut checkpoint resumed"; fail=1; }
+grep -q 'the checkpoint out.nc.ckpt is cut short or damaged' cut.log || {
+  cat cut.log; echo "FAIL: no message for the cut checkpoint"; fail=1; }
+rm -f out.nc.ckpt
+
+# a link planted at the temporary checkpoint name is never followed
+echo precious > victim.txt
+ln -s victim.txt out.nc.ckpt.tmp
+KUMO_TEST_KILL_AFTER_CHECKPOINT=1 kumo_on "$np1" case.nml > link.log 2>&1
+[[ $(cat victim.txt) == precious ]] || { echo "FAIL: the file behind out.nc.ckpt.tmp was changed"; fail=1; }
+[[ -f out.nc.ckpt && ! -L out.nc.ckpt ]] || { cat link.log; echo "FAIL: no checkpoint written"; fail=1; }
 
 # --resume without a checkpoint: the run starts from the first batch
 rm -f out.nc out.nc.ckpt

@@ -360,6 +360,7 @@ contains
     if (.not. allocated(error)) call set_error(error, 'cannot write the checkpoint '//path// &
                                                TMP_SUFFIX//': '//trim(msg))
     close (unit, status='delete', iostat=ios)
+    if (ios /= 0) call remove_file(path//TMP_SUFFIX)
   end subroutine fail
 
   subroutine remove_file(path)

@@ -25,6 +25,7 @@ module kumo_cli
   type :: cli_t
     integer :: action = CLI_RUN
     character(len=:), allocatable :: path  !! the namelist file (CLI_RUN, CLI_CHECK)
+    logical :: resume = .false.            !! continue from the checkpoint <output>.ckpt
   end type cli_t
 
   character(len=1), parameter :: NL = new_line('a')
@@ -57,6 +58,8 @@ contains
           version = .true.
         case ('-c', '--check')
           check = .true.
+        case ('--resume')
+          cli%resume = .true.
         case ('--')
           options_done = .true.
         case default
@@ -102,6 +105,9 @@ contains
       '  -c, --check CASE.nml   read and validate CASE.nml, check that the input files it names'//NL// &
       '                         can be read and that the output file can be written, print the'//NL// &
       '                         configuration; run nothing'//NL// &
+      '  --resume               continue from the checkpoint <output>.ckpt that an earlier'//NL// &
+      '                         run of the same case wrote (&kumo_control'//NL// &
+      '                         checkpoint_interval); without one, start from the beginning'//NL// &
       NL// &
       'parallel runs (MPI build): mpirun -np N kumo CASE.nml spreads the batches over N ranks;'//NL// &
       'the results are the same for any N. As root add --allow-run-as-root; with more ranks than'//NL// &

@@ -3,12 +3,14 @@
 !> (`kumo --help`).
 !>
 !> Exit status: 0 success, 1 invalid case or failed run, 2 wrong command line. Errors are one
-!> `kumo error: ...` message on standard error, without a STOP line (`par_abort`).
+!> `kumo error: ...` message on standard error, without a STOP line; an error found on a rank
+!> other than 0 alone is printed as `kumo error on rank R of N: ...` before the job ends
+!> (`par_fail`).
 program kumo_main
   use, intrinsic :: iso_fortran_env, only: error_unit, output_unit
   use kumo_error, only: error_t
   use kumo_driver, only: run_case
-  use kumo_parallel, only: par_init, par_finalize, par_is_root, par_abort, par_stop, &
+  use kumo_parallel, only: par_init, par_finalize, par_is_root, par_fail, par_stop, &
                            par_bcast_int
   use kumo_cli, only: cli_t, parse_command_line, help_text, version_text, check_case, &
                       CLI_HELP, CLI_VERSION, CLI_CHECK
@@ -47,11 +49,9 @@ program kumo_main
     call par_bcast_int(status)
     if (status(1) /= 0) call par_stop(1)
   case default   ! CLI_RUN
-    call run_case(cli%path, error)
-    if (allocated(error)) then   ! possibly found on one rank only: par_abort ends them all
-      if (par_is_root()) write (error_unit, '(a)') 'kumo error: '//error%message
-      call par_abort(1)
-    end if
+    call run_case(cli%path, error, resume=cli%resume)
+    ! possibly found on one rank only: par_fail prints it and ends every rank
+    if (allocated(error)) call par_fail(error%message, 1)
   end select
   call par_finalize()
 end program kumo_main

@@ -8,6 +8,7 @@
 !> kumo_output.
 module kumo_driver
   use, intrinsic :: iso_fortran_env, only: output_unit, error_unit
+  use, intrinsic :: iso_c_binding, only: c_int
   use kumo_kinds, only: dp, i8
   use kumo_constants, only: KUMO_VERSION
   use kumo_error, only: error_t, set_error, str
@@ -18,15 +19,19 @@ module kumo_driver
   use kumo_transport, only: trace_batch
   use kumo_results, only: result_set_t, add_attr
   use kumo_config, only: config_t, read_config, config_echo, input_file_t, config_inputs
-  use kumo_textio, only: read_whole_file, same_file
+  use kumo_textio, only: read_line, same_file
   use kumo_netcdf, only: write_results, check_writable
   use kumo_parallel, only: par_rank, par_size, par_is_root, par_sum_to_root, par_allreduce_sum, &
-                           par_wtime, par_bcast_int
+                           par_wtime, par_bcast_int, par_bcast_text, par_move
+  use kumo_checkpoint, only: fingerprint_t, ckpt_header_t, fingerprint_add_text, &
+                             fingerprint_add_file, fingerprint_add_build, ckpt_create, &
+                             ckpt_put_slot, ckpt_commit, ckpt_open, ckpt_get_slot, ckpt_close, &
+                             ckpt_remove, CKPT_SUFFIX
   use kumo_scene_setup, only: setup_scene
   use kumo_output, only: run_summary_t, build_results, log_summary
   implicit none
   private
-  public :: run_case, simulate, scene_t, setup_scene, run_summary_t
+  public :: run_case, simulate, scene_t, setup_scene, run_summary_t, checkpoint_plan_t
 
   !> Progress on rank 0 (standard error), for runs longer than a few seconds: the first line
   !> after PROGRESS_FIRST seconds, then one every PROGRESS_EVERY seconds.
@@ -36,68 +41,112 @@ module kumo_driver
     real(dp) :: t0 = 0.0_dp          !! start of tracing [s]
     real(dp) :: next = 0.0_dp        !! time of the next line [s]
     real(dp) :: rel = -1.0_dp        !! relative error of the target after the last round
+    integer :: n0 = 0                !! batches done before this run (resumed from a checkpoint)
   end type progress_t
+
+  !> Checkpoints of a run (run_case sets it up from the configuration and the command line).
+  type :: checkpoint_plan_t
+    character(len=:), allocatable :: path   !! the checkpoint file, <output>.ckpt
+    real(dp) :: interval = 0.0_dp           !! [s] between checkpoints; 0: none
+    logical :: resume = .false.             !! continue from `path` if it exists
+    type(fingerprint_t) :: fp               !! what the checkpoint belongs to (rank 0)
+  end type checkpoint_plan_t
+
+  !> Signal number of SIGKILL (POSIX), for the test hook KUMO_TEST_KILL_AFTER_CHECKPOINT.
+  integer(c_int), parameter :: SIGKILL = 9_c_int
+
+  interface
+    !> C `raise` (signal.h): send a signal to this process.
+    function c_raise(sig) bind(c, name='raise') result(status)
+      import :: c_int
+      implicit none
+      integer(c_int), value, intent(in) :: sig
+      integer(c_int) :: status
+    end function c_raise
+  end interface
 
 contains
 
-  !> The program's job: namelist file in, netCDF file out.
-  subroutine run_case(path, error)
+  !> The program's job: namelist file in, netCDF file out. The namelist file is read once, on
+  !> rank 0, and its text broadcast: every rank parses the same text. With `resume`, the run
+  !> continues from the checkpoint `<output>.ckpt` when there is one (kumo_checkpoint).
+  subroutine run_case(path, error, resume)
     character(len=*), intent(in) :: path
     type(error_t), allocatable, intent(out) :: error
+    logical, intent(in), optional :: resume
     type(config_t) :: cfg
     type(result_set_t) :: set
     type(run_summary_t) :: summary
-    character(len=:), allocatable :: nml_text
-    integer :: status(1)
+    type(checkpoint_plan_t) :: plan
+    character(len=:), allocatable :: raw_text, nml_text
 
-    call read_config(path, cfg, error)
+    if (par_is_root()) call read_text(path, raw_text, error)
+    call share_error(error)
     if (allocated(error)) return
-    call refuse_input_as_output(cfg, path, error)
+    call par_bcast_text(raw_text)
+    call read_config(path, cfg, error, text=raw_text)
     if (allocated(error)) return
-    call read_whole_file(path, nml_text, error)
-    if (allocated(error)) return
-    status = 0
+    nml_text = trim_lines(raw_text)   ! the namelist attribute of the output
     if (par_is_root()) then
-      call check_writable(trim(cfg%output%file), error)
-      if (allocated(error)) status = 1
+      call refuse_input_as_output(cfg, path, error)
+      if (.not. allocated(error)) call check_writable(trim(cfg%output%file), error)
     end if
-    call par_bcast_int(status)
-    if (status(1) /= 0) then
-      if (.not. allocated(error)) call set_error(error, 'output file cannot be written')
-      return
+    call share_error(error)
+    if (allocated(error)) return
+    plan%path = trim(cfg%output%file)//CKPT_SUFFIX
+    plan%interval = cfg%control%checkpoint_interval
+    if (present(resume)) plan%resume = resume
+    if (par_is_root() .and. (plan%interval > 0.0_dp .or. plan%resume)) then
+      call fingerprint(cfg, path, raw_text, plan%fp)
+      call early_checkpoint_check(plan, cfg, error)
     end if
+    call share_error(error)
+    if (allocated(error)) return
     if (par_is_root() .and. cfg%control%verbose >= 1) then
       write (output_unit, '(a)') 'kumo '//KUMO_VERSION//': '//trim(path)
       write (output_unit, '(a)') config_echo(cfg)
       flush (output_unit)   ! a batch job's log shows the configuration while it runs
     end if
-    call simulate(cfg, set, summary, error, nml_text)
+    call simulate(cfg, set, summary, error, nml_text, plan)
     if (allocated(error)) return
     if (par_is_root()) then
       call write_results(trim(cfg%output%file), set, error)
       if (allocated(error)) return
+      ! the output is written: the checkpoint of this run is of no further use
+      if (plan%interval > 0.0_dp .or. plan%resume) call ckpt_remove(plan%path)
       if (cfg%control%verbose >= 1) call log_summary(set, summary, trim(cfg%output%file))
     end if
   end subroutine run_case
 
   !> Run the batches of a configuration on all ranks and gather the results on rank 0.
-  subroutine simulate(cfg, set, summary, error, nml_text)
+  !>
+  !> Batch b (seed, stream b) belongs to slot mod(b - 1, n_slots), and slot s is run by rank
+  !> mod(s, N). n_slots is the rank count N, or that of the run that wrote the checkpoint a run
+  !> resumes from: each slot adds its batches in increasing order, and the slots' sums are added
+  !> in slot order on rank 0, so a resumed run on any rank count repeats the floating-point
+  !> operations of an uninterrupted run on the first run's rank count, bit for bit.
+  !> `ckpt` (run_case) asks for checkpoints and resumption; without it neither happens.
+  subroutine simulate(cfg, set, summary, error, nml_text, ckpt)
     type(config_t), intent(in) :: cfg
     type(result_set_t), intent(out) :: set
     type(run_summary_t), intent(out) :: summary
     type(error_t), allocatable, intent(out) :: error
     character(len=*), intent(in), optional :: nml_text
+    type(checkpoint_plan_t), intent(in), optional :: ckpt
     type(scene_t) :: scene
     type(tally_layout_t) :: lay
     type(tally_t) :: tal
     type(stats_t) :: st
+    type(stats_t), allocatable :: slot(:)
     type(rng_t) :: rng
-    real(dp), allocatable :: rec(:, :), tmp(:, :)
-    real(dp) :: t0, t1, c0, c1, cpu, buf2(3), rel
+    type(checkpoint_plan_t) :: plan
+    real(dp), allocatable :: rec(:, :), tmp(:, :), buf(:)
+    real(dp) :: t0, t1, c0, c1, cpu, cpu_before, buf2(3), rel, t_ckpt
     integer(i8) :: nphot, counts(4 + N_ANOMALIES)
-    integer :: ib, ib_next, nb_round, rank, nranks, itarget, nb_done
+    integer :: ib, ib_next, nb_round, rank, nranks, itarget, nb_done, n_slots, s, n_done, &
+               ib_last, n_ckpt, kill_after
     integer, allocatable :: map_levels(:), cam_npix(:)
-    logical :: maps, voxel, rad_maps
+    logical :: maps, voxel, rad_maps, checkpoints
     type(progress_t) :: pg
 
     t0 = par_wtime()
@@ -127,8 +176,10 @@ contains
     end if
     if (par_is_root() .and. len(scene%warnings) > 0) write (error_unit, '(a)') &
       'kumo: warning: '//scene%warnings
-    call stats_init(st, lay)
     call tally_reset(tal, lay)
+    call test_failure_hook(cfg, rank, error)
+    if (allocated(error)) return
+    if (present(ckpt)) plan = ckpt
 
     select case (trim(cfg%control%target_output))
     case ('transmittance')
@@ -141,36 +192,80 @@ contains
 
     nphot = cfg%control%n_photons_per_batch
     nb_round = cfg%control%n_batches
-    allocate (rec(3, 0))
     ib_next = 1
+    n_done = 0
+    n_slots = nranks
     cpu = 0.0_dp
+    cpu_before = 0.0_dp
+    allocate (rec(3, 0))
+    if (plan%resume) then
+      call resume_run(plan, cfg, lay, n_slots, ib_next, n_done, rec, cpu_before, slot, error)
+      if (allocated(error)) return
+    end if
+    if (.not. allocated(slot)) then
+      allocate (slot(0:n_slots - 1))
+      do s = 0, n_slots - 1
+        if (mod(s, nranks) == rank) call stats_init(slot(s), lay)
+      end do
+    end if
+    checkpoints = plan%interval > 0.0_dp
+    n_ckpt = 0
+    kill_after = env_int('KUMO_TEST_KILL_AFTER_CHECKPOINT')
     pg%on = par_is_root() .and. cfg%control%verbose >= 1
     pg%t0 = par_wtime()
     pg%next = pg%t0 + PROGRESS_FIRST
+    pg%n0 = n_done
+    t_ckpt = pg%t0
     do
       allocate (tmp(3, ib_next + nb_round - 1))
       tmp = 0.0_dp
       tmp(:, 1:size(rec, 2)) = rec
       call move_alloc(tmp, rec)
       call cpu_time(c0)
-      do ib = ib_next, ib_next + nb_round - 1
-        if (mod(ib - 1, nranks) /= rank) cycle
-        call rng_init(rng, cfg%control%seed, int(ib, i8))
-        call tally_reset(tal, lay)
-        call trace_batch(scene, lay, rng, nphot, tal)
-        call stats_add_batch(st, lay, tal, nphot)
-        rec(1, ib) = tal%buf(lay%i_up + lay%nz + 1)/real(nphot, dp)
-        rec(2, ib) = (tal%buf(lay%i_dir + 1) + tal%buf(lay%i_dif + 1))/real(nphot, dp)
-        rec(3, ib) = sum(tal%buf(lay%i_abs + 1:lay%i_abs + lay%nz))/real(nphot, dp)
-        if (pg%on) call report_progress(pg, cfg, int(st%n_batches)*nranks, ib_next - 1 + nb_round)
+      ib_last = ib_next + nb_round - 1
+      do ib = max(ib_next, n_done + 1), ib_last
+        s = mod(ib - 1, n_slots)
+        if (mod(s, nranks) == rank) then
+          call rng_init(rng, cfg%control%seed, int(ib, i8))
+          call tally_reset(tal, lay)
+          call trace_batch(scene, lay, rng, nphot, tal)
+          call stats_add_batch(slot(s), lay, tal, nphot)
+          rec(1, ib) = tal%buf(lay%i_up + lay%nz + 1)/real(nphot, dp)
+          rec(2, ib) = (tal%buf(lay%i_dir + 1) + tal%buf(lay%i_dif + 1))/real(nphot, dp)
+          rec(3, ib) = sum(tal%buf(lay%i_abs + 1:lay%i_abs + lay%nz))/real(nphot, dp)
+          if (pg%on) call report_progress(pg, cfg, ib, ib_last)
+        end if
+        ! checkpoints: rank 0 decides at the same batches on every rank (all batches up to ib
+        ! are then done); none after the last batch of a fixed budget
+        if (checkpoints .and. (mod(ib, nranks) == 0 .or. ib == ib_last) .and. &
+            .not. (ib == ib_last .and. cfg%control%target_rel_error <= 0.0_dp)) then
+          if (checkpoint_due(plan, t_ckpt)) then
+            call cpu_time(c1)
+            call write_checkpoint(plan, cfg, lay, slot, n_slots, ib_next, ib, rec, &
+                                  cpu_before + cpu + (c1 - c0))
+            t_ckpt = par_wtime()
+            n_ckpt = n_ckpt + 1
+            if (n_ckpt == kill_after .and. rank == 0) call kill_self()
+          end if
+        end if
       end do
       call cpu_time(c1)
       cpu = cpu + (c1 - c0)
       ib_next = ib_next + nb_round
       if (cfg%control%target_rel_error <= 0.0_dp) exit
-      ! every rank takes the same decision from the same global sums
-      buf2 = [st%s1(itarget), st%s2(itarget), real(st%n_batches, dp)]
-      call par_allreduce_sum(buf2)
+      ! every rank takes the same decision from the same global sums, added in slot order
+      allocate (buf(3*n_slots))
+      buf = 0.0_dp
+      do s = 0, n_slots - 1
+        if (mod(s, nranks) == rank) buf(3*s + 1:3*s + 3) = &
+          [slot(s)%s1(itarget), slot(s)%s2(itarget), real(slot(s)%n_batches, dp)]
+      end do
+      call par_allreduce_sum(buf)
+      buf2 = buf(1:3)
+      do s = 1, n_slots - 1
+        buf2 = buf2 + buf(3*s + 1:3*s + 3)
+      end do
+      deallocate (buf)
       rel = relative_error(buf2)
       pg%rel = rel
       if (par_is_root() .and. cfg%control%verbose >= 2) then
@@ -183,20 +278,23 @@ contains
     end do
     nb_done = ib_next - 1
 
-    counts(1) = st%n_batches
-    counts(2) = st%n_photons
-    counts(3:4) = st%work
-    counts(5:) = st%anomalies
-    call par_sum_to_root(st%s1)
-    call par_sum_to_root(st%s2)
+    counts = 0
+    do s = 0, n_slots - 1
+      if (mod(s, nranks) /= rank) cycle
+      counts(1) = counts(1) + slot(s)%n_batches
+      counts(2) = counts(2) + slot(s)%n_photons
+      counts(3:4) = counts(3:4) + slot(s)%work
+      counts(5:) = counts(5:) + slot(s)%anomalies
+    end do
     call par_sum_to_root(counts)
+    call fold_slots(slot, n_slots, st)
     block
       real(dp), allocatable :: flat(:)
       flat = reshape(rec, [size(rec)])
       flat = [flat, cpu]
       call par_sum_to_root(flat)
       rec = reshape(flat(1:size(rec)), shape(rec))
-      cpu = flat(size(flat))
+      cpu = flat(size(flat)) + cpu_before
     end block
     st%n_batches = counts(1)
     st%n_photons = counts(2)
@@ -216,6 +314,45 @@ contains
     call build_results(cfg, scene, lay, st, rec(:, 1:nb_done), summary, set)
     if (present(nml_text)) call add_attr(set, 'namelist', nml_text)
   end subroutine simulate
+
+  !> The sums of all slots on rank 0, added in slot order (((S_0 + S_1) + S_2) + ...). The
+  !> slots are taken apart (their arrays move into `st` or are freed).
+  subroutine fold_slots(slot, n_slots, st)
+    integer, intent(in) :: n_slots
+    type(stats_t), intent(inout) :: slot(0:n_slots - 1)
+    type(stats_t), intent(out) :: st
+    real(dp), allocatable :: x(:)
+    integer :: s, owner, rank, nranks
+    rank = par_rank()
+    nranks = par_size()
+    if (rank == 0) then   ! slot 0 is rank 0's
+      call move_alloc(slot(0)%s1, st%s1)
+      call move_alloc(slot(0)%s2, st%s2)
+      allocate (x(size(st%s1)))
+    end if
+    do s = 1, n_slots - 1
+      owner = mod(s, nranks)
+      if (rank == owner .and. owner /= 0) then
+        call par_move(slot(s)%s1, owner, 0)
+        call par_move(slot(s)%s2, owner, 0)
+        deallocate (slot(s)%s1, slot(s)%s2)
+      else if (rank == 0) then
+        if (owner == 0) then
+          x = slot(s)%s1
+        else
+          call par_move(x, owner, 0)
+        end if
+        st%s1 = st%s1 + x
+        if (owner == 0) then
+          x = slot(s)%s2
+          deallocate (slot(s)%s1, slot(s)%s2)
+        else
+          call par_move(x, owner, 0)
+        end if
+        st%s2 = st%s2 + x
+      end if
+    end do
+  end subroutine fold_slots
 
   !> The output file must not be one of the run's own inputs (the namelist, a scene, surface,
   !> cloud or phase file) nor its Mie cache: writing it would destroy what the run is made from.
@@ -243,8 +380,8 @@ contains
     end if
   end subroutine refuse_input_as_output
 
-  !> A progress line on standard error when it is due: batches done (estimated over all ranks
-  !> from rank 0's own), photons per second, and the time left (fixed batch count) or the
+  !> A progress line on standard error when it is due: batches done (rank 0 has reached batch
+  !> `n_done`; the other ranks run alongside), photons per second, and the time left (fixed batch count) or the
   !> current relative error of the target output (target-error mode).
   subroutine report_progress(pg, cfg, n_done, n_planned)
     type(progress_t), intent(inout) :: pg
@@ -253,9 +390,10 @@ contains
     real(dp) :: t, rate
     character(len=:), allocatable :: line
     t = par_wtime()
-    if (t < pg%next .or. n_done <= 0) return
+    if (t < pg%next .or. n_done <= pg%n0) return
     pg%next = t + PROGRESS_EVERY
-    rate = real(n_done, dp)*real(cfg%control%n_photons_per_batch, dp)/max(t - pg%t0, 1.0e-9_dp)
+    rate = real(n_done - pg%n0, dp)*real(cfg%control%n_photons_per_batch, dp)/ &
+           max(t - pg%t0, 1.0e-9_dp)
     if (cfg%control%target_rel_error > 0.0_dp) then
       line = 'kumo: '//str(n_done)//' batches, '//str(real(nint(rate), dp))//' photons/s'
       if (pg%rel >= 0.0_dp) line = line//', '//trim(cfg%control%target_output)// &
@@ -264,12 +402,280 @@ contains
       line = 'kumo: '//str(min(n_done, n_planned))//' of '//str(n_planned)//' batches ('// &
              str(nint(100.0_dp*min(n_done, n_planned)/n_planned))//' %), '// &
              str(real(nint(rate), dp))//' photons/s, about '// &
-             str(nint(max(0.0_dp, (t - pg%t0)*(real(n_planned, dp)/n_done - 1.0_dp))))// &
+             str(nint(max(0.0_dp, (t - pg%t0)*real(n_planned - n_done, dp)/(n_done - pg%n0))))// &
              ' s left'
     end if
     write (error_unit, '(a)') line
     flush (error_unit)
   end subroutine report_progress
+
+  !> Rank 0 decides whether a checkpoint is due (`interval` seconds after the last one); every
+  !> rank gets the decision.
+  logical function checkpoint_due(plan, t_last) result(due)
+    type(checkpoint_plan_t), intent(in) :: plan
+    real(dp), intent(in) :: t_last
+    integer :: flag(1)
+    flag = 0
+    if (par_is_root()) then
+      if (par_wtime() - t_last >= plan%interval) flag = 1
+    end if
+    call par_bcast_int(flag)
+    due = flag(1) == 1
+  end function checkpoint_due
+
+  !> Write the checkpoint after batch `n_done` (every batch up to it is done on every rank),
+  !> in the round that began with batch `ib_round`. Collective: the slots travel to rank 0,
+  !> which writes them one by one. A checkpoint that cannot be written is a warning: the run
+  !> goes on (the previous checkpoint, if any, stays).
+  subroutine write_checkpoint(plan, cfg, lay, slot, n_slots, ib_round, n_done, rec, cpu_rank)
+    type(checkpoint_plan_t), intent(in) :: plan
+    type(config_t), intent(in) :: cfg
+    type(tally_layout_t), intent(in) :: lay
+    integer, intent(in) :: n_slots, ib_round, n_done
+    type(stats_t), intent(in) :: slot(0:n_slots - 1)
+    real(dp), intent(in) :: rec(:, :)
+    real(dp), intent(in) :: cpu_rank   !! this rank's CPU time so far (rank 0: and before)
+    type(error_t), allocatable :: err
+    type(ckpt_header_t) :: head
+    real(dp), allocatable :: flat(:), x1(:), x2(:)
+    integer(i8) :: cnt(4 + N_ANOMALIES)
+    integer :: s, owner, rank, nranks, unit
+    rank = par_rank()
+    nranks = par_size()
+    flat = [reshape(rec(:, 1:n_done), [3*n_done]), cpu_rank]
+    call par_sum_to_root(flat)   ! each record is non-zero on one rank only: the sum is exact
+    allocate (x1(lay%n), x2(lay%n))
+    if (rank == 0) then
+      head%n_slots = n_slots
+      head%ib_round = ib_round
+      head%n_done = n_done
+      head%n_values = lay%n
+      head%n_counts = size(cnt)
+      head%cpu = flat(size(flat))
+      call ckpt_create(plan%path, plan%fp, head, reshape(flat(1:3*n_done), [3, n_done]), unit, &
+                       err)
+    end if
+    do s = 0, n_slots - 1
+      owner = mod(s, nranks)
+      if (rank == owner) then
+        cnt = [slot(s)%n_batches, slot(s)%n_photons, slot(s)%work, slot(s)%anomalies]
+        x1 = slot(s)%s1
+        x2 = slot(s)%s2
+      end if
+      call par_move(cnt, owner, 0)
+      call par_move(x1, owner, 0)
+      call par_move(x2, owner, 0)
+      if (rank == 0) call ckpt_put_slot(unit, plan%path, cnt, x1, x2, err)
+    end do
+    if (rank /= 0) return
+    call ckpt_commit(unit, plan%path, err)
+    if (allocated(err)) then
+      write (error_unit, '(a)') 'kumo: warning: no checkpoint after batch '//str(n_done)// &
+        ' (the run goes on): '//err%message
+    else if (cfg%control%verbose >= 1) then
+      write (error_unit, '(a)') 'kumo: checkpoint after batch '//str(n_done)//': '//plan%path
+    end if
+    flush (error_unit)
+  end subroutine write_checkpoint
+
+  !> Continue from the checkpoint `plan%path` if it exists (else start from the first batch):
+  !> rank 0 reads it and checks it against the configuration's fingerprint; every slot goes to
+  !> the rank that runs it. Returns the slot count, the first batch of the round in progress,
+  !> the batches done, their records and the CPU time before (rank 0) and the slots' sums.
+  subroutine resume_run(plan, cfg, lay, n_slots, ib_next, n_done, rec, cpu_before, slot, error)
+    type(checkpoint_plan_t), intent(in) :: plan
+    type(config_t), intent(in) :: cfg
+    type(tally_layout_t), intent(in) :: lay
+    integer, intent(out) :: n_slots, ib_next, n_done
+    real(dp), allocatable, intent(inout) :: rec(:, :)
+    real(dp), intent(out) :: cpu_before
+    type(stats_t), allocatable, intent(out) :: slot(:)
+    type(error_t), allocatable, intent(out) :: error
+    type(ckpt_header_t) :: head
+    real(dp), allocatable :: x1(:), x2(:)
+    integer(i8) :: cnt(4 + N_ANOMALIES)
+    integer :: info(4), s, owner, rank, nranks, unit
+    logical :: exists
+    rank = par_rank()
+    nranks = par_size()
+    cpu_before = 0.0_dp
+    info = 0
+    if (rank == 0) then
+      inquire (file=plan%path, exist=exists)
+      if (exists) then
+        call ckpt_open(plan%path, plan%fp, lay%n, size(cnt), head, rec, unit, error)
+        info = [1, head%n_slots, head%ib_round, head%n_done]
+      end if
+    end if
+    call share_error(error)
+    if (allocated(error)) return
+    call par_bcast_int(info)
+    n_slots = par_size()
+    ib_next = 1
+    n_done = 0
+    if (info(1) == 0) then
+      if (rank == 0 .and. cfg%control%verbose >= 1) write (output_unit, '(a)') &
+        'no checkpoint '//plan%path//': the run starts from the first batch'
+      return
+    end if
+    n_slots = info(2)
+    ib_next = info(3)
+    n_done = info(4)
+    if (rank == 0) cpu_before = head%cpu
+    allocate (slot(0:n_slots - 1), x1(lay%n), x2(lay%n))
+    do s = 0, n_slots - 1
+      owner = mod(s, nranks)
+      if (rank == 0) call ckpt_get_slot(unit, plan%path, cnt, x1, x2, error)
+      call par_move(cnt, 0, owner)
+      call par_move(x1, 0, owner)
+      call par_move(x2, 0, owner)
+      if (rank == owner) then
+        call stats_init(slot(s), lay)
+        slot(s)%n_batches = cnt(1)
+        slot(s)%n_photons = cnt(2)
+        slot(s)%work = cnt(3:4)
+        slot(s)%anomalies = cnt(5:)
+        slot(s)%s1 = x1
+        slot(s)%s2 = x2
+      end if
+    end do
+    if (rank == 0) call ckpt_close(unit, plan%path, error)
+    call share_error(error)
+    if (allocated(error)) return
+    if (rank == 0 .and. cfg%control%verbose >= 1) write (output_unit, '(a)') &
+      'resuming from the checkpoint '//plan%path//': batches 1 to '//str(n_done)// &
+      ' are done; the results will be those of an uninterrupted run on '//str(n_slots)// &
+      ' rank'//trim(merge('s', ' ', n_slots > 1))//', the rank count that started the case'
+  end subroutine resume_run
+
+  !> Before any work (rank 0): with --resume, a checkpoint of another configuration is refused
+  !> at once; without it, an existing checkpoint that this run will replace is mentioned.
+  subroutine early_checkpoint_check(plan, cfg, error)
+    type(checkpoint_plan_t), intent(in) :: plan
+    type(config_t), intent(in) :: cfg
+    type(error_t), allocatable, intent(out) :: error
+    type(ckpt_header_t) :: head
+    real(dp), allocatable :: rec(:, :)
+    integer :: unit
+    logical :: exists
+    inquire (file=plan%path, exist=exists)
+    if (.not. exists) return
+    if (plan%resume) then
+      call ckpt_open(plan%path, plan%fp, -1, -1, head, rec, unit, error)
+    else if (plan%interval > 0.0_dp .and. cfg%control%verbose >= 1) then
+      write (output_unit, '(a)') 'note: the checkpoint '//plan%path//' of an earlier run is '// &
+        'replaced: this run starts from the first batch (kumo --resume continues from it)'
+    end if
+  end subroutine early_checkpoint_check
+
+  !> What a checkpoint of this run belongs to: the namelist text, the content of every input
+  !> file it names, the kumo build.
+  subroutine fingerprint(cfg, path, text, fp)
+    type(config_t), intent(in) :: cfg
+    character(len=*), intent(in) :: path, text
+    type(fingerprint_t), intent(out) :: fp
+    type(input_file_t), allocatable :: inputs(:)
+    integer :: i
+    call fingerprint_add_text(fp, 'the namelist text', text)
+    inputs = config_inputs(cfg, path)
+    do i = 2, size(inputs)   ! the namelist itself is its text
+      call fingerprint_add_file(fp, 'the input file '//inputs(i)%label, inputs(i)%path)
+    end do
+    call fingerprint_add_build(fp)
+  end subroutine fingerprint
+
+  !> Rank 0's error (or success) on every rank, with the same message: for work only rank 0
+  !> does (reading the namelist, checking the output path, reading a checkpoint).
+  subroutine share_error(error)
+    type(error_t), allocatable, intent(inout) :: error
+    integer :: status(1)
+    character(len=:), allocatable :: message
+    status = 0
+    if (par_is_root() .and. allocated(error)) status = 1
+    call par_bcast_int(status)
+    if (status(1) == 0) return
+    if (par_is_root()) message = error%message
+    call par_bcast_text(message)
+    if (.not. par_is_root()) call set_error(error, message)
+  end subroutine share_error
+
+  !> The whole text of the file `path`, lines as they are, each ended by a line end.
+  subroutine read_text(path, text, error)
+    character(len=*), intent(in) :: path
+    character(len=:), allocatable, intent(out) :: text
+    type(error_t), allocatable, intent(out) :: error
+    character(len=:), allocatable :: line
+    character(len=512) :: msg
+    integer :: unit, ios
+    text = ''
+    open (newunit=unit, file=path, status='old', action='read', iostat=ios, iomsg=msg)
+    if (ios /= 0) then
+      call set_error(error, 'cannot open namelist file "'//trim(path)//'": '//trim(msg))
+      return
+    end if
+    do
+      call read_line(unit, line, ios)
+      if (ios /= 0) exit
+      text = text//line//new_line('a')
+    end do
+    close (unit)
+  end subroutine read_text
+
+  !> `text` with the trailing blanks of every line removed (the form the output stores).
+  pure function trim_lines(text) result(out)
+    character(len=*), intent(in) :: text
+    character(len=:), allocatable :: out
+    integer :: i0, i1
+    out = ''
+    i0 = 1
+    do while (i0 <= len(text))
+      i1 = index(text(i0:), new_line('a'))
+      if (i1 == 0) then
+        i1 = len(text) + 1
+      else
+        i1 = i0 + i1 - 1
+      end if
+      out = out//trim(text(i0:i1 - 1))//new_line('a')
+      i0 = i1 + 1
+    end do
+  end function trim_lines
+
+  !> Test hook (tests/mpi/failing_rank.sh): with the environment variable KUMO_TEST_FAIL_RANK
+  !> set to a rank, that rank fails after the scene set-up as if an input it reads could not be
+  !> read, while the other ranks go on. Not for users (docs/design.md).
+  subroutine test_failure_hook(cfg, rank, error)
+    type(config_t), intent(in) :: cfg
+    integer, intent(in) :: rank
+    type(error_t), allocatable, intent(out) :: error
+    character(len=:), allocatable :: what
+    if (env_int('KUMO_TEST_FAIL_RANK') /= rank) return
+    what = 'the scene input'
+    if (allocated(cfg%path)) what = cfg%path
+    call set_error(error, 'cannot read '//what//': input unreadable on this rank (failure '// &
+                   'injected by the test hook KUMO_TEST_FAIL_RANK)')
+  end subroutine test_failure_hook
+
+  !> A non-negative integer from the environment variable `name`; -1 when it is not set or not
+  !> such a number.
+  integer function env_int(name) result(value)
+    character(len=*), intent(in) :: name
+    character(len=32) :: text
+    integer :: length, status, ios
+    value = -1
+    call get_environment_variable(name, text, length, status)
+    if (status /= 0 .or. length == 0) return
+    read (text, *, iostat=ios) value
+    if (ios /= 0 .or. value < 0) value = -1
+  end function env_int
+
+  !> Test hook (tests/regression/checkpoint.sh): end this process with SIGKILL, as a batch
+  !> system does at the wall-time limit.
+  subroutine kill_self()
+    integer(c_int) :: status
+    flush (output_unit)
+    flush (error_unit)
+    status = c_raise(SIGKILL)
+  end subroutine kill_self
 
   pure real(dp) function relative_error(b) result(rel)
     real(dp), intent(in) :: b(3)  !! S1, S2, number of batches

@@ -8,8 +8,9 @@
 !> &kumo_radiance, &kumo_camera. Every variable, its default, units and range is listed in
 !> namelists/reference.nml. The groups are found by kumo's own scanner (kumo_nml_text), which
 !> names unknown, misspelt and repeated groups; namelist variables are local variables copied
-!> into the types, so the file syntax does not depend on component names. Every rank reads and
-!> validates the namelist itself, so all ranks fail the same way. A cloud file's grid and
+!> into the types, so the file syntax does not depend on component names. A run reads the
+!> namelist file once, on rank 0, and every rank parses and validates that same text (the
+!> `text` argument of read_config), so all ranks fail the same way. A cloud file's grid and
 !> pressure are still read here (to check the levels against it), not only in scene set-up.
 module kumo_config
   use, intrinsic :: iso_fortran_env, only: iostat_end
@@ -96,6 +97,7 @@ module kumo_config
     integer :: verbose = 1                         !! 0 quiet, 1 summary, 2 per round
     character(len=8) :: mode_3d = 'f3d'            !! one of MODE_NAMES: f3d, ica, p3d
     integer :: p3d_orders = 1                      !! p3d: scatterings placed by 3-D transport
+    real(wp) :: checkpoint_interval = 0.0_wp       !! [s] between checkpoints; 0 = none
   end type control_cfg_t
 
   !> &kumo_atmosphere: levels, 1-D layers and the 3-D region.
@@ -267,19 +269,28 @@ module kumo_config
 
 contains
 
-  !> Read and validate every group of the namelist file `path`.
-  subroutine read_config(path, cfg, error)
+  !> Read and validate every group of the namelist file `path`. With `text` (the file's
+  !> content, read once on rank 0 and broadcast by kumo_driver, so that every rank parses the
+  !> same text) the file is not opened: the text is parsed from a scratch copy; `path` still
+  !> locates the relative file names it gives.
+  subroutine read_config(path, cfg, error, text)
     character(len=*), intent(in) :: path
     type(config_t), intent(out) :: cfg
     type(error_t), allocatable, intent(out) :: error
+    character(len=*), intent(in), optional :: text
     integer :: unit, ios
     character(len=512) :: msg
     logical :: present_groups(size(GROUP_NAMES))
     cfg%path = path
-    open (newunit=unit, file=path, status='old', action='read', iostat=ios, iomsg=msg)
-    if (ios /= 0) then
-      call set_error(error, 'cannot open namelist file "'//trim(path)//'": '//trim(msg))
-      return
+    if (present(text)) then
+      call open_text(text, unit, error)
+      if (allocated(error)) return
+    else
+      open (newunit=unit, file=path, status='old', action='read', iostat=ios, iomsg=msg)
+      if (ios /= 0) then
+        call set_error(error, 'cannot open namelist file "'//trim(path)//'": '//trim(msg))
+        return
+      end if
     end if
     call scan_groups(unit, present_groups, error)
     if (.not. allocated(error)) call read_control(unit, present_groups(1), cfg%control, error)
@@ -301,6 +312,30 @@ contains
     close (unit)
     if (.not. allocated(error)) call consolidate(cfg, error)
   end subroutine read_config
+
+  !> A scratch file holding `text` (lines separated by line ends), open for reading on `unit`.
+  subroutine open_text(text, unit, error)
+    character(len=*), intent(in) :: text
+    integer, intent(out) :: unit
+    type(error_t), allocatable, intent(out) :: error
+    integer :: ios, i0, i1
+    character(len=512) :: msg
+    open (newunit=unit, status='scratch', action='readwrite', iostat=ios, iomsg=msg)
+    i0 = 1
+    do while (ios == 0 .and. i0 <= len(text))
+      i1 = index(text(i0:), new_line('a'))
+      if (i1 == 0) then
+        i1 = len(text) + 1
+      else
+        i1 = i0 + i1 - 1
+      end if
+      write (unit, '(a)', iostat=ios, iomsg=msg) text(i0:i1 - 1)
+      i0 = i1 + 1
+    end do
+    if (ios == 0) rewind (unit, iostat=ios, iomsg=msg)
+    if (ios /= 0) call set_error(error, 'cannot make a scratch copy of the namelist text: '// &
+                                 trim(msg))
+  end subroutine open_text
 
   !> Find which groups are present (kumo_nml_text reads the layouts gfortran reads: &group ... /,
   !> $group ... $end, tabs, several groups on a line). Unknown group names are errors with the
@@ -395,13 +430,13 @@ contains
     type(error_t), allocatable, intent(out) :: error
     integer(i8) :: n_photons_per_batch, seed, max_photons, max_events
     integer :: n_batches, verbose, ios, p3d_orders
-    real(wp) :: target_rel_error
+    real(wp) :: target_rel_error, checkpoint_interval
     character(len=16) :: target_output
     character(len=8) :: mode_3d
     character(len=512) :: msg
     character(len=*), parameter :: CTX = '&kumo_control: '
     namelist /kumo_control/ n_photons_per_batch, n_batches, seed, target_rel_error, &
-      target_output, max_photons, max_events, verbose, mode_3d, p3d_orders
+      target_output, max_photons, max_events, verbose, mode_3d, p3d_orders, checkpoint_interval
     n_photons_per_batch = cfg%n_photons_per_batch
     n_batches = cfg%n_batches
     seed = cfg%seed
@@ -412,6 +447,7 @@ contains
     verbose = cfg%verbose
     mode_3d = cfg%mode_3d
     p3d_orders = cfg%p3d_orders
+    checkpoint_interval = cfg%checkpoint_interval
     rewind (unit)
     msg = ''
     read (unit, nml=kumo_control, iostat=ios, iomsg=msg)
@@ -427,6 +463,7 @@ contains
     cfg%verbose = verbose
     cfg%mode_3d = to_lower(mode_3d)
     cfg%p3d_orders = p3d_orders
+    cfg%checkpoint_interval = checkpoint_interval
     call require(n_photons_per_batch >= 1, CTX, 'n_photons_per_batch', n_photons_per_batch, &
                  'must be >= 1', error)
     call require(n_batches >= 2, CTX, 'n_batches', n_batches, &
@@ -449,6 +486,8 @@ contains
     call require(findloc(MODE_NAMES, cfg%mode_3d, 1) > 0, CTX, 'mode_3d', mode_3d, &
                  'must be one of '//join(MODE_NAMES), error)
     call require(p3d_orders >= 0, CTX, 'p3d_orders', p3d_orders, 'must be >= 0', error)
+    call require(within(checkpoint_interval, 0.0_wp, BIG), CTX, 'checkpoint_interval', &
+                 checkpoint_interval, 'must be >= 0 s (0 = no checkpoints)', error)
   contains
     !> Read one assignment of &kumo_control (or write the namelist), for check_read.
     subroutine probe(text, out_unit, ios, msg)
@@ -1953,8 +1992,10 @@ contains
            'kumo_control.max_photons = '//str(cfg%control%max_photons)//nl// &
            'kumo_control.max_events = '//str(cfg%control%max_events)//nl// &
            'kumo_control.mode_3d = '//trim(cfg%control%mode_3d)//nl// &
-           'kumo_control.p3d_orders = '//str(cfg%control%p3d_orders)//nl// &
-           'kumo_atmosphere.nz = '//str(cfg%atm%nz)//nl// &
+           'kumo_control.p3d_orders = '//str(cfg%control%p3d_orders)//nl
+    if (cfg%control%checkpoint_interval > 0.0_wp) text = text// &
+      'kumo_control.checkpoint_interval = '//str(cfg%control%checkpoint_interval)//nl
+    text = text//'kumo_atmosphere.nz = '//str(cfg%atm%nz)//nl// &
            'kumo_atmosphere.z_levels = '//join(cfg%atm%z)//nl// &
            'kumo_atmosphere.lx = '//str(cfg%atm%lx)//nl// &
            'kumo_atmosphere.ly = '//str(cfg%atm%ly)//nl// &

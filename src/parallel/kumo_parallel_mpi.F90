@@ -8,19 +8,32 @@ module kumo_parallel
     MPI_Comm_size, MPI_Reduce, MPI_Allreduce, MPI_Bcast, MPI_Barrier, MPI_Wtime, MPI_Abort, &
     MPI_COMM_WORLD, MPI_IN_PLACE, MPI_DOUBLE_PRECISION, MPI_INTEGER, MPI_INTEGER8, MPI_SUM
   use mpi_f08, only: MPI_Ibarrier, MPI_Test, MPI_Request, MPI_STATUS_IGNORE
+  use mpi_f08, only: MPI_Send, MPI_Recv, MPI_Gather, MPI_Gatherv, MPI_CHARACTER
   use, intrinsic :: iso_c_binding, only: c_int
+  use, intrinsic :: iso_fortran_env, only: error_unit
   use kumo_kinds, only: dp, i8
   implicit none
   private
   public :: par_init, par_finalize, par_rank, par_size, par_is_root, par_sum_to_root, &
             par_allreduce_sum, par_abort, par_barrier, par_wtime, par_bcast_int, par_bcast_real, PAR_IS_MPI
-  public :: par_stop
+  public :: par_stop, par_fail, par_bcast_text, par_move
 
   logical, parameter :: PAR_IS_MPI = .true.  !! this build distributes batches over MPI ranks
 
   interface par_sum_to_root
     module procedure sum_to_root_dp, sum_to_root_i8
   end interface par_sum_to_root
+
+  !> Copy an array from one rank to another (point to point; the other ranks do nothing).
+  interface par_move
+    module procedure move_dp, move_i8
+  end interface par_move
+
+  !> How long [s] the ranks that failed wait for the others before ending the job with
+  !> MPI_Abort: an error every rank found reaches them all well within it.
+  real(dp), parameter :: ABORT_GRACE_S = 5.0_dp
+  !> Tag of the point-to-point messages of par_move.
+  integer, parameter :: MOVE_TAG = 4242
 
   !> The C library's exit(): ends the process with an exit status and, unlike STOP with a code,
   !> prints nothing (Fortran 2008 has no quiet STOP). Fortran units are flushed and closed by
@@ -106,6 +119,147 @@ contains
     end do
   end subroutine par_bcast_real
 
+  !> Broadcast a string from rank 0 (any length; `text` need not be allocated elsewhere).
+  subroutine par_bcast_text(text)
+    character(len=:), allocatable, intent(inout) :: text
+    integer :: n(1)
+    n = 0
+    if (par_rank() == 0) n = len(text)
+    call MPI_Bcast(n, 1, MPI_INTEGER, 0, MPI_COMM_WORLD)
+    if (par_rank() /= 0) then
+      if (allocated(text)) deallocate (text)
+      allocate (character(len=n(1)) :: text)
+    end if
+    if (n(1) > 0) call MPI_Bcast(text, n(1), MPI_CHARACTER, 0, MPI_COMM_WORLD)
+  end subroutine par_bcast_text
+
+  !> Rank `to` receives `buf` from rank `from` (same size on both); nothing happens on other
+  !> ranks or when `from` = `to`.
+  subroutine move_dp(buf, from, to)
+    real(dp), intent(inout) :: buf(:)
+    integer, intent(in) :: from, to
+    integer :: rank
+    if (from == to) return
+    rank = par_rank()
+    if (rank == from) then
+      call MPI_Send(buf, size(buf), MPI_DOUBLE_PRECISION, to, MOVE_TAG, MPI_COMM_WORLD)
+    else if (rank == to) then
+      call MPI_Recv(buf, size(buf), MPI_DOUBLE_PRECISION, from, MOVE_TAG, MPI_COMM_WORLD, &
+                    MPI_STATUS_IGNORE)
+    end if
+  end subroutine move_dp
+
+  subroutine move_i8(buf, from, to)
+    integer(i8), intent(inout) :: buf(:)
+    integer, intent(in) :: from, to
+    integer :: rank
+    if (from == to) return
+    rank = par_rank()
+    if (rank == from) then
+      call MPI_Send(buf, size(buf), MPI_INTEGER8, to, MOVE_TAG, MPI_COMM_WORLD)
+    else if (rank == to) then
+      call MPI_Recv(buf, size(buf), MPI_INTEGER8, from, MOVE_TAG, MPI_COMM_WORLD, &
+                    MPI_STATUS_IGNORE)
+    end if
+  end subroutine move_i8
+
+  !> End the run after an error `message` found on this rank: the message is printed and every
+  !> rank stops with exit status `code`; no rank is left waiting.
+  !>
+  !> Rank 0 prints its message at once (`kumo error: ...`). The other ranks wait up to
+  !> ABORT_GRACE_S seconds for every rank to fail too (an error all ranks found, such as an
+  !> invalid namelist): then rank 0 prints each message that differs from its own once, with
+  !> the ranks that reported it, and all ranks exit quietly. A rank whose error the others did
+  !> not share (an input only it reads, an allocation failure, a test hook) prints
+  !> `kumo error on rank R of N: ...` when the grace has passed and ends the job with MPI_Abort,
+  !> wherever the other ranks are.
+  subroutine par_fail(message, code)
+    character(len=*), intent(in) :: message
+    integer, intent(in) :: code
+    type(MPI_Request) :: request
+    logical :: all_here
+    real(dp) :: t0
+    integer :: rank, n
+    rank = par_rank()
+    n = par_size()
+    if (rank == 0) then
+      write (error_unit, '(a)') 'kumo error: '//message
+      flush (error_unit)
+    end if
+    if (n == 1) call par_stop(code)
+    call MPI_Ibarrier(MPI_COMM_WORLD, request)
+    t0 = MPI_Wtime()
+    do
+      call MPI_Test(request, all_here, MPI_STATUS_IGNORE)
+      if (all_here) exit
+      if (MPI_Wtime() - t0 > ABORT_GRACE_S) exit
+    end do
+    if (all_here) then
+      call report_other_messages(message)
+      call par_stop(code)
+    end if
+    if (rank /= 0) then
+      write (error_unit, '(a)') 'kumo error on rank '//itoa(rank)//' of '//itoa(n)//': '//message
+      flush (error_unit)
+    end if
+    call MPI_Abort(MPI_COMM_WORLD, code)
+  end subroutine par_fail
+
+  !> Every rank failed: rank 0 gathers the messages and prints those that differ from its own,
+  !> each once, with the ranks that reported it.
+  subroutine report_other_messages(message)
+    character(len=*), intent(in) :: message
+    integer :: n, r, q, my_len(1)
+    integer, allocatable :: lens(:), offs(:)
+    character(len=:), allocatable :: all_text, ranks
+    character(len=1) :: dummy(1)
+    n = par_size()
+    allocate (lens(n), offs(n))
+    lens = 0
+    my_len(1) = len(message)
+    call MPI_Gather(my_len, 1, MPI_INTEGER, lens, 1, MPI_INTEGER, 0, MPI_COMM_WORLD)
+    offs = 0
+    do r = 2, n
+      offs(r) = offs(r - 1) + lens(r - 1)
+    end do
+    if (par_rank() == 0) then
+      allocate (character(len=sum(lens)) :: all_text)
+      call MPI_Gatherv(message, len(message), MPI_CHARACTER, all_text, lens, offs, &
+                       MPI_CHARACTER, 0, MPI_COMM_WORLD)
+    else
+      call MPI_Gatherv(message, len(message), MPI_CHARACTER, dummy, lens, offs, &
+                       MPI_CHARACTER, 0, MPI_COMM_WORLD)
+      return
+    end if
+    do r = 2, n
+      if (text_of(r) == message) cycle
+      if (any([(text_of(q) == text_of(r), q = 2, r - 1)])) cycle   ! printed with rank q
+      ranks = ''
+      do q = r, n
+        if (text_of(q) /= text_of(r)) cycle
+        if (len(ranks) > 0) ranks = ranks//', '
+        ranks = ranks//itoa(q - 1)
+      end do
+      write (error_unit, '(a)') 'kumo error on rank'//trim(merge('s', ' ', index(ranks, ',') > 0))// &
+        ' '//ranks//' of '//itoa(n)//': '//text_of(r)
+    end do
+    flush (error_unit)
+  contains
+    function text_of(i) result(t)
+      integer, intent(in) :: i
+      character(len=:), allocatable :: t
+      t = all_text(offs(i) + 1:offs(i) + lens(i))
+    end function text_of
+  end subroutine report_other_messages
+
+  pure function itoa(i) result(s)
+    integer, intent(in) :: i
+    character(len=:), allocatable :: s
+    character(len=12) :: buf
+    write (buf, '(i0)') i
+    s = trim(buf)
+  end function itoa
+
   subroutine par_barrier()
     call MPI_Barrier(MPI_COMM_WORLD)
   end subroutine par_barrier
@@ -120,7 +274,6 @@ contains
   !> ranks only, the others busy or waiting in a collective operation) MPI_Abort ends them all.
   subroutine par_abort(code)
     integer, intent(in) :: code
-    real(dp), parameter :: ABORT_GRACE_S = 5.0_dp
     type(MPI_Request) :: request
     logical :: all_here
     real(dp) :: t0

@@ -2,18 +2,23 @@
 !> Serial build of kumo_parallel: one rank, every operation is trivial.
 module kumo_parallel
   use, intrinsic :: iso_c_binding, only: c_int
+  use, intrinsic :: iso_fortran_env, only: error_unit
   use kumo_kinds, only: dp, i8
   implicit none
   private
   public :: par_init, par_finalize, par_rank, par_size, par_is_root, par_sum_to_root, &
             par_allreduce_sum, par_abort, par_barrier, par_wtime, par_bcast_int, par_bcast_real, PAR_IS_MPI
-  public :: par_stop
+  public :: par_stop, par_fail, par_bcast_text, par_move
 
   logical, parameter :: PAR_IS_MPI = .false.  !! this build runs on one process
 
   interface par_sum_to_root
     module procedure sum_to_root_dp, sum_to_root_i8
   end interface par_sum_to_root
+
+  interface par_move
+    module procedure move_dp, move_i8
+  end interface par_move
 
   !> The C library's exit(): ends the process with an exit status and, unlike STOP with a code,
   !> prints nothing (Fortran 2008 has no quiet STOP). Fortran units are flushed and closed by
@@ -70,6 +75,33 @@ contains
     real(dp), intent(inout) :: buf(:)
     if (size(buf) < 0) buf = 0.0_dp
   end subroutine par_bcast_real
+
+  subroutine par_bcast_text(text)
+    character(len=:), allocatable, intent(inout) :: text
+    if (.not. allocated(text)) text = ''
+  end subroutine par_bcast_text
+
+  !> One rank: `from` and `to` are both 0, nothing moves.
+  subroutine move_dp(buf, from, to)
+    real(dp), intent(inout) :: buf(:)
+    integer, intent(in) :: from, to
+    if (from /= to) buf = buf
+  end subroutine move_dp
+
+  subroutine move_i8(buf, from, to)
+    integer(i8), intent(inout) :: buf(:)
+    integer, intent(in) :: from, to
+    if (from /= to) buf = buf
+  end subroutine move_i8
+
+  !> Print `kumo error: message` and end the run with exit status `code`.
+  subroutine par_fail(message, code)
+    character(len=*), intent(in) :: message
+    integer, intent(in) :: code
+    write (error_unit, '(a)') 'kumo error: '//message
+    flush (error_unit)
+    call par_stop(code)
+  end subroutine par_fail
 
   subroutine par_barrier()
   end subroutine par_barrier

@@ -17,6 +17,7 @@ module kumo_driver
                         stats_add_batch, N_ANOMALIES
   use kumo_scene, only: scene_t
   use kumo_transport, only: trace_batch
+  use kumo_exact_column, only: exact_thermal_possible, exact_thermal_batch
   use kumo_results, only: result_set_t, add_attr
   use kumo_config, only: config_t, read_config, config_echo, input_file_t, config_inputs
   use kumo_textio, only: read_line, same_file
@@ -146,7 +147,7 @@ contains
     integer :: ib, ib_next, nb_round, rank, nranks, itarget, nb_done, n_slots, s, n_done, &
                ib_last, n_ckpt, kill_after
     integer, allocatable :: map_levels(:), cam_npix(:)
-    logical :: maps, voxel, rad_maps, checkpoints
+    logical :: maps, voxel, rad_maps, checkpoints, exact
     type(progress_t) :: pg
 
     t0 = par_wtime()
@@ -170,6 +171,10 @@ contains
     call layout_init(lay, scene%atm%nz, scene%atm%nx*scene%atm%ny, scene%atm%n3, map_levels, &
                      voxel, scene%det%n_dir, scene%det%levels, rad_maps, cam_npix, &
                      [scene%atm%k3_lo - 1, scene%atm%k3_hi], thermal=scene%src%em%on)
+    ! a non-scattering thermal column: every batch from the exact solution, no photons
+    exact = scene%exact_thermal .and. exact_thermal_possible(scene)
+    if (exact) scene%notes = scene%notes//'thermal emission of a non-scattering column: solved '// &
+      'exactly (exponential integrals), no photons traced; standard errors are 0'//new_line('a')
     if (par_is_root() .and. len(scene%notes) > 0 .and. cfg%control%verbose >= 1) then
       write (output_unit, '(a)', advance='no') scene%notes
       flush (output_unit)
@@ -228,7 +233,12 @@ contains
         if (mod(s, nranks) == rank) then
           call rng_init(rng, cfg%control%seed, int(ib, i8))
           call tally_reset(tal, lay)
-          call trace_batch(scene, lay, rng, nphot, tal)
+          if (exact) then
+            call exact_thermal_batch(scene, lay, nphot, tal, error)
+            if (allocated(error)) return
+          else
+            call trace_batch(scene, lay, rng, nphot, tal)
+          end if
           call stats_add_batch(slot(s), lay, tal, nphot)
           rec(1, ib) = tal%buf(lay%i_up + lay%nz + 1)/real(nphot, dp)
           rec(2, ib) = (tal%buf(lay%i_dir + 1) + tal%buf(lay%i_dif + 1))/real(nphot, dp)

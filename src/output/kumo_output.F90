@@ -491,6 +491,7 @@ contains
         end if
       end do
     end do
+    call log_thermal(set)
     call log_radiances(set)
     do i = 1, N_ANOMALIES
       if (summary%anomalies(i) > 0) write (output_unit, '(a)') '  anomaly '// &
@@ -549,6 +550,37 @@ contains
       end associate
     end do
   end subroutine cf_annotate
+
+  !> Thermal runs: the headline numbers in absolute units (upward flux at the highest written
+  !> level, downward flux at the lowest, the net power of the atmosphere's layers and the range
+  !> of the layer heating rates).
+  subroutine log_thermal(set)
+    type(result_set_t), intent(in) :: set
+    integer :: iu, id, inet, ih, n, k
+    character(len=:), allocatable :: units
+    if (find_var(set, 'source_power') == 0) return
+    iu = find_var(set, 'flux_up_wm2')
+    id = find_var(set, 'flux_down_wm2')
+    inet = find_var(set, 'net_power_layer')
+    ih = find_var(set, 'heating_rate_layer')
+    units = trim(set%vars(iu)%units)
+    n = size(set%vars(iu)%mean)
+    write (output_unit, '(2x,a24,f12.4,a,f10.4,a)') 'flux_up (top level)', set%vars(iu)%mean(n), &
+      ' +- ', set%vars(iu)%stderr(n), ' '//units
+    write (output_unit, '(2x,a24,f12.4,a,f10.4,a)') 'flux_down (lowest level)', &
+      set%vars(id)%mean(1), ' +- ', set%vars(id)%stderr(1), ' '//units
+    write (output_unit, '(2x,a24,f12.4,a,f10.4,a)') 'net power of the layers', &
+      sum(set%vars(inet)%mean), ' +- ', sqrt(sum(set%vars(inet)%stderr**2)), ' '//units// &
+      ' (independent errors assumed)'
+    if (ih > 0) then
+      k = minloc(set%vars(ih)%mean, 1)
+      write (output_unit, '(2x,a24,f12.4,a,f10.4,a)') 'strongest cooling', set%vars(ih)%mean(k), &
+        ' +- ', set%vars(ih)%stderr(k), ' K/day (layer '//str(k)//')'
+      k = maxloc(set%vars(ih)%mean, 1)
+      write (output_unit, '(2x,a24,f12.4,a,f10.4,a)') 'strongest heating', set%vars(ih)%mean(k), &
+        ' +- ', set%vars(ih)%stderr(k), ' K/day (layer '//str(k)//')'
+    end if
+  end subroutine log_thermal
 
   !> The domain-mean radiances, one line per direction and level, leaving out exact zeros (no
   !> light enters at the top; a black surface reflects none); at most MAX_LINES lines.

@@ -2,8 +2,16 @@
 # Run kumo on a valid namelist that must succeed, and check its warnings: with WARN=1 the
 # standard error and the output's global attribute `warnings` must both match REGEX; with
 # WARN=0 neither may match it.
-# Variables: KUMO (program), NML (namelist), REGEX, OUT (output file the namelist writes), WARN.
+# Variables: KUMO (program), NML (namelist), REGEX, OUT (output file the namelist writes), WARN,
+# optional CDL (netCDF files in CDL text, turned into <name>.nc with ncgen before the run).
 file(REMOVE ${OUT})
+foreach(cdl IN LISTS CDL)
+  get_filename_component(stem ${cdl} NAME_WE)
+  execute_process(COMMAND ncgen -o ${stem}.nc ${cdl} RESULT_VARIABLE rc_gen)
+  if(NOT rc_gen EQUAL 0)
+    message(FATAL_ERROR "ncgen failed on ${cdl}")
+  endif()
+endforeach()
 get_filename_component(name ${NML} NAME)
 configure_file(${NML} ${name} COPYONLY)
 execute_process(COMMAND ${KUMO} ${name} RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)

@@ -1430,15 +1430,16 @@ contains
   !> Bounds of the size of the netCDF-4 file of a result set: the values (mean and standard
   !> error) and coordinates as doubles and the attribute texts, plus HDF5 object headers per
   !> dimension and variable (measured: about 1.1 KiB each in kumo's outputs) and the file's own
-  !> structures: at least 512 bytes per object and 2 KiB (none of it with compression), at most
-  !> 4 KiB per object and 64 KiB.
+  !> structures: at least 512 bytes per object and 2 KiB (with compression the values do not
+  !> count), at most 4 KiB per object and 64 KiB.
   pure subroutine result_set_bytes(set, nbytes_min, nbytes_max)
     type(result_set_t), intent(in) :: set
     integer(i8), intent(out) :: nbytes_min, nbytes_max
     integer :: i
-    integer(i8) :: n_objects
+    integer(i8) :: n_objects, n_text
     nbytes_min = 0_i8
     n_objects = 0_i8
+    n_text = 0_i8
     if (allocated(set%dims)) then
       do i = 1, size(set%dims)
         n_objects = n_objects + 1_i8
@@ -1457,12 +1458,13 @@ contains
     end if
     if (allocated(set%attrs)) then
       do i = 1, size(set%attrs)
-        if (allocated(set%attrs(i)%value)) nbytes_min = nbytes_min + len(set%attrs(i)%value, kind=i8)
+        if (allocated(set%attrs(i)%value)) n_text = n_text + len(set%attrs(i)%value, kind=i8)
       end do
     end if
+    nbytes_min = nbytes_min + n_text
     nbytes_max = nbytes_min + 4096_i8*n_objects + 65536_i8
+    if (set%deflate > 0) nbytes_min = n_text     ! compressed values: only the text is sure
     nbytes_min = nbytes_min + 512_i8*n_objects + 2048_i8
-    if (set%deflate > 0) nbytes_min = 0_i8       ! compressed: no lower bound
   end subroutine result_set_bytes
 
   !> Ignore SIGXFSZ, so that a write beyond the file size limit (`ulimit -f`) fails with an

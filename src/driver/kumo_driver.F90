@@ -9,7 +9,7 @@
 module kumo_driver
   use, intrinsic :: iso_fortran_env, only: output_unit, error_unit
   use, intrinsic :: iso_c_binding, only: c_int
-  use kumo_kinds, only: dp, i8
+  use kumo_kinds, only: wp, dp, i8
   use kumo_constants, only: KUMO_VERSION
   use kumo_error, only: error_t, set_error, str
   use kumo_rng, only: rng_t, rng_init
@@ -30,6 +30,7 @@ module kumo_driver
                              ckpt_remove, CKPT_SUFFIX
   use kumo_scene_setup, only: setup_scene
   use kumo_output, only: run_summary_t, build_results, log_summary
+  use kumo_vr, only: runaway_cost_check
   implicit none
   private
   public :: run_case, simulate, scene_t, setup_scene, run_summary_t, checkpoint_plan_t
@@ -155,6 +156,19 @@ contains
     nranks = par_size()
     call setup_scene(cfg, scene, error)
     if (allocated(error)) return
+    ! work that grows without bound with the geometry is refused or warned about (kumo_vr)
+    block
+      character(len=:), allocatable :: cost_warnings
+      real(wp), allocatable :: dmu(:), dphi(:)
+      allocate (dmu(0), dphi(0))
+      if (allocated(cfg%rad%mu)) dmu = cfg%rad%mu
+      if (allocated(cfg%rad%phi_deg)) dphi = cfg%rad%phi_deg
+      if (size(dphi) < size(dmu)) dphi = [dphi, spread(0.0_wp, 1, size(dmu) - size(dphi))]
+      call runaway_cost_check(scene%atm, dmu, dphi, [scene%src%ux, scene%src%uy, scene%src%uz], &
+                              scene%n_3d > 0, cost_warnings, error)
+      if (allocated(error)) return
+      scene%warnings = scene%warnings//cost_warnings
+    end block
     summary%setup_time = par_wtime() - t0
 
     maps = cfg%output%column_fluxes .and. scene%atm%n3 > 0 .and. &

@@ -3,7 +3,7 @@
 !> attributes), formed from the batch statistics of the tallies, and the summary printed at the
 !> end. The netCDF writer writes any result set generically, so the output layout lives here.
 module kumo_output
-  use, intrinsic :: iso_fortran_env, only: output_unit
+  use, intrinsic :: iso_fortran_env, only: output_unit, error_unit
   use kumo_kinds, only: wp, dp, i8
   use kumo_constants, only: KUMO_VERSION, SECONDS_PER_DAY, PI
   use kumo_error, only: error_t, str, join
@@ -16,6 +16,7 @@ module kumo_output
                           find_dim
   use kumo_config, only: config_t, config_echo
   use kumo_parallel, only: PAR_IS_MPI
+  use kumo_vr, only: roulette_balance_warning
   implicit none
   private
   public :: run_summary_t, build_results, log_summary
@@ -255,7 +256,21 @@ contains
       call add_attr(set, 'mode_3d', trim(cfg%control%mode_3d))
       if (cfg%control%mode_3d == 'p3d') call add_num_attr(set, 'p3d_orders', &
                                                           real(cfg%control%p3d_orders, dp))
-      if (len(scene%warnings) > 0) call add_attr(set, 'warnings', scene%warnings)
+      ! a significant roulette weight balance (kumo_vr) joins the scene's warnings: log and file
+      block
+        character(len=:), allocatable :: warn, rr_warn
+        real(dp) :: bal(1), bal_err(1)
+        bal = stats_mean(st, lay%i_rr + 1, lay%i_rr + 1)
+        bal_err = stats_stderr(st, lay%i_rr + 1, lay%i_rr + 1)
+        rr_warn = roulette_balance_warning(bal(1), bal_err(1), st%n_batches)
+        warn = scene%warnings
+        if (len(rr_warn) > 0) then
+          write (error_unit, '(a)') 'kumo: warning: '//trim(rr_warn)
+          if (len_trim(warn) > 0) warn = trim(warn)//' '
+          warn = warn//rr_warn
+        end if
+        if (len(warn) > 0) call add_attr(set, 'warnings', warn)
+      end block
       if (len(scene%notes) > 0) call add_attr(set, 'scene_notes', scene%notes)
       call add_attr(set, 'supervoxels', sv_text())
       do i = 1, N_ANOMALIES

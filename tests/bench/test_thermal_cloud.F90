@@ -10,11 +10,14 @@
 !>   (1e-6), for the temperature variable, for a potential temperature with a 3-D pressure
 !>   (T = theta (p/p0)^(2/7)), and for the temperature profile of an LWC file (a voxel between
 !>   two heights emits the mean Planck radiance of the two).
+!>   An MCARaTS file: t_levels plus tmpa3d per level, the mean Planck radiance of the two levels;
+!>   a perturbation that makes a temperature negative is refused.
 !> * A file without temperature: the voxels emit the level values, and the log says so.
 !> * Bad input: a temperature of the wrong shape, a negative and a NaN temperature are refused
 !>   with a message naming the file and the variable.
 module test_kumo_thermal_cloud
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
+  use, intrinsic :: iso_fortran_env, only: real32
   use kumo_kinds, only: wp, dp
   use kumo_constants, only: PI
   use kumo_error, only: error_t, str
@@ -45,6 +48,7 @@ contains
              new_unittest('les_voxel_mapping', test_mapping), &
              new_unittest('les_without_temperature', test_no_temperature), &
              new_unittest('lwc_file_profile', test_lwc_profile), &
+             new_unittest('mcarats_tmpa3d', test_mcarats), &
              new_unittest('bad_temperatures', test_bad)]
   end function collect_thermal_cloud
 
@@ -112,6 +116,7 @@ contains
       s = nf90_put_att(nc, vt, 'units', 'K')
       s = nf90_def_var(nc, 'p', nf90_double, [dx_, dy_, dz_], vp_)
       s = nf90_put_att(nc, vp_, 'units', 'hPa')
+    case default   ! 'none': no temperature
     end select
     s = nf90_enddef(nc)
     s = nf90_put_var(nc, vx, [((i - 0.5_wp)*DX_KM, i=1, NX)])
@@ -134,6 +139,7 @@ contains
       end do
       s = nf90_put_var(nc, vt, t*(1000.0_wp/p)**(2.0_wp/7.0_wp))
       s = nf90_put_var(nc, vp_, p)
+    case default
     end select
     s = nf90_close(nc)
   end subroutine write_les
@@ -332,6 +338,90 @@ contains
     end do
     close (u)
   end subroutine write_lwc
+
+  !> An MCARaTS 3-D atmosphere (binary, one isotropic component, mtprof = 1) in layers 2..4:
+  !> voxel (i, j, k) emits the mean of B(t_levels + tmpa3d) at its two levels.
+  subroutine test_mcarats(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(result_set_t) :: iso, pert, set
+    type(error_t), allocatable :: run_error
+    type(spectral_band_t) :: band
+    real(real32) :: tmpa(NX, NY, NZ + 1)
+    real(dp) :: ratio(NX, NY, NZ)
+    integer :: i, j, k
+    tmpa = 0.0
+    call write_mcarats('thermal_cloud_iso.atm', tmpa)
+    do k = 1, NZ + 1
+      do j = 1, NY
+        do i = 1, NX
+          tmpa(i, j, k) = 0.5*i - 0.25*j + 2.0*k - 3.0
+        end do
+      end do
+    end do
+    call write_mcarats('thermal_cloud_pert.atm', tmpa)
+    call run_namelist('thermal_cloud_mca0.nml', mcarats_nml('thermal_cloud_iso.atm', &
+                      'thermal_cloud_mca0.nc'), iso, error)
+    if (allocated(error)) return
+    call run_namelist('thermal_cloud_mca1.nml', mcarats_nml('thermal_cloud_pert.atm', &
+                      'thermal_cloud_mca1.nc'), pert, error)
+    if (allocated(error)) return
+    call has_note(pert, 'tmpa3d of thermal_cloud_pert.atm (per level) added to t_levels', error)
+    if (allocated(error)) return
+    call band_from_wavenumbers(NU1, NU2, band, error)
+    if (allocated(error)) return
+    do k = 1, NZ
+      do j = 1, NY
+        do i = 1, NX
+          ratio(i, j, k) = 0.5_dp*(band_radiance(band, T0 + real(tmpa(i, j, k), wp)) + &
+                                   band_radiance(band, T0 + real(tmpa(i, j, k + 1), wp)))/ &
+                           band_radiance(band, T0)
+        end do
+      end do
+    end do
+    call compare_emission(iso, pert, reshape(ratio, [NX*NY*NZ]), 1.0e-6_dp, 'MCARaTS tmpa3d', &
+                          error)
+    if (allocated(error)) return
+    tmpa(3, 2, 2) = -400.0
+    call write_mcarats('thermal_cloud_pert.atm', tmpa)
+    call run_namelist('thermal_cloud_mca2.nml', mcarats_nml('thermal_cloud_pert.atm', &
+                      'thermal_cloud_mca2.nc'), set, run_error)
+    call check(error, allocated(run_error), 'a voxel at -125 K was accepted')
+    if (allocated(error)) return
+    call check(error, index(run_error%message, 'tmpa3d of thermal_cloud_pert.atm') > 0 .and. &
+               index(run_error%message, 'voxel (3,2,1)') > 0 .and. &
+               index(run_error%message, 'must be > 0') > 0, 'unclear message: '// &
+               run_error%message)
+  end subroutine test_mcarats
+
+  !> MCARaTS binary atmosphere: tmpa3d (NZ + 1 records), absg3d (NZ, zero), then extp3d,
+  !> omgp3d and apfp3d (isotropic, -2.5) of one component, float32 records of NX*NY values.
+  subroutine write_mcarats(path, tmpa)
+    character(len=*), intent(in) :: path
+    real(real32), intent(in) :: tmpa(NX, NY, NZ + 1)
+    real(wp) :: lwc(NX, NY, NZ), reff(NX, NY, NZ)
+    integer :: u
+    call cloud(lwc, reff)
+    open (newunit=u, file=path, status='replace', action='write', access='stream', &
+          form='unformatted')
+    write (u) tmpa, spread(spread(spread(0.0_real32, 1, NX), 2, NY), 3, NZ), &
+      real(0.02_wp*lwc, real32), spread(spread(spread(0.5_real32, 1, NX), 2, NY), 3, NZ), &
+      spread(spread(spread(-2.5_real32, 1, NX), 2, NY), 3, NZ)
+    close (u)
+  end subroutine write_mcarats
+
+  function mcarats_nml(file, out) result(text)
+    character(len=*), intent(in) :: file, out
+    character(len=:), allocatable :: text
+    text = run_groups(200, 2, 17, 'wavelength_um = 10.7', out, 'albedo = 0.0')// &
+           '&kumo_atmosphere nz = 5, z_levels = 0.0, 500.0, 600.0, 750.0, 850.0, 2000.0, '// &
+           'k3d_bottom = 2, nx = 4, ny = 3, nz3 = 3, lx = 400.0, ly = 360.0, '// &
+           'n_components = 1, ext1d(:,1) = 5*1.5e-4, ssa1d(:,1) = 5*0.0, phase1d(:,1) = 5*1, '// &
+           'air_density = 1.2, 1.15, 1.12, 1.1, 1.0 /'//NL// &
+           '&kumo_cloud cloud_file = '''//file//''', cloud_format = ''mcarats'', '// &
+           'mcarats_np3d = 1, mcarats_nkd = 1, mcarats_mtprof = 1 /'//NL// &
+           '&kumo_thermal t_levels = 6*275.0, t_surface = 275.0, t_top = 275.0, '// &
+           'wavenumber_lo = 900.0, wavenumber_hi = 960.0 /'//NL
+  end function mcarats_nml
 
   !> Bad temperatures: wrong shape, negative, NaN: refused, the message names file and variable.
   subroutine test_bad(error)

@@ -40,7 +40,7 @@ GAS_STCU = {'below_cloud': 1.5e-4, 'cloud': 1.5e-4, 'to_1500': 1.0e-4, 'to_3000'
 
 
 def run_kumo(nml_path, log_path):
-    kumo = os.environ.get('KUMO', str(REPO / 'build' / 'kumo'))
+    kumo = os.path.abspath(os.environ.get('KUMO', str(REPO / 'build' / 'kumo')))
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     with open(log_path, 'w') as log:
         subprocess.run(['nice', '-n', '5', kumo, str(nml_path)], check=True, stdout=log,

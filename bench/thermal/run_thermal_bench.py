@@ -229,7 +229,7 @@ def analyse(out, cpu, setup, photons, batches, k_range, target_kday, plot, tag):
         fig.colorbar(im, ax=ax[2])
         fig.tight_layout()
         fig.savefig(out.with_suffix('.png'), dpi=80)
-        print('figure', out.with_suffix('.png'))
+        print('figure', os.path.relpath(out.with_suffix('.png'), REPO))
 
 
 def main():

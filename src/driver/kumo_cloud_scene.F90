@@ -24,7 +24,11 @@
 !> * MCARaTS 3-D atmospheres: one component per MCARaTS component with its phase-function
 !>   code turned into a kumo phase function (fractional table codes as blends), and one for the
 !>   gas-absorption perturbation (`mcarats_phases`, `mcarats_voxels`).
+!> * Thermal runs (`temp` present): the file's temperatures, on the voxels of the region as the
+!>   optics are (`cloud_temperature_t`): LES temperature (or potential temperature and
+!>   pressure), the profile of an LWC file, the temperatures of a property file, MCARaTS tmpa3d.
 module kumo_cloud_scene
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use kumo_kinds, only: wp, vp
   use kumo_error, only: error_t, set_error, str
   use kumo_phase, only: phase_t, phase_from_table, new_phase_hg, phase_from_legendre, &
@@ -34,7 +38,7 @@ module kumo_cloud_scene
   use kumo_mie_table, only: mie_table_cached, read_mie_table
   use kumo_rayleigh, only: rayleigh_extinction
   use kumo_std_atmosphere, only: std_atmosphere_profile
-  use kumo_cloud_input, only: cloud_input_t, read_cloud_input, locate, CLOUD_WATER, &
+  use kumo_cloud_input, only: cloud_input_t, cloud_request_t, read_cloud_input, locate, CLOUD_WATER, &
                               CLOUD_EXT_REFF, CLOUD_OPTICS, CLOUD_MCARATS
   use kumo_mcarats_files, only: mcarats_request_t
   use kumo_atmosphere, only: atmosphere_t, atmosphere_options_t, atmosphere_begin, &
@@ -42,7 +46,20 @@ module kumo_cloud_scene
   use kumo_config, only: cloud_cfg_t
   implicit none
   private
-  public :: build_cloud_atmosphere, rayleigh_layers
+  public :: build_cloud_atmosphere, rayleigh_layers, cloud_temperature_t
+
+  !> Temperatures of a cloud file for thermal emission, on the columns and layers of the 3-D
+  !> region the file defines (voxel (ix, iy, k) is layer k3_lo + k - 1 of the atmosphere).
+  type :: cloud_temperature_t
+    logical :: found = .false.                !! the file has temperatures
+    !> (nx, ny, nt) or a profile (1, 1, nt) [K]; nt = nz: one per voxel; nt = nz + 1
+    !> (`planes`): on the planes or levels that bound the layers, voxel k between k and k + 1
+    real(vp), allocatable :: t(:, :, :)
+    logical :: planes = .false.
+    !> MCARaTS tmpa3d: perturbations to be added to the level temperatures (t_levels)
+    logical :: perturbation = .false.
+    character(len=:), allocatable :: source   !! file and variable, for the run log
+  end type cloud_temperature_t
 
   !> Standard gravity [m s-2] (CGPM 1901), for layer air densities from pressure differences.
   real(wp), parameter :: G0 = 9.80665_wp
@@ -58,7 +75,8 @@ contains
   !> (nz, ncomp1) and the cloud in the 3-D region from layer `k3_lo`. `phases` (the namelist's
   !> and the molecules') gets the cloud's appended and moves into the atmosphere.
   subroutine build_cloud_atmosphere(ccfg, wavelength_um, n_table, z, lx, ly, k3_lo, ext1d, &
-                                    ssa1d, iph1d, phases, aopts, atm, notes, warnings, error)
+                                    ssa1d, iph1d, phases, aopts, atm, notes, warnings, error, &
+                                    temp)
     type(cloud_cfg_t), intent(in) :: ccfg
     real(wp), intent(in) :: wavelength_um   !! [um]; 0 when not given (optics files only)
     integer, intent(in) :: n_table          !! inverse-CDF table size of tabulated phases
@@ -71,7 +89,10 @@ contains
     type(atmosphere_t), intent(out) :: atm
     character(len=:), allocatable, intent(out) :: notes, warnings
     type(error_t), allocatable, intent(out) :: error
+    !> thermal runs: the file's temperatures (`found` false when it has none)
+    type(cloud_temperature_t), intent(out), optional :: temp
     type(cloud_input_t) :: c
+    type(cloud_request_t) :: req
     type(mie_table_t) :: liq, ice
     type(phase_t), allocatable :: more(:)
     integer :: nplanes, nspecies, nneg, i, n_out_liq, n_out_ice, offset, offset_ice
@@ -79,8 +100,14 @@ contains
     logical :: blend, has_abs
     character(len=:), allocatable :: action
 
-    call read_cloud_input(ccfg%req, c, error, part='liquid')
+    req = ccfg%req
+    req%temperature = present(temp)
+    call read_cloud_input(req, c, error, part='liquid')
     if (allocated(error)) return
+    if (present(temp)) then
+      call take_temperature(c, ccfg%req%path, temp, error)
+      if (allocated(error)) return
+    end if
     notes = 'cloud file '//ccfg%req%path//' ('//trim(c%format)//'): '//c%notes//NL
     warnings = ''
     if (len(c%missing) > 0) notes = notes//'the file does not give '//c%missing// &
@@ -176,6 +203,46 @@ contains
     if (n_out_ice > 0) warnings = warnings//str(n_out_ice)//' ice voxel values have an '// &
       'effective radius outside the ice optics table and were given the nearest table radius. '
   end subroutine build_cloud_atmosphere
+
+  !> Move the temperatures of a file read into `temp`, checked: shape (nx, ny) or a profile,
+  !> one value per voxel layer or per bounding plane; finite, and > 0 unless perturbations.
+  subroutine take_temperature(c, path, temp, error)
+    type(cloud_input_t), intent(inout) :: c
+    character(len=*), intent(in) :: path
+    type(cloud_temperature_t), intent(out) :: temp
+    type(error_t), allocatable, intent(out) :: error
+    integer :: nt, loc(3)
+    character(len=:), allocatable :: what
+    if (.not. allocated(c%temperature)) return
+    what = path//': temperatures ('//c%t_source//')'
+    nt = c%nz
+    if (c%t_planes) nt = c%nz + 1
+    if (.not. ((size(c%temperature, 1) == c%nx .and. size(c%temperature, 2) == c%ny) .or. &
+               (size(c%temperature, 1) == 1 .and. size(c%temperature, 2) == 1)) .or. &
+        size(c%temperature, 3) /= nt) then
+      call set_error(error, what//' have shape ('//str(size(c%temperature, 1))//','// &
+                     str(size(c%temperature, 2))//','//str(size(c%temperature, 3))// &
+                     '), the grid needs ('//str(c%nx)//','//str(c%ny)//','//str(nt)//')')
+      return
+    end if
+    if (.not. all(ieee_is_finite(c%temperature))) then
+      loc = findloc(ieee_is_finite(c%temperature), .false.)
+      call set_error(error, what//': value at ('//str(loc(1))//','//str(loc(2))//','// &
+                     str(loc(3))//') is not finite')
+      return
+    end if
+    if (.not. c%t_perturbation .and. any(c%temperature <= 0.0_vp)) then
+      loc = minloc(c%temperature)
+      call set_error(error, what//': value '//str(real(minval(c%temperature), wp))// &
+                     ' K at ('//str(loc(1))//','//str(loc(2))//','//str(loc(3))//') must be > 0')
+      return
+    end if
+    temp%found = .true.
+    call move_alloc(c%temperature, temp%t)
+    temp%planes = c%t_planes
+    temp%perturbation = c%t_perturbation
+    temp%source = c%t_source
+  end subroutine take_temperature
 
   !> The ice optics table named by the namelist, checked against the run's wavelength.
   subroutine ice_table(ccfg, wavelength_um, table, error)

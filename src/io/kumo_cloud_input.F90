@@ -55,6 +55,9 @@ module kumo_cloud_input
     !> LES grid-only reads: also the pressure of every layer (required; `cloud_input_t%pressure`)
     logical :: pressure_profile = .false.
     type(mcarats_request_t) :: mcarats           !! MCARaTS files: sizes and grid from the namelist
+    !> thermal runs: also the temperatures the file has (LES: the temperature, or a potential
+    !> temperature and the pressure, read only then; the other formats hold theirs anyway)
+    logical :: temperature = .false.
   end type cloud_request_t
 
   !> A cloud field on the voxels of the 3-D region.
@@ -84,6 +87,14 @@ module kumo_cloud_input
     !> in double precision; a 3-D variable is averaged over the columns of each layer
     real(wp), allocatable :: pressure(:)
     character(len=:), allocatable :: pressure_source !! variable and whether it was averaged
+    !> temperatures of the file, when requested and present (not for `grid_only` reads):
+    !> (nx, ny, nt) or a profile (1, 1, nt); nt = nz (one per voxel) or nz + 1 (`t_planes`: on
+    !> the planes or levels that bound the layers, the voxel between planes k and k + 1)
+    real(vp), allocatable :: temperature(:, :, :)
+    logical :: t_planes = .false.
+    !> MCARaTS tmpa3d: perturbations to add to the level temperatures of the namelist
+    logical :: t_perturbation = .false.
+    character(len=:), allocatable :: t_source      !! file and variable, for the run log
     type(mcarats_atm_t) :: mca_atm             !! CLOUD_MCARATS: the dataset read
     type(mcarats_phase_t) :: mca_phase         !! CLOUD_MCARATS: its tables (npf = 0: none)
     character(len=:), allocatable :: notes     !! how the file was read, for the run log
@@ -150,7 +161,8 @@ contains
     character(len=*), intent(in), optional :: part
     type(les_field_t) :: f
     call read_les_field(req%path, req%names, req%time_index, f, error, req%k_factor, &
-                        req%z_edges_from_midpoints, grid, part, req%pressure_profile)
+                        req%z_edges_from_midpoints, grid, part, req%pressure_profile, &
+                        req%temperature .and. .not. grid)
     if (allocated(error)) return
     call set_grid(cloud, f%nx, f%ny, f%nz, f%dx, f%dy, f%z_edges, .false.)
     if (allocated(f%pressure_profile)) then
@@ -170,6 +182,17 @@ contains
     cloud%has_ice = f%has_ice
     if (allocated(f%iwc)) call move_alloc(f%iwc, cloud%iwc)
     if (allocated(f%reff_ice)) call move_alloc(f%reff_ice, cloud%reff_ice)
+    if (req%temperature .and. f%has_temperature) then
+      call move_alloc(f%temperature, cloud%temperature)
+      if (f%temperature_from_theta) then
+        cloud%t_source = 'potential temperature "'//trim(f%used%potential_temperature)// &
+                         '" and pressure "'//trim(f%used%pressure)//'" of '//req%path
+      else
+        cloud%t_source = 'variable "'//trim(f%used%temperature)//'" of '//req%path
+      end if
+      if (size(cloud%temperature, 1) == 1 .and. size(cloud%temperature, 2) == 1 .and. &
+          f%nx*f%ny > 1) cloud%t_source = cloud%t_source//' (a profile)'
+    end if
     cloud%notes = f%notes
     cloud%missing = 'the wavelength'
   end subroutine from_les
@@ -199,6 +222,12 @@ contains
     end if
     call set_grid(cloud, f%nx, f%ny, f%nz, f%dx, f%dy, f%z, .not. f%z_are_boundaries)
     cloud%content = CLOUD_WATER
+    if (req%temperature) then
+      ! one temperature per height: the layer edges (boundaries) or the planes (points)
+      cloud%temperature = reshape(real(f%temperature, vp), [1, 1, size(f%temperature)])
+      cloud%t_planes = .true.
+      cloud%t_source = 'the temperature profile (line 5) of '//req%path
+    end if
     call take(f%lwc, cloud%lwc)
     call take(f%reff, cloud%reff)
     cloud%notes = cloud%notes//'LWC file: '//str(f%n_listed)//' points listed, heights as '// &
@@ -220,6 +249,11 @@ contains
     if (grid) return
     call take(f%extinction, cloud%ext)
     call take(f%ssa, cloud%ssa)
+    if (req%temperature) then
+      call take(f%temperature, cloud%temperature)
+      cloud%t_planes = cloud%points
+      cloud%t_source = 'the column temp of '//req%path
+    end if
     call move_alloc(f%iphase, cloud%iphase)
     call move_alloc(f%chi, cloud%chi)
     cloud%notes = 'property file: '//str(f%nphase)//' phase functions of up to '// &
@@ -395,9 +429,18 @@ contains
                       ' of '//str(a%ndatasets)//', '//str(a%nx)//' x '//str(a%ny)//' x '// &
                       str(a%nz3)//' voxels, '//str(a%np3d)//' component(s), '//str(a%nkd)// &
                       ' k-term(s) (absorption perturbation of k-term '//str(m%ikd)// &
-                      ' used), mtprof = '//str(a%mtprof)//NL// &
-                      'its temperatures (tmpa3d) are not used: kumo computes solar '// &
-                      'radiation only'
+                      ' used), mtprof = '//str(a%mtprof)
+        if (req%temperature) then
+          cloud%temperature = real(a%tmpa, vp)
+          cloud%t_planes = a%mtprof == 1
+          cloud%t_perturbation = .true.
+          cloud%t_source = 'tmpa3d of '//req%path//' ('// &
+                           trim(merge('per level', 'per layer', a%mtprof == 1))// &
+                           ') added to t_levels of &kumo_thermal'
+        else
+          cloud%notes = cloud%notes//NL//'its temperatures (tmpa3d) are not used (no '// &
+                        '&kumo_thermal)'
+        end if
         if (has_phase) then
           cloud%notes = cloud%notes//NL//'phase functions '//m%phase_path//': '// &
                         str(cloud%mca_phase%npf)//' tables of '//str(cloud%mca_phase%nang)// &

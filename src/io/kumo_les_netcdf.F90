@@ -32,7 +32,7 @@ module kumo_les_netcdf
   public :: les_names_t, les_field_t, read_les_field
   public :: LES_NAME_LEN, LES_NONE, K_MARITIME, K_CONTINENTAL, R_DRY_AIR, RHO_LIQUID_WATER
   public :: DEFAULT_LWC, DEFAULT_REFF, DEFAULT_NUMBER, DEFAULT_IWC, DEFAULT_REFF_ICE, &
-            DEFAULT_TEMPERATURE, DEFAULT_PRESSURE, DEFAULT_AIR_DENSITY, DEFAULT_X, DEFAULT_Y, &
+            DEFAULT_TEMPERATURE, DEFAULT_POTENTIAL_TEMPERATURE, DEFAULT_PRESSURE, DEFAULT_AIR_DENSITY, DEFAULT_X, DEFAULT_Y, &
             DEFAULT_Z, DEFAULT_X_EDGES, DEFAULT_Y_EDGES, DEFAULT_Z_EDGES
 
   integer, parameter :: LES_NAME_LEN = 64   !! longest variable name in les_names_t
@@ -49,6 +49,12 @@ module kumo_les_netcdf
   !> Gas constant of dry air [J kg-1 K-1], 287.047: R / M_a with R = 8.314462618 J mol-1 K-1
   !> (CODATA 2018) and M_a = 28.96546e-3 kg mol-1 (Picard et al. 2008, Metrologia 45, 149-155).
   real(wp), parameter :: R_DRY_AIR = 8.314462618_wp/28.96546e-3_wp
+  !> Reference pressure of potential temperature [Pa] (1000 hPa).
+  real(wp), parameter :: P_REFERENCE = 1.0e5_wp
+  !> Exponent R_d/c_pd of the Exner function (p/p0)^kappa: dry air as an ideal diatomic gas,
+  !> c_pd = 7/2 R_d = 1004.7 J kg-1 K-1 (e.g. Bohren and Albrecht 1998, Atmospheric
+  !> Thermodynamics, ch. 3).
+  real(wp), parameter :: KAPPA_DRY_AIR = 2.0_wp/7.0_wp
 
   !> Default names, tried in order when a name is left blank; the first one in the file is used.
   !> Names whose meaning differs between models in a way units cannot tell are left out (WRF's
@@ -70,6 +76,12 @@ module kumo_les_netcdf
   character(len=*), parameter :: DEFAULT_TEMPERATURE(5) = [character(len=11) :: &
                                                            'temperature', 'temp', 'TABS', 'tabs', &
                                                            'ta']
+  !> Potential temperature, used for thermal emission when the file has no temperature (then it
+  !> needs the pressure). Liquid-water potential temperatures (thl) are not potential
+  !> temperatures and are not on the list.
+  character(len=*), parameter :: DEFAULT_POTENTIAL_TEMPERATURE(4) = [character(len=21) :: &
+                                                                     'theta', 'THETA', 'th', &
+                                                                     'potential_temperature']
   character(len=*), parameter :: DEFAULT_PRESSURE(4) = [character(len=8) :: &
                                                         'pressure', 'pres', 'p', 'PRES']
   character(len=*), parameter :: DEFAULT_AIR_DENSITY(5) = [character(len=11) :: &
@@ -93,6 +105,8 @@ module kumo_les_netcdf
     character(len=LES_NAME_LEN) :: iwc = ''          !! ice water content or mixing ratio
     character(len=LES_NAME_LEN) :: reff_ice = ''     !! ice effective radius
     character(len=LES_NAME_LEN) :: temperature = ''  !! temperature
+    !> potential temperature (thermal runs, when the file has no temperature)
+    character(len=LES_NAME_LEN) :: potential_temperature = ''
     character(len=LES_NAME_LEN) :: pressure = ''     !! pressure
     character(len=LES_NAME_LEN) :: air_density = ''  !! air density (for mixing ratios)
     character(len=LES_NAME_LEN) :: x = ''            !! x dimension (centres)
@@ -119,6 +133,8 @@ module kumo_les_netcdf
     real(vp), allocatable :: iwc(:, :, :)             !! ice water content (nx, ny, nz) [g m-3]
     real(vp), allocatable :: reff_ice(:, :, :)        !! ice effective radius [um]
     logical :: has_temperature = .false.              !! temperature read (needed and present)
+    !> the temperature was computed from a potential temperature and the pressure
+    logical :: temperature_from_theta = .false.
     !> temperature [K]: shape (nx, ny, nz), or (1, 1, nz) for a profile
     real(vp), allocatable :: temperature(:, :, :)
     logical :: has_pressure = .false.                 !! pressure read (needed and present)
@@ -160,7 +176,11 @@ contains
   !> * `iwc`, `reff_ice` if the file has an ice water variable (then `reff_ice` is required);
   !> * air density for mixing ratios from a density variable, else from p and T by the ideal gas
   !>   law rho = p / (R_d T), else an error saying what is missing; temperature [K] and pressure
-  !>   [Pa] (3-D fields or profiles over z) are read only then, and kept.
+  !>   [Pa] (3-D fields or profiles over z) are read only then, and kept;
+  !> * with `temperature` (thermal runs), the temperature [K] in any case if the file has it;
+  !>   else, if it has a potential temperature theta and the pressure p, T = theta (p/p0)^kappa
+  !>   (p0 = 1000 hPa, kappa = R_d/c_pd = 2/7), noted in `notes`. A file with neither leaves
+  !>   `has_temperature` false (the caller decides what that means).
   !>
   !> Coordinates: the x, y, z dimensions are found by name (names%x or DEFAULT_X, ...). Each axis
   !> is taken from an edges variable with n + 1 values if there is one (names%x_edges or
@@ -170,7 +190,8 @@ contains
   !> beyond the outer centres), which is exact for uniform centres and is used for stretched
   !> centres only when `z_edges_from_midpoints` is true, since it is one convention among several.
   subroutine read_les_field(path, names, time_index, field, error, k_factor, &
-                            z_edges_from_midpoints, grid_only, part, pressure_profile)
+                            z_edges_from_midpoints, grid_only, part, pressure_profile, &
+                            temperature)
     character(len=*), intent(in) :: path               !! netCDF file
     type(les_names_t), intent(in) :: names             !! variable names (blank: defaults)
     integer, intent(in) :: time_index                  !! time step (1-based), or -1: no time dim
@@ -190,6 +211,9 @@ contains
     !> `pressure_profile` (one value per layer, a 3-D variable averaged over the columns of
     !> each layer and read one layer at a time, so that no 3-D array is held; default false)
     logical, intent(in), optional :: pressure_profile
+    !> also read the temperature, or a potential temperature and the pressure, when the file
+    !> has them (thermal emission; default false)
+    logical, intent(in), optional :: temperature
     type(les_file_t) :: f
     type(error_t), allocatable :: close_error
     logical :: liquid, ice
@@ -231,7 +255,7 @@ contains
     if (allocated(error)) return
     field%notes = ''
     call read_body(f, names, k, midpoints, liquid, ice, field, error, grid_only, &
-                   pressure_profile)
+                   pressure_profile, temperature)
     status = nf90_close(f%ncid)
     if (.not. allocated(error)) then
       call nc_check(status, PROC//'('//f%path//')', close_error)
@@ -243,7 +267,7 @@ contains
   ! ------------------------------------------------------------------------------------------------
 
   subroutine read_body(f, names, k, midpoints, liquid, ice, field, error, grid_only, &
-                       pressure_profile)
+                       pressure_profile, want_temperature)
     type(les_file_t), intent(inout) :: f
     type(les_names_t), intent(in) :: names
     real(wp), intent(in) :: k
@@ -251,7 +275,7 @@ contains
     logical, intent(in) :: liquid, ice     !! read these species
     type(les_field_t), intent(inout) :: field
     type(error_t), allocatable, intent(out) :: error
-    logical, intent(in), optional :: grid_only, pressure_profile
+    logical, intent(in), optional :: grid_only, pressure_profile, want_temperature
     integer :: lwc_id, reff_id, num_id, iwc_id, rei_id, t_id, p_id, rho_id
     character(len=:), allocatable :: lwc_name, reff_name, num_name, iwc_name, rei_name
     character(len=:), allocatable :: t_name, p_name, rho_name, text
@@ -416,7 +440,86 @@ contains
                     trim(field%used%number)//'": r_e = (3 LWC / (4 pi rho_w k N))^(1/3), k = '// &
                     str(k)//' (Martin et al. 1994)'//NL
     end if
+
+    if (present(want_temperature)) then
+      if (want_temperature .and. .not. field%has_temperature) then
+        call read_temperature(f, names, t_id, t_name, p_id, p_name, field, error)
+        if (allocated(error)) return
+      end if
+    end if
   end subroutine read_body
+
+  !> The temperature for thermal emission: the temperature variable if there is one, else a
+  !> potential temperature converted with the pressure, T = theta (p/p0)^kappa; neither:
+  !> `has_temperature` stays false and `notes` says what was tried.
+  subroutine read_temperature(f, names, t_id, t_name, p_id, p_name, field, error)
+    type(les_file_t), intent(in) :: f
+    type(les_names_t), intent(in) :: names
+    integer, intent(in) :: t_id, p_id
+    character(len=*), intent(in) :: t_name, p_name
+    type(les_field_t), intent(inout) :: field
+    type(error_t), allocatable, intent(out) :: error
+    integer :: th_id, ix, iy, iz, nx, ny
+    character(len=:), allocatable :: th_name
+    real(vp), allocatable :: theta(:, :, :)
+    logical :: dummy
+    real(wp) :: p
+
+    if (t_id >= 0) then
+      call read_field(f, t_id, t_name, QTY_TEMPERATURE, .true., .true., field%temperature, &
+                      dummy, field%notes, error)
+      if (allocated(error)) return
+      field%has_temperature = .true.
+      field%used%temperature = t_name
+      return
+    end if
+    call find_var(f, 'potential temperature', names%potential_temperature, &
+                  DEFAULT_POTENTIAL_TEMPERATURE, .false., th_id, th_name, error)
+    if (allocated(error)) return
+    if (th_id < 0) then
+      field%notes = field%notes//'no temperature (tried '// &
+                    tried(names%temperature, DEFAULT_TEMPERATURE)//') and no potential '// &
+                    'temperature (tried '//tried(names%potential_temperature, &
+                                                 DEFAULT_POTENTIAL_TEMPERATURE)//')'//NL
+      return
+    end if
+    if (p_id < 0) then
+      field%notes = field%notes//'potential temperature "'//th_name//'" not used: no '// &
+                    'pressure to convert it (tried '//tried(names%pressure, DEFAULT_PRESSURE)// &
+                    ')'//NL
+      return
+    end if
+    call read_field(f, th_id, th_name, QTY_TEMPERATURE, .true., .true., theta, dummy, &
+                    field%notes, error)
+    if (allocated(error)) return
+    if (.not. field%has_pressure) then
+      call read_field(f, p_id, p_name, QTY_PRESSURE, .true., .true., field%pressure, dummy, &
+                      field%notes, error)
+      if (allocated(error)) return
+      field%has_pressure = .true.
+      field%used%pressure = p_name
+    end if
+    ! a 3-D result if either field is 3-D
+    nx = max(size(theta, 1), size(field%pressure, 1))
+    ny = max(size(theta, 2), size(field%pressure, 2))
+    allocate (field%temperature(nx, ny, size(theta, 3)))
+    do iz = 1, size(theta, 3)
+      do iy = 1, ny
+        do ix = 1, nx
+          p = real(field%pressure(min(ix, size(field%pressure, 1)), &
+                                  min(iy, size(field%pressure, 2)), iz), wp)
+          field%temperature(ix, iy, iz) = real(theta(min(ix, size(theta, 1)), &
+                                                     min(iy, size(theta, 2)), iz)* &
+                                               (p/P_REFERENCE)**KAPPA_DRY_AIR, vp)
+        end do
+      end do
+    end do
+    field%has_temperature = .true.
+    field%temperature_from_theta = .true.
+    field%used%potential_temperature = th_name
+    field%notes = field%notes//'temperature T = theta (p/p0)^kappa from "'//th_name// &
+                  '" and "'//trim(field%used%pressure)//'", p0 = 1000 hPa, kappa = R_d/c_pd = 2/7'//NL
+  end subroutine read_temperature
 
   ! ------------------------------------------------------------------------------------------------
   ! Grid
@@ -1167,6 +1270,7 @@ contains
     if (allocated(field%pressure)) deallocate (field%pressure)
     field%has_ice = .false.
     field%has_temperature = .false.
+    field%temperature_from_theta = .false.
     field%has_pressure = .false.
     if (allocated(field%pressure_profile)) deallocate (field%pressure_profile)
     field%pressure_averaged = .false.

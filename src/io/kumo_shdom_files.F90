@@ -208,7 +208,7 @@ contains
                          error)
     if (allocated(error)) return
     do iz = 1, nfields
-      if (field%temperature(iz) <= 0.0_wp) then
+      if (.not. (field%temperature(iz) > 0.0_wp .and. field%temperature(iz) <= huge(1.0_wp))) then
         call set_error(error, where_line(tf)//': temperature '//str(iz)//' = '// &
                        str(field%temperature(iz))//' K must be > 0')
         return

@@ -5,7 +5,7 @@
 !> cloud file, Rayleigh layers), the surface (albedo, BRDF or MCARaTS surface maps), the source,
 !> the detectors and the variance reduction that serves them.
 module kumo_scene_setup
-  use kumo_kinds, only: wp, dp, i8
+  use kumo_kinds, only: wp, dp, vp, i8
   use kumo_constants, only: DEG2RAD, PI
   use kumo_error, only: error_t, set_error, add_context, str
   use kumo_phase, only: phase_t, new_phase_isotropic, new_phase_rayleigh, new_phase_hg, &
@@ -26,7 +26,7 @@ module kumo_scene_setup
   use kumo_vr, only: collision_forcing, ddis_phases, spiky_without_vr, SPIKY_PEAK, DDIS_CONE_DEG
   use kumo_scene, only: scene_t
   use kumo_config, only: config_t, resolve_path
-  use kumo_cloud_scene, only: build_cloud_atmosphere, rayleigh_layers
+  use kumo_cloud_scene, only: build_cloud_atmosphere, rayleigh_layers, cloud_temperature_t
   use kumo_rayleigh, only: depol_from_king, king_factor_air
   use kumo_textio, only: read_two_columns
   use kumo_netcdf, only: read_scene_3d, read_albedo_map, read_brdf_map, read_scene_temperature
@@ -56,6 +56,7 @@ contains
     real(wp) :: depol
     character(len=:), allocatable :: cloud_notes, cloud_warnings
     character(len=:), allocatable :: sfc_notes
+    type(cloud_temperature_t) :: cloud_t
 
     nml_path = ''
     if (allocated(cfg%path)) nml_path = cfg%path
@@ -133,7 +134,7 @@ contains
     aopts%sv%max_layers = cfg%vr%sv_max_layers
     if (cfg%cloud%enabled) then
       call cloud_on_ranks(cfg, ext1d, ssa1d, phase1d, phases, aopts, scene%atm, cloud_notes, &
-                          cloud_warnings, error)
+                          cloud_warnings, error, cloud_t)
       if (allocated(error)) return
       scene%notes = scene%notes//cloud_notes
       scene%warnings = scene%warnings//cloud_warnings
@@ -199,7 +200,7 @@ contains
     end if
     scene%mu0 = cos(cfg%source%sza_deg*DEG2RAD)
     if (cfg%thermal%enabled) then
-      call setup_thermal(cfg, scene, error)
+      call setup_thermal(cfg, scene, error, cloud_t)
       if (allocated(error)) return
     end if
     scene%vr%rr_threshold = cfg%vr%rr_threshold
@@ -223,16 +224,19 @@ contains
   !> Thermal emission: the Planck radiances of the levels, the surface and the top (from the
   !> temperatures and the spectral interval, or given), the emission table, and an isotropic
   !> phase function for the local estimates of emission by cells when radiances are wanted.
-  subroutine setup_thermal(cfg, scene, error)
+  !> The voxels emit from their own temperatures when the scene file or the cloud file gives
+  !> them (`cloud_t`), else from the level temperatures.
+  subroutine setup_thermal(cfg, scene, error, cloud_t)
     type(config_t), intent(in) :: cfg
     type(scene_t), intent(inout) :: scene
     type(error_t), allocatable, intent(out) :: error
+    type(cloud_temperature_t), intent(inout) :: cloud_t
     real(wp), allocatable :: b_lev(:)
     real(wp) :: b_sfc, b_top, solar_power, lambda_um, scale
     type(spectral_band_t) :: band
     logical :: has_band
     character(len=24) :: units
-    real(wp), allocatable :: t3(:, :, :)
+    real(wp), allocatable :: t3(:, :, :), b3(:, :, :)
     character(len=:), allocatable :: nml_path
     character(len=:), allocatable :: what
     associate (th => cfg%thermal)
@@ -280,16 +284,29 @@ contains
       if (allocated(error)) return
     end if
     if (allocated(t3)) then
-      if (cfg%atm%k3d_bottom /= scene%atm%k3_lo .or. size(t3, 3) /= scene%atm%n3) then
-        call set_error(error, '&kumo_thermal: voxel temperatures need the 3-D region of the '// &
-                       'scene file as it is (not use_1d_layers = .false.)')
+      cloud_t%found = .true.
+      cloud_t%t = real(t3, vp)
+      cloud_t%source = 'variable temperature of the scene file'
+    end if
+    if (cloud_t%found .and. has_band) then
+      call voxel_planck(cloud_t, scene%atm, cfg%atm%k3d_bottom, cfg%thermal%t_levels, band, &
+                        scale, b_lev, b3, what, error)
+      if (allocated(error)) then
+        call add_context(error, '&kumo_thermal')
         return
       end if
       call emission_init(scene%src%em, scene%atm, scene%sfc, b_lev, b_sfc, b_top, solar_power, &
-                         cfg%thermal%emission_floor, error, b3=scale*band_radiance(band, t3))
-      what = what//new_line('a')//'  voxel temperatures: variable temperature of the scene '// &
-             'file, '//str(minval(t3))//' to '//str(maxval(t3))//' K'
+                         cfg%thermal%emission_floor, error, b3=b3)
     else
+      if (cfg%cloud%enabled .and. scene%atm%n3 > 0) then
+        if (.not. has_band) then
+          what = what//new_line('a')//'  voxel temperatures: not used (Planck radiances given '// &
+                 'directly); the voxels emit the level values'
+        else
+          what = what//new_line('a')//'  voxel temperatures: the cloud file has none; the '// &
+                 'voxels take t_levels'
+        end if
+      end if
       call emission_init(scene%src%em, scene%atm, scene%sfc, b_lev, b_sfc, b_top, solar_power, &
                          cfg%thermal%emission_floor, error)
     end if
@@ -316,6 +333,76 @@ contains
         ', sun '//str(em%solar_power)//'); surface emissivity '//str(em%eps_mean)//new_line('a')
     end associate
   end subroutine setup_thermal
+
+  !> Planck radiances b3 of the voxels of the 3-D region from file temperatures `ft` whose
+  !> first layer is layer k3_file of the atmosphere: a voxel between two planes (or levels)
+  !> takes the mean of their Planck radiances; MCARaTS perturbations are added to the level
+  !> temperatures t_lev (a layer's: the mean of its two levels). Layers of the region outside
+  !> the file (use_1d_layers = .false. widens the region) take the mean of their level values.
+  subroutine voxel_planck(ft, atm, k3_file, t_lev, band, scale, b_lev, b3, what, error)
+    type(cloud_temperature_t), intent(in) :: ft
+    type(atmosphere_t), intent(in) :: atm
+    integer, intent(in) :: k3_file
+    real(wp), intent(in) :: t_lev(0:), scale, b_lev(0:)
+    type(spectral_band_t), intent(in) :: band
+    real(wp), allocatable, intent(out) :: b3(:, :, :)
+    character(len=:), allocatable, intent(inout) :: what
+    type(error_t), allocatable, intent(out) :: error
+    integer :: kr, k, kf, ix, iy, i, j, nf
+    real(wp) :: ta, tb, tmin, tmax
+    nf = size(ft%t, 3)
+    if (ft%planes) nf = nf - 1
+    if ((size(ft%t, 1) /= 1 .and. size(ft%t, 1) /= atm%nx) .or. &
+        (size(ft%t, 2) /= 1 .and. size(ft%t, 2) /= atm%ny) .or. &
+        k3_file < atm%k3_lo .or. k3_file + nf - 1 > atm%k3_hi) then
+      call set_error(error, 'voxel temperatures ('//ft%source//'): '//str(size(ft%t, 1))//' x '// &
+                     str(size(ft%t, 2))//' columns, '//str(nf)//' layers from layer '// &
+                     str(k3_file)//'; the 3-D region has '//str(atm%nx)//' x '//str(atm%ny)// &
+                     ' columns, layers '//str(atm%k3_lo)//'..'//str(atm%k3_hi))
+      return
+    end if
+    allocate (b3(atm%nx, atm%ny, atm%n3))
+    tmin = huge(1.0_wp)
+    tmax = -huge(1.0_wp)
+    do kr = 1, atm%n3
+      k = atm%k3_lo + kr - 1
+      kf = k - k3_file + 1
+      if (kf < 1 .or. kf > nf) then
+        b3(:, :, kr) = 0.5_wp*(b_lev(k - 1) + b_lev(k))
+        cycle
+      end if
+      do iy = 1, atm%ny
+        j = min(iy, size(ft%t, 2))
+        do ix = 1, atm%nx
+          i = min(ix, size(ft%t, 1))
+          ta = real(ft%t(i, j, kf), wp)
+          if (ft%planes) then
+            tb = real(ft%t(i, j, kf + 1), wp)
+            if (ft%perturbation) then
+              ta = ta + t_lev(k - 1)
+              tb = tb + t_lev(k)
+            end if
+          else
+            if (ft%perturbation) ta = ta + 0.5_wp*(t_lev(k - 1) + t_lev(k))
+            tb = ta
+          end if
+          if (.not. (min(ta, tb) > 0.0_wp)) then
+            call set_error(error, 'voxel temperatures ('//ft%source//'): voxel ('//str(ix)// &
+                           ','//str(iy)//','//str(kf)//') has '//str(min(ta, tb))// &
+                           ' K; temperatures must be > 0')
+            return
+          end if
+          tmin = min(tmin, ta, tb)
+          tmax = max(tmax, ta, tb)
+          b3(ix, iy, kr) = 0.5_wp*scale*(band_radiance(band, ta) + band_radiance(band, tb))
+        end do
+      end do
+    end do
+    what = what//new_line('a')//'  voxel temperatures: '//ft%source//', '//str(tmin)//' to '// &
+           str(tmax)//' K'
+    if (ft%planes) what = what//' (on the planes bounding the voxels: a voxel emits the mean '// &
+                          'Planck radiance of its two planes)'
+  end subroutine voxel_planck
 
   !> Radiance detectors, cameras and the variance reduction that serves them. Truncation and
   !> collision forcing act on local estimates only, so they are set up only when radiances or
@@ -427,7 +514,7 @@ contains
   !> is in the cache before the other ranks look for it; they then read it instead of
   !> computing it.
   subroutine cloud_on_ranks(cfg, ext1d, ssa1d, phase1d, phases, aopts, atm, notes, warnings, &
-                            error)
+                            error, cloud_t)
     type(config_t), intent(in) :: cfg
     real(wp), intent(in) :: ext1d(:, :), ssa1d(:, :)
     integer, intent(in) :: phase1d(:, :)
@@ -436,6 +523,8 @@ contains
     type(atmosphere_t), intent(out) :: atm
     character(len=:), allocatable, intent(out) :: notes, warnings
     type(error_t), allocatable, intent(out) :: error
+    !> thermal runs with a spectral interval: the cloud file's temperatures, if it has them
+    type(cloud_temperature_t), intent(out) :: cloud_t
     integer :: status(1)
     status = 0
     if (par_is_root()) then
@@ -448,9 +537,17 @@ contains
   contains
     subroutine build(err)
       type(error_t), allocatable, intent(out) :: err
-      call build_cloud_atmosphere(cfg%cloud, cfg%source%wavelength_um, cfg%phase%n_table, &
-                                  cfg%atm%z, cfg%atm%lx, cfg%atm%ly, cfg%atm%k3d_bottom, ext1d, &
-                                  ssa1d, phase1d, phases, aopts, atm, notes, warnings, err)
+      if (cfg%thermal%enabled .and. .not. allocated(cfg%thermal%planck_levels)) then
+        call build_cloud_atmosphere(cfg%cloud, cfg%source%wavelength_um, cfg%phase%n_table, &
+                                    cfg%atm%z, cfg%atm%lx, cfg%atm%ly, cfg%atm%k3d_bottom, &
+                                    ext1d, ssa1d, phase1d, phases, aopts, atm, notes, warnings, &
+                                    err, cloud_t)
+      else
+        call build_cloud_atmosphere(cfg%cloud, cfg%source%wavelength_um, cfg%phase%n_table, &
+                                    cfg%atm%z, cfg%atm%lx, cfg%atm%ly, cfg%atm%k3d_bottom, &
+                                    ext1d, ssa1d, phase1d, phases, aopts, atm, notes, warnings, &
+                                    err)
+      end if
     end subroutine build
   end subroutine cloud_on_ranks
 

@@ -340,7 +340,7 @@ contains
     end do
     ! 23 of the 36 codes of component 2 are fractional (1.2, 2.7, 1.4)
     call check(error, index(notes, '23 blending two tables') > 0 .and. &
-               index(notes, 'not used: kumo computes solar radiation only') > 0, &
+               index(notes, 'its temperatures (tmpa3d) are not used (no &kumo_thermal)') > 0, &
                'notes: '//notes)
   end subroutine test_small_components
 

@@ -118,7 +118,7 @@ contains
         if (thermal) call thermal_layer_results()
         if (allocated(scene%air_density)) then
           fac = SECONDS_PER_DAY/(scene%air_density*cfg%atm%cp_air)
-          call add_var(set, 'heating_rate_layer', 'layer-mean heating rate', 'K day-1', &
+          call add_var(set, 'heating_rate_layer', 'layer-mean heating rate', 'K day-1'//fu(6:), &
                        ['layer'], m*fac, e*fac)
         end if
       else
@@ -177,7 +177,7 @@ contains
               fac((kr - 1)*ncol + 1:kr*ncol) = f_hor*SECONDS_PER_DAY/ &
                 (scene%air_density(atm%k3_lo + kr - 1)*cfg%atm%cp_air)
             end do
-            call add_var(set, 'heating_rate_voxel', 'heating rate', 'K day-1', &
+            call add_var(set, 'heating_rate_voxel', 'heating rate', 'K day-1'//fu(6:), &
                          ['x  ', 'y  ', 'z3d'], m*fac, e*fac)
           end if
         else

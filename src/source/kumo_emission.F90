@@ -32,7 +32,7 @@
 !> terms. A cell that does not emit (B = 0) has no photons of its own; its net power is what it
 !> absorbs, scored directly. Solar photons add what they deposit, where they deposit it.
 module kumo_emission
-  use kumo_kinds, only: wp, vp, i8
+  use kumo_kinds, only: wp, i8
   use kumo_constants, only: PI, FOUR_PI
   use kumo_error, only: error_t, set_error, str
   use kumo_rng, only: rng_t, rng_uniform, sample_azimuth
@@ -59,7 +59,7 @@ module kumo_emission
     real(wp) :: power = 0.0_wp             !! P: total source power per unit area [W m-2]
     real(wp) :: solar_power = 0.0_wp       !! mu0 F0 of the sun in the same run (0: none)
     real(wp), allocatable :: b_lev(:)      !! (0:nz) Planck radiance at the levels
-    real(vp), allocatable :: b3(:, :, :)   !! (nx, ny, n3) per voxel, if given
+    real(wp), allocatable :: b3(:, :, :)   !! (nx, ny, n3) per voxel, if given
     real(wp) :: b_sfc = 0.0_wp             !! Planck radiance of the surface temperature
     real(wp) :: b_top = 0.0_wp             !! isotropic downward radiance at the top
     real(wp) :: eps_mean = 1.0_wp          !! surface emissivity, mean over the domain
@@ -140,7 +140,7 @@ contains
         call set_error(error, 'thermal emission: voxel Planck radiances must be finite and >= 0')
         return
       end if
-      em%b3 = real(b3, vp)
+      em%b3 = b3
     end if
     call surface_emissivity(em, sfc)
 
@@ -172,7 +172,7 @@ contains
           v = ix + (iy - 1)*atm%nx + (kr - 1)*ncol
           ka = real(atm%ext3(ix, iy, kr), wp)*(1.0_wp - real(atm%omg3(ix, iy, kr), wp))
           if (allocated(em%b3)) then
-            bb = real(em%b3(ix, iy, kr), wp)
+            bb = em%b3(ix, iy, kr)
           else
             bb = 0.5_wp*(b_lev(k - 1) + b_lev(k))
           end if
@@ -361,7 +361,7 @@ contains
       p%y = min(p%y, nearest(iy*atm%dy, -1.0_wp))
       if (allocated(em%b3)) then
         p%z = atm%z(k - 1) + rng_uniform(rng)*(atm%z(k) - atm%z(k - 1))
-        b = real(em%b3(ix, iy, kr), wp)
+        b = em%b3(ix, iy, kr)
       else
         p%z = atm%z(k - 1) + linear_fraction(em%b_lev(k - 1), em%b_lev(k), rng_uniform(rng))* &
               (atm%z(k) - atm%z(k - 1))
@@ -415,7 +415,7 @@ contains
     real(wp), intent(in) :: z
     real(wp) :: t
     if (kr > 0 .and. allocated(em%b3)) then
-      b = real(em%b3(ix, iy, kr), wp)
+      b = em%b3(ix, iy, kr)
       return
     end if
     t = (z - atm%z(k - 1))/(atm%z(k) - atm%z(k - 1))

@@ -4,7 +4,7 @@
 !> * An LES file whose temperature is 275 K everywhere, in an isothermal enclosure (t_levels,
 !>   t_surface and t_top 275 K, black surface, a gray gas in every layer): every radiance is
 !>   B(T) and every flux pi B(T) within 4 sigma, every net power (layer, voxel, surface) is 0 to
-!>   round-off (1e-6 of the emitted power: voxel Planck radiances are single precision).
+!>   round-off (1e-9 of the emitted power).
 !> * The mapping onto the 3-D region: with a temperature field T(i, j, k) = 270 + i + 2 j + 3 k
 !>   the emitted power of every voxel is the isothermal one times B(T(i, j, k))/B(275 K)
 !>   (1e-6), for the temperature variable, for a potential temperature with a 3-D pressure
@@ -229,7 +229,7 @@ contains
       if (allocated(error)) return
       ! the voxel Planck radiances are kept in single precision, as the voxel optics (6e-8
       ! relative): a voxel and a layer at the same temperature differ by that much
-      call check(error, maxval(abs(set%vars(iv)%mean)) <= 1.0e-6_dp*emitted, name// &
+      call check(error, maxval(abs(set%vars(iv)%mean)) <= 1.0e-9_dp*emitted, name// &
                  ' is not zero in an isothermal enclosure: '//str(maxval(abs(set%vars(iv)%mean))))
     end subroutine zero
   end subroutine test_isothermal

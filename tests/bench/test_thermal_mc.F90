@@ -26,6 +26,7 @@ module test_kumo_thermal_mc
   use kumo_test_scenes, only: set_phases, run_config, attach_scene
   use kumo_planck, only: spectral_band_t, band_from_wavenumbers, band_radiance
   use kumo_rng, only: rng_t, rng_init, rng_uniform
+  use kumo_brdf, only: brdf_params, BRDF_RPV
   implicit none
   private
   public :: collect_thermal_mc, set_table
@@ -61,7 +62,8 @@ contains
              new_unittest('exact_non_scattering_columns', test_exact), &
              new_unittest('isothermal_1d', test_isothermal_1d), &
              new_unittest('isothermal_3d', test_isothermal_3d), &
-             new_unittest('isothermal_voxel_temperatures', test_isothermal_voxels)]
+             new_unittest('isothermal_voxel_temperatures', test_isothermal_voxels), &
+             new_unittest('isothermal_brdf_surface', test_isothermal_brdf)]
   end function collect_thermal_mc
 
   !> Every flux and radiance of the five cases within 4 sigma + the reference's error.
@@ -349,6 +351,18 @@ contains
     if (allocated(error)) return
     call check_warm_voxels(cfg, error)
   end subroutine test_isothermal_voxels
+
+  !> Kirchhoff's law at a BRDF surface: the isothermal enclosure over an RPV surface at the
+  !> same temperature, which emits with the directional emissivity 1 - alpha(mu) and reflects by
+  !> its BRDF. Only the two together give radiances B in every direction.
+  subroutine test_isothermal_brdf(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(config_t) :: cfg
+    call isothermal_config(cfg)
+    cfg%surface%brdf = 'rpv'
+    cfg%surface%model = brdf_params(BRDF_RPV, [0.3_wp, 0.7_wp, -0.2_wp, 0.25_wp])
+    call check_isothermal(cfg, .false., error)
+  end subroutine test_isothermal_brdf
 
   subroutine check_warm_voxels(cfg, error)
     type(config_t), intent(in) :: cfg

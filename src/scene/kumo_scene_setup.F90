@@ -25,14 +25,15 @@ module kumo_scene_setup
                          band_radiance, band_units
   use kumo_vr, only: collision_forcing, ddis_phases, spiky_without_vr, SPIKY_PEAK, DDIS_CONE_DEG
   use kumo_scene, only: scene_t
-  use kumo_config, only: config_t, resolve_path
+  use kumo_config, only: config_t, resolve_path, config_inputs, input_file_t
   use kumo_cloud_scene, only: build_cloud_atmosphere, rayleigh_layers, cloud_temperature_t
   use kumo_rayleigh, only: depol_from_king, king_factor_air
   use kumo_textio, only: read_two_columns
   use kumo_netcdf, only: read_scene_3d, read_albedo_map, read_brdf_map, read_scene_temperature
   use kumo_mcarats_files, only: mcarats_surface_t, read_mcarats_surface, mcarats_surface_npsfc, &
                                 mcarats_surface_brdf
-  use kumo_parallel, only: par_size, par_is_root, par_bcast_int, par_bcast_real
+  use kumo_parallel, only: par_size, par_is_root, par_bcast_int, par_bcast_real, par_rank
+  use kumo_checkpoint, only: fingerprint_t, fingerprint_add_file
   implicit none
   private
   public :: setup_scene
@@ -219,7 +220,49 @@ contains
     scene%max_steps = max(1000000000_i8, min(huge(1_i8)/2000_i8, cfg%control%max_events)*1000_i8)
 
     call setup_estimators(cfg, scene, error)
+    if (.not. allocated(error)) call check_same_inputs(cfg, error)
   end subroutine setup_scene
+
+  !> The inputs that every rank reads itself (phase tables, the cloud file and its companions)
+  !> must be the same bytes as rank 0's: each rank hashes them and compares with rank 0's hashes,
+  !> so that ranks never build different scenes from a file that changed during the start or
+  !> that they see differently. A rank that differs fails and names the file.
+  subroutine check_same_inputs(cfg, error)
+    type(config_t), intent(in) :: cfg
+    type(error_t), allocatable, intent(out) :: error
+    type(input_file_t), allocatable :: inputs(:)
+    type(fingerprint_t) :: fp
+    integer, allocatable :: mine(:), root(:)
+    integer :: i, n
+    character(len=:), allocatable :: path
+    integer(i8), parameter :: MASK31 = 2147483647_i8
+    if (par_size() == 1) return
+    path = ''
+    if (allocated(cfg%path)) path = cfg%path
+    inputs = config_inputs(cfg, path)
+    inputs = pack(inputs, [(index(inputs(i)%label, '&kumo_cloud') == 1 .or. &
+                           index(inputs(i)%label, '&kumo_phase') == 1, i=1, size(inputs))])
+    if (size(inputs) == 0) return
+    do i = 1, size(inputs)
+      call fingerprint_add_file(fp, inputs(i)%label, inputs(i)%path)
+    end do
+    n = size(fp%hash)
+    allocate (mine(3*n))
+    ! each 64-bit hash as three pieces of at most 31 bits for the integer broadcast
+    mine(1:3*n:3) = int(iand(fp%hash, MASK31))
+    mine(2:3*n:3) = int(iand(shiftr(fp%hash, 31), MASK31))
+    mine(3:3*n:3) = int(iand(shiftr(fp%hash, 62), MASK31))
+    root = mine
+    call par_bcast_int(root)
+    do i = 1, n
+      if (any(mine(3*i - 2:3*i) /= root(3*i - 2:3*i))) then
+        call set_error(error, 'rank '//str(par_rank())//' read '//inputs(i)%label//' ('// &
+                       inputs(i)%path//') with other contents than rank 0: the file changed '// &
+                       'while the run started, or the ranks see different files')
+        return
+      end if
+    end do
+  end subroutine check_same_inputs
 
   !> Thermal emission: the Planck radiances of the levels, the surface and the top (from the
   !> temperatures and the spectral interval, or given), the emission table, and an isotropic

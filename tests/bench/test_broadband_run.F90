@@ -1,14 +1,16 @@
 ! SPDX-License-Identifier: BSD-3-Clause
-!> A broadband shortwave run from a namelist (&kumo_spectral) against the discrete-ordinates
-!> reference of tests/data/broadband/sw_gpoint_reference.txt (column us1976: the U.S. Standard
-!> Atmosphere 1976 on 35 layers, Manabe-Wetherald water vapour, RCEMIP ozone, sun at 60 degrees,
-!> Lambert surface 0.2, TSI 1361 W m-2; per-g-point fluxes of PythonicDISORT summed over the
-!> g-points): broadband up, diffuse down and direct down fluxes at every level (W m-2) and the
-!> heating rate of every layer (K/day) within 4 standard errors plus the reference's own error
-!> (the difference of its two stream numbers). And bad inputs of the group: a missing
-!> k-distribution file, a longwave file, a negative TSI, no water vapour, a standard atmosphere
-!> together with a sounding, a solar flux or wavelength of &kumo_source besides the
-!> k-distribution's, a sounding whose pressure does not fall, too few water-vapour values.
+!> Broadband shortwave runs from a namelist (&kumo_spectral) against the discrete-ordinates
+!> references of tests/data/broadband/sw_gpoint_reference.txt (per-g-point fluxes of
+!> PythonicDISORT on jax-rrtmgp optics, summed over the g-points; sun at 60 degrees, Lambert
+!> surface 0.2): the U.S. Standard Atmosphere 1976 by name (35 layers, Manabe-Wetherald water
+!> vapour, RCEMIP ozone, TSI 1361 W m-2) and RFMIP site 0 as a sounding (60 layers). Broadband
+!> up, diffuse down and direct down fluxes at every level (W m-2) and the heating rate of every
+!> layer (K/day) within 4 standard errors plus the reference's own error (the difference of its
+!> two stream numbers). A gray layer of &kumo_atmosphere added to every g-point scales the
+!> direct flux below it by exp(-tau/mu0). Bad inputs of the group: a missing k-distribution
+!> file, a longwave file, a file that is no k-distribution, a negative TSI, a floor share of 1,
+!> a standard atmosphere together with a sounding, an unknown one, a solar flux or wavelength
+!> of &kumo_source, a sounding whose pressure does not fall, too many water-vapour values.
 !>
 !> Arguments: the folder of the k-distribution files (KUMO_RRTMGP_DIR) and the reference file.
 !> The namelists are written into the working directory.

@@ -369,7 +369,8 @@ contains
     type(gas_kdist_t) :: kd
     type(spectral_column_t) :: col
     real(wp), allocatable :: z(:), zmid(:), dz(:), plev(:), tlev(:), play(:), tlay(:), rho(:), &
-                             vmr(:, :), tau_abs(:, :), tau_ray(:, :), energy(:), e(:), s(:)
+                             vmr(:, :), tau_abs(:, :), tau_ray(:, :), energy(:), e(:), s(:), &
+                             pmid(:)
     integer :: nz, nc, ng, k, g, status(2), iray, ic
     real(wp) :: mu0, sca, acc
 
@@ -378,7 +379,7 @@ contains
     z = cfg%atm%z
     dz = z(2:nz + 1) - z(1:nz)
     zmid = 0.5_wp*(z(1:nz) + z(2:nz + 1))
-    allocate (plev(0:nz), tlev(0:nz), play(nz), tlay(nz), rho(nz + 1))
+    allocate (plev(0:nz), tlev(0:nz), play(nz), tlay(nz), rho(nz + 1), pmid(nz))
     if (len_trim(cfg%spectral%profile) > 0) then
       ! a standard atmosphere: levels at z_levels; layers at the geometric mean of their level
       ! pressures (exact for an isothermal layer) and at the temperature of the mid-height
@@ -387,8 +388,7 @@ contains
         call add_context(error, '&kumo_spectral profile at &kumo_atmosphere z_levels')
         return
       end if
-      play = sqrt(plev(0:nz - 1)*plev(1:nz))
-      call std_atmosphere_profile(cfg%spectral%profile, zmid, play, tlay, rho(1:nz), error)
+      call std_atmosphere_profile(cfg%spectral%profile, zmid, pmid, tlay, rho(1:nz), error)
       if (allocated(error)) return
       play = sqrt(plev(0:nz - 1)*plev(1:nz))
     else

@@ -9,7 +9,7 @@
 module kumo_driver
   use, intrinsic :: iso_fortran_env, only: output_unit, error_unit
   use, intrinsic :: iso_c_binding, only: c_int
-  use kumo_kinds, only: dp, i8
+  use kumo_kinds, only: wp, dp, i8
   use kumo_constants, only: KUMO_VERSION
   use kumo_error, only: error_t, set_error, str
   use kumo_rng, only: rng_t, rng_init
@@ -17,6 +17,7 @@ module kumo_driver
                         stats_add_batch, N_ANOMALIES
   use kumo_scene, only: scene_t
   use kumo_transport, only: trace_batch
+  use kumo_exact_column, only: exact_thermal_possible, exact_thermal_batch
   use kumo_results, only: result_set_t, add_attr
   use kumo_config, only: config_t, read_config, config_echo, input_file_t, config_inputs
   use kumo_textio, only: read_line, same_file
@@ -30,6 +31,7 @@ module kumo_driver
   use kumo_scene_setup, only: setup_scene, spectral_scene_t, spectral_set_gpoint
   use kumo_spectral, only: spectral_begin_batch
   use kumo_output, only: run_summary_t, build_results, log_summary
+  use kumo_vr, only: runaway_cost_check
   implicit none
   private
   public :: run_case, simulate, scene_t, setup_scene, run_summary_t, checkpoint_plan_t
@@ -148,7 +150,7 @@ contains
     integer :: ib, ib_next, nb_round, rank, nranks, itarget, nb_done, n_slots, s, n_done, &
                ib_last, n_ckpt, kill_after
     integer, allocatable :: map_levels(:), cam_npix(:)
-    logical :: maps, voxel, rad_maps, checkpoints
+    logical :: maps, voxel, rad_maps, checkpoints, exact
     type(progress_t) :: pg
 
     t0 = par_wtime()
@@ -156,6 +158,19 @@ contains
     nranks = par_size()
     call setup_scene(cfg, scene, error, spec)
     if (allocated(error)) return
+    ! work that grows without bound with the geometry is refused or warned about (kumo_vr)
+    block
+      character(len=:), allocatable :: cost_warnings
+      real(wp), allocatable :: dmu(:), dphi(:)
+      allocate (dmu(0), dphi(0))
+      if (allocated(cfg%rad%mu)) dmu = cfg%rad%mu
+      if (allocated(cfg%rad%phi_deg)) dphi = cfg%rad%phi_deg
+      if (size(dphi) < size(dmu)) dphi = [dphi, spread(0.0_wp, 1, size(dmu) - size(dphi))]
+      call runaway_cost_check(scene%atm, dmu, dphi, [scene%src%ux, scene%src%uy, scene%src%uz], &
+                              scene%n_3d > 0, cost_warnings, error)
+      if (allocated(error)) return
+      scene%warnings = scene%warnings//cost_warnings
+    end block
     summary%setup_time = par_wtime() - t0
 
     maps = cfg%output%column_fluxes .and. scene%atm%n3 > 0 .and. &
@@ -172,6 +187,10 @@ contains
     call layout_init(lay, scene%atm%nz, scene%atm%nx*scene%atm%ny, scene%atm%n3, map_levels, &
                      voxel, scene%det%n_dir, scene%det%levels, rad_maps, cam_npix, &
                      [scene%atm%k3_lo - 1, scene%atm%k3_hi], thermal=scene%src%em%on)
+    ! a non-scattering thermal column: every batch from the exact solution, no photons
+    exact = scene%exact_thermal .and. exact_thermal_possible(scene)
+    if (exact) scene%notes = scene%notes//'thermal emission of a non-scattering column: solved '// &
+      'exactly (exponential integrals), no photons traced; standard errors are 0'//new_line('a')
     if (par_is_root() .and. len(scene%notes) > 0 .and. cfg%control%verbose >= 1) then
       write (output_unit, '(a)', advance='no') scene%notes
       flush (output_unit)
@@ -230,7 +249,10 @@ contains
         if (mod(s, nranks) == rank) then
           call rng_init(rng, cfg%control%seed, int(ib, i8))
           call tally_reset(tal, lay)
-          if (spec%on) then
+          if (exact) then
+            call exact_thermal_batch(scene, lay, nphot, tal, error)
+            if (allocated(error)) return
+          else if (spec%on) then
             call trace_spectral_batch(spec, scene, lay, rng, nphot, tal, tal_g)
           else
             call trace_batch(scene, lay, rng, nphot, tal)

@@ -216,6 +216,7 @@ module kumo_config
     real(wp) :: diffusion = 0.0_wp                 !! numerical diffusion of radiance maps
     integer :: diffusion_max = 30                  !! largest spread half-width [columns]
     real(wp) :: ddis_eps = 0.1_wp                  !! detector directional importance sampling
+    logical :: use_exact_thermal = .true.          !! non-scattering thermal columns solved exactly
   end type vr_cfg_t
 
   !> &kumo_radiance: radiances by local estimation at levels, in chosen directions.
@@ -1561,14 +1562,15 @@ contains
     type(error_t), allocatable, intent(out) :: error
     real(wp) :: rr_threshold, rr_weight, sv_fsupg, sv_fsupi
     integer :: sv_max_layers, ios, ip
-    logical :: use_supervoxels, use_1d_layers, use_absorbing_layers, stratify_source
+    logical :: use_supervoxels, use_1d_layers, use_absorbing_layers, stratify_source, &
+               use_exact_thermal
     character(len=16) :: vr_preset
     real(wp) :: zeta_min, trunc_theta_max_deg, trunc_peak, cf_tau_min, diffusion, ddis_eps
     integer :: trunc_levels, diffusion_max
     character(len=512) :: msg
     character(len=*), parameter :: CTX = '&kumo_vr: '
     namelist /kumo_vr/ rr_threshold, rr_weight, use_supervoxels, sv_fsupg, sv_fsupi, &
-      sv_max_layers, use_1d_layers, use_absorbing_layers, vr_preset, zeta_min, &
+      sv_max_layers, use_1d_layers, use_absorbing_layers, use_exact_thermal, vr_preset, zeta_min, &
       trunc_theta_max_deg, trunc_levels, trunc_peak, cf_tau_min, diffusion, diffusion_max, &
       ddis_eps, stratify_source
     rr_threshold = cfg%rr_threshold
@@ -1579,6 +1581,7 @@ contains
     sv_max_layers = cfg%sv_max_layers
     use_1d_layers = cfg%use_1d_layers
     use_absorbing_layers = cfg%use_absorbing_layers
+    use_exact_thermal = cfg%use_exact_thermal
     stratify_source = cfg%stratify_source
     vr_preset = cfg%preset
     zeta_min = UNSET
@@ -1656,6 +1659,7 @@ contains
     cfg%sv_max_layers = sv_max_layers
     cfg%use_1d_layers = use_1d_layers
     cfg%use_absorbing_layers = use_absorbing_layers
+    cfg%use_exact_thermal = use_exact_thermal
     cfg%stratify_source = stratify_source
   contains
     !> Read one assignment of &kumo_vr (or write the namelist), for check_read.
@@ -2291,6 +2295,8 @@ contains
            'kumo_vr.diffusion = '//str(cfg%vr%diffusion)//nl// &
            'kumo_vr.diffusion_max = '//str(cfg%vr%diffusion_max)//nl// &
            'kumo_vr.ddis_eps = '//str(cfg%vr%ddis_eps)//nl
+    ! echoed only when changed, so that the configuration attribute of other runs stays as it was
+    if (.not. cfg%vr%use_exact_thermal) text = text//'kumo_vr.use_exact_thermal = F'//nl
     if (allocated(cfg%rad%mu)) text = text// &
       'kumo_radiance.rad_mu = '//join(cfg%rad%mu)//nl// &
       'kumo_radiance.rad_phi_deg = '//join(cfg%rad%phi_deg)//nl// &

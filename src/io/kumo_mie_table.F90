@@ -26,12 +26,12 @@ module kumo_mie_table
                     nf90_inq_dimid, nf90_inq_varid, nf90_inquire_dimension, &
                     nf90_inquire_attribute, nf90_strerror, NF90_NOERR, NF90_NOWRITE, &
                     NF90_NOCLOBBER, NF90_NETCDF4, NF90_CLASSIC_MODEL, NF90_GLOBAL, NF90_DOUBLE
-  use kumo_kinds, only: wp
+  use kumo_kinds, only: wp, i8
   use kumo_error, only: error_t, set_error, str
   use kumo_file_check, only: check_netcdf_complete
   use kumo_mie, only: mie_table_t, mie_table_build, DIST_NAMES, DLNR_DEFAULT, RHO_WATER_G_M3
   use kumo_water_index, only: water_index, WATER_INDEX_SOURCE
-  use kumo_netcdf, only: c_rename, c_remove
+  use kumo_netcdf, only: c_rename, c_remove, explain_write_failure, reserve_space
   implicit none
   private
   public :: write_mie_table, read_mie_table, mie_table_cached, MIE_TABLE_VERSION
@@ -52,6 +52,7 @@ contains
     character(len=:), allocatable :: tmp, at
     integer :: ncid, dr, da, v_r, v_e, v_s, v_g, v_a, v_p, status
     type(error_t), allocatable :: close_error
+    integer(i8) :: n_data
 
     tmp = trim(path)//'.tmp'
     at = PROC//'('//trim(path)//')'
@@ -59,9 +60,19 @@ contains
       call set_error(error, at//': the table is empty')
       return
     end if
+    ! a full disk is reported before the netCDF library writes (kumo_netcdf); the values as
+    ! doubles, 4 KiB of object headers per variable and 64 KiB for the file's structures
+    n_data = 8_i8*(4_i8*size(table%r_eff_um, kind=i8) + size(table%angle_deg, kind=i8) + &
+                   size(table%phase, kind=i8))
+    call reserve_space(tmp, n_data, n_data + 65536_i8 + 6_i8*4096_i8, error)
+    if (allocated(error)) return
     status = c_remove(tmp//c_null_char)   ! a stale one (or a link of that name) goes first
     call nc_check(nf90_create(tmp, CREATE_MODE, ncid), PROC//'('//tmp//')', error)
-    if (allocated(error)) return
+    if (allocated(error)) then
+      call explain_write_failure(tmp, error)
+      status = c_remove(tmp//c_null_char)
+      return
+    end if
     call define()
     if (.not. allocated(error)) call nc_check(nf90_enddef(ncid), at, error)
     if (.not. allocated(error)) call nc_check(nf90_put_var(ncid, v_r, table%r_eff_um), at, error)
@@ -73,6 +84,7 @@ contains
     call nc_check(nf90_close(ncid), at, close_error)
     if (.not. allocated(error) .and. allocated(close_error)) call move_alloc(close_error, error)
     if (allocated(error)) then
+      call explain_write_failure(tmp, error)   ! a full disk says so
       status = c_remove(tmp//c_null_char)
       return
     end if

@@ -16,9 +16,12 @@
 !> renamed to `<path>` only after it was closed without error, and removed on any error. A failed
 !> write therefore never leaves a partial file behind, and an older file at `<path>` stays intact.
 !> The temporary file is created exclusively after a stale one is removed (a link there is never
-!> followed). Files read are first checked for data cut short (kumo_file_check).
+!> followed). Files read are first checked for data cut short (kumo_file_check). A write that
+!> fails because the file system takes no more data (full disk, quota, file size limit) is
+!> reported as such, not as the netCDF library's "NetCDF: HDF error" (`explain_write_failure`).
 module kumo_netcdf
-  use, intrinsic :: iso_c_binding, only: c_char, c_int, c_null_char
+  use, intrinsic :: iso_c_binding, only: c_char, c_int, c_null_char, c_funptr, c_intptr_t, &
+                                         c_null_funptr
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite, ieee_is_nan
   use netcdf, only: nf90_create, nf90_open, nf90_close, nf90_enddef, nf90_def_dim, nf90_def_var, &
                     nf90_put_att, nf90_get_att, nf90_put_var, nf90_get_var, nf90_inq_dimid, &
@@ -28,8 +31,8 @@ module kumo_netcdf
                     NF90_DOUBLE, NF90_FLOAT, NF90_INT, NF90_SHORT, NF90_BYTE, NF90_CHAR, &
                     NF90_FILL_DOUBLE, NF90_FILL_FLOAT, NF90_FILL_INT, NF90_FILL_SHORT, &
                     NF90_FILL_BYTE, NF90_MAX_VAR_DIMS, NF90_MAX_NAME
-  use kumo_kinds, only: wp, dp
-  use kumo_error, only: error_t, set_error, join, str
+  use kumo_kinds, only: wp, dp, i8
+  use kumo_error, only: error_t, set_error, join, str, to_lower
   use kumo_file_check, only: check_netcdf_complete
   use kumo_results, only: result_set_t
   use kumo_brdf, only: BRDF_NPAR, BRDF_NAMES, BRDF_DSM, cox_munk_slope_variance
@@ -39,7 +42,7 @@ module kumo_netcdf
   public :: read_scene_3d, write_scene_3d, read_albedo_map, read_brdf_map, &
             read_scene_temperature
   public :: BRDF_MAP_VARS
-  public :: c_rename, c_remove
+  public :: c_rename, c_remove, explain_write_failure, ignore_file_size_signal, reserve_space
   public :: read_var_1d, read_text_attr
 
   !> netCDF-4 file restricted to the classic data model (readable by every netCDF-4 tool).
@@ -49,6 +52,12 @@ module kumo_netcdf
   integer, parameter :: CREATE_MODE = ior(NF90_NOCLOBBER, ior(NF90_NETCDF4, NF90_CLASSIC_MODEL))
   character(len=*), parameter :: CONVENTIONS = 'CF-1.8'
   character(len=*), parameter :: TMP_SUFFIX = '.tmp'
+  !> Bytes appended to a file whose write failed, to ask the file system why (more than the few
+  !> bytes a full file system may still have in a partly used block).
+  integer, parameter :: PROBE_BYTES = 1048576
+  !> SIGXFSZ (POSIX: Linux, the BSDs and macOS all use 25), raised by a write beyond the
+  !> process's file size limit; ignored, the write fails with EFBIG and is reported instead.
+  integer(c_int), parameter :: SIGNAL_XFSZ = 25_c_int
   character(len=*), parameter :: DEFAULT_ALBEDO_NAME = 'albedo'
   !> Conversion of an extinction coefficient from km-1 to m-1.
   real(wp), parameter :: PER_KM_TO_PER_M = 1.0e-3_wp
@@ -85,6 +94,15 @@ module kumo_netcdf
       integer(c_int) :: status
     end function c_rename
 
+    !> C `signal` (signal.h): set the action of a signal; returns the previous one.
+    function c_signal(signum, handler) bind(C, name='signal') result(previous)
+      import :: c_int, c_funptr
+      implicit none
+      integer(c_int), value :: signum
+      type(c_funptr), value :: handler
+      type(c_funptr) :: previous
+    end function c_signal
+
     !> C `remove` (stdio.h): delete a file.
     function c_remove(path) bind(C, name='remove') result(status)
       import :: c_char, c_int
@@ -112,8 +130,12 @@ contains
     type(error_t), allocatable, intent(out) :: error
     character(len=*), parameter :: PROC = 'write_results'
     integer :: ncid
+    integer(i8) :: nb_min, nb_max
 
     call validate_result_set(PROC, trim(path), set, error)
+    if (allocated(error)) return
+    call result_set_bytes(set, nb_min, nb_max)
+    call reserve_space(trim(path)//TMP_SUFFIX, nb_min, nb_max, error)
     if (allocated(error)) return
     call create_temp(PROC, trim(path), ncid, error)
     if (allocated(error)) return
@@ -1349,21 +1371,23 @@ contains
     integer, intent(out) :: ncid
     type(error_t), allocatable, intent(out) :: error
     integer :: status, slash
-    logical :: dir_exists
+    logical :: dir_exists, explained
 
     ncid = -1
+    call ignore_file_size_signal()
     call remove_file(path//TMP_SUFFIX)   ! left by a run that was killed while writing
     status = nf90_create(path//TMP_SUFFIX, CREATE_MODE, ncid)
     if (status == NF90_NOERR) return
+    call set_error(error, where_text(routine, path//TMP_SUFFIX, '')//': '// &
+                   trim(nf90_strerror(status))//' (cannot create the temporary file)')
+    call explain_write_failure(path//TMP_SUFFIX, error, explained)   ! a full disk
     call remove_file(path//TMP_SUFFIX)
+    if (explained) return
     ! HDF5 reports a missing directory as "Permission denied": say what is wrong.
     slash = index(path, '/', back=.true.)
     dir_exists = .true.
     if (slash > 1) inquire (file=path(1:slash - 1)//'/.', exist=dir_exists)
-    if (dir_exists) then
-      call set_error(error, where_text(routine, path//TMP_SUFFIX, '')//': '// &
-                     trim(nf90_strerror(status))//' (cannot create the temporary file)')
-    else
+    if (.not. dir_exists) then
       call set_error(error, where_text(routine, path//TMP_SUFFIX, '')//': '// &
                      trim(nf90_strerror(status))//' (directory '//path(1:slash - 1)// &
                      ' does not exist)')
@@ -1382,6 +1406,7 @@ contains
       call nc_check(status, where_text(routine, path//TMP_SUFFIX, ''), error)
     end if
     if (allocated(error)) then
+      call explain_write_failure(path//TMP_SUFFIX, error)
       call remove_file(path//TMP_SUFFIX)
       return
     end if
@@ -1391,6 +1416,156 @@ contains
       call remove_file(path//TMP_SUFFIX)
     end if
   end subroutine commit_temp
+
+  !> After a write, create or close of `path` failed with `error`: if the file system takes no more
+  !> data there, replace the message by one that says so. netCDF-4 reports a full disk, an
+  !> exceeded quota and the process's file size limit (ulimit -f) alike as "NetCDF: HDF error";
+  !> the operating system's reason is found by appending PROBE_BYTES to the file (which is
+  !> removed afterwards anyway): if that fails too, its message (the system's own, e.g. "No space
+  !> left on device") is the cause. Anything else (the file is missing, the append works) keeps
+  !> the original message. The file is left for the caller to remove.
+  subroutine explain_write_failure(path, error, explained)
+    character(len=*), intent(in) :: path    !! the file whose write failed
+    type(error_t), allocatable, intent(inout) :: error  !! the failure (unallocated: nothing done)
+    logical, intent(out), optional :: explained  !! true if the message now names the cause
+    character(len=512) :: msg
+    character(len=1), allocatable :: filler(:)
+    integer :: unit, ios, ios_close
+    logical :: exists
+
+    if (present(explained)) explained = .false.
+    if (.not. allocated(error)) return
+    inquire (file=path, exist=exists)
+    if (.not. exists) return
+    open (newunit=unit, file=path, access='stream', form='unformatted', status='old', &
+          position='append', action='write', iostat=ios)
+    if (ios /= 0) return
+    allocate (filler(PROBE_BYTES))
+    filler = c_null_char
+    write (unit, iostat=ios, iomsg=msg) filler
+    if (ios == 0) flush (unit, iostat=ios, iomsg=msg)
+    close (unit, iostat=ios_close)
+    if (ios == 0) return
+    call probe_message(path, msg, error)
+    if (present(explained)) explained = .true.
+  end subroutine explain_write_failure
+
+  !> Replace the message of `error` by one naming the cause of a write to `path` that the file
+  !> system refused, from the system's message `msg` (iomsg of the failed write).
+  subroutine probe_message(path, msg, error)
+    character(len=*), intent(in) :: path, msg
+    type(error_t), allocatable, intent(inout) :: error
+    character(len=:), allocatable :: cause, advice, low
+    low = to_lower(trim(msg))
+    if (index(low, 'no space') > 0) then
+      cause = 'no space left on device'
+      advice = 'the file system is full: free space there or write the output elsewhere'
+    else if (index(low, 'quota') > 0) then
+      cause = 'disk quota exceeded'
+      advice = 'free space within the quota or write the output elsewhere'
+    else if (index(low, 'too large') > 0) then
+      cause = 'file size limit exceeded'
+      advice = 'the process may not write files this large (ulimit -f): raise the limit'
+    else
+      cause = trim(msg)
+      advice = 'the file system refuses more data'
+    end if
+    error%message = cause//' while writing '//path//': '//advice//' (reported: '// &
+                    error%message//')'
+  end subroutine probe_message
+
+  !> Make sure the output fits before the netCDF library writes it: up to `nbytes_max` bytes
+  !> are written to `path` (created exclusively after a stale file is removed) and the file is
+  !> deleted again. If the file system takes fewer than `nbytes_min` bytes (the data alone), the
+  !> write cannot succeed and the error names the operating system's reason (a full disk, an
+  !> exceeded quota, the file size limit: `probe_message`) before HDF5 has a file open: after a
+  !> failed HDF5 write the library's clean-up at program exit can crash, and the message it
+  !> gives is only "NetCDF: HDF error". Between the two bounds the real write is tried. The cost
+  !> is writing the output's size once more.
+  subroutine reserve_space(path, nbytes_min, nbytes_max, error)
+    character(len=*), intent(in) :: path          !! the temporary file the output will be
+    integer(i8), intent(in) :: nbytes_min         !! a lower bound of the file's size
+    integer(i8), intent(in) :: nbytes_max         !! an upper bound of the file's size
+    type(error_t), allocatable, intent(out) :: error
+    integer, parameter :: CHUNK = 1048576
+    character(len=1), allocatable :: zeros(:)
+    character(len=512) :: msg
+    integer(i8) :: left, written
+    integer :: unit, ios, ios_close
+
+    call ignore_file_size_signal()
+    call remove_file(path)
+    open (newunit=unit, file=path, access='stream', form='unformatted', status='new', &
+          action='write', iostat=ios, iomsg=msg)
+    if (ios /= 0) return       ! cannot be created: the caller's create says why, in its words
+    allocate (zeros(int(min(nbytes_max, int(CHUNK, i8)))))
+    zeros = c_null_char
+    left = nbytes_max
+    do while (left > 0_i8 .and. ios == 0)
+      write (unit, iostat=ios, iomsg=msg) zeros(1:int(min(left, int(size(zeros), i8))))
+      left = left - size(zeros)
+    end do
+    if (ios == 0) flush (unit, iostat=ios, iomsg=msg)
+    written = -1_i8
+    if (ios /= 0) inquire (unit=unit, size=written)
+    close (unit, status='delete', iostat=ios_close)
+    if (ios == 0) return
+    call remove_file(path)
+    if (written >= nbytes_min) return     ! the file may fit: the real write decides
+    call set_error(error, 'reserve_space('//path//'): '//trim(msg)//' (the file needs '// &
+                   str(nbytes_min)//' to '//str(nbytes_max)//' bytes)')
+    call probe_message(path, msg, error)
+  end subroutine reserve_space
+
+  !> Bounds of the size of the netCDF-4 file of a result set: the values (mean and standard
+  !> error) and coordinates as doubles and the attribute texts, plus HDF5 object headers per
+  !> dimension and variable (measured: about 1.1 KiB each in kumo's outputs) and the file's own
+  !> structures: at least 512 bytes per object and 2 KiB (with compression the values do not
+  !> count), at most 4 KiB per object and 64 KiB.
+  pure subroutine result_set_bytes(set, nbytes_min, nbytes_max)
+    type(result_set_t), intent(in) :: set
+    integer(i8), intent(out) :: nbytes_min, nbytes_max
+    integer :: i
+    integer(i8) :: n_objects, n_text
+    nbytes_min = 0_i8
+    n_objects = 0_i8
+    n_text = 0_i8
+    if (allocated(set%dims)) then
+      do i = 1, size(set%dims)
+        n_objects = n_objects + 1_i8
+        if (allocated(set%dims(i)%coord)) nbytes_min = nbytes_min + &
+                                                       8_i8*size(set%dims(i)%coord, kind=i8)
+      end do
+    end if
+    if (allocated(set%vars)) then
+      do i = 1, size(set%vars)
+        n_objects = n_objects + 2_i8
+        if (allocated(set%vars(i)%mean)) nbytes_min = nbytes_min + &
+                                                      8_i8*size(set%vars(i)%mean, kind=i8)
+        if (allocated(set%vars(i)%stderr)) nbytes_min = nbytes_min + &
+                                                        8_i8*size(set%vars(i)%stderr, kind=i8)
+      end do
+    end if
+    if (allocated(set%attrs)) then
+      do i = 1, size(set%attrs)
+        if (allocated(set%attrs(i)%value)) n_text = n_text + len(set%attrs(i)%value, kind=i8)
+      end do
+    end if
+    nbytes_min = nbytes_min + n_text
+    nbytes_max = nbytes_min + 4096_i8*n_objects + 65536_i8
+    if (set%deflate > 0) nbytes_min = n_text     ! compressed values: only the text is sure
+    nbytes_min = nbytes_min + 512_i8*n_objects + 2048_i8
+  end subroutine result_set_bytes
+
+  !> Ignore SIGXFSZ, so that a write beyond the file size limit (`ulimit -f`) fails with an
+  !> error kumo reports ("file size limit exceeded", the file named, the temporary file removed)
+  !> instead of ending the process with a backtrace and a partial `<output>.tmp`. The Fortran
+  !> runtime installs its own handler for this signal at start-up, so an inherited "ignore" is
+  !> not enough. Called before each output file is created.
+  subroutine ignore_file_size_signal()
+    type(c_funptr) :: previous
+    previous = c_signal(SIGNAL_XFSZ, transfer(1_c_intptr_t, c_null_funptr))   ! SIG_IGN
+  end subroutine ignore_file_size_signal
 
   !> Delete a file if it exists; failures are ignored (used only while cleaning up).
   subroutine remove_file(path)

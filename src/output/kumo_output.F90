@@ -3,7 +3,7 @@
 !> attributes), formed from the batch statistics of the tallies, and the summary printed at the
 !> end. The netCDF writer writes any result set generically, so the output layout lives here.
 module kumo_output
-  use, intrinsic :: iso_fortran_env, only: output_unit
+  use, intrinsic :: iso_fortran_env, only: output_unit, error_unit
   use kumo_kinds, only: wp, dp, i8
   use kumo_constants, only: KUMO_VERSION, SECONDS_PER_DAY, PI
   use kumo_error, only: error_t, str, join
@@ -16,6 +16,7 @@ module kumo_output
                           find_dim
   use kumo_config, only: config_t, config_echo
   use kumo_parallel, only: PAR_IS_MPI
+  use kumo_vr, only: roulette_balance_warning
   implicit none
   private
   public :: run_summary_t, build_results, log_summary
@@ -267,7 +268,21 @@ contains
       call add_attr(set, 'mode_3d', trim(cfg%control%mode_3d))
       if (cfg%control%mode_3d == 'p3d') call add_num_attr(set, 'p3d_orders', &
                                                           real(cfg%control%p3d_orders, dp))
-      if (len(scene%warnings) > 0) call add_attr(set, 'warnings', scene%warnings)
+      ! a significant roulette weight balance (kumo_vr) joins the scene's warnings: log and file
+      block
+        character(len=:), allocatable :: warn, rr_warn
+        real(dp) :: bal(1), bal_err(1)
+        bal = stats_mean(st, lay%i_rr + 1, lay%i_rr + 1)
+        bal_err = stats_stderr(st, lay%i_rr + 1, lay%i_rr + 1)
+        rr_warn = roulette_balance_warning(bal(1), bal_err(1), st%n_batches)
+        warn = scene%warnings
+        if (len(rr_warn) > 0) then
+          write (error_unit, '(a)') 'kumo: warning: '//trim(rr_warn)
+          if (len_trim(warn) > 0) warn = trim(warn)//' '
+          warn = warn//rr_warn
+        end if
+        if (len(warn) > 0) call add_attr(set, 'warnings', warn)
+      end block
       if (len(scene%notes) > 0) call add_attr(set, 'scene_notes', scene%notes)
       call add_attr(set, 'supervoxels', sv_text())
       do i = 1, N_ANOMALIES
@@ -503,6 +518,7 @@ contains
         end if
       end do
     end do
+    call log_thermal(set)
     call log_radiances(set)
     do i = 1, N_ANOMALIES
       if (summary%anomalies(i) > 0) write (output_unit, '(a)') '  anomaly '// &
@@ -561,6 +577,37 @@ contains
       end associate
     end do
   end subroutine cf_annotate
+
+  !> Thermal runs: the headline numbers in absolute units (upward flux at the highest written
+  !> level, downward flux at the lowest, the net power of the atmosphere's layers and the range
+  !> of the layer heating rates).
+  subroutine log_thermal(set)
+    type(result_set_t), intent(in) :: set
+    integer :: iu, id, inet, ih, n, k
+    character(len=:), allocatable :: units
+    if (find_var(set, 'source_power') == 0) return
+    iu = find_var(set, 'flux_up_wm2')
+    id = find_var(set, 'flux_down_wm2')
+    inet = find_var(set, 'net_power_layer')
+    ih = find_var(set, 'heating_rate_layer')
+    units = trim(set%vars(iu)%units)
+    n = size(set%vars(iu)%mean)
+    write (output_unit, '(2x,a24,f12.4,a,f10.4,a)') 'flux_up (top level)', set%vars(iu)%mean(n), &
+      ' +- ', set%vars(iu)%stderr(n), ' '//units
+    write (output_unit, '(2x,a24,f12.4,a,f10.4,a)') 'flux_down (lowest level)', &
+      set%vars(id)%mean(1), ' +- ', set%vars(id)%stderr(1), ' '//units
+    write (output_unit, '(2x,a24,f12.4,a,f10.4,a)') 'net power of the layers', &
+      sum(set%vars(inet)%mean), ' +- ', sqrt(sum(set%vars(inet)%stderr**2)), ' '//units// &
+      ' (independent errors assumed)'
+    if (ih > 0) then
+      k = minloc(set%vars(ih)%mean, 1)
+      write (output_unit, '(2x,a24,f12.4,a,f10.4,a)') 'strongest cooling', set%vars(ih)%mean(k), &
+        ' +- ', set%vars(ih)%stderr(k), ' K/day (layer '//str(k)//')'
+      k = maxloc(set%vars(ih)%mean, 1)
+      write (output_unit, '(2x,a24,f12.4,a,f10.4,a)') 'strongest heating', set%vars(ih)%mean(k), &
+        ' +- ', set%vars(ih)%stderr(k), ' K/day (layer '//str(k)//')'
+    end if
+  end subroutine log_thermal
 
   !> The domain-mean radiances, one line per direction and level, leaving out exact zeros (no
   !> light enters at the top; a black surface reflects none); at most MAX_LINES lines.

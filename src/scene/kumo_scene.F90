@@ -30,6 +30,8 @@ module kumo_scene
     integer(i8) :: max_steps = 100000000000_i8 !! flight steps per photon (1000 x max_events)
     real(wp) :: mu0 = 1.0_wp                 !! cosine of the solar zenith angle
     real(wp), allocatable :: air_density(:)  !! (nz) [kg m-3] for heating rates, if known
+    !> thermal runs: a non-scattering column is solved exactly instead of traced (kumo_exact_column)
+    logical :: exact_thermal = .true.
     character(len=:), allocatable :: notes    !! how the scene was built, for the log
     character(len=:), allocatable :: warnings !! for the log and the output file
   end type scene_t

@@ -330,6 +330,7 @@ contains
       call add_context(error, '&kumo_thermal')
       return
     end if
+    scene%exact_thermal = cfg%vr%use_exact_thermal
     scene%src%em%has_band = has_band
     if (has_band) then
       scene%src%em%band = band

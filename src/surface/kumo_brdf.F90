@@ -37,7 +37,7 @@
 !> Note the LSRT order (iso, geo, vol) of MCARaTS; MODIS MCD43 products list (iso, vol, geo).
 !>
 !> **Photon loop.** Build one `brdf_table_t` per distinct parameter set with `brdf_table_init`
-!> (validation, directional albedo table in mu_in, sampling envelopes; a few milliseconds). At
+!> (validation, directional albedo table in mu_in, sampling envelopes; 10-100 ms). At
 !> a reflection: multiply the weight by `brdf_albedo(tab, mu_in)` (<= 1), use
 !> `brdf_table_eval(tab, ...)`/`brdf_albedo(tab, mu_in)` as the angular density of local
 !> estimates, and draw the new direction with `brdf_sample`, whose distribution is
@@ -56,7 +56,7 @@ module kumo_brdf
   implicit none
   private
   public :: BRDF_BLACK, BRDF_LAMBERT, BRDF_DSM, BRDF_RPV, BRDF_LSRT, BRDF_NAMES, BRDF_NPAR
-  public :: BRDF_NPAR_USED, BRDF_NMU, BRDF_NALB
+  public :: BRDF_NPAR_USED, BRDF_NMU, BRDF_NALB, BRDF_NALB_MAX
   public :: brdf_params_t, brdf_table_t
   public :: brdf_params, brdf_kind_from_name, brdf_validate
   public :: brdf_eval, brdf_eval_dir, brdf_albedo_quad
@@ -87,9 +87,15 @@ module kumo_brdf
   !> is negative and clamped to 0 (`brdf_validate`).
   real(wp), parameter :: LSRT_NEG_MAX = 0.25_wp
   !> Nodes of the dense albedo table (`brdf_table_init`), uniform in sqrt(mu_in) like the
-  !> envelope nodes: with cubic interpolation the albedo is within 1e-6 relative of the
-  !> quadrature for DSM and RPV (measured in the unit tests); the envelopes keep BRDF_NMU.
+  !> envelope nodes; the envelopes keep BRDF_NMU. With cubic interpolation the albedo is within
+  !> 1e-6 relative of the quadrature wherever it is smooth; where it is not (the clipping of a
+  !> negative LSRT kernel sum starts or ends at some mu_in), nodes are added adaptively: every
+  !> interval with mu_in >= ALB_CHECK_MU is checked at its midpoint against the quadrature
+  !> and halved while the error exceeds ALB_TOL, up to BRDF_NALB_MAX nodes in all.
   integer, parameter :: BRDF_NALB = 121
+  integer, parameter :: BRDF_NALB_MAX = 241
+  real(wp), parameter :: ALB_TOL = 2.0e-7_wp
+  real(wp), parameter :: ALB_CHECK_MU = 0.01_wp
 
   !> Hemispheric quadrature for RPV and LSRT: panels of N_A Gauss-Legendre nodes in mu_out
   !> (split at the hot spot mu_out = mu_in and, for LSRT, where the Li-Sparse overlap clamp
@@ -102,6 +108,16 @@ module kumo_brdf
   integer, parameter :: MAX_PHI_PANELS = 7
   integer, parameter :: MAX_PHI = MAX_PHI_PANELS*N_P
   integer, parameter :: N_PROF = MAX_ROWS + 3  !! rows of the envelope scan
+  !> RPV quadrature near the hot spot (mu_out = mu_in, dphi = pi), where the hot-spot term
+  !> and a backward Henyey-Greenstein peak are sharp: the mu_out panels on both sides of mu_in
+  !> are graded geometrically (lengths HOT_RATIO^k of the side, at most HOT_MU_MAX levels) and
+  !> each row's dphi panel towards pi likewise, until a panel is HOT_RES times the peak width
+  !> (`rpv_width`). Without it the albedo of a sharp hot spot (h = 0.3, or Theta = -0.9 with
+  !> h = 0.05) was off by 8e-6 (4.6e-4) relative; with it 5e-8 against the same quadrature with
+  !> 64 x 96 nodes per panel.
+  integer, parameter :: HOT_MU_MAX = 4
+  real(wp), parameter :: HOT_RES = 0.2_wp
+  real(wp), parameter :: HOT_RATIO = 0.25_wp
 
   !> Slope-space quadrature for the DSM specular albedo: N_PSI midpoints in the slope azimuth,
   !> N_W Gauss-Legendre nodes in s = tan(th_n)/sigma on [0, min(s_c, S_MAX)]; the slope
@@ -139,16 +155,19 @@ module kumo_brdf
   end type brdf_params_t
 
   !> Setup-time tables of one parameter set, for the photon loop (fixed size, no allocation:
-  !> an array of tables is one contiguous block, about 0.6 kB per table).
+  !> an array of tables is one contiguous block, about 4.4 kB per table).
   type :: brdf_table_t
     type(brdf_params_t) :: p               !! the model
     !> Albedo table: alpha_model(mu) = T(mu) mu^(-t_pow), T interpolated cubically between
     !> the nodes mu_j. RPV: t_pow = 1 - k; LSRT: 1; DSM: 0 and T is the specular albedo.
     real(wp) :: t_pow = 0.0_wp
     real(wp) :: t(BRDF_NMU) = 0.0_wp
-    !> The same on BRDF_NALB nodes (used instead of t when n_alb = BRDF_NALB).
+    !> The same on n_alb >= BRDF_NALB nodes at x = sqrt(mu_in) = xa (used instead of t when
+    !> n_alb >= BRDF_NALB): BRDF_NALB uniform nodes, then (alb_uniform false) adaptive ones.
     integer :: n_alb = BRDF_NMU
-    real(wp) :: ta(BRDF_NALB) = 0.0_wp
+    logical :: alb_uniform = .true.
+    real(wp) :: xa(BRDF_NALB_MAX) = 0.0_wp
+    real(wp) :: ta(BRDF_NALB_MAX) = 0.0_wp
     !> Exact model albedo (quadrature) at the solar mu_in given at setup: every direct-beam
     !> photon arrives with exactly this mu_in, so its albedo carries no interpolation error.
     real(wp) :: mu_sun = -1.0_wp
@@ -593,9 +612,11 @@ contains
   !> [0, min(s_c, 6.5)]: 576 evaluations, and the glint is resolved for any sigma^2.
   !>
   !> Accuracy against converged midpoint rules in (mu_out, dphi) (unit tests and a wider
-  !> survey): DSM 1e-6 relative or better; RPV 1e-6 for typical parameters (1e-4 for extreme
-  !> hot spots, h ~ 0.05, |Theta| ~ 0.9); LSRT 1e-9 with or without clipping; LSRT kernel
-  !> integrals within 1e-5 of the published black-sky values, 1e-15 at mu_in = 1.
+  !> survey): DSM 1e-6 relative or better; RPV 5e-8 with the graded panels at the hot spot
+  !> (HOT_MU_MAX; before them 8e-6 for h = 0.3 and 5e-4 for h = 0.05, Theta = -0.9), measured
+  !> against the same rule with 64 x 96 nodes per panel; LSRT 1e-9 with or without clipping
+  !> (5e-7 at a few mu_in); LSRT kernel integrals within 1e-5 of the published black-sky values,
+  !> 1e-15 at mu_in = 1.
   elemental function brdf_albedo_quad(p, mu_in) result(alpha)
     type(brdf_params_t), intent(in) :: p
     real(wp), intent(in) :: mu_in  !! cosine of the incident zenith angle, in (0, 1]
@@ -680,6 +701,14 @@ contains
     br(nb) = mu0
     nb = nb + 1
     br(nb) = 1.0_wp
+    if (p%kind == BRDF_RPV) then
+      do k = 1, rpv_levels(HOT_RES*rpv_width(p), HOT_MU_MAX)
+        nb = nb + 1
+        br(nb) = mu0*(1.0_wp - HOT_RATIO**k)
+        nb = nb + 1
+        br(nb) = mu0 + (1.0_wp - mu0)*HOT_RATIO**k
+      end do
+    end if
     call sort_unique(br, nb)
     n = 0
     do k = 1, nb - 1
@@ -837,6 +866,16 @@ contains
         end do
       end if
     end if
+    if (p%kind == BRDF_RPV .and. s0*s1 > 0.0_wp) then
+      ! scale of the hot-spot peak across this row, in dphi
+      x = sqrt((s0*mu1 - s1*mu0)**2 + rpv_width(p)**2)/sqrt(s0*s1)
+      d = PI
+      do k = 1, rpv_levels(HOT_RES*x/PI, MAX_PHI_PANELS - 1)
+        d = d*HOT_RATIO
+        nb = nb + 1
+        br(nb) = PI - d
+      end do
+    end if
     nb = nb + 1
     br(nb) = PI
     call sort_unique(br, nb)
@@ -850,6 +889,29 @@ contains
       end do
     end do
   end subroutine phi_nodes
+
+  !> Width of the RPV hot-spot peak in the phase angle: the hot-spot term (1 - rho0)/(h + G)
+  !> has the width h in the tangent distance G, the Henyey-Greenstein factor of Theta < 0 the
+  !> width 1 - |Theta| in g; 1 for a broad peak.
+  pure function rpv_width(p) result(w)
+    type(brdf_params_t), intent(in) :: p
+    real(wp) :: w
+    w = min(1.0_wp, p%c(4))
+    if (p%c(3) < 0.0_wp) w = min(w, 1.0_wp + p%c(3))
+    w = max(w, 1.0e-3_wp)
+  end function rpv_width
+
+  !> Levels n of the geometric grading (panel lengths HOT_RATIO^k, k = 1 ... n, of the
+  !> interval) towards the RPV hot spot: the smallest n with HOT_RATIO^n <= frac, at most n_max.
+  pure function rpv_levels(frac, n_max) result(n)
+    real(wp), intent(in) :: frac
+    integer, intent(in) :: n_max
+    integer :: n
+    n = 0
+    do while (HOT_RATIO**n > frac .and. n < n_max)
+      n = n + 1
+    end do
+  end function rpv_levels
 
   !> Sort x(1:n) ascending and drop entries within 1e-12 of their predecessor.
   pure subroutine sort_unique(x, n)
@@ -1011,13 +1073,17 @@ contains
   !> expected number of tries). Nodes where the model albedo exceeds 1 are counted in
   !> `n_clamped`. (Cost of the whole table: see below.)
   !>
-  !> The albedo is interpolated (cubic in sqrt(mu_in)) on BRDF_NALB = 121 nodes, measured
-  !> against the quadrature at the midpoints between nodes for mu_in in [0.01, 1]: 2.5e-7 for
-  !> DSM (Cox-Munk ocean, 5 m/s), 5e-7 for RPV and unclipped LSRT, 5e-6 for RPV with a sharp
-  !> hot spot (the quadrature's own error), 8e-5 for LSRT where clipping of a negative kernel
-  !> sum puts kinks in the albedo; `interp_err` reports the largest error at the envelope bin
-  !> midpoints. With `mu0`, the albedo at mu_in = mu0 (the direct beam) is the quadrature
-  !> value itself. Whole table, measured: about 6 ms (RPV), 18 ms (DSM), 56 ms (LSRT, alb_N98).
+  !> The albedo is interpolated (cubic in sqrt(mu_in)) on BRDF_NALB = 121 uniform nodes plus
+  !> adaptive ones: each interval with mu_in >= 0.01 is checked at its midpoint against the
+  !> quadrature and halved while the error exceeds ALB_TOL = 2e-7 (the onsets of LSRT clipping
+  !> are kinks in the albedo: 17-36 nodes added there; RPV and DSM need none or one). Measured
+  !> at the midpoints between the final nodes: below 2e-7 relative for every kind (the unit
+  !> tests), against 8e-5 (clipped LSRT) and 5e-6 (sharp RPV hot spot) on the uniform nodes
+  !> alone. `interp_err` reports the largest error found by these checks and at the envelope
+  !> bin midpoints (including the grazing bins). With `mu0`, the albedo at mu_in = mu0 (the
+  !> direct beam) is the quadrature value itself. Whole table, measured on a loaded 2-core
+  !> machine: 12-18 ms (DSM), 24-54 ms (RPV, the sharpest hot spots dearest), 80-100 ms (LSRT
+  !> with clipping); about half of it is the midpoint checks.
   subroutine brdf_table_init(tab, p, error, mu0)
     type(brdf_table_t), intent(out) :: tab
     type(brdf_params_t), intent(in) :: p
@@ -1067,8 +1133,10 @@ contains
         call scan_at(a_node, .true., a_ref, rm, pm, py)
         tab%ta(j) = a_ref*a_node**tab%t_pow
       end if
+      tab%xa(j) = real(j - 1, wp)/(BRDF_NALB - 1)
     end do
     tab%n_alb = BRDF_NALB
+    call refine_albedo()
 
     ! Envelope per bin from its two edges and three inner samples.
     do e = 1, N_ENV
@@ -1109,6 +1177,86 @@ contains
       end if
     end do
   contains
+    !> Check each interval of the dense table with mu_in >= ALB_CHECK_MU at its midpoint against
+    !> the quadrature and halve it (the midpoint becomes a node) while the relative error of the
+    !> tabulated quantity exceeds ALB_TOL and there is room; the largest error left is kept in
+    !> interp_err. Intervals are checked left to right, halves before the next interval.
+    subroutine refine_albedo()
+      integer, parameter :: MAX_STACK = 64
+      real(wp) :: st_lo(MAX_STACK), st_hi(MAX_STACK), xl, xr, xm, tq, ti, err
+      integer :: n_st, i, pass
+      logical :: changed
+      do i = 1, BRDF_NALB - 1
+        xl = real(i - 1, wp)/(BRDF_NALB - 1)
+        if (xl*xl < ALB_CHECK_MU) cycle
+        n_st = 1
+        st_lo(1) = xl
+        st_hi(1) = real(i, wp)/(BRDF_NALB - 1)
+        do while (n_st > 0)
+          xl = st_lo(n_st)
+          xr = st_hi(n_st)
+          n_st = n_st - 1
+          xm = 0.5_wp*(xl + xr)
+          call scan_at(xm*xm, .true., a_ref, rm, pm, py)
+          tq = a_ref*(xm*xm)**tab%t_pow
+          ti = dense_t(tab, xm*xm)
+          err = abs(ti - tq)/max(abs(tq), tiny(1.0_wp))
+          if (err > ALB_TOL .and. tab%n_alb < BRDF_NALB_MAX .and. n_st <= MAX_STACK - 2) then
+            call insert_node(xm, tq)
+            st_lo(n_st + 1:n_st + 2) = [xm, xl]     ! the left half is checked first
+            st_hi(n_st + 1:n_st + 2) = [xr, xm]
+            n_st = n_st + 2
+          else
+            tab%interp_err = max(tab%interp_err, err)
+          end if
+        end do
+      end do
+      ! an added node changes the interpolation of the intervals around it: check again those
+      ! whose four nodes include an added one, until none is halved
+      do pass = 1, 4
+        changed = .false.
+        i = 1
+        do while (i < tab%n_alb - 1)
+          xl = tab%xa(i)
+          xr = tab%xa(i + 1)
+          i = i + 1
+          if (xl*xl < ALB_CHECK_MU .or. tab%alb_uniform) cycle
+          if (all(is_uniform(tab%xa(max(i - 2, 1):min(i + 1, tab%n_alb))))) cycle
+          xm = 0.5_wp*(xl + xr)
+          call scan_at(xm*xm, .true., a_ref, rm, pm, py)
+          tq = a_ref*(xm*xm)**tab%t_pow
+          err = abs(dense_t(tab, xm*xm) - tq)/max(abs(tq), tiny(1.0_wp))
+          if (err > ALB_TOL .and. tab%n_alb < BRDF_NALB_MAX) then
+            call insert_node(xm, tq)
+            changed = .true.
+            i = i - 1               ! check the left half next
+          else
+            tab%interp_err = max(tab%interp_err, err)
+          end if
+        end do
+        if (.not. changed) exit
+      end do
+    end subroutine refine_albedo
+    !> True for the nodes of the uniform part of the dense table.
+    elemental logical function is_uniform(x)
+      real(wp), intent(in) :: x
+      is_uniform = abs(x*(BRDF_NALB - 1) - nint(x*(BRDF_NALB - 1))) < 1.0e-9_wp
+    end function is_uniform
+    !> Insert the node x (value v) into the dense table, keeping xa ascending.
+    subroutine insert_node(x, v)
+      real(wp), intent(in) :: x, v
+      integer :: i
+      i = tab%n_alb
+      do while (tab%xa(i) > x)
+        tab%xa(i + 1) = tab%xa(i)
+        tab%ta(i + 1) = tab%ta(i)
+        i = i - 1
+      end do
+      tab%xa(i + 1) = x
+      tab%ta(i + 1) = v
+      tab%n_alb = tab%n_alb + 1
+      tab%alb_uniform = .false.
+    end subroutine insert_node
     !> Albedo (DSM: specular part) and envelope data at mu.
     subroutine scan_at(mu, accurate, al, rmx, pmu, py_)
       real(wp), intent(in) :: mu
@@ -1374,6 +1522,39 @@ contains
     w(4) = d*(d - 1.0_wp)*(d - 2.0_wp)/6.0_wp
   end subroutine interp_weights
 
+  !> The dense table's quantity T at mu (cubic interpolation in x = sqrt(mu) on the four
+  !> nodes around it): uniform nodes directly, adaptive ones after a binary search.
+  pure function dense_t(tab, mu) result(v)
+    type(brdf_table_t), intent(in) :: tab
+    real(wp), intent(in) :: mu
+    real(wp) :: v
+    real(wp) :: w(4), x, xs(4)
+    integer :: j, j0, lo, hi, mid
+    if (tab%alb_uniform) then
+      call interp_weights(mu, j, j0, w, BRDF_NALB)
+      v = dot_product(w, tab%ta(j0:j0 + 3))
+      return
+    end if
+    x = sqrt(min(1.0_wp, max(0.0_wp, mu)))
+    lo = 1
+    hi = tab%n_alb
+    do while (hi - lo > 1)          ! xa(lo) <= x < xa(hi)
+      mid = (lo + hi)/2
+      if (tab%xa(mid) <= x) then
+        lo = mid
+      else
+        hi = mid
+      end if
+    end do
+    j0 = min(max(lo - 1, 1), tab%n_alb - 3)
+    xs = tab%xa(j0:j0 + 3)
+    w(1) = (x - xs(2))*(x - xs(3))*(x - xs(4))/((xs(1) - xs(2))*(xs(1) - xs(3))*(xs(1) - xs(4)))
+    w(2) = (x - xs(1))*(x - xs(3))*(x - xs(4))/((xs(2) - xs(1))*(xs(2) - xs(3))*(xs(2) - xs(4)))
+    w(3) = (x - xs(1))*(x - xs(2))*(x - xs(4))/((xs(3) - xs(1))*(xs(3) - xs(2))*(xs(3) - xs(4)))
+    w(4) = (x - xs(1))*(x - xs(2))*(x - xs(3))/((xs(4) - xs(1))*(xs(4) - xs(2))*(xs(4) - xs(3)))
+    v = dot_product(w, tab%ta(j0:j0 + 3))
+  end function dense_t
+
   !> Model (unclamped) albedo from the table at mu_in; for DSM the diffuse part is added.
   pure function model_albedo(tab, mu_in) result(alpha)
     type(brdf_table_t), intent(in) :: tab
@@ -1390,9 +1571,8 @@ contains
         return
       end if
       mu = min(1.0_wp, max(mu_in, MU_NODE0))
-      if (tab%n_alb == BRDF_NALB) then
-        call interp_weights(mu, j, j0, w, BRDF_NALB)
-        alpha = max(0.0_wp, dot_product(w, tab%ta(j0:j0 + 3)))
+      if (tab%n_alb >= BRDF_NALB) then
+        alpha = max(0.0_wp, dense_t(tab, mu))
       else
         call interp_weights(mu, j, j0, w)
         alpha = max(0.0_wp, dot_product(w, tab%t(j0:j0 + 3)))
@@ -1500,9 +1680,8 @@ contains
     integer :: j, j0
     if (mu0 == tab%mu_sun .and. tab%p%c(2) < 1.0_wp) then
       a = max(0.0_wp, (tab%alpha_sun - tab%p%c(2)*tab%p%c(1))/(1.0_wp - tab%p%c(2)))
-    else if (tab%n_alb == BRDF_NALB) then
-      call interp_weights(mu0, j, j0, w, BRDF_NALB)
-      a = max(0.0_wp, dot_product(w, tab%ta(j0:j0 + 3)))
+    else if (tab%n_alb >= BRDF_NALB) then
+      a = max(0.0_wp, dense_t(tab, mu0))
     else
       call interp_weights(mu0, j, j0, w)
       a = max(0.0_wp, dot_product(w, tab%t(j0:j0 + 3)))

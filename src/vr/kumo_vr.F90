@@ -14,9 +14,17 @@
 !>   are decided here (`ddis_phases`, DDIS_CONE_DEG).
 !> * The spiky-phase rule (`spiky_without_vr`): radiances of a forward-peaked phase function
 !>   without roulette or truncation converge very slowly; the run warns.
+!> * The roulette-balance rule (`roulette_balance_warning`): a weight balance that is both
+!>   statistically significant and large shows that the rare survivors of the roulette were not
+!>   sampled; the run warns.
+!> * The runaway-cost rule (`runaway_cost_check`): lines of sight or photon paths that cross
+!>   the periodic 3-D region through very many voxel columns are refused or warned about before
+!>   the run starts.
 !> The presets that set these from one word (`vr_preset`) are read with the namelist.
 module kumo_vr
-  use kumo_kinds, only: wp
+  use kumo_kinds, only: wp, dp, i8
+  use kumo_constants, only: PI
+  use kumo_error, only: error_t, set_error, str
   use kumo_rng, only: rng_t, rng_uniform
   use kumo_phase, only: phase_t, phase_eval
   use kumo_atmosphere, only: atmosphere_t, LAYER_3D
@@ -25,6 +33,9 @@ module kumo_vr
   private
   public :: vr_t, roulette, collision_forcing, ddis_phases, spiky_without_vr, &
             SPIKY_PEAK, DDIS_PEAK, DDIS_CONE_DEG
+  public :: roulette_balance_warning, student_t_quantile, RR_BALANCE_MIN, RR_BALANCE_TAIL
+  public :: runaway_cost_check, los_crossings, LOS_CROSSINGS_WARN, LOS_CROSSINGS_MAX, &
+            FLIGHT_CROSSINGS_WARN
 
   !> The variance-reduction settings the photon loop reads.
   type :: vr_t
@@ -43,6 +54,24 @@ module kumo_vr
   !> forward peak is; outside it they are ordinary photons that cost time (LES at 2.13 um:
   !> 12 % less CPU time, the same radiance error, in a 2e7-photon run).
   real(wp), parameter :: DDIS_CONE_DEG = 15.0_wp
+  !> The roulette weight balance (per launched photon weight) is reported as a problem only when
+  !> its magnitude exceeds this, 0.1 % of the launched weight: a smaller bias of the energy
+  !> budget is below the accuracy any user asks of a Monte Carlo flux.
+  real(dp), parameter :: RR_BALANCE_MIN = 1.0e-3_dp
+  !> ... and when it is significant at the two-sided tail probability of 4 standard normal
+  !> deviations, erfc(4/sqrt(2)), judged with Student's t for the number of batches (with few
+  !> batches the standard error is itself uncertain; t(1 d.o.f.) needs 1e4 standard errors).
+  real(dp), parameter :: RR_BALANCE_TAIL = 6.334248366623996e-5_dp
+  !> A radiance direction whose line of sight crosses more voxel columns than this on its way
+  !> through the 3-D region is warned about (every scattering event walks it: some 100 us per
+  !> event instead of about 1 us) ...
+  real(wp), parameter :: LOS_CROSSINGS_WARN = 1.0e4_wp
+  !> ... and beyond this it is refused: at 10-20 ns per crossing each event would cost 10 ms or
+  !> more, and a run of any useful photon count would not end.
+  real(wp), parameter :: LOS_CROSSINGS_MAX = 1.0e6_wp
+  !> Photon flights: a warning when light crossing the 3-D region once (diffuse light on
+  !> average, or the direct beam) steps through more super-voxel blocks than this.
+  real(wp), parameter :: FLIGHT_CROSSINGS_WARN = 1.0e3_wp
 
 contains
 
@@ -112,5 +141,165 @@ contains
       if (phase_eval(phases(i), 1.0_wp) > SPIKY_PEAK) spiky = .true.
     end do
   end function spiky_without_vr
+
+  !> A warning when the roulette weight balance of a finished run shows that the roulette removed
+  !> weight the run never got back: the balance (net weight created by roulette and DDIS splits,
+  !> zero in expectation for every valid setting) is significant, |b| > t * stderr with t the
+  !> Student quantile of RR_BALANCE_TAIL for n_batches - 1 degrees of freedom, and large,
+  !> |b| > RR_BALANCE_MIN. That happens when the roulette survivors, rare and heavy, were too
+  !> rare to be sampled (rr_weight far above the weights that reach rr_threshold): every
+  !> energy-budget result is then biased by about |b|. Empty text for a sound balance.
+  function roulette_balance_warning(balance, stderr, n_batches) result(text)
+    real(dp), intent(in) :: balance   !! mean roulette weight balance per launched photon
+    real(dp), intent(in) :: stderr    !! its standard error over the batches
+    integer(i8), intent(in) :: n_batches
+    character(len=:), allocatable :: text
+    real(dp) :: t
+    text = ''
+    if (n_batches < 2_i8 .or. abs(balance) <= RR_BALANCE_MIN) return
+    t = student_t_quantile(RR_BALANCE_TAIL, int(min(n_batches - 1_i8, 1000_i8)))
+    if (abs(balance) <= t*stderr) return
+    text = 'the Russian roulette changed the launched weight by '//str(balance)//' +- '// &
+           str(stderr)//' (roulette_weight_balance; zero in expectation): its rare survivors '// &
+           'were not sampled and energy-budget results are biased by about this much; lower '// &
+           'rr_weight/rr_threshold in &kumo_vr (or set rr_threshold = 0) or trace more photons. '
+  end function roulette_balance_warning
+
+  !> The t with P(|T| > t) = p for Student's T with nu degrees of freedom, by bisection on the
+  !> closed forms of Abramowitz and Stegun (1964), eqs. 26.7.3 (odd nu) and 26.7.4 (even nu).
+  pure real(dp) function student_t_quantile(p, nu) result(t)
+    real(dp), intent(in) :: p   !! two-sided tail probability, 0 < p < 1
+    integer, intent(in) :: nu   !! degrees of freedom, >= 1
+    real(dp) :: lo, hi
+    integer :: it
+    lo = 0.0_dp
+    hi = 1.0_dp
+    do while (tail(hi) > p .and. hi < 1.0e300_dp)
+      hi = 2.0_dp*hi
+    end do
+    do it = 1, 200
+      t = 0.5_dp*(lo + hi)
+      if (tail(t) > p) then
+        lo = t
+      else
+        hi = t
+      end if
+      if (hi - lo <= 1.0e-12_dp*hi) exit
+    end do
+    t = 0.5_dp*(lo + hi)
+  contains
+    !> P(|T| > x) = 1 - A(x | nu).
+    pure real(dp) function tail(x)
+      real(dp), intent(in) :: x
+      real(dp) :: th, c2, term, s
+      integer :: j
+      th = atan(x/sqrt(real(nu, dp)))
+      c2 = cos(th)**2
+      if (mod(nu, 2) == 1) then
+        s = 0.0_dp
+        if (nu > 1) then
+          term = cos(th)
+          s = term
+          do j = 3, nu - 2, 2
+            term = term*c2*real(j - 1, dp)/real(j, dp)
+            s = s + term
+          end do
+        end if
+        tail = 1.0_dp - 2.0_dp/PI*(th + sin(th)*s)
+      else
+        term = 1.0_dp
+        s = term
+        do j = 2, nu - 2, 2
+          term = term*c2*real(j - 1, dp)/real(j, dp)
+          s = s + term
+        end do
+        tail = 1.0_dp - sin(th)*s
+      end if
+    end function tail
+  end function student_t_quantile
+
+  !> Voxel columns a line of sight in direction (ux, uy, uz) crosses while it goes once through
+  !> the 3-D layers that are not uniform (a uniform layer costs one step at any angle): the
+  !> horizontal distance h tan(theta) per layer, divided by the voxel widths along x and y.
+  pure real(wp) function los_crossings(atm, ux, uy, uz) result(n)
+    type(atmosphere_t), intent(in) :: atm
+    real(wp), intent(in) :: ux, uy, uz
+    real(wp) :: h
+    integer :: kr
+    n = 0.0_wp
+    if (atm%n3 <= 0 .or. .not. allocated(atm%uniform3)) return
+    h = 0.0_wp
+    do kr = 1, atm%n3
+      if (.not. atm%uniform3(kr)) h = h + atm%z(atm%k3_lo + kr - 1) - atm%z(atm%k3_lo + kr - 2)
+    end do
+    n = h*(abs(ux)/atm%dx + abs(uy)/atm%dy)/max(abs(uz), tiny(1.0_wp))
+  end function los_crossings
+
+  !> Work that grows without bound with the geometry, checked before a run (issue class
+  !> "runaway cost"): a radiance direction near the horizon makes every local estimate walk a
+  !> line of sight through the periodic 3-D region, H tan(theta)/dx voxel columns of it; a
+  !> domain much narrower than its 3-D region is tall makes every slant photon path step
+  !> through many periodic copies. Beyond LOS_CROSSINGS_MAX columns a direction is refused
+  !> (the error names it and the smallest |rad_mu| this scene allows); beyond
+  !> LOS_CROSSINGS_WARN, or when light crossing the region once steps through more than
+  !> FLIGHT_CROSSINGS_WARN super-voxel blocks, the text returned is a warning. Nothing is
+  !> checked when photons never move sideways (`lateral` false: ICA) or there is no 3-D region.
+  subroutine runaway_cost_check(atm, dir_mu, dir_phi_deg, sun_u, lateral, warnings, error)
+    type(atmosphere_t), intent(in) :: atm
+    real(wp), intent(in) :: dir_mu(:)        !! radiance directions: cosines (&kumo_radiance)
+    real(wp), intent(in) :: dir_phi_deg(:)   !! and azimuths [deg]
+    real(wp), intent(in) :: sun_u(3)         !! propagation direction of the direct beam
+    logical, intent(in) :: lateral           !! photons (and lines of sight) move sideways
+    character(len=:), allocatable, intent(out) :: warnings
+    type(error_t), allocatable, intent(out) :: error
+    real(wp) :: ux, uy, n, n1, h, mu_min, diffuse, beam, bdx, bdy
+    integer :: i, s
+    warnings = ''
+    if (.not. lateral .or. atm%n3 <= 0) return
+    do i = 1, size(dir_mu)
+      ux = sqrt(max(0.0_wp, 1.0_wp - dir_mu(i)**2))*cos(dir_phi_deg(i)*PI/180.0_wp)
+      uy = sqrt(max(0.0_wp, 1.0_wp - dir_mu(i)**2))*sin(dir_phi_deg(i)*PI/180.0_wp)
+      n = los_crossings(atm, ux, uy, dir_mu(i))
+      if (n <= LOS_CROSSINGS_WARN) cycle
+      ! the same direction's crossings scale as tan(theta) = sqrt(1 - mu^2)/mu: smallest |mu|
+      ! within the bound, from n1 = crossings per unit tan(theta)
+      n1 = n*abs(dir_mu(i))/max(sqrt(max(0.0_wp, 1.0_wp - dir_mu(i)**2)), tiny(1.0_wp))
+      mu_min = 1.0_wp/sqrt(1.0_wp + (LOS_CROSSINGS_MAX/n1)**2)
+      if (n > LOS_CROSSINGS_MAX) then
+        call set_error(error, '&kumo_radiance rad_mu('//str(i)//') = '//str(dir_mu(i))// &
+          ' (rad_phi_deg '//str(dir_phi_deg(i))//'): its line of sight crosses about '// &
+          str(real(nint(n, i8), wp))//' voxel columns of the periodic 3-D region at every '// &
+          'scattering event (horizontal distance / voxel width), more than the '// &
+          str(LOS_CROSSINGS_MAX)//' kumo accepts (the run would not end); this scene '// &
+          'allows |rad_mu| >= '//str(mu_min)//' in this azimuth, or use mode_3d = "ica"')
+        return
+      end if
+      warnings = warnings//'radiance direction '//str(i)//' (rad_mu = '//str(dir_mu(i))// &
+        ') is near the horizon: its line of sight crosses about '//str(real(nint(n, i8), wp))// &
+        ' voxel columns of the 3-D region at every scattering event, and the run will be '// &
+        'slow (|rad_mu| >= '//str(1.0_wp/sqrt(1.0_wp + (LOS_CROSSINGS_WARN/n1)**2))// &
+        ' keeps it below '//str(LOS_CROSSINGS_WARN)//'). '
+    end do
+    ! photon flights: block crossings of the super-voxel grid per passage through the region,
+    ! for cosine-weighted diffuse light (E[tan(theta) |cos(phi)|] = 1) and for the direct beam
+    if (atm%sv%ns <= 0) return
+    diffuse = 0.0_wp
+    beam = 0.0_wp
+    do s = 1, atm%sv%ns
+      h = atm%z(atm%k3_lo + atm%sv%kt(s) - 1) - atm%z(atm%k3_lo + atm%sv%kb(s) - 2)
+      bdx = atm%sv%bx(s)*atm%dx
+      bdy = atm%sv%by(s)*atm%dy
+      diffuse = diffuse + h*(1.0_wp/bdx + 1.0_wp/bdy)
+      beam = beam + h*(abs(sun_u(1))/bdx + abs(sun_u(2))/bdy)/max(abs(sun_u(3)), tiny(1.0_wp))
+    end do
+    if (max(diffuse, beam) > FLIGHT_CROSSINGS_WARN) then
+      warnings = warnings//'the periodic domain ('//str(atm%lx)//' m x '//str(atm%ly)// &
+        ' m) is narrow for its 3-D region ('//str(atm%z(atm%k3_hi) - atm%z(atm%k3_lo - 1))// &
+        ' m tall): light crossing the region once steps through about '// &
+        str(real(nint(max(diffuse, beam), i8), wp))//' blocks of the majorant grid ('// &
+        trim(merge('the direct beam', 'diffuse light  ', beam > diffuse))//'), and the run will be '// &
+        'slow; a wider domain (more periodic columns) or the ICA mode is much cheaper. '
+    end if
+  end subroutine runaway_cost_check
 
 end module kumo_vr

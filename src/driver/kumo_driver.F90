@@ -28,7 +28,8 @@ module kumo_driver
                              fingerprint_add_file, fingerprint_add_build, ckpt_create, &
                              ckpt_put_slot, ckpt_commit, ckpt_open, ckpt_get_slot, ckpt_close, &
                              ckpt_remove, CKPT_SUFFIX
-  use kumo_scene_setup, only: setup_scene
+  use kumo_scene_setup, only: setup_scene, spectral_scene_t, spectral_set_gpoint
+  use kumo_spectral, only: spectral_begin_batch
   use kumo_output, only: run_summary_t, build_results, log_summary
   use kumo_vr, only: runaway_cost_check
   implicit none
@@ -137,7 +138,8 @@ contains
     type(checkpoint_plan_t), intent(in), optional :: ckpt
     type(scene_t) :: scene
     type(tally_layout_t) :: lay
-    type(tally_t) :: tal
+    type(tally_t) :: tal, tal_g
+    type(spectral_scene_t) :: spec
     type(stats_t) :: st
     type(stats_t), allocatable :: slot(:)
     type(rng_t) :: rng
@@ -154,7 +156,7 @@ contains
     t0 = par_wtime()
     rank = par_rank()
     nranks = par_size()
-    call setup_scene(cfg, scene, error)
+    call setup_scene(cfg, scene, error, spec)
     if (allocated(error)) return
     ! work that grows without bound with the geometry is refused or warned about (kumo_vr)
     block
@@ -250,6 +252,8 @@ contains
           if (exact) then
             call exact_thermal_batch(scene, lay, nphot, tal, error)
             if (allocated(error)) return
+          else if (spec%on) then
+            call trace_spectral_batch(spec, scene, lay, rng, nphot, tal, tal_g)
           else
             call trace_batch(scene, lay, rng, nphot, tal)
           end if
@@ -338,6 +342,37 @@ contains
     call build_results(cfg, scene, lay, st, rec(:, 1:nb_done), summary, set)
     if (present(nml_text)) call add_attr(set, 'namelist', nml_text)
   end subroutine simulate
+
+  !> One batch of a broadband run: the plan spreads the batch's photons over the g-points
+  !> (one uniform number of the batch's stream); each g-point with photons gets its optics in
+  !> the 1-D layers and its photons are traced (the stream continues, so a batch depends on its
+  !> index only, on any rank count). g-point g's tallies enter the batch's with the factor
+  !> w_g n / S: a photon then counts as 1/n of the total incident flux S = TSI mu0, as in a
+  !> monochromatic run, and the batch estimate is sum_g w_g x (g-point g's tallies), which is
+  !> unbiased for the sum over g-points (docs/broadband.md).
+  subroutine trace_spectral_batch(spec, scene, lay, rng, nphot, tal, tal_g)
+    type(spectral_scene_t), intent(inout) :: spec
+    type(scene_t), intent(inout) :: scene
+    type(tally_layout_t), intent(in) :: lay
+    type(rng_t), intent(inout) :: rng
+    integer(i8), intent(in) :: nphot
+    type(tally_t), intent(inout) :: tal, tal_g
+    type(error_t), allocatable :: err
+    real(dp) :: f
+    integer :: g
+    ! the plan and nphot >= 1 are checked at set-up: no error can occur here
+    call spectral_begin_batch(spec%plan, nphot, rng, spec%batch, err)
+    do g = 1, spec%n_gpt
+      if (spec%batch%count(g) == 0) cycle
+      call spectral_set_gpoint(spec, g, scene%atm)
+      call tally_reset(tal_g, lay)
+      call trace_batch(scene, lay, rng, spec%batch%count(g), tal_g)
+      f = spec%batch%weight(g)*real(nphot, dp)/spec%plan%total
+      tal%buf = tal%buf + f*tal_g%buf
+      tal%work = tal%work + tal_g%work
+      tal%anomalies = tal%anomalies + tal_g%anomalies
+    end do
+  end subroutine trace_spectral_batch
 
   !> The sums of all slots on rank 0, added in slot order (((S_0 + S_1) + S_2) + ...). The
   !> slots are taken apart (their arrays move into `st` or are freed).

@@ -34,7 +34,7 @@ module kumo_config
   private
   public :: config_t, control_cfg_t, atmosphere_cfg_t, phase_cfg_t, surface_cfg_t, &
             source_cfg_t, output_cfg_t, vr_cfg_t, radiance_cfg_t, camera_cfg_t, cloud_cfg_t, &
-            thermal_cfg_t, &
+            thermal_cfg_t, spectral_cfg_t, &
             read_config, config_echo, resolve_path, input_file_t, config_inputs
   public :: MAX_LAYERS, MAX_COMP, MAX_PHASE, MAX_DIR, MAX_CAMERAS, TARGET_NAMES, PRESET_NAMES, &
             MODE_NAMES
@@ -60,10 +60,14 @@ module kumo_config
     [character(len=16) :: 'reflectance', 'transmittance', 'absorptance']
   !> Transport modes: full 3-D, independent columns, 3-D for the first scattering orders.
   character(len=8), parameter :: MODE_NAMES(3) = [character(len=8) :: 'f3d', 'ica', 'p3d']
-  character(len=16), parameter :: GROUP_NAMES(11) = &
+  character(len=16), parameter :: GROUP_NAMES(12) = &
     [character(len=16) :: 'kumo_control', 'kumo_atmosphere', 'kumo_phase', 'kumo_surface', &
      'kumo_source', 'kumo_output', 'kumo_vr', 'kumo_radiance', 'kumo_camera', 'kumo_cloud', &
-     'kumo_thermal']
+     'kumo_thermal', 'kumo_spectral']
+  !> Total solar irradiance of broadband runs by default [W m-2]: 1360.8 +- 0.5 W m-2 at the
+  !> 2008 solar minimum (Kopp and Lean 2011, Geophys. Res. Lett. 38, L01706,
+  !> doi:10.1029/2010GL045777).
+  real(wp), parameter :: TSI_KOPP_LEAN = 1360.8_wp
   !> Pressure profiles of the Rayleigh layers besides the named standard atmospheres: the
   !> namelist's sounding (pressure_levels_hpa) and the pressure of the &kumo_cloud LES file.
   character(len=*), parameter :: RAYLEIGH_LEVELS = 'levels'
@@ -253,6 +257,22 @@ module kumo_config
     real(wp) :: emission_floor = 0.1_wp            !! share of photons spread by capacity
   end type thermal_cfg_t
 
+  !> &kumo_spectral: broadband shortwave runs over the g-points of an RRTMGP k-distribution.
+  type :: spectral_cfg_t
+    logical :: enabled = .false.                   !! the run is broadband
+    character(len=PATH_LEN) :: kdist_file = ''     !! k-distribution as written in the namelist
+    character(len=:), allocatable :: kdist_path    !! resolved (relative to the namelist)
+    character(len=16) :: profile = ''              !! standard atmosphere at z_levels, or ''
+    real(wp), allocatable :: p_levels(:)           !! (nz + 1) level pressure [Pa] ('' profile)
+    real(wp), allocatable :: t_levels(:)           !! (nz + 1) level temperature [K]
+    real(wp), allocatable :: p_layers(:)           !! (nz) layer pressure [Pa] (optional)
+    real(wp), allocatable :: t_layers(:)           !! (nz) layer temperature [K] (optional)
+    real(wp), allocatable :: h2o_vmr(:)            !! (nz) water vapour [mol/mol of dry air]
+    real(wp), allocatable :: o3_vmr(:)             !! (nz) ozone; not allocated: RCEMIP profile
+    real(wp) :: tsi = TSI_KOPP_LEAN                !! total solar irradiance [W m-2]
+    real(wp) :: floor_share = 0.2_wp               !! share of photons spread evenly over g-points
+  end type spectral_cfg_t
+
   type :: config_t
     character(len=:), allocatable :: path          !! namelist file
     type(control_cfg_t) :: control
@@ -266,6 +286,7 @@ module kumo_config
     type(camera_cfg_t) :: cam
     type(cloud_cfg_t) :: cloud
     type(thermal_cfg_t) :: thermal
+    type(spectral_cfg_t) :: spectral
   end type config_t
 
 contains
@@ -310,6 +331,8 @@ contains
                                                  error)
     if (.not. allocated(error)) call read_thermal(unit, present_groups(11), cfg%atm%nz, &
                                                   cfg%thermal, error)
+    if (.not. allocated(error)) call read_spectral(unit, present_groups(12), path, cfg%atm%nz, &
+                                                   cfg%spectral, error)
     close (unit)
     if (.not. allocated(error)) call consolidate(cfg, error)
   end subroutine read_config
@@ -1195,6 +1218,7 @@ contains
       call add('&kumo_surface surface_file', resolve_path(cfg%surface%surface_file, nml_path))
     if (.not. cfg%cloud%enabled) return
     if (allocated(cfg%cloud%req%path)) call add('&kumo_cloud cloud_file', cfg%cloud%req%path)
+    if (cfg%spectral%enabled) call add('&kumo_spectral kdist_file', cfg%spectral%kdist_path)
     if (allocated(cfg%cloud%req%mcarats%phase_path)) then
       if (len_trim(cfg%cloud%req%mcarats%phase_path) > 0) &
         call add('&kumo_cloud mcarats_phase_file', cfg%cloud%req%mcarats%phase_path)
@@ -1804,6 +1828,10 @@ contains
                  'phase3d values', rule='must be within 1..n_phase = '//str(np)//' (&kumo_phase)', &
                  error=error)
     if (allocated(error)) return
+    if (cfg%spectral%enabled) then
+      call spectral_checks(cfg, error)
+      if (allocated(error)) return
+    end if
     if (cfg%thermal%enabled .and. cfg%thermal%include_sun .and. &
         cfg%source%solar_flux <= 0.0_wp) then
       call set_error(error, '&kumo_thermal: include_sun = .true. needs &kumo_source: '// &
@@ -1830,6 +1858,37 @@ contains
                      'in &kumo_source wavelength_um, which is not given')
     end if
   end subroutine consolidate
+
+  !> Broadband runs: what they do not combine with (yet), and F0 = the total solar irradiance
+  !> (the results are then in W m-2 with the usual normalisation by mu0 F0).
+  subroutine spectral_checks(cfg, error)
+    type(config_t), intent(inout) :: cfg
+    type(error_t), allocatable, intent(inout) :: error
+    character(len=*), parameter :: CTX = '&kumo_spectral: '
+    call require(.not. cfg%cloud%enabled .and. len_trim(cfg%atm%scene_file) == 0, CTX, &
+                 'spectral', rule='= .true. needs plane-parallel layers: broadband runs with '// &
+                 'a scene file or a &kumo_cloud file are not available yet', error=error)
+    call require(.not. cfg%thermal%enabled, CTX, 'spectral', rule='= .true. is shortwave '// &
+                 'only: it cannot be combined with &kumo_thermal', error=error)
+    call require(.not. cfg%atm%rayleigh, CTX, 'spectral', rule='= .true. takes Rayleigh '// &
+                 'scattering from the k-distribution: set &kumo_atmosphere rayleigh = .false.', &
+                 error=error)
+    call require(cfg%source%solar_flux <= 0.0_wp, CTX, 'spectral', rule='= .true. takes the '// &
+                 'solar flux from tsi: leave &kumo_source solar_flux unset (it is '// &
+                 str(cfg%source%solar_flux)//' W m-2)', error=error)
+    call require(cfg%source%wavelength_um <= 0.0_wp, CTX, 'spectral', rule='= .true. is '// &
+                 'broadband: leave &kumo_source wavelength_um unset (it is '// &
+                 str(cfg%source%wavelength_um)//' um)', error=error)
+    call require(cfg%vr%use_1d_layers, CTX, 'spectral', rule='= .true. needs &kumo_vr '// &
+                 'use_1d_layers = .true.', error=error)
+    call require(cfg%cam%n == 0, CTX, 'spectral', rule='= .true.: cameras are not available '// &
+                 'in broadband runs yet', error=error)
+    if (allocated(cfg%rad%mu)) call require(size(cfg%rad%mu) == 0, CTX, 'spectral', &
+                                            rule='= .true.: radiances are not available in '// &
+                                            'broadband runs yet', error=error)
+    if (allocated(error)) return
+    cfg%source%solar_flux = cfg%spectral%tsi
+  end subroutine spectral_checks
 
   !> &kumo_thermal: temperatures (or Planck radiances) of the levels, the surface and the top,
   !> and the spectral interval. The group's presence switches emission on (thermal = .false.
@@ -1945,6 +2004,137 @@ contains
       end if
     end subroutine probe
   end subroutine read_thermal
+
+  !> &kumo_spectral: broadband shortwave runs. The group's presence switches them on (spectral =
+  !> .false. keeps them off). The gas profile is a standard atmosphere at the levels of
+  !> &kumo_atmosphere (`profile`) or level pressures and temperatures given here; water vapour
+  !> per layer is always given; ozone per layer optionally.
+  subroutine read_spectral(unit, present, nml_path, nz, cfg, error)
+    integer, intent(in) :: unit
+    logical, intent(in) :: present
+    character(len=*), intent(in) :: nml_path
+    integer, intent(in) :: nz
+    type(spectral_cfg_t), intent(inout) :: cfg
+    type(error_t), allocatable, intent(out) :: error
+    real(wp) :: p_levels(MAX_LAYERS + 1), t_levels(MAX_LAYERS + 1), p_layers(MAX_LAYERS), &
+                t_layers(MAX_LAYERS), h2o_vmr(MAX_LAYERS), o3_vmr(MAX_LAYERS)
+    real(wp) :: tsi, floor_share
+    character(len=PATH_LEN) :: kdist_file
+    character(len=16) :: profile
+    logical :: spectral
+    integer :: ios, kind, i
+    character(len=512) :: msg
+    character(len=*), parameter :: CTX = '&kumo_spectral: '
+    type(error_t), allocatable :: err
+    namelist /kumo_spectral/ spectral, kdist_file, profile, p_levels, t_levels, p_layers, &
+      t_layers, h2o_vmr, o3_vmr, tsi, floor_share
+    spectral = present
+    kdist_file = cfg%kdist_file
+    profile = cfg%profile
+    p_levels = UNSET
+    t_levels = UNSET
+    p_layers = UNSET
+    t_layers = UNSET
+    h2o_vmr = UNSET
+    o3_vmr = UNSET
+    tsi = cfg%tsi
+    floor_share = cfg%floor_share
+    rewind (unit)
+    msg = ''
+    read (unit, nml=kumo_spectral, iostat=ios, iomsg=msg)
+    call check_read(unit, 'kumo_spectral', present, ios, msg, error, probe)
+    if (allocated(error)) return
+    cfg%enabled = spectral
+    if (.not. spectral) return
+    call require(len_trim(kdist_file) > 0, CTX, 'kdist_file', &
+                 rule='is needed: an RRTMGP shortwave k-distribution (rrtmgp-gas-sw-g112.nc or '// &
+                 'rrtmgp-gas-sw-g224.nc; scripts/fetch-rrtmgp.sh fetches them)', error=error)
+    call require(within(tsi, SMALL, BIG), CTX, 'tsi', tsi, &
+                 'must be finite and > 0 [W m-2] (total solar irradiance)', error)
+    call require(within(floor_share, 0.0_wp, nearest(1.0_wp, -1.0_wp)), CTX, 'floor_share', &
+                 floor_share, 'must satisfy 0 <= floor_share < 1', error)
+    if (allocated(error)) return
+    if (len_trim(profile) > 0) then
+      call std_atmosphere_kind_from_name(profile, kind, err)
+      if (allocated(err)) then
+        call set_error(error, CTX//'profile: '//err%message)
+        return
+      end if
+      call require(count(p_levels /= UNSET) + count(t_levels /= UNSET) + &
+                   count(p_layers /= UNSET) + count(t_layers /= UNSET) == 0, CTX, 'profile', &
+                   profile, 'cannot be given with p_levels, t_levels, p_layers or t_layers: '// &
+                   'a standard atmosphere or a sounding', error)
+    else
+      call level_values('p_levels', p_levels, nz + 1, 'pressures [Pa] (levels 0..nz)', &
+                        SMALL, cfg%p_levels)
+      call level_values('t_levels', t_levels, nz + 1, 'temperatures [K] (levels 0..nz)', &
+                        SMALL, cfg%t_levels)
+      if (allocated(error)) return
+      do i = 2, nz + 1
+        call require(cfg%p_levels(i) < cfg%p_levels(i - 1), CTX, 'p_levels('//str(i)//')', &
+                     cfg%p_levels(i), 'must be below p_levels('//str(i - 1)//') = '// &
+                     str(cfg%p_levels(i - 1))//' Pa: pressure falls from the surface up', error)
+      end do
+      if (count(p_layers /= UNSET) > 0) call level_values('p_layers', p_layers, nz, &
+                                                         'pressures [Pa] (layers 1..nz)', SMALL, cfg%p_layers)
+      if (count(t_layers /= UNSET) > 0) call level_values('t_layers', t_layers, nz, &
+                                                         'temperatures [K] (layers 1..nz)', SMALL, cfg%t_layers)
+      if (allocated(error)) return
+      if (allocated(cfg%p_layers)) then
+        do i = 1, nz
+          call require(cfg%p_layers(i) <= cfg%p_levels(i) .and. &
+                       cfg%p_layers(i) >= cfg%p_levels(i + 1), CTX, 'p_layers('//str(i)//')', &
+                       cfg%p_layers(i), 'must lie between its levels '// &
+                       str(cfg%p_levels(i))//' and '//str(cfg%p_levels(i + 1))//' Pa', error)
+        end do
+      end if
+    end if
+    call require(count(h2o_vmr /= UNSET) > 0, CTX, 'h2o_vmr', rule='is needed: the water '// &
+                 'vapour of each layer 1..nz [mol/mol of dry air] (0 for a dry atmosphere)', &
+                 error=error)
+    if (allocated(error)) return
+    call level_values('h2o_vmr', h2o_vmr, nz, 'volume mixing ratios (layers 1..nz)', 0.0_wp, &
+                      cfg%h2o_vmr)
+    if (count(o3_vmr /= UNSET) > 0) call level_values('o3_vmr', o3_vmr, nz, &
+                                                     'volume mixing ratios (layers 1..nz)', 0.0_wp, cfg%o3_vmr)
+    if (allocated(error)) return
+    cfg%kdist_file = kdist_file
+    cfg%kdist_path = resolve_path(kdist_file, nml_path)
+    cfg%profile = profile
+    cfg%tsi = tsi
+    cfg%floor_share = floor_share
+  contains
+    !> n values of `name`, without gaps, each finite and >= lo.
+    subroutine level_values(name, given, n, what, lo, out)
+      character(len=*), intent(in) :: name, what
+      real(wp), intent(in) :: given(:)
+      integer, intent(in) :: n
+      real(wp), intent(in) :: lo
+      real(wp), allocatable, intent(out) :: out(:)
+      integer :: m, j
+      if (allocated(error)) return
+      m = count(given /= UNSET)
+      call require(m == n .and. all(given(n + 1:) == UNSET), CTX, name, rule='needs '// &
+                   str(n)//' '//what//', '//str(m)//' given', error=error)
+      do j = 1, min(m, n)
+        call require(within(given(j), lo, BIG), CTX, name//'('//str(j)//')', given(j), &
+                     'must be finite and >= '//str(lo), error)
+      end do
+      if (.not. allocated(error)) out = given(1:n)
+    end subroutine level_values
+    !> Read one assignment of &kumo_spectral (or write the namelist), for check_read.
+    subroutine probe(text, out_unit, ios, msg)
+      character(len=*), intent(in) :: text
+      integer, intent(in) :: out_unit
+      integer, intent(out) :: ios
+      character(len=*), intent(inout) :: msg
+      if (out_unit /= 0) then
+        write (out_unit, nml=kumo_spectral, iostat=ios, iomsg=msg)
+      else
+        read (text, nml=kumo_spectral, iostat=ios, iomsg=msg)
+      end if
+    end subroutine probe
+  end subroutine read_spectral
 
   !> The grid of an MCARaTS 3-D region, which the binary file lacks, from &kumo_atmosphere:
   !> column widths lx/nx, ly/ny, the layer edges of layers k3d_bottom .. k3d_bottom + nz3 - 1,
@@ -2120,6 +2310,24 @@ contains
              str(cfg%cam%fov_deg(i))//' width '//str(cfg%cam%width(i))//' pixels '// &
              str(cfg%cam%npx(i))//' x '//str(cfg%cam%npy(i))//nl
     end do
+    if (cfg%spectral%enabled) then
+      text = text//'kumo_spectral.spectral = T'//nl// &
+             'kumo_spectral.kdist_file = '//trim(cfg%spectral%kdist_file)//nl// &
+             'kumo_spectral.tsi = '//str(cfg%spectral%tsi)//nl// &
+             'kumo_spectral.floor_share = '//str(cfg%spectral%floor_share)//nl
+      if (len_trim(cfg%spectral%profile) > 0) text = text// &
+        'kumo_spectral.profile = '//trim(cfg%spectral%profile)//nl
+      if (allocated(cfg%spectral%p_levels)) text = text// &
+        'kumo_spectral.p_levels = '//join(cfg%spectral%p_levels)//nl// &
+        'kumo_spectral.t_levels = '//join(cfg%spectral%t_levels)//nl
+      if (allocated(cfg%spectral%p_layers)) text = text// &
+        'kumo_spectral.p_layers = '//join(cfg%spectral%p_layers)//nl
+      if (allocated(cfg%spectral%t_layers)) text = text// &
+        'kumo_spectral.t_layers = '//join(cfg%spectral%t_layers)//nl
+      text = text//'kumo_spectral.h2o_vmr = '//join(cfg%spectral%h2o_vmr)//nl
+      if (allocated(cfg%spectral%o3_vmr)) text = text// &
+        'kumo_spectral.o3_vmr = '//join(cfg%spectral%o3_vmr)//nl
+    end if
     if (cfg%thermal%enabled) then
       text = text//'kumo_thermal.thermal = T'//nl
       if (allocated(cfg%thermal%t_levels)) text = text// &

@@ -240,6 +240,18 @@ contains
                       'radiances in '//trim(scene%src%em%radiance_units)//'); heating from the '// &
                       'net-exchange estimator; emission_floor = '//str(cfg%thermal%emission_floor))
         call add_num_attr(set, 'surface_emissivity', real(scene%src%em%eps_mean, dp))
+      else if (cfg%spectral%enabled) then
+        ! broadband shortwave (&kumo_spectral): F0 is the total solar irradiance
+        call add_attr(set, 'normalisation', 'broadband: fluxes and absorptances are divided by '// &
+                      'the total incident solar flux on a horizontal plane, mu0*TSI; *_wm2, power '// &
+                      'densities and heating rates are absolute (TSI = '//str(cfg%spectral%tsi)// &
+                      ' W m-2), each with its standard error')
+        call add_attr(set, 'broadband', 'shortwave, Monte Carlo integration over the g-points '// &
+                      'of '//trim(cfg%spectral%kdist_file)//' (photons by solar energy, floor '// &
+                      'share '//str(cfg%spectral%floor_share)//'); gas profile '// &
+                      trim(merge(cfg%spectral%profile, 'sounding        ', &
+                                 len_trim(cfg%spectral%profile) > 0)))
+        call add_num_attr(set, 'total_solar_irradiance_wm2', real(cfg%spectral%tsi, dp))
       else
         call add_attr(set, 'normalisation', 'fluxes and absorptances are divided by the incident'// &
                       ' solar flux on a horizontal plane, mu0*F0; *_wm2 and power densities use F0 = '// &

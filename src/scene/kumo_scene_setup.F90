@@ -12,7 +12,13 @@ module kumo_scene_setup
                         phase_from_table, new_phase_rayleigh_depol, PHASE_ISOTROPIC, &
                         PHASE_RAYLEIGH, PHASE_HG, PHASE_TABLE
   use kumo_atmosphere, only: atmosphere_t, atmosphere_options_t, atmosphere_init, &
-                             atmosphere_set_truncation
+                             atmosphere_set_truncation, LAYER_CLEAR, LAYER_ABSORBING, &
+                             LAYER_SCATTERING
+  use kumo_std_atmosphere, only: std_atmosphere_profile
+  use kumo_gas_optics, only: gas_kdist_t, gas_default_vmr, gas_index
+  use kumo_rrtmgp_file, only: read_rrtmgp_kdist
+  use kumo_spectral, only: spectral_column_t, spectral_sw_column, spectral_plan_t, &
+                           spectral_plan_init, spectral_batch_t
   use kumo_truncation, only: truncation_t, truncation_init
   use kumo_camera, only: camera_t, camera_init, CAMERA_PINHOLE, CAMERA_ORTHOGRAPHIC, &
                          MAX_IMAGE_SHIFTS
@@ -36,15 +42,33 @@ module kumo_scene_setup
   use kumo_checkpoint, only: fingerprint_t, fingerprint_add_file
   implicit none
   private
-  public :: setup_scene
+  public :: setup_scene, spectral_scene_t, spectral_set_gpoint
+
+  !> A broadband shortwave run (&kumo_spectral): the g-point sampling plan and the optics of the
+  !> 1-D layers for every g-point (setup_spectral), which spectral_set_gpoint puts into the
+  !> atmosphere before the g-point's photons are traced.
+  type :: spectral_scene_t
+    logical :: on = .false.
+    integer :: n_gpt = 0, nz = 0, ncomp = 0
+    real(wp) :: tsi = 0.0_wp                      !! total solar irradiance [W m-2]
+    real(wp) :: mu0 = 1.0_wp
+    type(spectral_plan_t) :: plan                 !! energies S_g = mu0 F_g, probabilities
+    type(spectral_batch_t) :: batch               !! the current batch's counts and weights
+    real(wp), allocatable :: ext1(:, :)           !! (nz, n_gpt) total extinction [m-1]
+    real(wp), allocatable :: omg1(:, :)           !! (nz, n_gpt) single-scattering albedo
+    real(wp), allocatable :: csca1(:, :, :)       !! (ncomp, nz, n_gpt) cumulative fractions
+    integer, allocatable :: layer_class(:, :)     !! (nz, n_gpt) LAYER_*
+  end type spectral_scene_t
 
 contains
 
   !> Build the scene (phase functions, atmosphere, surface, source) from a configuration.
-  subroutine setup_scene(cfg, scene, error)
+  subroutine setup_scene(cfg, scene, error, spec)
     type(config_t), intent(in) :: cfg
     type(scene_t), intent(out) :: scene
     type(error_t), allocatable, intent(out) :: error
+    !> broadband runs (&kumo_spectral): the g-point plan and optics (setup_spectral)
+    type(spectral_scene_t), intent(out), optional :: spec
     type(phase_t), allocatable :: phases(:)
     type(atmosphere_options_t) :: aopts
     real(wp), allocatable :: ang(:), val(:), ext3(:, :, :, :), ssa3(:, :, :, :), alb(:, :)
@@ -126,6 +150,15 @@ contains
         scene%notes = scene%notes//'  layer air density (heating rates): (p_bottom - p_top)/'// &
                       '(g0 dz) of the same pressure, g0 = 9.80665 m s-2'//new_line('a')
       end if
+    end if
+    if (cfg%spectral%enabled) then
+      if (.not. present(spec)) then
+        call set_error(error, 'setup_scene: a broadband configuration (&kumo_spectral) needs '// &
+                       'the spec argument')
+        return
+      end if
+      call setup_spectral(cfg, ext1d, ssa1d, phase1d, phases, scene, spec, error)
+      if (allocated(error)) return
     end if
     aopts%use_1d_layers = cfg%vr%use_1d_layers
     aopts%use_absorbing_layers = cfg%vr%use_absorbing_layers
@@ -446,6 +479,180 @@ contains
     if (ft%planes) what = what//' (on the planes bounding the voxels: a voxel emits the mean '// &
                           'Planck radiance of its two planes)'
   end subroutine voxel_planck
+
+  !> Broadband shortwave set-up (&kumo_spectral): the gas column of the profile, per g-point,
+  !> from the RRTMGP k-distribution (read and computed on rank 0, broadcast), the sampling plan,
+  !> and for every g-point the mixed optics of the 1-D layers: the namelist components, Rayleigh
+  !> scattering (phase function 3/4 (1 + cos^2), no depolarisation, as in RRTMGP's optics) and
+  !> gas absorption. `ext1d`, `ssa1d`, `phase1d` gain the Rayleigh and gas components at the
+  !> g-point of most energy, so that the atmosphere built from them has the right shape;
+  !> `spectral_set_gpoint` then switches its 1-D layers from one g-point to another. Sets the
+  !> layer air density (dp / (g0 dz)) for heating rates unless &kumo_atmosphere gives it.
+  subroutine setup_spectral(cfg, ext1d, ssa1d, phase1d, phases, scene, spec, error)
+    type(config_t), intent(in) :: cfg
+    real(wp), allocatable, intent(inout) :: ext1d(:, :), ssa1d(:, :)
+    integer, allocatable, intent(inout) :: phase1d(:, :)
+    type(phase_t), allocatable, intent(inout) :: phases(:)
+    type(scene_t), intent(inout) :: scene
+    type(spectral_scene_t), intent(out) :: spec
+    type(error_t), allocatable, intent(out) :: error
+    real(wp), parameter :: G0 = 9.80665_wp        !! standard gravity [m s-2]
+    type(gas_kdist_t) :: kd
+    type(spectral_column_t) :: col
+    real(wp), allocatable :: z(:), zmid(:), dz(:), plev(:), tlev(:), play(:), tlay(:), rho(:), &
+                             vmr(:, :), tau_abs(:, :), tau_ray(:, :), energy(:), e(:), s(:), &
+                             pmid(:)
+    integer :: nz, nc, ng, k, g, status(2), iray, ic
+    real(wp) :: mu0, sca, acc
+
+    nz = cfg%atm%nz
+    nc = size(ext1d, 2)
+    z = cfg%atm%z
+    dz = z(2:nz + 1) - z(1:nz)
+    zmid = 0.5_wp*(z(1:nz) + z(2:nz + 1))
+    allocate (plev(0:nz), tlev(0:nz), play(nz), tlay(nz), rho(nz + 1), pmid(nz))
+    if (len_trim(cfg%spectral%profile) > 0) then
+      ! a standard atmosphere: levels at z_levels; layers at the geometric mean of their level
+      ! pressures (exact for an isothermal layer) and at the temperature of the mid-height
+      call std_atmosphere_profile(cfg%spectral%profile, z, plev, tlev, rho, error)
+      if (allocated(error)) then
+        call add_context(error, '&kumo_spectral profile at &kumo_atmosphere z_levels')
+        return
+      end if
+      call std_atmosphere_profile(cfg%spectral%profile, zmid, pmid, tlay, rho(1:nz), error)
+      if (allocated(error)) return
+      play = sqrt(plev(0:nz - 1)*plev(1:nz))
+    else
+      plev = cfg%spectral%p_levels
+      tlev = cfg%spectral%t_levels
+      if (allocated(cfg%spectral%p_layers)) then
+        play = cfg%spectral%p_layers
+      else
+        play = sqrt(plev(0:nz - 1)*plev(1:nz))
+      end if
+      if (allocated(cfg%spectral%t_layers)) then
+        tlay = cfg%spectral%t_layers
+      else
+        tlay = 0.5_wp*(tlev(0:nz - 1) + tlev(1:nz))
+      end if
+    end if
+    mu0 = cos(cfg%source%sza_deg*DEG2RAD)
+
+    ! rank 0: the k-distribution and the column; the others get the optical depths and energies
+    status = 0
+    if (par_is_root()) then
+      call read_rrtmgp_kdist(cfg%spectral%kdist_path, kd, error)
+      if (.not. allocated(error)) then
+        allocate (vmr(nz, kd%n_gas))
+        vmr = 0.0_wp
+        call gas_default_vmr(kd, play, vmr, error)
+      end if
+      if (.not. allocated(error)) then
+        if (gas_index(kd, 'h2o') > 0) vmr(:, gas_index(kd, 'h2o')) = cfg%spectral%h2o_vmr
+        if (allocated(cfg%spectral%o3_vmr) .and. gas_index(kd, 'o3') > 0) &
+          vmr(:, gas_index(kd, 'o3')) = cfg%spectral%o3_vmr
+        call spectral_sw_column(kd, plev, play, tlay, vmr, mu0, col, error, tsi=cfg%spectral%tsi)
+      end if
+      if (allocated(error)) then
+        status(1) = 1
+        call add_context(error, '&kumo_spectral kdist_file')
+      else
+        status(2) = col%n_gpt
+      end if
+    end if
+    call share_read_status(status, cfg%spectral%kdist_path, error)
+    if (allocated(error)) return
+    ng = status(2)
+    if (par_is_root()) then
+      tau_abs = col%tau_abs
+      tau_ray = col%tau_rayleigh
+      energy = col%energy
+    else
+      allocate (tau_abs(nz, ng), tau_ray(nz, ng), energy(ng))
+    end if
+    call share_reals(tau_abs, size(tau_abs))
+    call share_reals(tau_ray, size(tau_ray))
+    call share_reals(energy, size(energy))
+    call spectral_plan_init(energy, spec%plan, error, floor_share=cfg%spectral%floor_share)
+    if (allocated(error)) then
+      call add_context(error, '&kumo_spectral')
+      return
+    end if
+
+    ! per g-point mixtures of the 1-D layers: components 1..nc of the namelist, nc + 1
+    ! Rayleigh, nc + 2 gas absorption (the mixing of kumo_atmosphere)
+    phases = [phases, new_phase_rayleigh()]
+    iray = size(phases)
+    spec%on = .true.
+    spec%n_gpt = ng
+    spec%nz = nz
+    spec%ncomp = nc + 2
+    spec%tsi = cfg%spectral%tsi
+    spec%mu0 = mu0
+    allocate (spec%ext1(nz, ng), spec%omg1(nz, ng), spec%csca1(nc + 2, nz, ng), &
+              spec%layer_class(nz, ng), e(nc + 2), s(nc + 2))
+    do g = 1, ng
+      do k = 1, nz
+        e(1:nc) = ext1d(k, :)
+        s(1:nc) = ext1d(k, :)*ssa1d(k, :)
+        e(nc + 1) = tau_ray(k, g)/dz(k)
+        s(nc + 1) = e(nc + 1)
+        e(nc + 2) = tau_abs(k, g)/dz(k)
+        s(nc + 2) = 0.0_wp
+        spec%ext1(k, g) = sum(e)
+        sca = sum(s)
+        spec%omg1(k, g) = 1.0_wp
+        if (spec%ext1(k, g) > 0.0_wp) spec%omg1(k, g) = min(1.0_wp, sca/spec%ext1(k, g))
+        acc = 0.0_wp
+        do ic = 1, nc + 2
+          acc = acc + s(ic)
+          if (sca > 0.0_wp) then
+            spec%csca1(ic, k, g) = acc/sca
+          else
+            spec%csca1(ic, k, g) = real(ic, wp)/(nc + 2)
+          end if
+        end do
+        spec%csca1(nc + 2, k, g) = 1.0_wp
+        if (spec%ext1(k, g) <= 0.0_wp) then
+          spec%layer_class(k, g) = LAYER_CLEAR
+        else if (spec%omg1(k, g) <= 0.0_wp .and. cfg%vr%use_absorbing_layers) then
+          spec%layer_class(k, g) = LAYER_ABSORBING
+        else
+          spec%layer_class(k, g) = LAYER_SCATTERING
+        end if
+      end do
+    end do
+    g = maxloc(energy, 1)
+    ext1d = reshape([ext1d, tau_ray(:, g)/dz, tau_abs(:, g)/dz], [nz, nc + 2])
+    ssa1d = reshape([ssa1d, spread(1.0_wp, 1, nz), spread(0.0_wp, 1, nz)], [nz, nc + 2])
+    phase1d = reshape([phase1d, spread(iray, 1, nz), spread(1, 1, nz)], [nz, nc + 2])
+
+    if (.not. allocated(scene%air_density)) then
+      scene%air_density = (plev(0:nz - 1) - plev(1:nz))/(G0*dz)
+      scene%notes = scene%notes//'  layer air density (heating rates): (p_bottom - p_top)/'// &
+                    '(g0 dz) of the &kumo_spectral profile, g0 = 9.80665 m s-2'//new_line('a')
+    end if
+    scene%notes = 'broadband shortwave: '//trim(cfg%spectral%kdist_file)//', '//str(ng)// &
+                  ' g-points, total solar irradiance '//str(spec%tsi)//' W m-2, incident '// &
+                  str(spec%plan%total)//' W m-2 on a horizontal plane; floor share '// &
+                  str(spec%plan%floor_share)//new_line('a')//'  column optical depth: gas '// &
+                  'absorption '//str(minval(sum(tau_abs, 1)))//' to '//str(maxval(sum(tau_abs, 1)))// &
+                  ', Rayleigh '//str(minval(sum(tau_ray, 1)))//' to '//str(maxval(sum(tau_ray, 1)))// &
+                  new_line('a')//scene%notes
+  end subroutine setup_spectral
+
+  !> Switch the 1-D layers of `atm` (built by setup_scene with `spec`) to the optics of g-point
+  !> g: copies of precomputed totals, albedos, cumulative scattering fractions and classes (no
+  !> allocation).
+  subroutine spectral_set_gpoint(spec, g, atm)
+    type(spectral_scene_t), intent(in) :: spec
+    integer, intent(in) :: g
+    type(atmosphere_t), intent(inout) :: atm
+    atm%ext1(:) = spec%ext1(:, g)
+    atm%omg1(:) = spec%omg1(:, g)
+    atm%csca1(1:spec%ncomp, :) = spec%csca1(:, :, g)
+    atm%layer_class(:) = spec%layer_class(:, g)
+  end subroutine spectral_set_gpoint
 
   !> Radiance detectors, cameras and the variance reduction that serves them. Truncation and
   !> collision forcing act on local estimates only, so they are set up only when radiances or

@@ -490,7 +490,7 @@ contains
         list = list(p + 1:)
       end do
     end do
-    call check(error, n_groups == 11 .and. size(vars) >= 60, 'found only '//str(n_groups)// &
+    call check(error, n_groups == 12 .and. size(vars) >= 60, 'found only '//str(n_groups)// &
                ' namelist statements and '//str(size(vars))//' variables in '//config_src_path)
   contains
     subroutine add(name)

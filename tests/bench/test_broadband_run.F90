@@ -1,0 +1,345 @@
+! SPDX-License-Identifier: BSD-3-Clause
+!> Broadband shortwave runs from a namelist (&kumo_spectral) against the discrete-ordinates
+!> references of tests/data/broadband/sw_gpoint_reference.txt (per-g-point fluxes of
+!> PythonicDISORT on jax-rrtmgp optics, summed over the g-points; sun at 60 degrees, Lambert
+!> surface 0.2): the U.S. Standard Atmosphere 1976 by name (35 layers, Manabe-Wetherald water
+!> vapour, RCEMIP ozone, TSI 1361 W m-2) and RFMIP site 0 as a sounding (60 layers). Broadband
+!> up, diffuse down and direct down fluxes at every level (W m-2) and the heating rate of every
+!> layer (K/day) within 4 standard errors plus the reference's own error (the difference of its
+!> two stream numbers). A gray layer of &kumo_atmosphere added to every g-point scales the
+!> direct flux below it by exp(-tau/mu0). Bad inputs of the group: a missing k-distribution
+!> file, a longwave file, a file that is no k-distribution, a negative TSI, a floor share of 1,
+!> a standard atmosphere together with a sounding, an unknown one, a solar flux or wavelength
+!> of &kumo_source, a sounding whose pressure does not fall, too many water-vapour values.
+!>
+!> Arguments: the folder of the k-distribution files (KUMO_RRTMGP_DIR) and the reference file.
+!> The namelists are written into the working directory.
+module test_broadband_run_suite
+  use kumo_kinds, only: dp
+  use kumo_error, only: str
+  use kumo_config, only: config_t, read_config
+  use kumo_results, only: result_set_t
+  use kumo_driver, only: simulate, run_summary_t
+  use kumo_testing, only: error_t, unittest_t, new_unittest, check, check_sigma, check_error_words
+  implicit none
+  private
+  public :: collect_broadband_run, rrtmgp_dir, reference_file
+
+  character(len=:), allocatable :: rrtmgp_dir, reference_file
+
+  !> A column of the reference file.
+  type :: case_t
+    integer :: nz = 0
+    real(dp) :: tsi = 0
+    real(dp), allocatable :: lev(:, :)              !! (0:nz, 2) p [Pa], T [K]
+    character(len=32), allocatable :: lay(:, :)     !! (nz, 4) p, T, h2o, o3 as written
+    real(dp), allocatable :: bb(:, :)               !! (0:nz, 5) up, dif, dir, their errors
+    real(dp), allocatable :: heat(:, :)             !! (nz, 2) K/day and its error
+  end type case_t
+
+contains
+
+  function collect_broadband_run() result(tests)
+    type(unittest_t), allocatable :: tests(:)
+    tests = [new_unittest('us1976_namelist_vs_disort', test_us1976), &
+             new_unittest('rfmip_sounding_vs_disort', test_rfmip), &
+             new_unittest('gray_cloud_layer', test_cloud_layer), &
+             new_unittest('bad_inputs', test_bad_inputs)]
+  end function collect_broadband_run
+
+  !> One column of the reference file: its sounding as written (levels: p, T; layers: p, T,
+  !> h2o, o3), TSI, broadband fluxes (0:nz, 5) and heating rates (nz, 2).
+  subroutine read_case(name, c, error)
+    character(len=*), intent(in) :: name
+    type(case_t), intent(out) :: c
+    type(error_t), allocatable, intent(out) :: error
+    character(len=8192) :: line
+    character(len=32) :: key, w(6)
+    real(dp) :: x(2)
+    integer :: u, ios, idx
+    logical :: on
+    on = .false.
+    open (newunit=u, file=reference_file, status='old', action='read', iostat=ios)
+    call check(error, ios == 0, 'cannot open '//reference_file)
+    if (allocated(error)) return
+    do
+      read (u, '(a)', iostat=ios) line
+      if (ios /= 0) exit
+      if (len_trim(line) == 0 .or. line(1:1) == '#') cycle
+      read (line, *) key
+      if (trim(key) == 'case') then
+        read (line, *) key, w(1), w(2), c%nz
+        on = trim(w(1)) == name
+        if (on) allocate (c%lev(0:c%nz, 2), c%lay(c%nz, 4), c%bb(0:c%nz, 5), c%heat(c%nz, 2))
+      end if
+      if (.not. on) cycle
+      select case (trim(key))
+      case ('setup')
+        read (line, *) key, x, c%tsi
+      case ('level')
+        read (line, *) key, idx, c%lev(idx, :)
+      case ('layer')
+        read (line, *) key, idx, w(1:6)
+        c%lay(idx, :) = [w(1), w(2), w(4), w(6)]      ! p, T, h2o, o3 (gases h2o co2 o3 ...)
+      case ('broadband')
+        read (line, *) key, idx, c%bb(idx, :)
+      case ('heating')
+        read (line, *) key, idx, c%heat(idx, :)
+      case ('end')
+        exit
+      end select
+    end do
+    close (u)
+    call check(error, allocated(c%bb), 'no column '//name//' in '//reference_file)
+  end subroutine read_case
+
+  !> Write a namelist of column `c` (us1976: the standard atmosphere by name, levels as in the
+  !> reference; else its sounding on 1 km layers) with `spectral_lines` added to &kumo_spectral,
+  !> `source_lines` to &kumo_source and `atm_lines` to &kumo_atmosphere.
+  subroutine write_nml(path, c, spectral_lines, source_lines, n_batches, atm_lines)
+    character(len=*), intent(in) :: path, spectral_lines, source_lines
+    type(case_t), intent(in) :: c
+    integer, intent(in) :: n_batches
+    character(len=*), intent(in), optional :: atm_lines
+    integer :: u, k
+    real(dp) :: z(0:c%nz)
+    logical :: us
+    us = c%nz == 35
+    do k = 0, c%nz
+      z(k) = 1000.0_dp*k
+      if (us .and. k >= 20) z(k) = 20000.0_dp + 4000.0_dp*(k - 20)
+    end do
+    open (newunit=u, file=path, status='replace', action='write')
+    write (u, '(a)') '&kumo_control', '  n_photons_per_batch = 20000', &
+      '  n_batches = '//str(n_batches), '  seed = 20261127', '  verbose = 0', '/'
+    write (u, '(a)') '&kumo_atmosphere', '  nz = '//str(c%nz), '  ext1d = '//str(c%nz)//'*0.0', &
+      '  ssa1d = '//str(c%nz)//'*0.0'
+    if (present(atm_lines)) write (u, '(a)') atm_lines
+    write (u, '(a)', advance='no') '  z_levels = '
+    write (u, '(*(f0.1, :, ", "))') z
+    write (u, '(a)') '/', '&kumo_surface', '  albedo = 0.2', '/', '&kumo_source', &
+      '  sza_deg = 60.0', source_lines, '/'
+    write (u, '(a)') '&kumo_spectral', '  kdist_file = '''//rrtmgp_dir//'/rrtmgp-gas-sw-g112.nc''', &
+      '  tsi = '//str(c%tsi)
+    if (us) then
+      write (u, '(a)') '  profile = ''us1976'''
+    else
+      write (u, '(a)', advance='no') '  p_levels = '
+      write (u, '(*(es23.16, :, ", "))') c%lev(:, 1)
+      write (u, '(a)', advance='no') '  t_levels = '
+      write (u, '(*(es23.16, :, ", "))') c%lev(:, 2)
+      write (u, '(a)', advance='no') '  p_layers = '
+      write (u, '(*(a, :, ", "))') (trim(c%lay(k, 1)), k=1, c%nz)
+      write (u, '(a)', advance='no') '  t_layers = '
+      write (u, '(*(a, :, ", "))') (trim(c%lay(k, 2)), k=1, c%nz)
+      write (u, '(a)', advance='no') '  o3_vmr = '
+      write (u, '(*(a, :, ", "))') (trim(c%lay(k, 4)), k=1, c%nz)
+    end if
+    write (u, '(a)', advance='no') '  h2o_vmr = '
+    write (u, '(*(a, :, ", "))') (trim(c%lay(k, 3)), k=1, c%nz)
+    write (u, '(a)') spectral_lines, '/'
+    close (u)
+  end subroutine write_nml
+
+  function var(set, name, error) result(iv)
+    type(result_set_t), intent(in) :: set
+    character(len=*), intent(in) :: name
+    type(error_t), allocatable, intent(inout) :: error
+    integer :: iv
+    do iv = 1, size(set%vars)
+      if (trim(set%vars(iv)%name) == name) return
+    end do
+    iv = 0
+    call check(error, .false., 'no output variable '//name)
+  end function var
+
+  !> Run a namelist and return the result set.
+  subroutine run(path, set, summary, error)
+    character(len=*), intent(in) :: path
+    type(result_set_t), intent(out) :: set
+    type(run_summary_t), intent(out) :: summary
+    type(error_t), allocatable, intent(out) :: error
+    type(config_t) :: cfg
+    type(error_t), allocatable :: err
+    call read_config(path, cfg, err)
+    if (.not. allocated(err)) call simulate(cfg, set, summary, err)
+    if (allocated(err)) call check(error, .false., path//': '//err%message// &
+                                   ' (scripts/fetch-rrtmgp.sh fetches the k-distributions)')
+  end subroutine run
+
+  !> Broadband fluxes at every level and heating rates of every layer of a run against column
+  !> c of the reference, within 4 sigma plus the reference's error. With a cloud layer from
+  !> level `k_cloud` - 1 to `k_cloud` (k_cloud <= nz) only the direct flux is compared: below
+  !> the layer it is the reference's times `direct_factor`.
+  subroutine compare(set, summary, c, error, k_cloud, direct_factor)
+    type(result_set_t), intent(in) :: set
+    type(run_summary_t), intent(in) :: summary
+    type(case_t), intent(in) :: c
+    type(error_t), allocatable, intent(inout) :: error
+    integer, intent(in) :: k_cloud
+    real(dp), intent(in) :: direct_factor
+    real(dp) :: worst, dev, fac
+    integer :: iu, idif, idir, ih, k, nz
+    character(len=:), allocatable :: where
+    nz = c%nz
+    iu = var(set, 'flux_up_wm2', error)
+    idif = var(set, 'flux_down_diffuse_wm2', error)
+    idir = var(set, 'flux_down_direct_wm2', error)
+    ih = var(set, 'heating_rate_layer', error)
+    if (allocated(error)) return
+    worst = 0
+    where = ''
+    do k = 0, nz
+      fac = 1
+      if (k < k_cloud) fac = direct_factor
+      call cmp(set%vars(idir)%mean(k + 1), set%vars(idir)%stderr(k + 1), fac*c%bb(k, 3), 0.0_dp, &
+               'direct flux at level '//str(k))
+      if (k_cloud <= nz) cycle                       ! the cloud changes the diffuse light
+      call cmp(set%vars(iu)%mean(k + 1), set%vars(iu)%stderr(k + 1), c%bb(k, 1), c%bb(k, 4), &
+               'up flux at level '//str(k))
+      call cmp(set%vars(idif)%mean(k + 1), set%vars(idif)%stderr(k + 1), c%bb(k, 2), c%bb(k, 5), &
+               'diffuse down flux at level '//str(k))
+    end do
+    if (k_cloud > nz) then
+      do k = 1, nz
+        call cmp(set%vars(ih)%mean(k), set%vars(ih)%stderr(k), c%heat(k, 1), c%heat(k, 2), &
+                 'heating rate of layer '//str(k))
+      end do
+      write (*, '(a, f0.3, a, f0.3, a, f0.3, a)') '    TOA up ', set%vars(iu)%mean(nz + 1), ' +- ', &
+        set%vars(iu)%stderr(nz + 1), ' W m-2 (DISORT ', c%bb(nz, 1), ')'
+      write (*, '(a, f0.3, a, f0.3, a, f0.3, a)') '    surface-layer heating ', set%vars(ih)%mean(1), &
+        ' +- ', set%vars(ih)%stderr(1), ' K/day (DISORT ', c%heat(1, 1), ')'
+    end if
+    write (*, '(a, f0.3, a, f0.3, a, f0.3, a)') '    surface direct ', set%vars(idir)%mean(1), ' +- ', &
+      set%vars(idir)%stderr(1), ' W m-2 (expected ', direct_factor*c%bb(0, 3), ')'
+    write (*, '(a, f0.2, a, f0.3, a)') '    largest deviation ', worst, ' sigma ('//where//'); ', &
+      summary%wall_time, ' s'
+  contains
+    subroutine cmp(m, s, r, re, label)
+      real(dp), intent(in) :: m, s, r, re
+      character(len=*), intent(in) :: label
+      call check_sigma(error, m, r, s, 4.0_dp, label, abs_floor=re + 1.0e-9_dp*c%tsi)
+      if (s > 0) then
+        dev = abs(m - r)/s
+        if (dev > worst) then
+          worst = dev
+          where = label
+        end if
+      end if
+    end subroutine cmp
+  end subroutine compare
+
+  !> The U.S. Standard column by name (profile = 'us1976'), floor share 0.2.
+  subroutine test_us1976(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(case_t) :: c
+    type(result_set_t) :: set
+    type(run_summary_t) :: summary
+    call read_case('us1976', c, error)
+    if (allocated(error)) return
+    call write_nml('broadband_us1976.nml', c, '  floor_share = 0.2', '', 100)
+    call run('broadband_us1976.nml', set, summary, error)
+    if (allocated(error)) return
+    call compare(set, summary, c, error, huge(1), 1.0_dp)
+  end subroutine test_us1976
+
+  !> RFMIP site 0 as a sounding (level and layer pressures and temperatures, water vapour and
+  !> ozone of the reference), pure source-proportional sampling.
+  subroutine test_rfmip(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(case_t) :: c
+    type(result_set_t) :: set
+    type(run_summary_t) :: summary
+    call read_case('rfmip_site0', c, error)
+    if (allocated(error)) return
+    call write_nml('broadband_rfmip.nml', c, '  floor_share = 0.0', '', 100)
+    call run('broadband_rfmip.nml', set, summary, error)
+    if (allocated(error)) return
+    call compare(set, summary, c, error, huge(1), 1.0_dp)
+  end subroutine test_rfmip
+
+  !> A gray layer of &kumo_atmosphere (layer 3 of the U.S. Standard column, optical depth 0.5,
+  !> single-scattering albedo 0.9) is added to every g-point: below it the direct flux is the
+  !> clear-sky reference's times exp(-0.5/mu0) (mu0 = 0.5: e^-1), above it unchanged; with the
+  !> floor share every batch's weights add up to the incident flux, so the energy closure is 1
+  !> to round-off.
+  subroutine test_cloud_layer(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(case_t) :: c
+    type(result_set_t) :: set
+    type(run_summary_t) :: summary
+    integer :: ic
+    call read_case('us1976', c, error)
+    if (allocated(error)) return
+    call write_nml('broadband_cloud.nml', c, '  floor_share = 0.2', '', 50, &
+                   '  ext1d(3,1) = 5.0e-4'//new_line('a')//'  ssa1d(3,1) = 0.9')
+    call run('broadband_cloud.nml', set, summary, error)
+    if (allocated(error)) return
+    call compare(set, summary, c, error, 3, exp(-1.0_dp))
+    ic = var(set, 'energy_closure', error)
+    if (allocated(error)) return
+    call check(error, abs(set%vars(ic)%mean(1) - 1) < 1.0e-9_dp, 'energy closure '// &
+               str(set%vars(ic)%mean(1))//' is not 1')
+  end subroutine test_cloud_layer
+
+  subroutine test_bad_inputs(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(case_t) :: c
+    call read_case('us1976', c, error)
+    if (allocated(error)) return
+    call expect('  kdist_file = ''no-such-kdist.nc''', '', &
+                [character(len=32) :: 'no-such-kdist.nc', '&kumo_spectral'])
+    call expect('  kdist_file = '''//rrtmgp_dir//'/rrtmgp-gas-lw-g128.nc''', '', &
+                [character(len=32) :: 'longwave', 'lw-g128'])
+    call expect('  kdist_file = '''//reference_file//'''', '', &
+                [character(len=32) :: 'RRTMGP file', 'sw_gpoint_reference.txt'])
+    call expect('  tsi = -5.0', '', [character(len=32) :: 'tsi = -5', 'must be'])
+    call expect('  floor_share = 1.0', '', [character(len=32) :: 'floor_share = 1', '< 1'])
+    call expect('  p_levels = 36*90000.0', '', [character(len=32) :: 'profile', 'sounding'])
+    call expect('  profile = ''mars''', '', [character(len=32) :: 'mars', 'us1976'])
+    call expect('', '  solar_flux = 1000.0', [character(len=32) :: 'solar_flux', 'tsi'])
+    call expect('', '  wavelength_um = 0.5', [character(len=32) :: 'wavelength_um', 'broadband'])
+    call expect('  profile = '''''//new_line('a')//'  p_levels = 36*90000.0'//new_line('a')// &
+                '  t_levels = 36*250.0', '', [character(len=32) :: 'p_levels(2) = 90000', &
+                'pressure falls'])
+    call expect('  h2o_vmr(36) = 0.01', '', [character(len=32) :: 'h2o_vmr', 'needs 35', '36 given'])
+  contains
+    !> The us1976 namelist with `lines` added to &kumo_spectral and `source_lines` to
+    !> &kumo_source fails (read_config or simulate) with a message holding `words`.
+    subroutine expect(lines, source_lines, words)
+      character(len=*), intent(in) :: lines, source_lines, words(:)
+      type(config_t) :: cfg
+      type(result_set_t) :: set
+      type(run_summary_t) :: summary
+      type(error_t), allocatable :: err
+      if (allocated(error)) return
+      call write_nml('broadband_bad.nml', c, lines, source_lines, 2)
+      call read_config('broadband_bad.nml', cfg, err)
+      if (.not. allocated(err)) call simulate(cfg, set, summary, err)
+      call check_error_words(error, err, words)
+      if (allocated(error)) call check(error, .false., '(case: '//lines//source_lines//')')
+    end subroutine expect
+  end subroutine test_bad_inputs
+
+end module test_broadband_run_suite
+
+program test_broadband_run
+  use test_broadband_run_suite, only: collect_broadband_run, rrtmgp_dir, reference_file
+  use kumo_testing, only: run_unittests
+  use kumo_parallel, only: par_init, par_finalize
+  implicit none
+  integer :: n_failed
+  character(len=4096) :: arg
+  if (command_argument_count() < 2) then
+    write (*, '(a)') 'usage: test_broadband_run <rrtmgp folder> <sw_gpoint_reference.txt>'
+    error stop 1
+  end if
+  call get_command_argument(1, arg)
+  rrtmgp_dir = trim(arg)
+  call get_command_argument(2, arg)
+  reference_file = trim(arg)
+  call par_init()
+  call run_unittests('broadband run', collect_broadband_run(), n_failed)
+  call par_finalize()
+  if (n_failed > 0) error stop 1
+end program test_broadband_run

@@ -2,9 +2,9 @@
 !> Benchmark: kumo's Monte Carlo thermal emission in 1-D and 3-D.
 !>
 !> * Against an independent discrete-ordinates solver (`tests/data/thermal/
-!>   thermal_1d_reference.csv`, PythonicDISORT, 64-256 streams): thin and thick absorbing layers,
-!>   a temperature inversion, a cloud layer with Henyey-Greenstein g = 0.85 and a scattering
-!>   haze, over a Lambert surface with emissivity < 1 and under an isotropic top radiance. kumo
+!>   thermal_1d_reference.csv`, PythonicDISORT, 64-400 streams): thin and thick absorbing layers,
+!>   a temperature inversion, a cloud layer with Henyey-Greenstein g = 0.85 and with the C.1 Mie
+!>   phase function (its 300 Legendre moments as a table), and a scattering haze, over a Lambert surface with emissivity < 1 and under an isotropic top radiance. kumo
 !>   integrates the band Planck function itself from the temperatures. Every flux (up and down
 !>   at every level) and every radiance of the file must agree within 4 sigma + the
 !>   reference's own error (its `solver_error`, the change from the coarser stream number) +
@@ -27,6 +27,7 @@ module test_kumo_thermal_mc
   use kumo_planck, only: spectral_band_t, band_from_wavenumbers, band_radiance
   use kumo_rng, only: rng_t, rng_init, rng_uniform
   use kumo_brdf, only: brdf_params, BRDF_RPV
+  use kumo_phase, only: PHASE_TABLE
   implicit none
   private
   public :: collect_thermal_mc, set_table
@@ -37,8 +38,8 @@ module test_kumo_thermal_mc
   !> tail (2.7e-4 two-sided) would fail one of 360 values one run in ten; 5 sigma (1.3e-5) keeps
   !> false alarms below 1 %, while the RMS check below keeps the power to see a bias.
   real(dp), parameter :: K_SIGMA_MAPS = 5.0_dp
-  character(len=16), parameter :: CASES(5) = [character(len=16) :: 'thin_absorbing', &
-    'thick_absorbing', 'inversion', 'cloud_hg', 'haze_hg']
+  character(len=16), parameter :: CASES(6) = [character(len=16) :: 'thin_absorbing', &
+    'thick_absorbing', 'inversion', 'cloud_hg', 'haze_hg', 'cloud_c1']
 
   type :: row_t
     character(len=24) :: id = '', q = ''
@@ -194,6 +195,16 @@ contains
     cfg%atm%phase1d(:, 1) = [(k, k=1, nz)]
     cfg%atm%phase3d = [1]
     call set_phases(cfg, names, real(g, wp))
+    do k = 1, nz
+      if (ph(k) == 2) then
+        ! the Legendre series of the file as a table kumo reads (angle [deg], value)
+        call write_legendre_table('thermal_'//id//'_phase.txt', &
+                                  pack(rows%v, rows%id == id .and. rows%q == 'chi_'//str(k)))
+        cfg%phase%kind(k) = PHASE_TABLE
+        cfg%phase%kind_name(k) = 'table'
+        cfg%phase%file(k) = 'thermal_'//id//'_phase.txt'
+      end if
+    end do
     cfg%surface%albedo = 1.0_wp - vals1('surface_emissivity')
     cfg%thermal%enabled = .true.
     cfg%thermal%t_levels = vals(id, 'temperature_K')
@@ -278,6 +289,33 @@ contains
       y = set%vars(find_var(set, name))%stderr(pos)
     end function error_of
   end subroutine run_reference_case
+
+  !> Write the phase function sum_l (2l + 1) chi_l P_l(cos theta) of the moments `chi` (chi_0 =
+  !> 1 first) at 0.02 degree steps, as kumo's two-column table (a strongly peaked function such
+  !> as C.1 needs the fine steps near the forward direction; C.1's series is positive everywhere,
+  !> a negative value would be written as 0).
+  subroutine write_legendre_table(path, chi)
+    character(len=*), intent(in) :: path
+    real(dp), intent(in) :: chi(:)
+    integer :: u, j, l
+    real(dp) :: th, mu, p0, p1, p2, v
+    open (newunit=u, file=path, status='replace', action='write')
+    do j = 0, 9000
+      th = 0.02_dp*j
+      mu = cos(th*PI/180.0_dp)
+      p0 = 1.0_dp
+      p1 = mu
+      v = chi(1) + 3.0_dp*chi(2)*mu
+      do l = 2, size(chi) - 1
+        p2 = ((2*l - 1)*mu*p1 - (l - 1)*p0)/l
+        v = v + (2*l + 1)*chi(l + 1)*p2
+        p0 = p1
+        p1 = p2
+      end do
+      write (u, '(f8.3,1x,es23.15)') th, max(0.0_dp, v)
+    end do
+    close (u)
+  end subroutine write_legendre_table
 
   real(dp) function pick(id, q, i) result(x)
     character(len=*), intent(in) :: id, q

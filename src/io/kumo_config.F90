@@ -245,6 +245,8 @@ module kumo_config
     logical :: enabled = .false.                   !! thermal emission is a source
     real(wp), allocatable :: t_levels(:)           !! (nz + 1) temperature at levels 0..nz [K]
     real(wp) :: t_surface = -1.0_wp                !! surface temperature [K]
+    character(len=PATH_LEN) :: t_surface_file = '' !! netCDF 2-D surface temperature map
+    character(len=64) :: t_surface_var = 't_surface' !! its variable
     real(wp) :: t_top = 0.0_wp                     !! brightness temperature of the isotropic
                                                    !! downward radiance at the top [K]; 0: none
     real(wp) :: wavenumber_lo = -1.0_wp            !! band [cm-1] (both or neither)
@@ -1216,6 +1218,8 @@ contains
       call add('&kumo_surface brdf_file', resolve_path(cfg%surface%brdf_file, nml_path))
     if (len_trim(cfg%surface%surface_file) > 0) &
       call add('&kumo_surface surface_file', resolve_path(cfg%surface%surface_file, nml_path))
+    if (cfg%thermal%enabled .and. len_trim(cfg%thermal%t_surface_file) > 0) &
+      call add('&kumo_thermal t_surface_file', resolve_path(cfg%thermal%t_surface_file, nml_path))
     if (.not. cfg%cloud%enabled) return
     if (allocated(cfg%cloud%req%path)) call add('&kumo_cloud cloud_file', cfg%cloud%req%path)
     if (cfg%spectral%enabled) call add('&kumo_spectral kdist_file', cfg%spectral%kdist_path)
@@ -1902,12 +1906,15 @@ contains
     real(wp) :: t_levels(MAX_LAYERS + 1), planck_levels(MAX_LAYERS + 1)
     real(wp) :: t_surface, t_top, wavenumber_lo, wavenumber_hi, wavelength_um, planck_surface, &
                 planck_top, emission_floor
+    character(len=PATH_LEN) :: t_surface_file
+    character(len=64) :: t_surface_var
     logical :: thermal, include_sun
     integer :: ios, n, i
     character(len=512) :: msg
     character(len=*), parameter :: CTX = '&kumo_thermal: '
     namelist /kumo_thermal/ thermal, t_levels, t_surface, t_top, wavenumber_lo, wavenumber_hi, &
-      wavelength_um, planck_levels, planck_surface, planck_top, include_sun, emission_floor
+      wavelength_um, planck_levels, planck_surface, planck_top, include_sun, emission_floor, &
+      t_surface_file, t_surface_var
     thermal = present
     t_levels = UNSET
     planck_levels = UNSET
@@ -1920,6 +1927,8 @@ contains
     planck_top = cfg%planck_top
     include_sun = cfg%include_sun
     emission_floor = cfg%emission_floor
+    t_surface_file = cfg%t_surface_file
+    t_surface_var = cfg%t_surface_var
     rewind (unit)
     msg = ''
     read (unit, nml=kumo_thermal, iostat=ios, iomsg=msg)
@@ -1958,8 +1967,12 @@ contains
         call require(within(t_levels(i), 0.0_wp, BIG), CTX, 't_levels('//str(i)//')', &
                      t_levels(i), 'must be a temperature in K (finite, >= 0)', error)
       end do
-      call require(t_surface /= UNSET, CTX, 't_surface', &
-                   rule='is needed: the surface temperature [K]', error=error)
+      call require(t_surface /= UNSET .or. len_trim(t_surface_file) > 0, CTX, 't_surface', &
+                   rule='is needed: the surface temperature [K] (or a map, t_surface_file)', &
+                   error=error)
+      call require(t_surface == UNSET .or. len_trim(t_surface_file) == 0, CTX, 't_surface', &
+                   rule='and t_surface_file cannot both be given', error=error)
+      if (t_surface == UNSET) t_surface = 0.0_wp
       call require(within(t_surface, 0.0_wp, BIG), CTX, 't_surface', t_surface, &
                    'must be a temperature in K (finite, >= 0)', error)
       call require(within(t_top, 0.0_wp, BIG), CTX, 't_top', t_top, &
@@ -1988,8 +2001,13 @@ contains
     call require(within(emission_floor, 0.0_wp, nearest(1.0_wp, -1.0_wp)), CTX, &
                  'emission_floor', emission_floor, 'must satisfy 0 <= emission_floor < 1', error)
     cfg%wavelength_um = wavelength_um
+    call require(len_trim(t_surface_file) == 0 .or. .not. allocated(cfg%planck_levels), CTX, &
+                 't_surface_file', rule='needs temperatures (t_levels), not planck_levels', &
+                 error=error)
     cfg%include_sun = include_sun
     cfg%emission_floor = emission_floor
+    cfg%t_surface_file = t_surface_file
+    cfg%t_surface_var = t_surface_var
   contains
     !> Read one assignment of &kumo_thermal (or write the namelist), for check_read.
     subroutine probe(text, out_unit, ios, msg)
@@ -2334,6 +2352,9 @@ contains
         'kumo_thermal.t_levels = '//join(cfg%thermal%t_levels)//nl// &
         'kumo_thermal.t_surface = '//str(cfg%thermal%t_surface)//nl// &
         'kumo_thermal.t_top = '//str(cfg%thermal%t_top)//nl
+      if (len_trim(cfg%thermal%t_surface_file) > 0) text = text// &
+        'kumo_thermal.t_surface_file = '//trim(cfg%thermal%t_surface_file)//nl// &
+        'kumo_thermal.t_surface_var = '//trim(cfg%thermal%t_surface_var)//nl
       if (allocated(cfg%thermal%planck_levels)) text = text// &
         'kumo_thermal.planck_levels = '//join(cfg%thermal%planck_levels)//nl// &
         'kumo_thermal.planck_surface = '//str(cfg%thermal%planck_surface)//nl// &

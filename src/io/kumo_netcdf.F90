@@ -40,7 +40,7 @@ module kumo_netcdf
   private
   public :: write_results, check_writable
   public :: read_scene_3d, write_scene_3d, read_albedo_map, read_brdf_map, &
-            read_scene_temperature
+            read_scene_temperature, read_temperature_map
   public :: BRDF_MAP_VARS
   public :: c_rename, c_remove, explain_write_failure, ignore_file_size_signal, reserve_space
   public :: read_var_1d, read_text_attr
@@ -379,6 +379,29 @@ contains
       nys = 0
     end if
   end subroutine read_albedo_map
+
+  !> Read a 2-D surface temperature map `t(ys, xs)` (ncdump order, units "K", finite, >= 0) on
+  !> its own grid over the domain, like the albedo map.
+  subroutine read_temperature_map(path, varname, nxs, nys, t, error)
+    character(len=*), intent(in) :: path, varname
+    integer, intent(out) :: nxs, nys
+    real(wp), allocatable, intent(out) :: t(:, :)
+    type(error_t), allocatable, intent(out) :: error
+    character(len=*), parameter :: PROC = 'read_temperature_map'
+    integer :: ncid
+    nxs = 0
+    nys = 0
+    call open_read(PROC, trim(path), ncid, error)
+    if (allocated(error)) return
+    call read_albedo_body(PROC, trim(path), ncid, trim(varname), nxs, nys, t, error, &
+                          temperature=.true.)
+    call close_read(PROC, trim(path), ncid, error)
+    if (allocated(error)) then
+      if (allocated(t)) deallocate (t)
+      nxs = 0
+      nys = 0
+    end if
+  end subroutine read_temperature_map
 
   !> Read a BRDF map: dimensions `xs`, `ys`; optional integer `brdf_kind(ys, xs)` with the kind
   !> code of each pixel (0 black, 1 Lambert, 2 DSM, 3 RPV, 4 LSRT; without it every pixel has
@@ -897,15 +920,18 @@ contains
     has_phase_index = .true.
   end subroutine read_scene_body
 
-  subroutine read_albedo_body(routine, path, ncid, name, nxs, nys, albedo, error)
+  subroutine read_albedo_body(routine, path, ncid, name, nxs, nys, albedo, error, temperature)
     character(len=*), intent(in) :: routine, path, name
     integer, intent(in) :: ncid
     integer, intent(inout) :: nxs, nys
     real(wp), allocatable, intent(out) :: albedo(:, :)
     type(error_t), allocatable, intent(out) :: error
+    !> a temperature map instead: units "K", values >= 0 (not within [0, 1])
+    logical, intent(in), optional :: temperature
     integer :: dimids(2), lengths(2), varid, i, ix, iy
     real(wp) :: fill
-    character(len=:), allocatable :: at
+    character(len=:), allocatable :: at, units
+    logical :: unit_interval, found
 
     do i = 1, 2
       at = where_text(routine, path, trim(MAP_DIM_NAMES(i)))
@@ -919,17 +945,25 @@ contains
     if (allocated(error)) return
     call check_real_var(at, ncid, varid, dimids, MAP_CDL_DIMS, fill, error)
     if (allocated(error)) return
-    call check_dimensionless(routine, path, at, ncid, varid, error)
+    unit_interval = .true.
+    if (present(temperature)) unit_interval = .not. temperature
+    if (unit_interval) then
+      call check_dimensionless(routine, path, at, ncid, varid, error)
+    else
+      call get_text_att(routine, path, ncid, varid, 'units', units, found, error)
+      if (.not. allocated(error) .and. (.not. found .or. units /= 'K')) &
+        call set_error(error, at//': units must be "K"')
+    end if
     if (allocated(error)) return
     allocate (albedo(lengths(1), lengths(2)))
     call nc_check(nf90_get_var(ncid, varid, albedo), at, error)
     if (allocated(error)) return
     do iy = 1, lengths(2)
       do ix = 1, lengths(1)
-        if (.not. value_ok(albedo(ix, iy), fill, .true.)) then
+        if (.not. value_ok(albedo(ix, iy), fill, unit_interval)) then
           call set_error(error, at//': value '//real_text(albedo(ix, iy))//' at '//MAP_INDEX// &
                          ' = '//join([ix, iy], ',', '()')//' '// &
-                         value_problem(albedo(ix, iy), fill, .true.))
+                         value_problem(albedo(ix, iy), fill, unit_interval))
           return
         end if
       end do

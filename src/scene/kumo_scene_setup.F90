@@ -35,7 +35,8 @@ module kumo_scene_setup
   use kumo_cloud_scene, only: build_cloud_atmosphere, rayleigh_layers, cloud_temperature_t
   use kumo_rayleigh, only: depol_from_king, king_factor_air
   use kumo_textio, only: read_two_columns
-  use kumo_netcdf, only: read_scene_3d, read_albedo_map, read_brdf_map, read_scene_temperature
+  use kumo_netcdf, only: read_scene_3d, read_albedo_map, read_brdf_map, read_scene_temperature, &
+                         read_temperature_map
   use kumo_mcarats_files, only: mcarats_surface_t, read_mcarats_surface, mcarats_surface_npsfc, &
                                 mcarats_surface_brdf
   use kumo_parallel, only: par_size, par_is_root, par_bcast_int, par_bcast_real, par_rank
@@ -312,7 +313,7 @@ contains
     type(spectral_band_t) :: band
     logical :: has_band
     character(len=24) :: units
-    real(wp), allocatable :: t3(:, :, :), b3(:, :, :)
+    real(wp), allocatable :: t3(:, :, :), b3(:, :, :), tmap(:, :), bsm(:, :)
     character(len=:), allocatable :: nml_path
     character(len=:), allocatable :: what
     associate (th => cfg%thermal)
@@ -352,6 +353,21 @@ contains
     end associate
     solar_power = 0.0_wp
     if (cfg%thermal%include_sun) solar_power = cfg%source%solar_flux*scene%mu0
+    ! a surface temperature map: Planck radiance per pixel
+    if (len_trim(cfg%thermal%t_surface_file) > 0 .and. has_band) then
+      nml_path = ''
+      if (allocated(cfg%path)) nml_path = cfg%path
+      call temperature_map_on_root(resolve_path(cfg%thermal%t_surface_file, nml_path), &
+                                   trim(cfg%thermal%t_surface_var), tmap, error)
+      if (allocated(error)) then
+        call add_context(error, '&kumo_thermal t_surface_file')
+        return
+      end if
+      bsm = scale*band_radiance(band, tmap)
+      what = what//new_line('a')//'  surface temperature map '//trim(cfg%thermal%t_surface_file)// &
+             ': '//str(size(tmap, 1))//' x '//str(size(tmap, 2))//' pixels, '// &
+             str(minval(tmap))//' to '//str(maxval(tmap))//' K'
+    end if
     ! voxel temperatures of the scene file, if it has them (then the voxels emit uniformly)
     if (len_trim(cfg%atm%scene_file) > 0 .and. .not. cfg%cloud%enabled .and. has_band) then
       nml_path = ''
@@ -372,7 +388,7 @@ contains
         return
       end if
       call emission_init(scene%src%em, scene%atm, scene%sfc, b_lev, b_sfc, b_top, solar_power, &
-                         cfg%thermal%emission_floor, error, b3=b3)
+                         cfg%thermal%emission_floor, error, b3=b3, b_sfc_map=bsm)
     else
       if (cfg%cloud%enabled .and. scene%atm%n3 > 0) then
         if (.not. has_band) then
@@ -384,7 +400,7 @@ contains
         end if
       end if
       call emission_init(scene%src%em, scene%atm, scene%sfc, b_lev, b_sfc, b_top, solar_power, &
-                         cfg%thermal%emission_floor, error)
+                         cfg%thermal%emission_floor, error, b_sfc_map=bsm)
     end if
     if (allocated(error)) then
       call add_context(error, '&kumo_thermal')
@@ -927,6 +943,23 @@ contains
     if (.not. par_is_root()) allocate (t3(cfg%atm%nx, cfg%atm%ny, cfg%atm%nz3))
     call share_reals(t3, size(t3))
   end subroutine scene_temperature_on_root
+
+  !> Rank 0 reads the surface temperature map and broadcasts it.
+  subroutine temperature_map_on_root(path, varname, t, error)
+    character(len=*), intent(in) :: path, varname
+    real(wp), allocatable, intent(out) :: t(:, :)
+    type(error_t), allocatable, intent(out) :: error
+    integer :: status(3)
+    status = 0
+    if (par_is_root()) then
+      call read_temperature_map(path, varname, status(2), status(3), t, error)
+      if (allocated(error)) status(1) = 1
+    end if
+    call share_read_status(status, path, error)
+    if (allocated(error)) return
+    if (.not. par_is_root()) allocate (t(status(2), status(3)))
+    call share_reals(t, size(t))
+  end subroutine temperature_map_on_root
 
   !> Rank 0 reads the albedo map and broadcasts it.
   subroutine read_albedo_on_root(path, varname, alb, error)

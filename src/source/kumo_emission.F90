@@ -45,7 +45,7 @@ module kumo_emission
   implicit none
   private
   public :: emission_t, emission_init, emission_entry, emission_launch, emission_weight, &
-            emission_b_point, &
+            emission_b_point, emission_b_surface, &
             emission_b_segment, emission_surface_eps
   public :: EMIT_SOLAR, EMIT_TOP, EMIT_SURFACE, EMIT_LAYER, EMIT_VOXEL
 
@@ -63,6 +63,11 @@ module kumo_emission
     real(wp) :: b_sfc = 0.0_wp             !! Planck radiance of the surface temperature
     real(wp) :: b_top = 0.0_wp             !! isotropic downward radiance at the top
     real(wp) :: eps_mean = 1.0_wp          !! surface emissivity, mean over the domain
+    !> surface Planck radiance per pixel of a surface temperature map (nxt, nyt) over the domain
+    !> (allocated only for a map), and the domain mean of eps B (hemispherical eps)
+    real(wp), allocatable :: b_sfc_map(:, :)
+    real(wp) :: inv_dxt = 1.0_wp, inv_dyt = 1.0_wp
+    real(wp) :: eps_b_mean = 0.0_wp
     real(wp), allocatable :: eps_h(:)      !! hemispherical emissivity per BRDF class
     real(wp) :: floor = 0.0_wp             !! share f of the photons spread by capacity
     integer :: nz = 0, ncol = 1, n3 = 0
@@ -93,13 +98,17 @@ contains
   !> surface, `b_top` the isotropic radiance entering at the top, optional `b3` per voxel of
   !> the 3-D region, `solar_power` = mu0 F0 of the sun in the same run (0: thermal alone),
   !> `floor` the share of photons spread over the emitting cells by capacity.
-  subroutine emission_init(em, atm, sfc, b_lev, b_sfc, b_top, solar_power, floor, error, b3)
+  subroutine emission_init(em, atm, sfc, b_lev, b_sfc, b_top, solar_power, floor, error, b3, &
+                           b_sfc_map)
     type(emission_t), intent(out) :: em
     type(atmosphere_t), intent(in) :: atm
     type(surface_t), intent(in) :: sfc
     real(wp), intent(in) :: b_lev(0:), b_sfc, b_top, solar_power, floor
     type(error_t), allocatable, intent(out) :: error
     real(wp), intent(in), optional :: b3(:, :, :)
+    !> Planck radiance of each pixel of a surface temperature map (nxt, nyt) over the domain,
+    !> instead of the uniform b_sfc
+    real(wp), intent(in), optional :: b_sfc_map(:, :)
     real(wp), allocatable :: pw(:), cap(:)
     real(wp) :: dz, ka, bb, ptot, ctot, q
     integer :: k, kr, ix, iy, v, i, nz, ncol
@@ -143,6 +152,17 @@ contains
       em%b3 = b3
     end if
     call surface_emissivity(em, sfc)
+    em%eps_b_mean = em%eps_mean*b_sfc
+    if (present(b_sfc_map)) then
+      if (any(.not. (b_sfc_map >= 0.0_wp)) .or. size(b_sfc_map) == 0) then
+        call set_error(error, 'thermal emission: surface Planck radiances must be finite and >= 0')
+        return
+      end if
+      em%b_sfc_map = b_sfc_map
+      em%inv_dxt = size(b_sfc_map, 1)/atm%lx
+      em%inv_dyt = size(b_sfc_map, 2)/atm%ly
+      em%eps_b_mean = mean_eps_b(sfc, b_sfc_map, atm%lx, atm%ly)
+    end if
 
     em%e_lay = 3
     em%e_vox = em%e_lay + nz
@@ -152,7 +172,7 @@ contains
     cap = 0.0_wp
     pw(1) = solar_power
     pw(2) = PI*b_top
-    pw(3) = PI*em%eps_mean*b_sfc
+    pw(3) = PI*em%eps_b_mean
     allocate (em%emit_layer(nz), em%emit_vox(ncol*atm%n3))
     em%emit_layer = 0.0_wp
     em%emit_vox = 0.0_wp
@@ -236,6 +256,91 @@ contains
     end if
     em%eps_mean = max(0.0_wp, min(1.0_wp, em%eps_mean))
   end subroutine surface_emissivity
+
+  !> Planck radiance of the surface at (x, y): the map's pixel, or the uniform value.
+  pure real(wp) function emission_b_surface(em, x, y) result(b)
+    type(emission_t), intent(in) :: em
+    real(wp), intent(in) :: x, y
+    integer :: i, j
+    if (allocated(em%b_sfc_map)) then
+      i = min(size(em%b_sfc_map, 1), max(1, int(x*em%inv_dxt) + 1))
+      j = min(size(em%b_sfc_map, 2), max(1, int(y*em%inv_dyt) + 1))
+      b = em%b_sfc_map(i, j)
+    else
+      b = em%b_sfc
+    end if
+  end function emission_b_surface
+
+  !> Domain mean of eps_h(x, y) B(x, y) for a surface whose emissivity (albedo map or BRDF
+  !> classes on the surface grid) and temperature (map `bmap`) are piecewise constant on two
+  !> different grids: the overlaps of the two grids' cells, exactly.
+  function mean_eps_b(sfc, bmap, lx, ly) result(m)
+    type(surface_t), intent(in) :: sfc
+    real(wp), intent(in) :: bmap(:, :), lx, ly
+    real(wp) :: m
+    real(wp), allocatable :: xe(:), ye(:)
+    real(wp) :: xc, yc, eps
+    integer :: i, j, nt(2)
+    nt = shape(bmap)
+    xe = merge_edges(sfc%nxs, nt(1), lx)
+    ye = merge_edges(sfc%nys, nt(2), ly)
+    m = 0.0_wp
+    do j = 1, size(ye) - 1
+      yc = 0.5_wp*(ye(j) + ye(j + 1))
+      do i = 1, size(xe) - 1
+        xc = 0.5_wp*(xe(i) + xe(i + 1))
+        if (sfc%use_brdf) then
+          eps = 1.0_wp
+          if (allocated(sfc%tabs)) eps = surface_eps_h(sfc%class_at(xc, yc))
+        else
+          eps = 1.0_wp - sfc%albedo_at(xc, yc)
+        end if
+        m = m + (xe(i + 1) - xe(i))*(ye(j + 1) - ye(j))*eps* &
+            bmap(min(nt(1), int(xc*nt(1)/lx) + 1), min(nt(2), int(yc*nt(2)/ly) + 1))
+      end do
+    end do
+    m = m/(lx*ly)
+  contains
+    real(wp) function surface_eps_h(kb) result(e)
+      integer, intent(in) :: kb
+      real(wp) :: xg(64), wg(64)
+      call gauss_legendre01(64, xg, wg)
+      e = 1.0_wp - 2.0_wp*sum(wg*xg*brdf_albedo(sfc%tabs(kb), xg))
+    end function surface_eps_h
+  end function mean_eps_b
+
+  !> The cell edges of two regular grids of n1 and n2 cells over [0, l], merged and sorted.
+  function merge_edges(n1, n2, l) result(e)
+    integer, intent(in) :: n1, n2
+    real(wp), intent(in) :: l
+    real(wp), allocatable :: e(:)
+    integer :: i1, i2
+    real(wp) :: a, b
+    allocate (e(0))
+    i1 = 0
+    i2 = 0
+    do while (i1 <= n1 .or. i2 <= n2)
+      a = huge(1.0_wp)
+      b = huge(1.0_wp)
+      if (i1 <= n1) a = l*i1/n1
+      if (i2 <= n2) b = l*i2/n2
+      if (a <= b) then
+        if (size(e) == 0) then
+          e = [a]
+        else if (a > e(size(e))) then
+          e = [e, a]
+        end if
+        i1 = i1 + 1
+      else
+        if (size(e) == 0) then
+          e = [b]
+        else if (b > e(size(e))) then
+          e = [e, b]
+        end if
+        i2 = i2 + 1
+      end if
+    end do
+  end function merge_edges
 
   !> Directional emissivity of the surface at (x, y) for the emission cosine mu.
   real(wp) function emission_surface_eps(sfc, x, y, mu) result(eps)
@@ -330,8 +435,9 @@ contains
       p%iz = 1
       mu = sqrt(1.0_wp - rng_uniform(rng))
       call set_direction(p, mu)
-      if (em%eps_mean > 0.0_wp) p%w = p%w*emission_surface_eps(sfc, p%x, p%y, p%uz)/em%eps_mean
-      b = em%b_sfc
+      b = emission_b_surface(em, p%x, p%y)
+      if (em%eps_b_mean > 0.0_wp) p%w = p%w*emission_surface_eps(sfc, p%x, p%y, p%uz)*b/ &
+                                        em%eps_b_mean
     else if (ie <= em%e_vox) then
       ! a 1-D layer: uniform in x, y; in height with density proportional to B
       k = ie - em%e_lay

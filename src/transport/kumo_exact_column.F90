@@ -31,7 +31,8 @@ contains
     ok = scn%src%em%on
     if (.not. ok) return
     ok = scn%src%em%solar_power <= 0.0_wp .and. scn%atm%n3 == 0 .and. &
-         .not. scn%sfc%use_brdf .and. scn%sfc%uniform .and. size(scn%det%cams) == 0
+         .not. scn%sfc%use_brdf .and. scn%sfc%uniform .and. size(scn%det%cams) == 0 .and. &
+         .not. allocated(scn%src%em%b_sfc_map)
     if (.not. ok) return
     ok = all(scn%atm%omg1 <= 0.0_wp .or. scn%atm%ext1 <= 0.0_wp) .and. &
          all(scn%atm%layer_class /= LAYER_3D)

@@ -275,8 +275,9 @@ contains
   end subroutine le_surface
 
   !> Local estimates of thermal emission by a boundary at (x, y): the surface (`top` false),
-  !> whose emission has the angular density eps(mu) mu/(pi <eps>) per steradian for the weight
-  !> `w` of the table entry, or the top, whose isotropic downward radiance has mu/pi.
+  !> whose emission has the angular density eps(mu) mu/(pi <eps B>) per steradian for the weight
+  !> `w` = (entry weight) B(x, y) (`eps_mean` is then <eps B>, the domain mean), or the top,
+  !> whose isotropic downward radiance has mu/pi.
   subroutine le_boundary_emission(det, atm, lay, tal, rng, sfc, top, x, y, w, eps_mean, column)
     type(detectors_t), intent(in) :: det
     type(atmosphere_t), intent(in) :: atm

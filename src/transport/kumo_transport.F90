@@ -33,8 +33,8 @@ module kumo_transport
                         ANOM_STEP_CAP, ANOM_POSITION_REPAIR, ANOM_BRDF_ENVELOPE
   use kumo_photon, only: photon_t
   use kumo_source, only: launch_plan_t, source_begin_batch, source_launch
-  use kumo_emission, only: emission_b_point, emission_b_segment, EMIT_SOLAR, EMIT_TOP, &
-                           EMIT_SURFACE
+  use kumo_emission, only: emission_b_point, emission_b_segment, emission_b_surface, &
+                           EMIT_SOLAR, EMIT_TOP, EMIT_SURFACE
   use kumo_vr, only: roulette
   use kumo_scene, only: scene_t
   implicit none
@@ -262,8 +262,8 @@ contains
     p%n_events = p%n_events + 1
     if (scn%sfc%black) then
       tal%buf(lay%i_sfc + 1) = tal%buf(lay%i_sfc + 1) + p%w
-      if (scn%src%em%on) call score_net(lay, tal, p, p%w, scn%src%em%b_sfc, &
-                                        lay%i_snet + 1, 0)
+      if (scn%src%em%on) call score_net(lay, tal, p, p%w, &
+                                        emission_b_surface(scn%src%em, p%x, p%y), lay%i_snet + 1, 0)
       return
     end if
     kb = 1
@@ -275,7 +275,7 @@ contains
     end if
     tal%buf(lay%i_sfc + 1) = tal%buf(lay%i_sfc + 1) + p%w*(1.0_wp - albedo)
     if (scn%src%em%on) call score_net(lay, tal, p, p%w*(1.0_wp - albedo), &
-                                      scn%src%em%b_sfc, lay%i_snet + 1, 0)
+                                      emission_b_surface(scn%src%em, p%x, p%y), lay%i_snet + 1, 0)
     p%w = p%w*albedo
     if (p%w <= 0.0_wp) return
     if (scn%det%active) call le_surface(scn%det, scn%atm, lay, tal, rng, scn%sfc, kb, p%x, p%y, &
@@ -903,7 +903,8 @@ contains
                                 p%w, 1.0_wp, p%column)
     case (EMIT_SURFACE)
       call le_boundary_emission(scn%det, scn%atm, lay, tal, rng, scn%sfc, .false., p%x, p%y, &
-                                p%w_entry, scn%src%em%eps_mean, p%column)
+                                p%w_entry*emission_b_surface(scn%src%em, p%x, p%y), &
+                                scn%src%em%eps_b_mean, p%column)
     case default
       call le_particle(scn%det, scn%atm, lay, tal, rng, p%x, p%y, p%z, p%iz, p%ux, p%uy, p%uz, &
                        p%w, scn%src%em%iph_iso, 1, 1.0_wp, p%column)

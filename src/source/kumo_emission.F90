@@ -161,7 +161,7 @@ contains
       em%b_sfc_map = b_sfc_map
       em%inv_dxt = size(b_sfc_map, 1)/atm%lx
       em%inv_dyt = size(b_sfc_map, 2)/atm%ly
-      em%eps_b_mean = mean_eps_b(sfc, b_sfc_map, atm%lx, atm%ly)
+      em%eps_b_mean = mean_eps_b(sfc, em%eps_h, b_sfc_map, atm%lx, atm%ly)
     end if
 
     em%e_lay = 3
@@ -252,6 +252,7 @@ contains
         em%eps_mean = sum(em%eps_h(reshape(sfc%cls, [size(sfc%cls)])))/size(sfc%cls)
       end if
     else
+      allocate (em%eps_h(0))
       em%eps_mean = 1.0_wp - sum(sfc%albedo)/size(sfc%albedo)
     end if
     em%eps_mean = max(0.0_wp, min(1.0_wp, em%eps_mean))
@@ -271,12 +272,13 @@ contains
     end if
   end function emission_b_surface
 
-  !> Domain mean of eps_h(x, y) B(x, y) for a surface whose emissivity (albedo map or BRDF
-  !> classes on the surface grid) and temperature (map `bmap`) are piecewise constant on two
-  !> different grids: the overlaps of the two grids' cells, exactly.
-  function mean_eps_b(sfc, bmap, lx, ly) result(m)
+  !> Domain mean of eps_h(x, y) B(x, y) for a surface whose emissivity (albedo map, or BRDF
+  !> classes on the surface grid with their hemispherical emissivities `eps_h`) and temperature
+  !> (map `bmap`) are piecewise constant on two different grids: the overlaps of the two grids'
+  !> cells, exactly.
+  function mean_eps_b(sfc, eps_h, bmap, lx, ly) result(m)
     type(surface_t), intent(in) :: sfc
-    real(wp), intent(in) :: bmap(:, :), lx, ly
+    real(wp), intent(in) :: eps_h(:), bmap(:, :), lx, ly
     real(wp) :: m
     real(wp), allocatable :: xe(:), ye(:)
     real(wp) :: xc, yc, eps
@@ -290,8 +292,7 @@ contains
       do i = 1, size(xe) - 1
         xc = 0.5_wp*(xe(i) + xe(i + 1))
         if (sfc%use_brdf) then
-          eps = 1.0_wp
-          if (allocated(sfc%tabs)) eps = surface_eps_h(sfc%class_at(xc, yc))
+          eps = eps_h(sfc%class_at(xc, yc))
         else
           eps = 1.0_wp - sfc%albedo_at(xc, yc)
         end if
@@ -300,13 +301,6 @@ contains
       end do
     end do
     m = m/(lx*ly)
-  contains
-    real(wp) function surface_eps_h(kb) result(e)
-      integer, intent(in) :: kb
-      real(wp) :: xg(64), wg(64)
-      call gauss_legendre01(64, xg, wg)
-      e = 1.0_wp - 2.0_wp*sum(wg*xg*brdf_albedo(sfc%tabs(kb), xg))
-    end function surface_eps_h
   end function mean_eps_b
 
   !> The cell edges of two regular grids of n1 and n2 cells over [0, l], merged and sorted.

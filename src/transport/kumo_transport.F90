@@ -329,7 +329,7 @@ contains
     integer, intent(out) :: iph
     logical, intent(out) :: alive
     real(wp) :: omega, wn, e, wb
-    integer :: ic, nc
+    integer :: ic, nc, iv
 
     alive = .false.
     iph = 1
@@ -353,17 +353,12 @@ contains
       tal%buf(ic) = tal%buf(ic) + (p%w - wn)
     end if
     if (bat%thermal) then
-      if (in3d .and. lay%do_voxel) then
-        call score_net(lay, tal, p, p%w - wn, emission_b_point(scn%src%em, scn%atm, p%iz, &
-                       p%z, ix, iy, kr), lay%i_net + p%iz, &
-                       lay%i_vnet + (kr - 1)*lay%ncol + ix + (iy - 1)*scn%atm%nx)
-      else if (in3d) then
-        call score_net(lay, tal, p, p%w - wn, emission_b_point(scn%src%em, scn%atm, p%iz, &
-                       p%z, ix, iy, kr), lay%i_net + p%iz, 0)
-      else
-        call score_net(lay, tal, p, p%w - wn, emission_b_point(scn%src%em, scn%atm, p%iz, &
-                       p%z, 0, 0, 0), lay%i_net + p%iz, 0)
-      end if
+      ! 1-D layers come with ix = iy = kr = 0 (fly), for which emission_b_point takes the level
+      ! values
+      iv = 0
+      if (in3d .and. lay%do_voxel) iv = lay%i_vnet + (kr - 1)*lay%ncol + ix + (iy - 1)*scn%atm%nx
+      call score_net(lay, tal, p, p%w - wn, emission_b_point(scn%src%em, scn%atm, p%iz, p%z, ix, &
+                     iy, kr), lay%i_net + p%iz, iv)
     end if
     p%w = wn
     if (p%w <= 0.0_wp) return

@@ -53,6 +53,14 @@ module test_kumo_thermal_mc
     real(dp) :: mu = 0.0_dp, v = 0.0_dp, err = 0.0_dp
   end type row_t
 
+  !> Comparison counts over the cases of a run: all, failed, beyond 2 sigma, the sum of squared
+  !> deviations in sigma, and the failures' descriptions.
+  type :: tally_of_cases_t
+    integer :: n_cmp = 0, n_fail = 0, n2 = 0
+    real(dp) :: ss = 0.0_dp
+    character(len=:), allocatable :: fails
+  end type tally_of_cases_t
+
   character(len=:), allocatable :: table_path
   type(row_t), allocatable :: rows(:)
 
@@ -77,26 +85,14 @@ contains
   !> Every flux and radiance of the five cases within 4 sigma + the reference's error.
   subroutine test_reference(error)
     type(error_t), allocatable, intent(out) :: error
-    integer :: c, n_cmp, n_fail, n2
-    character(len=:), allocatable :: fails
-    real(dp) :: ss
-    call read_table(error)
+    type(tally_of_cases_t) :: t
+    call run_cases(size(CASES), 7100_i8, .false., t, error)
     if (allocated(error)) return
-    n_cmp = 0
-    n_fail = 0
-    n2 = 0
-    ss = 0.0_dp
-    fails = ''
-    do c = 1, size(CASES)
-      call run_reference_case(trim(CASES(c)), 7100_i8 + c, .false., n_cmp, n_fail, n2, ss, fails, &
-                              error)
-      if (allocated(error)) return
-    end do
-    print '(a,i0,a,f6.3,a,i0)', 'discrete-ordinates comparisons: ', n_cmp, ', RMS deviation ', &
-      sqrt(ss/n_cmp), ' sigma, beyond 2 sigma: ', n2
-    call check(error, n_cmp >= 40, 'too few comparisons: '//str(n_cmp))
-    call check(error, n_fail == 0, str(n_fail)//' comparisons beyond 4 sigma:'//fails)
-    call check(error, sqrt(ss/n_cmp) < 1.5_dp, 'RMS deviation '//str(sqrt(ss/n_cmp))// &
+    print '(a,i0,a,f6.3,a,i0)', 'discrete-ordinates comparisons: ', t%n_cmp, ', RMS deviation ', &
+      sqrt(t%ss/t%n_cmp), ' sigma, beyond 2 sigma: ', t%n2
+    call check(error, t%n_cmp >= 40, 'too few comparisons: '//str(t%n_cmp))
+    call check(error, t%n_fail == 0, str(t%n_fail)//' comparisons beyond 4 sigma:'//t%fails)
+    call check(error, sqrt(t%ss/t%n_cmp) < 1.5_dp, 'RMS deviation '//str(sqrt(t%ss/t%n_cmp))// &
                ' sigma: error bars too small')
   end subroutine test_reference
 
@@ -105,24 +101,32 @@ contains
   !> error, with standard error 0.
   subroutine test_exact(error)
     type(error_t), allocatable, intent(out) :: error
-    integer :: c, n_cmp, n_fail, n2
-    character(len=:), allocatable :: fails
-    real(dp) :: ss
+    type(tally_of_cases_t) :: t
+    call run_cases(3, 7200_i8, .true., t, error)
+    if (allocated(error)) return
+    call check(error, t%n_cmp >= 20, 'too few comparisons: '//str(t%n_cmp))
+    call check(error, t%n_fail == 0, str(t%n_fail)//' values differ from the reference:'// &
+               t%fails)
+  end subroutine test_exact
+
+  !> Run the first `n` cases of CASES (seeds seed0 + case number), traced or (`exact`) solved
+  !> exactly where possible, and count their comparisons.
+  subroutine run_cases(n, seed0, exact, t, error)
+    integer, intent(in) :: n
+    integer(i8), intent(in) :: seed0
+    logical, intent(in) :: exact
+    type(tally_of_cases_t), intent(out) :: t
+    type(error_t), allocatable, intent(out) :: error
+    integer :: c
     call read_table(error)
     if (allocated(error)) return
-    n_cmp = 0
-    n_fail = 0
-    n2 = 0
-    ss = 0.0_dp
-    fails = ''
-    do c = 1, 3
-      call run_reference_case(trim(CASES(c)), 7200_i8 + c, .true., n_cmp, n_fail, n2, ss, &
-                              fails, error)
+    t%fails = ''
+    do c = 1, n
+      call run_reference_case(trim(CASES(c)), seed0 + c, exact, t%n_cmp, t%n_fail, t%n2, t%ss, &
+                              t%fails, error)
       if (allocated(error)) return
     end do
-    call check(error, n_cmp >= 20, 'too few comparisons: '//str(n_cmp))
-    call check(error, n_fail == 0, str(n_fail)//' values differ from the reference:'//fails)
-  end subroutine test_exact
+  end subroutine run_cases
 
   subroutine read_table(error)
     type(error_t), allocatable, intent(out) :: error

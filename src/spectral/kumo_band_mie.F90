@@ -31,12 +31,14 @@ module kumo_band_mie
   implicit none
   private
 
-  public :: band_mie_t, band_mie_build, band_mie_table, T_SUN_K, T_CLOUD_K
+  public :: band_mie_t, band_mie_build, band_mie_table, T_SUN_K, T_CLOUD_K, T_FLAT
 
   !> Effective temperature of the Sun [K] (IAU 2015 Resolution B3).
   real(wp), parameter :: T_SUN_K = 5772.0_wp
   !> Default source temperature of longwave band averages [K], a typical liquid-cloud temperature.
   real(wp), parameter :: T_CLOUD_K = 280.0_wp
+  !> `t_source_k` value that selects equal weights per wavenumber instead of a Planck function.
+  real(wp), parameter :: T_FLAT = 0.0_wp
 
   !> Band-averaged optics of liquid clouds for a list of effective radii.
   type :: band_mie_t
@@ -62,7 +64,8 @@ contains
 
   !> Band averages of the Mie tables of `r_eff_um` (strictly increasing) for the bands
   !> [wn_lo(b), wn_hi(b)] cm-1, with `n_nodes` midpoint nodes per band and Planck weighting at
-  !> `t_source_k` (see the module description). `dist` and `v_eff` as kumo_mie (kumo's default:
+  !> `t_source_k` (see the module description; T_FLAT = 0 weights all wavenumbers equally, for
+  !> comparisons). `dist` and `v_eff` as kumo_mie (kumo's default:
   !> DIST_GAMMA, v_eff = 0.1); `dlnr` the phase-function radius step (DLNR_DEFAULT).
   subroutine band_mie_build(wn_lo, wn_hi, t_source_k, dist, v_eff, r_eff_um, n_nodes, table, &
                             error, dlnr)
@@ -95,8 +98,8 @@ contains
       call set_error(error, CTX//'n_nodes = '//str(n_nodes)//' must be >= 1')
       return
     end if
-    if (.not. (t_source_k > 0.0_wp .and. t_source_k < 1.0e5_wp)) then
-      call set_error(error, CTX//'t_source_k = '//str(t_source_k)//' K must be within (0, 1e5)')
+    if (.not. (t_source_k >= 0.0_wp .and. t_source_k < 1.0e5_wp)) then
+      call set_error(error, CTX//'t_source_k = '//str(t_source_k)//' K must be within [0, 1e5)')
       return
     end if
     if (nr < 1) then
@@ -153,7 +156,11 @@ contains
           table%angle_deg = mono%angle_deg
           allocate (table%phase(size(mono%angle_deg), nr, nb), source=0.0_wp)
         end if
-        w = planck_wavenumber(nu, t_source_k)*dnu
+        if (t_source_k > 0.0_wp) then
+          w = planck_wavenumber(nu, t_source_k)*dnu
+        else
+          w = dnu
+        end if
         do i = 1, nr
           sw(i) = sw(i) + w
           swk(i) = swk(i) + w*mono%ext_per_lwc(i)

@@ -461,8 +461,10 @@ contains
   !> Bounds: relative extinction 0.08, ssa 0.05, g 0.05 in the longwave bands 2-15 and the
   !> shortwave bands 2-8 (absorbing; measured with 8 nodes at all 20 radii: 0.059, 0.033, 0.028);
   !> extinction 0.01, ssa 1e-4, g 0.005 in the visible (measured 0.004, 2e-7, 0.002). The
-  !> measured differences are of the size that the size distribution (v_eff 0.1 against 0.2) and
-  !> the spectral weighting (250 against 280 K) alone produce; the bounds stand 1.5 times above.
+  !> measured differences are of the size that the assumed size distribution alone produces
+  !> (with v_eff = 0.2 instead of 0.1 the longwave differences double, to 0.09 in extinction and
+  !> 0.08 in g); the Planck temperature matters less (250 or 300 K instead of 280 K: < 0.005).
+  !> The bounds stand about 1.5 times above the measured differences.
   !> Errors the test is meant to catch are far larger: a table one band off (RRTMG's order) differs
   !> by 0.1 to 0.3 in ssa and 20-40 % in extinction; ssa weighted by the source instead of by
   !> extinction moves the absorbing bands by > 0.05. The longwave band 1 (10-250 cm-1, averaged

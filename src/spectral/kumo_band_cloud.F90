@@ -36,7 +36,7 @@ module kumo_band_cloud
 
   public :: CLOUD_LIQUID, CLOUD_ICE, ICE_SMOOTH, ICE_MEDIUM, ICE_ROUGH, ICE_ROUGHNESS_NAMES
   public :: band_cloud_t, band_cloud_init, band_cloud_sw_reorder, band_cloud_lookup
-  public :: band_cloud_optics, band_cloud_voxels, band_cloud_size_range
+  public :: band_cloud_optics, band_cloud_voxels, band_cloud_size_range, band_cloud_check_bands
 
   integer, parameter :: CLOUD_LIQUID = 1  !! liquid water droplets
   integer, parameter :: CLOUD_ICE = 2     !! ice crystals
@@ -203,6 +203,30 @@ contains
     bc%ice_asy = cshift(bc%ice_asy, -1, dim=2)
     bc%reordered = .true.
   end subroutine band_cloud_sw_reorder
+
+  !> Check that the tables cover the bands of a k-distribution: `band_wavenumber` (2, nband) in
+  !> cm-1 (gas_kdist_t%band_wavenumber) must equal the tables' band limits to 1e-6 relative.
+  subroutine band_cloud_check_bands(bc, band_wavenumber, error)
+    type(band_cloud_t), intent(in) :: bc
+    real(wp), intent(in) :: band_wavenumber(:, :)     !! (2, nband) [cm-1]
+    type(error_t), allocatable, intent(out) :: error
+    integer :: b
+    if (size(band_wavenumber, 1) /= 2 .or. size(band_wavenumber, 2) /= bc%nband) then
+      call set_error(error, 'band_cloud_check_bands: the k-distribution has '// &
+                     str(size(band_wavenumber, 2))//' bands, the cloud tables '//str(bc%nband))
+      return
+    end if
+    do b = 1, bc%nband
+      if (abs(band_wavenumber(1, b) - bc%wn_lo(b)) > 1.0e-6_wp*bc%wn_hi(b) .or. &
+          abs(band_wavenumber(2, b) - bc%wn_hi(b)) > 1.0e-6_wp*bc%wn_hi(b)) then
+        call set_error(error, 'band_cloud_check_bands: band '//str(b)//' is '// &
+                       str(band_wavenumber(1, b))//' to '//str(band_wavenumber(2, b))// &
+                       ' cm-1 in the k-distribution but '//str(bc%wn_lo(b))//' to '// &
+                       str(bc%wn_hi(b))//' cm-1 in the cloud tables')
+        return
+      end if
+    end do
+  end subroutine band_cloud_check_bands
 
   !> The range of sizes accepted for `phase`, as the callers give them: liquid effective radius,
   !> ice effective radius (half the table's diameters) [um].

@@ -20,7 +20,7 @@ module test_band_cloud_suite
   use kumo_kinds, only: wp
   use kumo_error, only: str
   use kumo_band_cloud, only: band_cloud_t, band_cloud_lookup, band_cloud_optics, band_cloud_voxels, &
-                             band_cloud_size_range, CLOUD_LIQUID, CLOUD_ICE, ICE_SMOOTH, &
+                             band_cloud_size_range, band_cloud_check_bands, CLOUD_LIQUID, CLOUD_ICE, ICE_SMOOTH, &
                              ICE_MEDIUM, ICE_ROUGH
   use kumo_band_mie, only: band_mie_t, band_mie_build, band_mie_table, T_SUN_K, T_CLOUD_K, T_FLAT
   use kumo_mie, only: mie_table_t, mie_table_build, DIST_GAMMA
@@ -378,6 +378,7 @@ contains
   subroutine test_sw_order(error)
     type(error_t), allocatable, intent(out) :: error
     type(band_cloud_t) :: bc
+    type(error_t), allocatable :: err
     call load('sw', bc, error)
     if (allocated(error)) return
     call check(error, bc%reordered, 'the shortwave tables were not reordered')
@@ -386,6 +387,15 @@ contains
                str(minval(bc%liq_ssa(:, 14))))
     call check(error, all(bc%liq_ssa(:, 1) < 0.9_wp), 'liquid ssa at 820-2680 cm-1: '// &
                str(maxval(bc%liq_ssa(:, 1))))
+    ! the band limits of rrtmgp-gas-sw-g112.nc
+    call band_cloud_check_bands(bc, reshape([820.0_wp, 2680.0_wp, 2680.0_wp, 3250.0_wp, 3250.0_wp, &
+                                4000.0_wp, 4000.0_wp, 4650.0_wp, 4650.0_wp, 5150.0_wp, 5150.0_wp, 6150.0_wp, &
+                                6150.0_wp, 7700.0_wp, 7700.0_wp, 8050.0_wp, 8050.0_wp, 12850.0_wp, 12850.0_wp, &
+                                16000.0_wp, 16000.0_wp, 22650.0_wp, 22650.0_wp, 29000.0_wp, 29000.0_wp, &
+                                38000.0_wp, 38000.0_wp, 50000.0_wp], [2, 14]), err)
+    call check(error, .not. allocated(err), 'band limits of the shortwave k-distribution')
+    call band_cloud_check_bands(bc, reshape([2600.0_wp, 3250.0_wp], [2, 1]), err)
+    call check_error_words(error, err, [character(len=40) :: 'k-distribution has 1 bands', 'tables 14'])
     call load('lw', bc, error)
     if (allocated(error)) return
     call check(error, .not. bc%reordered .and. bc%nband == 16, 'longwave tables reordered')

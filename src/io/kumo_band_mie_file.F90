@@ -121,8 +121,9 @@ contains
       call put_text('refractive_index_source', WATER_INDEX_SOURCE)
       if (allocated(error)) return
       call nc_check(nf90_put_att(ncid, NF90_GLOBAL, 'kumo_band_mie_version', BAND_MIE_VERSION), at, error)
-      if (.not. allocated(error)) &
+      if (.not. allocated(error)) then
         call nc_check(nf90_put_att(ncid, NF90_GLOBAL, 'nodes_per_band', bm%n_nodes), at, error)
+      end if
       call put_real('source_temperature_K', bm%t_source_k)
       call put_real('effective_variance', bm%v_eff)
       call put_real('dlnr_phase', bm%dlnr)
@@ -135,10 +136,12 @@ contains
       varid = 0
       if (allocated(error)) return
       call nc_check(nf90_def_var(ncid, name, NF90_DOUBLE, dims, varid), at//':'//name, error)
-      if (.not. allocated(error)) &
+      if (.not. allocated(error)) then
         call nc_check(nf90_put_att(ncid, varid, 'long_name', long_name), at//':'//name, error)
-      if (.not. allocated(error)) &
+      end if
+      if (.not. allocated(error)) then
         call nc_check(nf90_put_att(ncid, varid, 'units', units), at//':'//name, error)
+      end if
     end subroutine def_var
 
     subroutine put_text(name, value)

@@ -146,8 +146,9 @@ contains
       do j = 1, n_nodes
         nu = lo + (real(j, wp) - 0.5_wp)*dnu
         call water_index(1.0e4_wp/nu, m, error)
-        if (.not. allocated(error)) &
+        if (.not. allocated(error)) then
           call mie_table_build(1.0e4_wp/nu, m, dist, v_eff, r_eff_um, mono, error, dlnr=step)
+        end if
         if (allocated(error)) then
           error%message = CTX//'band '//str(b)//', '//str(nu)//' cm-1: '//error%message
           return

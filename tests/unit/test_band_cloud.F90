@@ -283,8 +283,9 @@ contains
         call band_cloud_lookup(bc, b, CLOUD_LIQUID, 2.5_wp + (j - 1), k0, w0, g0, err)
         if (.not. allocated(err)) call band_cloud_lookup(bc, b, CLOUD_LIQUID, 2.5_wp + j, k1, w1, g1, err)
         do i = 1, 3
-          if (.not. allocated(err)) &
+          if (.not. allocated(err)) then
             call band_cloud_lookup(bc, b, CLOUD_LIQUID, 2.5_wp + (j - 1) + FRAC(i), k, w, g, err)
+          end if
           if (allocated(err)) then
             call check(error, .false., err%message)
             return
@@ -360,8 +361,9 @@ contains
     call band_cloud_size_range(bc, CLOUD_ICE, lo, hi)
     call check(error, lo == 5.0_wp .and. hi == 90.0_wp, 'ice radius range '//str(lo)//' '//str(hi))
     call band_cloud_lookup(bc, 3, CLOUD_ICE, hi, k0, w0, g0, err, roughness=ICE_SMOOTH)
-    if (.not. allocated(err)) &
+    if (.not. allocated(err)) then
       call band_cloud_lookup(bc, 3, CLOUD_ICE, 200.0_wp, k, w, g, err, roughness=ICE_SMOOTH, clamp=.true.)
+    end if
     if (allocated(err)) then
       call check(error, .false., err%message)
       return

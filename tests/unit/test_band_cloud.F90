@@ -477,9 +477,9 @@ contains
   !> (with v_eff = 0.2 instead of 0.1 the longwave differences double, to 0.09 in extinction and
   !> 0.08 in g); the Planck temperature matters less (250 or 300 K instead of 280 K: < 0.005).
   !> The bounds stand about 1.5 times above the measured differences.
-  !> Errors the test is meant to catch are far larger: a table one band off (RRTMG's order) differs
-  !> by 0.1 to 0.3 in ssa and 20-40 % in extinction; ssa weighted by the source instead of by
-  !> extinction moves the absorbing bands by > 0.05. The longwave band 1 (10-250 cm-1, averaged
+  !> Errors the test is meant to catch are far larger: with the shortwave table one band off
+  !> (RRTMG's order, as stored in the file) band 3 misses by 0.27 in ssa and 26 % in extinction
+  !> (2.5 um drops). The longwave band 1 (10-250 cm-1, averaged
   !> over 50-250 only), band 16 (2680-3250 cm-1) and the shortwave band 1 (820-2680 cm-1) depend
   !> mostly on the weighting and are compared in the documentation, not here.
   subroutine test_mie_vs_lut(error)

@@ -53,11 +53,13 @@ contains
              new_unittest('mie_cache', test_cache)]
   end function collect_band_cloud
 
+  !> Read cloudysky_<which>.nc; a failure is recorded in `error`, which keeps an earlier failure.
   subroutine load(which, bc, error)
     character(len=*), intent(in) :: which      !! 'sw' or 'lw'
     type(band_cloud_t), intent(out) :: bc
-    type(error_t), allocatable, intent(out) :: error
+    type(error_t), allocatable, intent(inout) :: error
     type(error_t), allocatable :: err
+    if (allocated(error)) return
     call read_rrtmgp_cloud_optics(rrtmgp_dir//'/cloudysky_'//which//'.nc', bc, err)
     if (allocated(err)) call check(error, .false., err%message// &
                                    ' (run scripts/fetch-rrtmgp.sh to fetch the files)')

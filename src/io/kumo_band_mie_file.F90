@@ -9,13 +9,14 @@
 !>     dimensions: band = nb ; radius = nr ; angle = nang ;
 !>     double wavenumber_lower(band), wavenumber_upper(band)      band limits, "cm-1"
 !>     double wavenumber_lower_used(band), wavenumber_upper_used(band)  averaged part, "cm-1"
+!>     int    nodes(band)                         wavenumber nodes of each band's average
 !>     double r_eff(radius)                       effective radius, "um"
 !>     double ext_per_lwc(band, radius)           "m2 g-1"
 !>     double ssa(band, radius), asymmetry(band, radius)        "1"
 !>     double angle(angle)                        "degree"
 !>     double phase_function(band, radius, angle) "1", (1/2) Int P dcos = 1
 !>     global: Conventions, title, kumo_band_mie_version, source_temperature_K (0: flat),
-!>             nodes_per_band, size_distribution, effective_variance, dlnr_phase,
+!>             nodes_per_band (requested minimum), size_distribution, effective_variance, dlnr_phase,
 !>             refractive_index_source
 !>
 !> Files are written to `<path>.tmp` and renamed to `<path>` after a successful close.
@@ -25,7 +26,8 @@ module kumo_band_mie_file
                     nf90_def_var, nf90_put_att, nf90_get_att, nf90_put_var, nf90_get_var, &
                     nf90_inq_dimid, nf90_inq_varid, nf90_inquire_dimension, &
                     nf90_inquire_attribute, nf90_strerror, NF90_NOERR, NF90_NOWRITE, &
-                    NF90_NOCLOBBER, NF90_NETCDF4, NF90_CLASSIC_MODEL, NF90_GLOBAL, NF90_DOUBLE
+                    NF90_NOCLOBBER, NF90_NETCDF4, NF90_CLASSIC_MODEL, NF90_GLOBAL, NF90_DOUBLE, &
+                    NF90_INT
   use kumo_kinds, only: wp, i8
   use kumo_error, only: error_t, set_error, str
   use kumo_file_check, only: check_netcdf_complete
@@ -83,6 +85,7 @@ contains
     if (.not. allocated(error)) call nc_check(nf90_put_var(ncid, v(8), bm%g), at, error)
     if (.not. allocated(error)) call nc_check(nf90_put_var(ncid, v(9), bm%angle_deg), at, error)
     if (.not. allocated(error)) call nc_check(nf90_put_var(ncid, v(10), bm%phase), at, error)
+    if (.not. allocated(error)) call nc_check(nf90_put_var(ncid, v(11), bm%nodes), at, error)
     call nc_check(nf90_close(ncid), at, close_error)
     if (.not. allocated(error) .and. allocated(close_error)) call move_alloc(close_error, error)
     if (allocated(error)) then
@@ -106,6 +109,13 @@ contains
                    'cm-1', v(3))
       call def_var('wavenumber_upper_used', [db], 'upper limit of the averaged part of the band', &
                    'cm-1', v(4))
+      if (.not. allocated(error)) then
+        call nc_check(nf90_def_var(ncid, 'nodes', NF90_INT, [db], v(11)), at//':nodes', error)
+      end if
+      if (.not. allocated(error)) then
+        call nc_check(nf90_put_att(ncid, v(11), 'long_name', 'wavenumber nodes of the band average'), &
+                      at//':nodes', error)
+      end if
       call def_var('r_eff', [dr], 'effective radius of the size distribution', 'um', v(5))
       call def_var('ext_per_lwc', [dr, db], &
                    'band-averaged extinction coefficient per unit liquid water content', 'm2 g-1', v(6))
@@ -214,6 +224,11 @@ contains
       call dim_len('angle', nang)
       if (allocated(error)) return
       bm%nband = nb
+      allocate (bm%nodes(nb))
+      call nc_check(nf90_inq_varid(ncid, 'nodes', i), at//':nodes', error)
+      if (allocated(error)) return
+      call nc_check(nf90_get_var(ncid, i, bm%nodes), at//':nodes', error)
+      if (allocated(error)) return
       allocate (bm%wn_lo(nb), bm%wn_hi(nb), bm%wn_lo_used(nb), bm%wn_hi_used(nb), bm%r_eff_um(nr), &
                 bm%ext_per_lwc(nr, nb), bm%ssa(nr, nb), bm%g(nr, nb), bm%angle_deg(nang), &
                 bm%phase(nang, nr, nb))

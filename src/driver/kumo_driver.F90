@@ -368,8 +368,8 @@ contains
       ! every batch is the same: computed once (for this batch size), then copied
       if (.not. allocated(spec%exact_buf) .or. spec%exact_n /= nphot) then
         do g = 1, spec%n_gpt
-          call spectral_set_gpoint(spec, g, scene%atm)
-          scene%src%em = spec%em(g)
+          call spectral_set_gpoint(spec, g, scene, error)
+          if (allocated(error)) return
           call tally_reset(tal_g, lay)
           call exact_thermal_batch(scene, lay, nphot, tal_g, error)
           if (allocated(error)) return
@@ -383,12 +383,13 @@ contains
       end if
       return
     end if
-    ! the plan and nphot >= 1 are checked at set-up: no error can occur here
+    ! the plan and nphot >= 1 are checked at set-up: no error can occur here (the g-point
+    ! switch of a 3-D scene repeats the set-up's atmosphere with other numbers)
     call spectral_begin_batch(spec%plan, nphot, rng, spec%batch, err)
     do g = 1, spec%n_gpt
       if (spec%batch%count(g) == 0) cycle
-      call spectral_set_gpoint(spec, g, scene%atm)
-      if (spec%longwave) scene%src%em = spec%em(g)
+      call spectral_set_gpoint(spec, g, scene, error)
+      if (allocated(error)) return
       call tally_reset(tal_g, lay)
       call trace_batch(scene, lay, rng, spec%batch%count(g), tal_g)
       f = spec%batch%weight(g)*real(nphot, dp)/spec%plan%total

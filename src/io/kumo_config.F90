@@ -1872,9 +1872,9 @@ contains
     type(config_t), intent(inout) :: cfg
     type(error_t), allocatable, intent(inout) :: error
     character(len=*), parameter :: CTX = '&kumo_spectral: '
-    call require(.not. cfg%cloud%enabled .and. len_trim(cfg%atm%scene_file) == 0, CTX, &
-                 'spectral', rule='= .true. needs plane-parallel layers: broadband runs with '// &
-                 'a scene file or a &kumo_cloud file are not available yet', error=error)
+    call require(.not. cfg%cloud%enabled, CTX, 'spectral', rule='= .true. takes plane-parallel '// &
+                 'layers or a scene file: broadband runs with a &kumo_cloud file are not '// &
+                 'available yet', error=error)
     call require(.not. cfg%thermal%enabled, CTX, 'spectral', rule='= .true. cannot be '// &
                  'combined with &kumo_thermal: a longwave k-distribution file makes the run '// &
                  'thermal, with t_surface here and the temperatures of the gas profile', error=error)

@@ -71,6 +71,20 @@ module kumo_scene_setup
     real(wp), allocatable :: src_sfc(:)           !! (n_gpt) Planck source of the surface
     type(emission_t), allocatable :: em(:)        !! (n_gpt) emission table of each g-point
     type(emission_t) :: em_sum                    !! broadband totals, for the outputs
+    ! 3-D scenes (scene file): the atmosphere is rebuilt per g-point from these
+    logical :: three_d = .false.
+    real(wp), allocatable :: z(:)                 !! (nz + 1) levels 0..nz [m], 1-based
+    real(wp) :: lx = 0.0_wp, ly = 0.0_wp
+    integer :: k3d_bottom = 0
+    real(wp), allocatable :: ext1d(:, :), ssa1d(:, :)  !! (nz, ncomp - 2 or - 1) namelist layers
+    integer, allocatable :: phase1d(:, :)
+    real(wp), allocatable :: tau_abs(:, :), tau_ray(:, :)  !! (nz, n_gpt) gas per layer
+    integer :: iray = 0                           !! Rayleigh phase function (shortwave)
+    type(phase_t), allocatable :: phases(:)
+    type(atmosphere_options_t) :: aopts
+    real(wp), allocatable :: ext3(:, :, :, :), ssa3(:, :, :, :)  !! the scene file's voxels
+    integer, allocatable :: iph3(:, :, :, :)
+    real(wp) :: floor = 0.1_wp                    !! emission floor (longwave)
     real(dp), allocatable :: exact_buf(:)         !! the exact batch tallies, once computed
     integer(i8) :: exact_n = 0_i8                 !! for this batch size
   end type spectral_scene_t
@@ -194,6 +208,17 @@ contains
         if (allocated(error)) return
       end if
       if (allocated(ext3)) then
+        if (present(spec)) then
+          if (spec%on) then
+            ! a broadband 3-D scene: its atmosphere is rebuilt per g-point from these
+            spec%three_d = .true.
+            spec%ext3 = ext3
+            spec%ssa3 = ssa3
+            if (allocated(iph3)) spec%iph3 = iph3
+            spec%phases = phases
+            spec%aopts = aopts
+          end if
+        end if
         call atmosphere_init(scene%atm, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, ext1d, ssa1d, &
                              phase1d, phases, aopts, error, cfg%atm%k3d_bottom, ext3, ssa3, iph3)
       else
@@ -703,6 +728,17 @@ contains
         end if
       end do
     end do
+    ! what a 3-D scene needs to rebuild its atmosphere per g-point (setup_scene decides)
+    spec%z = z
+    spec%lx = cfg%atm%lx
+    spec%ly = cfg%atm%ly
+    spec%k3d_bottom = cfg%atm%k3d_bottom
+    spec%ext1d = ext1d
+    spec%ssa1d = ssa1d
+    spec%phase1d = phase1d
+    spec%tau_abs = tau_abs
+    spec%tau_ray = tau_ray
+    spec%floor = cfg%thermal%emission_floor
     g = maxloc(energy, 1)
     if (lw) then
       ext1d = reshape([ext1d, tau_abs(:, g)/dz], [nz, nc + 1])
@@ -711,6 +747,7 @@ contains
     else
       phases = [phases, new_phase_rayleigh()]
       iray = size(phases)
+      spec%iray = iray
       ext1d = reshape([ext1d, tau_ray(:, g)/dz, tau_abs(:, g)/dz], [nz, nc + 2])
       ssa1d = reshape([ssa1d, spread(1.0_wp, 1, nz), spread(0.0_wp, 1, nz)], [nz, nc + 2])
       phase1d = reshape([phase1d, spread(iray, 1, nz), spread(1, 1, nz)], [nz, nc + 2])
@@ -760,32 +797,51 @@ contains
     type(spectral_scene_t), intent(inout) :: spec
     type(error_t), allocatable, intent(out) :: error
     type(thermal_column_t) :: col
-    real(wp), allocatable :: energy(:), importance(:), b_lev(:), tau(:), fu(:), fd(:), fdir(:), &
+    type(emission_t) :: em, em_sum
+    real(wp), allocatable :: t3(:, :, :)
+    real(wp), allocatable :: energy(:), importance(:), tau(:), fu(:), fd(:), fdir(:), &
                              div(:), net(:), xflux(:), xheat(:), mass(:)
     real(wp) :: eps
-    integer :: g, nz, gmax
+    integer :: g, nz
     nz = spec%nz
-    allocate (spec%em(spec%n_gpt), energy(spec%n_gpt), importance(spec%n_gpt), b_lev(0:nz), &
+    if (spec%three_d .and. len_trim(cfg%atm%scene_file) > 0) then
+      ! voxel temperatures would need each g-point's Planck fractions per voxel: refused, never
+      ! silently replaced by the layers' sources
+      call scene_temperature_on_root(resolve_path(cfg%atm%scene_file, cfg_path(cfg)), cfg, t3, error)
+      if (allocated(error)) return
+      if (allocated(t3)) then
+        call set_error(error, '&kumo_spectral: the scene file '//trim(cfg%atm%scene_file)// &
+                       ' has voxel temperatures; broadband longwave runs take the temperatures '// &
+                       'of the &kumo_spectral profile only (voxel temperatures are not available'// &
+                       ' yet): remove the variable temperature or use &kumo_thermal for one band')
+        return
+      end if
+    end if
+    if (.not. spec%three_d) allocate (spec%em(spec%n_gpt))
+    allocate (energy(spec%n_gpt), importance(spec%n_gpt), &
               fu(0:nz), fd(0:nz), fdir(0:nz), div(0:nz), net(nz), xflux(spec%n_gpt), &
               xheat(spec%n_gpt))
     ! mass per unit area of each layer (heating per unit net power)
     mass = scene%air_density*(scene%atm%z(1:nz) - scene%atm%z(0:nz - 1))
     do g = 1, spec%n_gpt
-      call spectral_set_gpoint(spec, g, scene%atm)
-      ! b_lev: level values for the voxel defaults only (none in 1-D runs)
-      b_lev(0) = spec%src_bot(1, g)
-      b_lev(1:nz) = spec%src_top(:, g)
-      call emission_init(spec%em(g), scene%atm, scene%sfc, b_lev, spec%src_sfc(g), 0.0_wp, 0.0_wp, &
-                         cfg%thermal%emission_floor, error, b_layer_bottom=spec%src_bot(:, g), &
-                         b_layer_top=spec%src_top(:, g), escape_sampling=.true.)
-      if (allocated(error)) then
-        call add_context(error, '&kumo_spectral: g-point '//str(g))
-        return
+      call spectral_set_optics(spec, g, scene%atm, error)
+      if (allocated(error)) return
+      call gpoint_emission(spec, g, scene, em, error)
+      if (allocated(error)) return
+      energy(g) = em%power
+      ! totals for the outputs
+      if (g == 1) then
+        em_sum = em
+      else
+        em_sum%emit_sfc = em_sum%emit_sfc + em%emit_sfc
+        em_sum%emit_layer = em_sum%emit_layer + em%emit_layer
+        em_sum%emit_vox = em_sum%emit_vox + em%emit_vox
       end if
-      energy(g) = spec%em(g)%power
+      ! a 1-D column keeps every g-point's table; a 3-D scene rebuilds it per g-point
+      if (.not. spec%three_d) spec%em(g) = em
       ! the same column without scattering, exactly
       tau = scene%atm%ext1*(1.0_wp - scene%atm%omg1)*(scene%atm%z(1:nz) - scene%atm%z(0:nz - 1))
-      eps = spec%em(g)%eps_mean
+      eps = em%eps_mean
       call thermal_column_init_layers(col, tau, spec%src_bot(:, g), spec%src_top(:, g), eps, &
                                       spec%src_sfc(g), 0.0_wp, error)
       if (allocated(error)) then
@@ -793,7 +849,7 @@ contains
         return
       end if
       call thermal_column_fluxes(col, fu, fd, fdir, div, net)
-      xflux(g) = fu(nz) + fd(0) + sum(abs(net)) + abs(eps*fd(0) - spec%em(g)%emit_sfc)
+      xflux(g) = fu(nz) + fd(0) + sum(abs(net)) + abs(eps*fd(0) - em%emit_sfc)
       xheat(g) = sum(abs(net)/mass)
     end do
     ! half by the fluxes and net powers (W m-2), half by the heating rates (per unit mass), never
@@ -807,15 +863,8 @@ contains
       return
     end if
     ! the broadband summary the outputs read: total powers, no single band
-    gmax = maxloc(energy, 1)
-    spec%em_sum = spec%em(gmax)
+    spec%em_sum = em_sum
     spec%em_sum%power = sum(energy)
-    spec%em_sum%emit_sfc = 0.0_wp
-    spec%em_sum%emit_layer = 0.0_wp
-    do g = 1, spec%n_gpt
-      spec%em_sum%emit_sfc = spec%em_sum%emit_sfc + spec%em(g)%emit_sfc
-      spec%em_sum%emit_layer = spec%em_sum%emit_layer + spec%em(g)%emit_layer
-    end do
     spec%em_sum%has_band = .false.
     spec%em_sum%radiance_units = 'W m-2 sr-1'
     spec%em_sum%flux_units = 'W m-2'
@@ -829,18 +878,91 @@ contains
                   '); g-points drawn by their exchange without scattering'//new_line('a')
   end subroutine setup_spectral_emission
 
-  !> Switch the 1-D layers of `atm` (built by setup_scene with `spec`) to the optics of g-point
-  !> g: copies of precomputed totals, albedos, cumulative scattering fractions and classes (no
-  !> allocation).
-  subroutine spectral_set_gpoint(spec, g, atm)
+  !> Switch the scene to g-point g: the optics of its 1-D layers (copies of precomputed
+  !> totals, albedos, cumulative scattering fractions and classes, no allocation) or, in a 3-D
+  !> scene, the atmosphere rebuilt from the scene file's voxels and the g-point's gas (and
+  !> Rayleigh) layers, which inside the 3-D region are the voxels' background; in the longwave
+  !> also the g-point's emission table (stored for 1-D columns, rebuilt for 3-D scenes).
+  subroutine spectral_set_gpoint(spec, g, scene, error)
+    type(spectral_scene_t), intent(in) :: spec
+    integer, intent(in) :: g
+    type(scene_t), intent(inout) :: scene
+    type(error_t), allocatable, intent(out) :: error
+    call spectral_set_optics(spec, g, scene%atm, error)
+    if (allocated(error)) return
+    if (.not. spec%longwave) return
+    if (allocated(spec%em)) then
+      scene%src%em = spec%em(g)
+    else
+      call gpoint_emission(spec, g, scene, scene%src%em, error)
+    end if
+  end subroutine spectral_set_gpoint
+
+  !> The optics of g-point g in the atmosphere (see spectral_set_gpoint).
+  subroutine spectral_set_optics(spec, g, atm, error)
     type(spectral_scene_t), intent(in) :: spec
     integer, intent(in) :: g
     type(atmosphere_t), intent(inout) :: atm
-    atm%ext1(:) = spec%ext1(:, g)
-    atm%omg1(:) = spec%omg1(:, g)
-    atm%csca1(1:spec%ncomp, :) = spec%csca1(:, :, g)
-    atm%layer_class(:) = spec%layer_class(:, g)
-  end subroutine spectral_set_gpoint
+    type(error_t), allocatable, intent(out) :: error
+    real(wp), allocatable :: e(:, :), w(:, :), dz(:)
+    integer, allocatable :: ip(:, :)
+    integer :: nz
+    if (.not. spec%three_d) then
+      atm%ext1(:) = spec%ext1(:, g)
+      atm%omg1(:) = spec%omg1(:, g)
+      atm%csca1(1:spec%ncomp, :) = spec%csca1(:, :, g)
+      atm%layer_class(:) = spec%layer_class(:, g)
+      return
+    end if
+    nz = spec%nz
+    dz = spec%z(2:nz + 1) - spec%z(1:nz)     ! z is 1-based here (levels 0..nz)
+    if (spec%longwave) then
+      e = reshape([spec%ext1d, spec%tau_abs(:, g)/dz], [nz, size(spec%ext1d, 2) + 1])
+      w = reshape([spec%ssa1d, spread(0.0_wp, 1, nz)], [nz, size(spec%ext1d, 2) + 1])
+      ip = reshape([spec%phase1d, spread(1, 1, nz)], [nz, size(spec%ext1d, 2) + 1])
+    else
+      e = reshape([spec%ext1d, spec%tau_ray(:, g)/dz, spec%tau_abs(:, g)/dz], &
+                  [nz, size(spec%ext1d, 2) + 2])
+      w = reshape([spec%ssa1d, spread(1.0_wp, 1, nz), spread(0.0_wp, 1, nz)], &
+                  [nz, size(spec%ext1d, 2) + 2])
+      ip = reshape([spec%phase1d, spread(spec%iray, 1, nz), spread(1, 1, nz)], &
+                   [nz, size(spec%ext1d, 2) + 2])
+    end if
+    if (allocated(spec%iph3)) then
+      call atmosphere_init(atm, spec%z, spec%lx, spec%ly, e, w, ip, spec%phases, spec%aopts, &
+                           error, spec%k3d_bottom, spec%ext3, spec%ssa3, spec%iph3)
+    else
+      call atmosphere_init(atm, spec%z, spec%lx, spec%ly, e, w, ip, spec%phases, spec%aopts, &
+                           error, spec%k3d_bottom, spec%ext3, spec%ssa3)
+    end if
+  end subroutine spectral_set_optics
+
+  !> The emission table of g-point g for the atmosphere as it is (set to g): the layers' own
+  !> bottom and top Planck sources, the surface's, escape sampling.
+  subroutine gpoint_emission(spec, g, scene, em, error)
+    type(spectral_scene_t), intent(in) :: spec
+    integer, intent(in) :: g
+    type(scene_t), intent(in) :: scene
+    type(emission_t), intent(out) :: em
+    type(error_t), allocatable, intent(out) :: error
+    real(wp), allocatable :: b_lev(:)
+    allocate (b_lev(0:spec%nz))
+    ! level values: only what voxels would read, and voxels take the layers' own mean
+    b_lev(0) = spec%src_bot(1, g)
+    b_lev(1:spec%nz) = spec%src_top(:, g)
+    call emission_init(em, scene%atm, scene%sfc, b_lev, spec%src_sfc(g), 0.0_wp, 0.0_wp, &
+                       spec%floor, error, b_layer_bottom=spec%src_bot(:, g), &
+                       b_layer_top=spec%src_top(:, g), escape_sampling=.true.)
+    if (allocated(error)) call add_context(error, '&kumo_spectral: g-point '//str(g))
+  end subroutine gpoint_emission
+
+  !> The namelist's path ('' when the configuration was not read from a file).
+  function cfg_path(cfg) result(path)
+    type(config_t), intent(in) :: cfg
+    character(len=:), allocatable :: path
+    path = ''
+    if (allocated(cfg%path)) path = cfg%path
+  end function cfg_path
 
   !> Radiance detectors, cameras and the variance reduction that serves them. Truncation and
   !> collision forcing act on local estimates only, so they are set up only when radiances or

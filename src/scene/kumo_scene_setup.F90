@@ -17,8 +17,11 @@ module kumo_scene_setup
   use kumo_std_atmosphere, only: std_atmosphere_profile
   use kumo_gas_optics, only: gas_kdist_t, gas_default_vmr, gas_index
   use kumo_rrtmgp_file, only: read_rrtmgp_kdist
-  use kumo_spectral, only: spectral_column_t, spectral_sw_column, spectral_plan_t, &
-                           spectral_plan_init, spectral_batch_t
+  use kumo_spectral, only: spectral_column_t, spectral_sw_column, spectral_lw_column, &
+                           spectral_plan_t, spectral_plan_init, spectral_batch_t
+  use kumo_thermal_column, only: thermal_column_t, thermal_column_init_layers, &
+                                 thermal_column_fluxes
+  use kumo_exact_column, only: exact_thermal_possible
   use kumo_truncation, only: truncation_t, truncation_init
   use kumo_camera, only: camera_t, camera_init, CAMERA_PINHOLE, CAMERA_ORTHOGRAPHIC, &
                          MAX_IMAGE_SHIFTS
@@ -26,7 +29,7 @@ module kumo_scene_setup
   use kumo_surface, only: surface_init, surface_init_brdf, surface_init_brdf_map
   use kumo_brdf, only: brdf_params_t, BRDF_NPAR
   use kumo_source, only: solar_source, source_stratify
-  use kumo_emission, only: emission_init
+  use kumo_emission, only: emission_t, emission_init
   use kumo_planck, only: spectral_band_t, band_from_wavenumbers, band_monochromatic_wavelength, &
                          band_radiance, band_units
   use kumo_vr, only: collision_forcing, ddis_phases, spiky_without_vr, SPIKY_PEAK, DDIS_CONE_DEG, &
@@ -46,9 +49,10 @@ module kumo_scene_setup
   private
   public :: setup_scene, spectral_scene_t, spectral_set_gpoint
 
-  !> A broadband shortwave run (&kumo_spectral): the g-point sampling plan and the optics of the
-  !> 1-D layers for every g-point (setup_spectral), which spectral_set_gpoint puts into the
-  !> atmosphere before the g-point's photons are traced.
+  !> A broadband run (&kumo_spectral): the g-point sampling plan and the optics of the 1-D
+  !> layers for every g-point (setup_spectral), which spectral_set_gpoint puts into the
+  !> atmosphere before the g-point's photons are traced; in the longwave also each g-point's
+  !> Planck sources and emission table (setup_spectral_emission).
   type :: spectral_scene_t
     logical :: on = .false.
     integer :: n_gpt = 0, nz = 0, ncomp = 0
@@ -60,6 +64,16 @@ module kumo_scene_setup
     real(wp), allocatable :: omg1(:, :)           !! (nz, n_gpt) single-scattering albedo
     real(wp), allocatable :: csca1(:, :, :)       !! (ncomp, nz, n_gpt) cumulative fractions
     integer, allocatable :: layer_class(:, :)     !! (nz, n_gpt) LAYER_*
+    ! longwave
+    logical :: longwave = .false.
+    logical :: exact = .false.                    !! no layer scatters: exact sums, no photons
+    real(wp), allocatable :: src_bot(:, :)        !! (nz, n_gpt) Planck source, layer bottom
+    real(wp), allocatable :: src_top(:, :)        !! (nz, n_gpt) Planck source, layer top
+    real(wp), allocatable :: src_sfc(:)           !! (n_gpt) Planck source of the surface
+    type(emission_t), allocatable :: em(:)        !! (n_gpt) emission table of each g-point
+    type(emission_t) :: em_sum                    !! broadband totals, for the outputs
+    real(dp), allocatable :: exact_buf(:)         !! the exact batch tallies, once computed
+    integer(i8) :: exact_n = 0_i8                 !! for this batch size
   end type spectral_scene_t
 
 contains
@@ -239,6 +253,12 @@ contains
       call setup_thermal(cfg, scene, error, cloud_t)
       if (allocated(error)) return
     end if
+    if (present(spec)) then
+      if (spec%longwave) then
+        call setup_spectral_emission(cfg, scene, spec, error)
+        if (allocated(error)) return
+      end if
+    end if
     scene%vr%rr_threshold = cfg%vr%rr_threshold
     scene%vr%rr_weight = cfg%vr%rr_weight
     scene%vr%abs_estimator = absorption_estimator_code(cfg%vr%absorption_estimator)
@@ -256,7 +276,17 @@ contains
     scene%max_steps = max(1000000000_i8, min(huge(1_i8)/2000_i8, cfg%control%max_events)*1000_i8)
 
     call setup_estimators(cfg, scene, error)
-    if (.not. allocated(error)) call check_same_inputs(cfg, error)
+    if (allocated(error)) return
+    if (present(spec)) then
+      if (spec%longwave) then
+        ! a longwave column that scatters at no g-point: exact sums over the g-points
+        spec%exact = cfg%vr%use_exact_thermal .and. exact_thermal_possible(scene) .and. &
+                     all(spec%omg1 <= 0.0_wp .or. spec%ext1 <= 0.0_wp)
+        if (spec%exact) scene%notes = scene%notes//'  no layer scatters: every g-point solved '// &
+          'exactly (exponential integrals), no photons traced; standard errors are 0'//new_line('a')
+      end if
+    end if
+    call check_same_inputs(cfg, error)
   end subroutine setup_scene
 
   !> The inputs that every rank reads itself (phase tables, the cloud file and its companions)
@@ -498,14 +528,17 @@ contains
                           'Planck radiance of its two planes)'
   end subroutine voxel_planck
 
-  !> Broadband shortwave set-up (&kumo_spectral): the gas column of the profile, per g-point,
-  !> from the RRTMGP k-distribution (read and computed on rank 0, broadcast), the sampling plan,
-  !> and for every g-point the mixed optics of the 1-D layers: the namelist components, Rayleigh
-  !> scattering (phase function 3/4 (1 + cos^2), no depolarisation, as in RRTMGP's optics) and
-  !> gas absorption. `ext1d`, `ssa1d`, `phase1d` gain the Rayleigh and gas components at the
-  !> g-point of most energy, so that the atmosphere built from them has the right shape;
-  !> `spectral_set_gpoint` then switches its 1-D layers from one g-point to another. Sets the
-  !> layer air density (dp / (g0 dz)) for heating rates unless &kumo_atmosphere gives it.
+  !> Broadband set-up (&kumo_spectral): the gas column of the profile, per g-point, from the
+  !> RRTMGP k-distribution (read and computed on rank 0, broadcast), and for every g-point the
+  !> mixed optics of the 1-D layers: the namelist components and, in the shortwave, Rayleigh
+  !> scattering (phase function 3/4 (1 + cos^2), no depolarisation, as in RRTMGP's optics), and
+  !> gas absorption. A shortwave file makes the sampling plan here (energies mu0 F_g); a
+  !> longwave one keeps each g-point's Planck sources for `setup_spectral_emission`, which
+  !> makes the emission tables and the plan once the atmosphere and the surface exist.
+  !> `ext1d`, `ssa1d`, `phase1d` gain the gas (and Rayleigh) components at the g-point of most
+  !> energy, so that the atmosphere built from them has the right shape; `spectral_set_gpoint`
+  !> then switches its 1-D layers from one g-point to another. Sets the layer air density
+  !> (dp / (g0 dz)) for heating rates unless &kumo_atmosphere gives it.
   subroutine setup_spectral(cfg, ext1d, ssa1d, phase1d, phases, scene, spec, error)
     type(config_t), intent(in) :: cfg
     real(wp), allocatable, intent(inout) :: ext1d(:, :), ssa1d(:, :)
@@ -520,8 +553,9 @@ contains
     real(wp), allocatable :: z(:), zmid(:), dz(:), plev(:), tlev(:), play(:), tlay(:), rho(:), &
                              vmr(:, :), tau_abs(:, :), tau_ray(:, :), energy(:), e(:), s(:), &
                              pmid(:)
-    integer :: nz, nc, ng, k, g, status(2), iray, ic
-    real(wp) :: mu0, sca, acc
+    integer :: nz, nc, ng, k, g, status(3), iray, ic, nadd
+    real(wp) :: mu0, sca, acc, tsfc
+    logical :: lw
 
     nz = cfg%atm%nz
     nc = size(ext1d, 2)
@@ -555,8 +589,10 @@ contains
       end if
     end if
     mu0 = cos(cfg%source%sza_deg*DEG2RAD)
+    tsfc = cfg%spectral%t_surface
+    if (tsfc <= 0.0_wp) tsfc = tlev(0)
 
-    ! rank 0: the k-distribution and the column; the others get the optical depths and energies
+    ! rank 0: the k-distribution and the column; the others get the optical depths and sources
     status = 0
     if (par_is_root()) then
       call read_rrtmgp_kdist(cfg%spectral%kdist_path, kd, error)
@@ -569,68 +605,97 @@ contains
         if (gas_index(kd, 'h2o') > 0) vmr(:, gas_index(kd, 'h2o')) = cfg%spectral%h2o_vmr
         if (allocated(cfg%spectral%o3_vmr) .and. gas_index(kd, 'o3') > 0) &
           vmr(:, gas_index(kd, 'o3')) = cfg%spectral%o3_vmr
-        call spectral_sw_column(kd, plev, play, tlay, vmr, mu0, col, error, tsi=cfg%spectral%tsi)
+        if (kd%longwave) then
+          call spectral_lw_column(kd, plev, tlev, play, tlay, tsfc, vmr, col, error, &
+                                  emissivity=max(0.0_wp, min(1.0_wp, 1.0_wp - cfg%surface%albedo)))
+        else if (cfg%spectral%t_surface > 0.0_wp) then
+          call set_error(error, 't_surface = '//str(cfg%spectral%t_surface)//' K is for '// &
+                         'longwave k-distributions; '//cfg%spectral%kdist_path//' is a shortwave one')
+        else
+          call spectral_sw_column(kd, plev, play, tlay, vmr, mu0, col, error, tsi=cfg%spectral%tsi)
+        end if
       end if
       if (allocated(error)) then
         status(1) = 1
         call add_context(error, '&kumo_spectral kdist_file')
       else
         status(2) = col%n_gpt
+        if (kd%longwave) status(3) = 1
       end if
     end if
     call share_read_status(status, cfg%spectral%kdist_path, error)
     if (allocated(error)) return
     ng = status(2)
+    lw = status(3) == 1
+    spec%longwave = lw
     if (par_is_root()) then
       tau_abs = col%tau_abs
-      tau_ray = col%tau_rayleigh
       energy = col%energy
+      if (lw) then
+        allocate (tau_ray(nz, ng))
+        tau_ray = 0.0_wp
+        spec%src_bot = col%lev_src_bot
+        spec%src_top = col%lev_src_top
+        spec%src_sfc = col%sfc_src
+      else
+        tau_ray = col%tau_rayleigh
+      end if
     else
       allocate (tau_abs(nz, ng), tau_ray(nz, ng), energy(ng))
+      tau_ray = 0.0_wp
+      if (lw) allocate (spec%src_bot(nz, ng), spec%src_top(nz, ng), spec%src_sfc(ng))
     end if
     call share_reals(tau_abs, size(tau_abs))
-    call share_reals(tau_ray, size(tau_ray))
     call share_reals(energy, size(energy))
-    call spectral_plan_init(energy, spec%plan, error, floor_share=cfg%spectral%floor_share)
-    if (allocated(error)) then
-      call add_context(error, '&kumo_spectral')
-      return
+    if (lw) then
+      call share_reals(spec%src_bot, size(spec%src_bot))
+      call share_reals(spec%src_top, size(spec%src_top))
+      call share_reals(spec%src_sfc, size(spec%src_sfc))
+    else
+      call share_reals(tau_ray, size(tau_ray))
+      call spectral_plan_init(energy, spec%plan, error, floor_share=cfg%spectral%floor_share)
+      if (allocated(error)) then
+        call add_context(error, '&kumo_spectral')
+        return
+      end if
     end if
 
-    ! per g-point mixtures of the 1-D layers: components 1..nc of the namelist, nc + 1
-    ! Rayleigh, nc + 2 gas absorption (the mixing of kumo_atmosphere)
-    phases = [phases, new_phase_rayleigh()]
-    iray = size(phases)
+    ! per g-point mixtures of the 1-D layers: components 1..nc of the namelist, then (shortwave)
+    ! Rayleigh, then gas absorption (the mixing of kumo_atmosphere)
+    nadd = 2
+    if (lw) nadd = 1
     spec%on = .true.
     spec%n_gpt = ng
     spec%nz = nz
-    spec%ncomp = nc + 2
+    spec%ncomp = nc + nadd
     spec%tsi = cfg%spectral%tsi
     spec%mu0 = mu0
-    allocate (spec%ext1(nz, ng), spec%omg1(nz, ng), spec%csca1(nc + 2, nz, ng), &
-              spec%layer_class(nz, ng), e(nc + 2), s(nc + 2))
+    allocate (spec%ext1(nz, ng), spec%omg1(nz, ng), spec%csca1(nc + nadd, nz, ng), &
+              spec%layer_class(nz, ng), e(nc + nadd), s(nc + nadd))
     do g = 1, ng
       do k = 1, nz
         e(1:nc) = ext1d(k, :)
         s(1:nc) = ext1d(k, :)*ssa1d(k, :)
-        e(nc + 1) = tau_ray(k, g)/dz(k)
-        s(nc + 1) = e(nc + 1)
-        e(nc + 2) = tau_abs(k, g)/dz(k)
-        s(nc + 2) = 0.0_wp
+        if (.not. lw) then
+          e(nc + 1) = tau_ray(k, g)/dz(k)
+          s(nc + 1) = e(nc + 1)
+        end if
+        e(nc + nadd) = tau_abs(k, g)/dz(k)
+        s(nc + nadd) = 0.0_wp
         spec%ext1(k, g) = sum(e)
         sca = sum(s)
         spec%omg1(k, g) = 1.0_wp
         if (spec%ext1(k, g) > 0.0_wp) spec%omg1(k, g) = min(1.0_wp, sca/spec%ext1(k, g))
         acc = 0.0_wp
-        do ic = 1, nc + 2
+        do ic = 1, nc + nadd
           acc = acc + s(ic)
           if (sca > 0.0_wp) then
             spec%csca1(ic, k, g) = acc/sca
           else
-            spec%csca1(ic, k, g) = real(ic, wp)/(nc + 2)
+            spec%csca1(ic, k, g) = real(ic, wp)/(nc + nadd)
           end if
         end do
-        spec%csca1(nc + 2, k, g) = 1.0_wp
+        spec%csca1(nc + nadd, k, g) = 1.0_wp
         if (spec%ext1(k, g) <= 0.0_wp) then
           spec%layer_class(k, g) = LAYER_CLEAR
         else if (spec%omg1(k, g) <= 0.0_wp .and. cfg%vr%use_absorbing_layers) then
@@ -641,23 +706,130 @@ contains
       end do
     end do
     g = maxloc(energy, 1)
-    ext1d = reshape([ext1d, tau_ray(:, g)/dz, tau_abs(:, g)/dz], [nz, nc + 2])
-    ssa1d = reshape([ssa1d, spread(1.0_wp, 1, nz), spread(0.0_wp, 1, nz)], [nz, nc + 2])
-    phase1d = reshape([phase1d, spread(iray, 1, nz), spread(1, 1, nz)], [nz, nc + 2])
+    if (lw) then
+      ext1d = reshape([ext1d, tau_abs(:, g)/dz], [nz, nc + 1])
+      ssa1d = reshape([ssa1d, spread(0.0_wp, 1, nz)], [nz, nc + 1])
+      phase1d = reshape([phase1d, spread(1, 1, nz)], [nz, nc + 1])
+    else
+      phases = [phases, new_phase_rayleigh()]
+      iray = size(phases)
+      ext1d = reshape([ext1d, tau_ray(:, g)/dz, tau_abs(:, g)/dz], [nz, nc + 2])
+      ssa1d = reshape([ssa1d, spread(1.0_wp, 1, nz), spread(0.0_wp, 1, nz)], [nz, nc + 2])
+      phase1d = reshape([phase1d, spread(iray, 1, nz), spread(1, 1, nz)], [nz, nc + 2])
+    end if
 
     if (.not. allocated(scene%air_density)) then
       scene%air_density = (plev(0:nz - 1) - plev(1:nz))/(G0*dz)
       scene%notes = scene%notes//'  layer air density (heating rates): (p_bottom - p_top)/'// &
                     '(g0 dz) of the &kumo_spectral profile, g0 = 9.80665 m s-2'//new_line('a')
     end if
-    scene%notes = 'broadband shortwave: '//trim(cfg%spectral%kdist_file)//', '//str(ng)// &
-                  ' g-points, total solar irradiance '//str(spec%tsi)//' W m-2, incident '// &
-                  str(spec%plan%total)//' W m-2 on a horizontal plane; floor share '// &
-                  str(spec%plan%floor_share)//new_line('a')//'  column optical depth: gas '// &
-                  'absorption '//str(minval(sum(tau_abs, 1)))//' to '//str(maxval(sum(tau_abs, 1)))// &
-                  ', Rayleigh '//str(minval(sum(tau_ray, 1)))//' to '//str(maxval(sum(tau_ray, 1)))// &
-                  new_line('a')//scene%notes
+    if (lw) then
+      scene%notes = 'broadband longwave: '//trim(cfg%spectral%kdist_file)//', '//str(ng)// &
+                    ' g-points, surface temperature '//str(tsfc)//' K, emissivity '// &
+                    str(max(0.0_wp, min(1.0_wp, 1.0_wp - cfg%surface%albedo)))//'; floor share '// &
+                    str(cfg%spectral%floor_share)//new_line('a')//'  column optical depth: gas '// &
+                    'absorption '//str(minval(sum(tau_abs, 1)))//' to '// &
+                    str(maxval(sum(tau_abs, 1)))//new_line('a')//scene%notes
+    else
+      scene%notes = 'broadband shortwave: '//trim(cfg%spectral%kdist_file)//', '//str(ng)// &
+                    ' g-points, total solar irradiance '//str(spec%tsi)//' W m-2, incident '// &
+                    str(spec%plan%total)//' W m-2 on a horizontal plane; floor share '// &
+                    str(spec%plan%floor_share)//new_line('a')//'  column optical depth: gas '// &
+                    'absorption '//str(minval(sum(tau_abs, 1)))//' to '//str(maxval(sum(tau_abs, 1)))// &
+                    ', Rayleigh '//str(minval(sum(tau_ray, 1)))//' to '//str(maxval(sum(tau_ray, 1)))// &
+                    new_line('a')//scene%notes
+    end if
   end subroutine setup_spectral
+
+  !> Broadband longwave, once the atmosphere and the surface exist: for every g-point the
+  !> emission table of its layers (the layers' own Planck sources at their bottom and top,
+  !> linear in optical depth in between) and of the surface (eps B_sfc, eps = 1 - albedo), and
+  !> the sampling plan. The plan's energies are the g-points' total emitted powers P_g (a
+  !> batch estimate is sum_g P_g x the g-point's per-photon mean, whatever the plan draws), its
+  !> probabilities follow an importance from the radiative exchange of the g-point in the same
+  !> column without scattering (exact): half in proportion to F_up(top) + F_down(surface) + the
+  !> sum over layers and the surface of |net power|, half to the sum over layers of |net
+  !> power| per unit mass (heating). Emission alone would send nearly every photon into
+  !> g-points so opaque that they exchange almost nothing (docs/broadband.md). The emission
+  !> tables use escape sampling (kumo_emission). When no layer scatters at
+  !> any g-point (clear sky, absorbing clouds) and the surface is a uniform Lambert one, every
+  !> batch is the exact sum over g-points of `exact_thermal_batch`, with no photons.
+  !> `scene%src%em` ends up as the broadband summary (total and per-layer emitted powers) that
+  !> the outputs read; the batches install each g-point's own table.
+  subroutine setup_spectral_emission(cfg, scene, spec, error)
+    type(config_t), intent(in) :: cfg
+    type(scene_t), intent(inout) :: scene
+    type(spectral_scene_t), intent(inout) :: spec
+    type(error_t), allocatable, intent(out) :: error
+    type(thermal_column_t) :: col
+    real(wp), allocatable :: energy(:), importance(:), b_lev(:), tau(:), fu(:), fd(:), fdir(:), &
+                             div(:), net(:), xflux(:), xheat(:), mass(:)
+    real(wp) :: eps
+    integer :: g, nz, gmax
+    nz = spec%nz
+    allocate (spec%em(spec%n_gpt), energy(spec%n_gpt), importance(spec%n_gpt), b_lev(0:nz), &
+              fu(0:nz), fd(0:nz), fdir(0:nz), div(0:nz), net(nz), xflux(spec%n_gpt), &
+              xheat(spec%n_gpt))
+    ! mass per unit area of each layer (heating per unit net power)
+    mass = scene%air_density*(scene%atm%z(1:nz) - scene%atm%z(0:nz - 1))
+    do g = 1, spec%n_gpt
+      call spectral_set_gpoint(spec, g, scene%atm)
+      ! b_lev: level values for the voxel defaults only (none in 1-D runs)
+      b_lev(0) = spec%src_bot(1, g)
+      b_lev(1:nz) = spec%src_top(:, g)
+      call emission_init(spec%em(g), scene%atm, scene%sfc, b_lev, spec%src_sfc(g), 0.0_wp, 0.0_wp, &
+                         cfg%thermal%emission_floor, error, b_layer_bottom=spec%src_bot(:, g), &
+                         b_layer_top=spec%src_top(:, g), escape_sampling=.true.)
+      if (allocated(error)) then
+        call add_context(error, '&kumo_spectral: g-point '//str(g))
+        return
+      end if
+      energy(g) = spec%em(g)%power
+      ! the same column without scattering, exactly
+      tau = scene%atm%ext1*(1.0_wp - scene%atm%omg1)*(scene%atm%z(1:nz) - scene%atm%z(0:nz - 1))
+      eps = spec%em(g)%eps_mean
+      call thermal_column_init_layers(col, tau, spec%src_bot(:, g), spec%src_top(:, g), eps, &
+                                      spec%src_sfc(g), 0.0_wp, error)
+      if (allocated(error)) then
+        call add_context(error, '&kumo_spectral: g-point '//str(g))
+        return
+      end if
+      call thermal_column_fluxes(col, fu, fd, fdir, div, net)
+      xflux(g) = fu(nz) + fd(0) + sum(abs(net)) + abs(eps*fd(0) - spec%em(g)%emit_sfc)
+      xheat(g) = sum(abs(net)/mass)
+    end do
+    ! half by the fluxes and net powers (W m-2), half by the heating rates (per unit mass), never
+    ! below a tiny share of the g-point's emission (a g-point with energy is drawn)
+    importance = 0.5_wp*xflux/max(tiny(1.0_wp), sum(xflux)) + 0.5_wp*xheat/max(tiny(1.0_wp), sum(xheat))
+    importance = max(importance, 1.0e-9_wp*energy/sum(energy))
+    call spectral_plan_init(energy, spec%plan, error, floor_share=cfg%spectral%floor_share, &
+                            importance=importance)
+    if (allocated(error)) then
+      call add_context(error, '&kumo_spectral')
+      return
+    end if
+    ! the broadband summary the outputs read: total powers, no single band
+    gmax = maxloc(energy, 1)
+    spec%em_sum = spec%em(gmax)
+    spec%em_sum%power = sum(energy)
+    spec%em_sum%emit_sfc = 0.0_wp
+    spec%em_sum%emit_layer = 0.0_wp
+    do g = 1, spec%n_gpt
+      spec%em_sum%emit_sfc = spec%em_sum%emit_sfc + spec%em(g)%emit_sfc
+      spec%em_sum%emit_layer = spec%em_sum%emit_layer + spec%em(g)%emit_layer
+    end do
+    spec%em_sum%has_band = .false.
+    spec%em_sum%radiance_units = 'W m-2 sr-1'
+    spec%em_sum%flux_units = 'W m-2'
+    spec%em_sum%to_band_units = 1.0_wp
+    scene%src%em = spec%em_sum
+    ! exact per g-point (decided in setup_scene once the detectors exist), or traced: never
+    ! the summary's own exact column
+    scene%exact_thermal = .false.
+    scene%notes = scene%notes//'  emitted power '//str(spec%em_sum%power)//' W m-2 (layers '// &
+                  str(sum(spec%em_sum%emit_layer))//', surface '//str(spec%em_sum%emit_sfc)// &
+                  '); g-points drawn by their exchange without scattering'//new_line('a')
+  end subroutine setup_spectral_emission
 
   !> Switch the 1-D layers of `atm` (built by setup_scene with `spec`) to the optics of g-point
   !> g: copies of precomputed totals, albedos, cumulative scattering fractions and classes (no

@@ -31,6 +31,26 @@
 !> thick cells and isothermal regions get their net power without the noise of the two large
 !> terms. A cell that does not emit (B = 0) has no photons of its own; its net power is what it
 !> absorbs, scored directly. Solar photons add what they deposit, where they deposit it.
+!>
+!> **Escape sampling (optional).** In an optically thick layer almost all of the emission is
+!> absorbed again inside the layer, where it adds nothing to the net power or to any flux
+!> between layers. With `escape_sampling` the table draws the 1-D layers in proportion to the
+!> power that leaves them, 4 pi <B> (1/2 - E_3(tau)) for absorption optical depth tau (exact for
+!> B linear in optical depth; it tends to the emission 4 pi tau <B> in thin layers and to
+!> 2 pi <B> in opaque ones), and places a photon in a layer with tau > 1 near its faces: optical
+!> depth t from the bottom with density q(t) = (e^-t + e^-(tau - t)) / (2 (1 - e^-tau)) instead
+!> of the emission's p(t) = B(t) / (tau <B>), the weight multiplied by p(t)/q(t); the floor share
+!> is then spread evenly over the emitting layers instead of by capacity. All keep every
+!> estimate unbiased; they remove the cost of photons that never leave their layer (broadband
+!> longwave runs, where most g-points are opaque). With it, the net power of an optically thin
+!> 1-D layer (tau < 1) is its absorbed power, scored from every photon that deposits energy in
+!> it (smooth: with absorbing layers crossed without collisions every crossing photon
+!> deposits), minus its emission, exact (`by_abs`); net exchange keeps the thick layers. The
+!> two estimators may be mixed cell by cell: a cell's net power comes from its own mode only
+!> (net exchange: the scores of its own photons, which cover both directions of every
+!> exchange by reciprocity; absorbed minus emitted: what every photon deposits in it). The
+!> exchange of a thick layer with itself sums to zero and is not scored. Without escape
+!> sampling every emitting cell uses net exchange, as above.
 module kumo_emission
   use kumo_kinds, only: wp, i8
   use kumo_constants, only: PI, FOUR_PI
@@ -42,6 +62,7 @@ module kumo_emission
   use kumo_brdf, only: brdf_albedo
   use kumo_photon, only: photon_t
   use kumo_planck, only: spectral_band_t
+  use kumo_expint, only: expint_e
   implicit none
   private
   public :: emission_t, emission_init, emission_entry, emission_launch, emission_weight, &
@@ -59,6 +80,9 @@ module kumo_emission
     real(wp) :: power = 0.0_wp             !! P: total source power per unit area [W m-2]
     real(wp) :: solar_power = 0.0_wp       !! mu0 F0 of the sun in the same run (0: none)
     real(wp), allocatable :: b_lev(:)      !! (0:nz) Planck radiance at the levels
+    !> (nz) Planck radiance at the bottom and top of each 1-D layer: the level values, or the
+    !> layer's own (RRTMGP g-points: a level's value carries the Planck fraction of the layer)
+    real(wp), allocatable :: b_bot(:), b_top_lay(:)
     real(wp), allocatable :: b3(:, :, :)   !! (nx, ny, n3) per voxel, if given
     real(wp) :: b_sfc = 0.0_wp             !! Planck radiance of the surface temperature
     real(wp) :: b_top = 0.0_wp             !! isotropic downward radiance at the top
@@ -90,6 +114,12 @@ module kumo_emission
     real(wp) :: to_band_units = 1.0_wp
     integer :: iph_iso = 0                 !! isotropic phase function (local estimates of
                                            !! emission by cells); 0: no radiances
+    logical :: escape = .false.            !! escape sampling of the 1-D layers (above)
+    real(wp), allocatable :: tau_lay(:)    !! (nz) absorption optical depth of the 1-D layers
+    !> (nz) 1-D layers whose net power is scored as absorbed minus emitted (exact) rather than
+    !> by net exchange (with escape sampling: the optically thin ones, tau < 1)
+    logical, allocatable :: by_abs(:)
+    logical :: any_abs = .false.
   end type emission_t
 
 contains
@@ -99,7 +129,7 @@ contains
   !> the 3-D region, `solar_power` = mu0 F0 of the sun in the same run (0: thermal alone),
   !> `floor` the share of photons spread over the emitting cells by capacity.
   subroutine emission_init(em, atm, sfc, b_lev, b_sfc, b_top, solar_power, floor, error, b3, &
-                           b_sfc_map)
+                           b_sfc_map, b_layer_bottom, b_layer_top, escape_sampling)
     type(emission_t), intent(out) :: em
     type(atmosphere_t), intent(in) :: atm
     type(surface_t), intent(in) :: sfc
@@ -109,7 +139,13 @@ contains
     !> Planck radiance of each pixel of a surface temperature map (nxt, nyt) over the domain,
     !> instead of the uniform b_sfc
     real(wp), intent(in), optional :: b_sfc_map(:, :)
-    real(wp), allocatable :: pw(:), cap(:)
+    !> (nz) each layer's own Planck radiance at its bottom and top, instead of the level values
+    !> (both or neither)
+    real(wp), intent(in), optional :: b_layer_bottom(:), b_layer_top(:)
+    !> draw the 1-D layers by the power that leaves them, photons near the faces (above)
+    logical, intent(in), optional :: escape_sampling
+    real(wp), allocatable :: pw(:), cap(:), ps(:)
+    real(wp) :: stot
     real(wp) :: dz, ka, bb, ptot, ctot, q
     integer :: k, kr, ix, iy, v, i, nz, ncol
 
@@ -134,6 +170,27 @@ contains
     em%ncol = ncol
     em%n3 = atm%n3
     em%b_lev = b_lev
+    if (present(b_layer_bottom) .neqv. present(b_layer_top)) then
+      call set_error(error, 'thermal emission: layer Planck values need both the bottom and '// &
+                     'the top of each layer')
+      return
+    end if
+    if (present(b_layer_bottom)) then
+      if (size(b_layer_bottom) /= nz .or. size(b_layer_top) /= nz) then
+        call set_error(error, 'thermal emission: '//str(size(b_layer_bottom))//' and '// &
+                       str(size(b_layer_top))//' layer Planck values for '//str(nz)//' layers')
+        return
+      end if
+      if (any(.not. (b_layer_bottom >= 0.0_wp)) .or. any(.not. (b_layer_top >= 0.0_wp))) then
+        call set_error(error, 'thermal emission: Planck radiances must be finite and >= 0')
+        return
+      end if
+      em%b_bot = b_layer_bottom
+      em%b_top_lay = b_layer_top
+    else
+      em%b_bot = b_lev(0:nz - 1)
+      em%b_top_lay = b_lev(1:nz)
+    end if
     em%b_sfc = b_sfc
     em%b_top = b_top
     em%floor = floor
@@ -173,7 +230,10 @@ contains
     pw(1) = solar_power
     pw(2) = PI*b_top
     pw(3) = PI*em%eps_b_mean
-    allocate (em%emit_layer(nz), em%emit_vox(ncol*atm%n3))
+    allocate (em%emit_layer(nz), em%emit_vox(ncol*atm%n3), em%tau_lay(nz), em%by_abs(nz))
+    em%tau_lay = 0.0_wp
+    em%by_abs = .false.
+    if (present(escape_sampling)) em%escape = escape_sampling
     em%emit_layer = 0.0_wp
     em%emit_vox = 0.0_wp
     do k = 1, nz
@@ -181,7 +241,8 @@ contains
       dz = atm%z(k) - atm%z(k - 1)
       ka = atm%ext1(k)*(1.0_wp - atm%omg1(k))
       cap(em%e_lay + k) = FOUR_PI*ka*dz
-      pw(em%e_lay + k) = cap(em%e_lay + k)*0.5_wp*(b_lev(k - 1) + b_lev(k))
+      pw(em%e_lay + k) = cap(em%e_lay + k)*0.5_wp*(em%b_bot(k) + em%b_top_lay(k))
+      em%tau_lay(k) = ka*dz
       em%emit_layer(k) = pw(em%e_lay + k)
     end do
     do kr = 1, atm%n3
@@ -194,7 +255,7 @@ contains
           if (allocated(em%b3)) then
             bb = em%b3(ix, iy, kr)
           else
-            bb = 0.5_wp*(b_lev(k - 1) + b_lev(k))
+            bb = 0.5_wp*(em%b_bot(k) + em%b_top_lay(k))
           end if
           cap(em%e_vox + v) = FOUR_PI*ka*dz/ncol
           pw(em%e_vox + v) = cap(em%e_vox + v)*bb
@@ -212,14 +273,33 @@ contains
       return
     end if
     em%power = ptot
+    ! escape sampling: the floor is spread evenly over the emitting 1-D layers (thin, cold
+    ! layers high up, whose heating rates in K/day matter as much as any, still get photons)
+    if (em%escape) cap(em%e_lay + 1:em%e_lay + nz) = 1.0_wp
     ! capacity only of the cells that emit: a cell with B = 0 is scored by what it absorbs
     where (pw <= 0.0_wp) cap = 0.0_wp
     cap(1:3) = 0.0_wp
     ctot = sum(cap)
+    ! the powers the table draws by: the emitted ones, or for the 1-D layers what leaves them
+    ps = pw
+    if (em%escape) then
+      do k = 1, nz
+        if (em%tau_lay(k) > 0.0_wp) ps(em%e_lay + k) = pw(em%e_lay + k)* &
+          escape_fraction(em%tau_lay(k))
+      end do
+    end if
+    stot = sum(ps)
+    if (em%escape) then
+      do k = 1, nz
+        em%by_abs(k) = atm%layer_class(k) /= LAYER_3D .and. em%tau_lay(k) < 1.0_wp .and. &
+                       pw(em%e_lay + k) > 0.0_wp
+      end do
+      em%any_abs = any(em%by_abs)
+    end if
     allocate (em%cdf(0:em%n_ent), em%ratio(em%n_ent))
     em%cdf(0) = 0.0_wp
     do i = 1, em%n_ent
-      q = pw(i)/ptot
+      q = ps(i)/stot
       if (ctot > 0.0_wp) q = (1.0_wp - floor)*q + floor*cap(i)/ctot
       em%cdf(i) = em%cdf(i - 1) + q
       if (q > 0.0_wp) then
@@ -231,6 +311,18 @@ contains
     em%cdf = em%cdf/em%cdf(em%n_ent)
     em%cdf(em%n_ent) = 1.0_wp
   end subroutine emission_init
+
+  !> Fraction of the emission of a layer of absorption optical depth tau that leaves it,
+  !> (1/2 - E_3(tau))/tau; 1 below tau = 1e-4, where it differs from 1 by less than 1e-3 (only
+  !> the sampling probabilities use it).
+  elemental real(wp) function escape_fraction(tau) result(f)
+    real(wp), intent(in) :: tau
+    if (tau < 1.0e-4_wp) then
+      f = 1.0_wp
+    else
+      f = (0.5_wp - expint_e(3, tau))/tau
+    end if
+  end function escape_fraction
 
   !> Surface emissivity: 1 - albedo per pixel (Lambert), 1 - alpha(mu) per class (BRDF, its
   !> hemispherical value 1 - 2 int alpha(mu) mu dmu by 64-point Gauss-Legendre quadrature), and
@@ -398,7 +490,7 @@ contains
     integer(i8), intent(in) :: n
     real(wp), intent(in) :: u
     type(photon_t), intent(inout) :: p
-    real(wp) :: mu, cphi, sphi, st, b
+    real(wp) :: mu, cphi, sphi, st, b, tl, et, t
     integer :: v, ix, iy, kr, k
 
     p%w = emission_weight(em, ie, n, u)
@@ -440,10 +532,24 @@ contains
       p%iz = k
       p%x = rng_uniform(rng)*atm%lx
       p%y = rng_uniform(rng)*atm%ly
-      p%z = atm%z(k - 1) + linear_fraction(em%b_lev(k - 1), em%b_lev(k), rng_uniform(rng))* &
-            (atm%z(k) - atm%z(k - 1))
+      if (em%escape .and. em%tau_lay(k) > 1.0_wp) then
+        ! near the faces: t from q(t), weight p(t)/q(t)
+        tl = em%tau_lay(k)
+        et = 1.0_wp - exp(-tl)
+        t = -log(1.0_wp - rng_uniform(rng)*et)
+        if (rng_uniform(rng) >= 0.5_wp) t = tl - t
+        t = min(tl, max(0.0_wp, t))
+        p%z = atm%z(k - 1) + (t/tl)*(atm%z(k) - atm%z(k - 1))
+        b = emission_b_point(em, atm, k, p%z, 0, 0, 0)
+        p%w = p%w*(b/(0.5_wp*tl*(em%b_bot(k) + em%b_top_lay(k))))* &
+              (2.0_wp*et/(exp(-t) + exp(-(tl - t))))
+        p%w_entry = p%w
+      else
+        p%z = atm%z(k - 1) + linear_fraction(em%b_bot(k), em%b_top_lay(k), rng_uniform(rng))* &
+              (atm%z(k) - atm%z(k - 1))
+        b = emission_b_point(em, atm, k, p%z, 0, 0, 0)
+      end if
       call isotropic(p)
-      b = emission_b_point(em, atm, k, p%z, 0, 0, 0)
     else
       ! a voxel: uniform in x, y; in height uniform (voxel value) or linear in B (levels)
       v = ie - em%e_vox
@@ -463,7 +569,7 @@ contains
         p%z = atm%z(k - 1) + rng_uniform(rng)*(atm%z(k) - atm%z(k - 1))
         b = em%b3(ix, iy, kr)
       else
-        p%z = atm%z(k - 1) + linear_fraction(em%b_lev(k - 1), em%b_lev(k), rng_uniform(rng))* &
+        p%z = atm%z(k - 1) + linear_fraction(em%b_bot(k), em%b_top_lay(k), rng_uniform(rng))* &
               (atm%z(k) - atm%z(k - 1))
         b = emission_b_point(em, atm, k, p%z, 0, 0, 0)
       end if
@@ -520,7 +626,7 @@ contains
     end if
     t = (z - atm%z(k - 1))/(atm%z(k) - atm%z(k - 1))
     t = min(1.0_wp, max(0.0_wp, t))
-    b = em%b_lev(k - 1) + (em%b_lev(k) - em%b_lev(k - 1))*t
+    b = em%b_bot(k) + (em%b_top_lay(k) - em%b_bot(k))*t
   end function emission_b_point
 
   !> Mean Planck radiance of what is absorbed along a straight path through a homogeneous 1-D

@@ -25,7 +25,20 @@
 !>
 !> where tau_b is the optical depth between level i and the surface, t_k that between level i
 !> and the top of layer k, and I_s the radiance leaving the surface. Downward radiances are
-!> the mirror image with i_top and b(nz). Angular integration turns exp(-t/mu) f(tau/mu) into
+!> the mirror image with i_top and b(nz).
+!>
+!> A layer may also have its own bottom and top values bb(k), bt(k), so that B jumps at a
+!> level (RRTMGP's Planck sources: the level value of a g-point carries the Planck fraction of
+!> the layer on either side; `thermal_column_init_layers`). The same integration by parts then
+!> adds, for every level j strictly between level i and the far boundary, the jump seen along
+!> the path (upstream minus downstream value) times exp(-t_j/mu):
+!>
+!>     I(mu > 0) = bt(i) + (I_s - bb(1)) exp(-tau_b/mu) + sum_{0<j<i} (bt(j) - bb(j+1)) exp(-t_j/mu)
+!>                 + sum_{k<=i} (bb(k) - bt(k)) exp(-t_k/mu) f(tau(k)/mu),
+!>
+!> with bt(0) read as bb(1) at the surface; downward the mirror image. With bb(k) = b(k-1) and
+!> bt(k) = b(k) the jumps vanish and the form above is recovered. The point divergence at a
+!> level where B jumps is taken with B there the mean of its two sides. Angular integration turns exp(-t/mu) f(tau/mu) into
 !> divided differences of exponential integrals: (E_{n+1}(t) - E_{n+1}(t + tau))/tau with n = 2
 !> for mean radiances and n = 3 for fluxes (kumo_expint). In this form the net flux and the
 !> point flux divergence 4 pi (Jbar - B) contain no b(i) terms, so they come out without
@@ -41,7 +54,8 @@ module kumo_thermal_column
   use kumo_planck, only: spectral_band_t, band_radiance, check_temperatures
   implicit none
   private
-  public :: thermal_column_t, thermal_column_init, thermal_column_from_temperatures
+  public :: thermal_column_t, thermal_column_init, thermal_column_from_temperatures, &
+            thermal_column_init_layers
   public :: thermal_column_fluxes, thermal_column_radiance
 
   !> A non-scattering column with its boundary conditions. Build it with thermal_column_init
@@ -50,7 +64,8 @@ module kumo_thermal_column
     integer :: nz = 0
     real(wp), allocatable :: tau(:)      !! (nz) absorption optical depth of layer k
     real(wp), allocatable :: tau_cum(:)  !! (0:nz) optical depth between the surface and level i
-    real(wp), allocatable :: b(:)        !! (0:nz) Planck radiance at the levels
+    real(wp), allocatable :: bb(:)       !! (nz) Planck radiance at the bottom of layer k
+    real(wp), allocatable :: bt(:)       !! (nz) Planck radiance at the top of layer k
     real(wp) :: emissivity = 1.0_wp      !! surface emissivity (1 - Lambert albedo)
     real(wp) :: b_surface = 0.0_wp       !! Planck radiance of the surface temperature
     real(wp) :: i_top = 0.0_wp           !! isotropic downward radiance at the top
@@ -80,16 +95,47 @@ contains
                      //' layers; expected '//str(nz + 1))
       return
     end if
+    do k = 0, nz
+      if (.not. nonneg(b_level(k))) then
+        call set_error(error, 'thermal column: Planck radiance at level '//str(k)//' = '//text(b_level(k)) &
+                       //' must be finite and >= 0')
+        return
+      end if
+    end do
+    call thermal_column_init_layers(col, tau, b_level(0:nz - 1), b_level(1:nz), emissivity, b_surface, &
+                                    i_top, error, beam_flux, beam_mu0)
+  end subroutine thermal_column_init
+
+  !> Set up a column whose layers have their own Planck radiances at their bottom (`b_bottom`)
+  !> and top (`b_top`), B linear in optical depth in between (jumps at the levels allowed).
+  subroutine thermal_column_init_layers(col, tau, b_bottom, b_top, emissivity, b_surface, i_top, error, &
+                                        beam_flux, beam_mu0)
+    type(thermal_column_t), intent(out) :: col
+    real(wp), intent(in) :: tau(:)        !! (nz) layer absorption optical depths, bottom to top
+    real(wp), intent(in) :: b_bottom(:)   !! (nz) Planck radiance at the bottom of each layer
+    real(wp), intent(in) :: b_top(:)      !! (nz) Planck radiance at the top of each layer
+    real(wp), intent(in) :: emissivity    !! surface emissivity in [0, 1]
+    real(wp), intent(in) :: b_surface     !! Planck radiance of the surface, >= 0
+    real(wp), intent(in) :: i_top         !! isotropic downward radiance at the top, >= 0
+    type(error_t), allocatable, intent(out) :: error
+    real(wp), intent(in), optional :: beam_flux  !! collimated flux normal to the beam, >= 0
+    real(wp), intent(in), optional :: beam_mu0   !! cosine of the beam zenith angle, (0, 1]
+    integer :: k, nz
+    nz = size(tau)
+    if (nz < 1 .or. size(b_bottom) /= nz .or. size(b_top) /= nz) then
+      call set_error(error, 'thermal column: '//str(nz)//' layers with '//str(size(b_bottom))// &
+                     ' bottom and '//str(size(b_top))//' top Planck values; expected at least one '// &
+                     'layer and one value of each per layer')
+      return
+    end if
     do k = 1, nz
       if (.not. nonneg(tau(k))) then
         call set_error(error, 'thermal column: tau('//str(k)//') = '//text(tau(k))//' must be finite and >= 0')
         return
       end if
-    end do
-    do k = 0, nz
-      if (.not. nonneg(b_level(k))) then
-        call set_error(error, 'thermal column: Planck radiance at level '//str(k)//' = '//text(b_level(k)) &
-                       //' must be finite and >= 0')
+      if (.not. (nonneg(b_bottom(k)) .and. nonneg(b_top(k)))) then
+        call set_error(error, 'thermal column: Planck radiances of layer '//str(k)//' = '// &
+                       text(b_bottom(k))//', '//text(b_top(k))//' must be finite and >= 0')
         return
       end if
     end do
@@ -122,7 +168,8 @@ contains
     end if
     col%nz = nz
     col%tau = tau
-    col%b = b_level
+    col%bb = b_bottom
+    col%bt = b_top
     allocate (col%tau_cum(0:nz))
     col%tau_cum(0) = 0.0_wp
     do k = 1, nz
@@ -133,7 +180,7 @@ contains
     col%i_top = i_top
     col%i_surface = emissivity*b_surface &
                     + (1.0_wp - emissivity)*(downward_diffuse_flux(col, 0) + direct_flux(col, 0))/PI
-  end subroutine thermal_column_init
+  end subroutine thermal_column_init_layers
 
   !> Set up a column from level temperatures [K] and a spectral band (kumo_planck): b(i) =
   !> band_radiance(band, t_level(i)), the surface from t_surface. Temperatures are validated.
@@ -176,10 +223,10 @@ contains
     integer :: i, k
     do i = 0, col%nz
       call sums(col, i, 3, down_part, up_part)
-      flux_down(i) = PI*col%b(i) + down_part
-      flux_up(i) = PI*col%b(i) + up_part
+      flux_down(i) = PI*b_down(col, i) + down_part
+      flux_up(i) = PI*b_up(col, i) + up_part
       flux_direct(i) = direct_flux(col, i)
-      net(i) = down_part - up_part + flux_direct(i)
+      net(i) = PI*(b_down(col, i) - b_up(col, i)) + down_part - up_part + flux_direct(i)
       call sums(col, i, 2, down_part, up_part)
       flux_div(i) = down_part + up_part + direct_flux(col, i)/col%beam_mu0
     end do
@@ -199,20 +246,22 @@ contains
     real(wp) :: m, is, t
     integer :: k
     m = abs(mu)
-    rad = col%b(i)
     if (mu > 0.0_wp) then
       is = col%i_surface
       if (present(i_surface)) is = i_surface
-      rad = rad + (is - col%b(0))*attenuation(col%tau_cum(i), m)
+      rad = b_up(col, i) + (is - col%bb(1))*attenuation(col%tau_cum(i), m)
       do k = 1, i
         t = col%tau_cum(i) - col%tau_cum(k)
-        rad = rad + (col%b(k - 1) - col%b(k))*attenuation(t, m)*escape(col%tau(k), m)
+        rad = rad + (col%bb(k) - col%bt(k))*attenuation(t, m)*escape(col%tau(k), m)
+        if (k < i) rad = rad + (col%bt(k) - col%bb(k + 1))*attenuation(t, m)
       end do
     else
-      rad = rad + (col%i_top - col%b(col%nz))*attenuation(col%tau_cum(col%nz) - col%tau_cum(i), m)
+      rad = b_down(col, i) + (col%i_top - col%bt(col%nz))* &
+            attenuation(col%tau_cum(col%nz) - col%tau_cum(i), m)
       do k = i + 1, col%nz
         t = col%tau_cum(k - 1) - col%tau_cum(i)
-        rad = rad + (col%b(k) - col%b(k - 1))*attenuation(t, m)*escape(col%tau(k), m)
+        rad = rad + (col%bt(k) - col%bb(k))*attenuation(t, m)*escape(col%tau(k), m)
+        if (k > i + 1) rad = rad + (col%bb(k) - col%bt(k - 1))*attenuation(t, m)
       end do
     end if
   end function thermal_column_radiance
@@ -225,15 +274,19 @@ contains
     real(wp), intent(out) :: down_part, up_part
     real(wp) :: t
     integer :: k
-    up_part = (col%i_surface - col%b(0))*expint_e(n, col%tau_cum(i))
+    up_part = (col%i_surface - col%bb(1))*expint_e(n, col%tau_cum(i))
     do k = 1, i
       t = col%tau_cum(i) - col%tau_cum(k)
-      up_part = up_part + (col%b(k - 1) - col%b(k))*expint_divdiff(n + 1, t, col%tau(k))
+      up_part = up_part + (col%bb(k) - col%bt(k))*expint_divdiff(n + 1, t, col%tau(k))
+      ! a jump of B at level k (between level i and the surface)
+      if (k < i) up_part = up_part + (col%bt(k) - col%bb(k + 1))*expint_e(n, t)
     end do
-    down_part = (col%i_top - col%b(col%nz))*expint_e(n, col%tau_cum(col%nz) - col%tau_cum(i))
+    down_part = (col%i_top - col%bt(col%nz))*expint_e(n, col%tau_cum(col%nz) - col%tau_cum(i))
     do k = i + 1, col%nz
       t = col%tau_cum(k - 1) - col%tau_cum(i)
-      down_part = down_part + (col%b(k) - col%b(k - 1))*expint_divdiff(n + 1, t, col%tau(k))
+      down_part = down_part + (col%bt(k) - col%bb(k))*expint_divdiff(n + 1, t, col%tau(k))
+      ! a jump of B at level k - 1 (between level i and the top)
+      if (k > i + 1) down_part = down_part + (col%bb(k) - col%bt(k - 1))*expint_e(n, t)
     end do
     up_part = TWO_PI*up_part
     down_part = TWO_PI*down_part
@@ -245,8 +298,30 @@ contains
     integer, intent(in) :: i
     real(wp) :: up_part, down_part
     call sums(col, i, 3, down_part, up_part)
-    f = PI*col%b(i) + down_part
+    f = PI*b_down(col, i) + down_part
   end function downward_diffuse_flux
+
+  !> The Planck radiance on the lower side of level i (upward radiation leaves it from there).
+  pure real(wp) function b_up(col, i) result(b)
+    type(thermal_column_t), intent(in) :: col
+    integer, intent(in) :: i
+    if (i >= 1) then
+      b = col%bt(i)
+    else
+      b = col%bb(1)
+    end if
+  end function b_up
+
+  !> The Planck radiance on the upper side of level i.
+  pure real(wp) function b_down(col, i) result(b)
+    type(thermal_column_t), intent(in) :: col
+    integer, intent(in) :: i
+    if (i < col%nz) then
+      b = col%bb(i + 1)
+    else
+      b = col%bt(col%nz)
+    end if
+  end function b_down
 
   !> Direct beam flux on a horizontal plane at level i.
   pure real(wp) function direct_flux(col, i) result(f)

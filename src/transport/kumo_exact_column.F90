@@ -16,7 +16,7 @@ module kumo_exact_column
   use kumo_atmosphere, only: LAYER_3D
   use kumo_tally, only: tally_layout_t, tally_t
   use kumo_scene, only: scene_t
-  use kumo_thermal_column, only: thermal_column_t, thermal_column_init, thermal_column_fluxes, &
+  use kumo_thermal_column, only: thermal_column_t, thermal_column_init_layers, thermal_column_fluxes, &
                                  thermal_column_radiance
   implicit none
   private
@@ -54,7 +54,7 @@ contains
     associate (em => scn%src%em, atm => scn%atm)
       tau = atm%ext1*(atm%z(1:nz) - atm%z(0:nz - 1))
       eps = 1.0_wp - scn%sfc%albedo(1, 1)
-      call thermal_column_init(col, tau, em%b_lev, eps, em%b_sfc, em%b_top, error)
+      call thermal_column_init_layers(col, tau, em%b_bot, em%b_top_lay, eps, em%b_sfc, em%b_top, error)
       if (allocated(error)) return
       allocate (fu(0:nz), fd(0:nz), fdir(0:nz), div(0:nz), net(nz))
       call thermal_column_fluxes(col, fu, fd, fdir, div, net)

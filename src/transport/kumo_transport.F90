@@ -38,7 +38,7 @@ module kumo_transport
   use kumo_photon, only: photon_t
   use kumo_source, only: launch_plan_t, source_begin_batch, source_launch
   use kumo_emission, only: emission_b_point, emission_b_segment, emission_b_surface, &
-                           EMIT_SOLAR, EMIT_TOP, EMIT_SURFACE
+                           EMIT_SOLAR, EMIT_TOP, EMIT_SURFACE, EMIT_LAYER, emission_t
   use kumo_vr, only: roulette, ABS_COLLISION, ABS_TRACK, ABS_TENTATIVE
   use kumo_scene, only: scene_t
   implicit none
@@ -86,6 +86,7 @@ contains
     type(photon_t) :: p
     type(pending_t) :: pend
     integer(i8) :: ip
+    integer :: k
 
     ! Horizontal positions matter only for a 3-D region, an albedo map, per-column maps or
     ! cameras; a plane-parallel scene skips their bookkeeping in the 1-D layers.
@@ -119,6 +120,15 @@ contains
       tal%work(1) = tal%work(1) + p%n_steps
       tal%work(2) = tal%work(2) + p%n_events
     end do
+    ! layers whose net power is absorbed minus emitted: their emission, exact, per batch
+    if (bat%thermal) then
+      if (scn%src%em%any_abs) then
+        do k = 1, lay%nz
+          if (scn%src%em%by_abs(k)) tal%buf(lay%i_net + k) = tal%buf(lay%i_net + k) - &
+            scn%src%em%emit_layer(k)*real(n_photons, wp)/scn%src%em%power
+        end do
+      end if
+    end if
   end subroutine trace_batch
 
   !> Follow photon `p` from its current state until it escapes, is absorbed, killed or lost:
@@ -172,7 +182,7 @@ contains
           exit flight
         case (EV_ESCAPE)
           ! the top absorbs what leaves, and emits B_top
-          if (bat%thermal) call score_net(lay, tal, p, p%w, scn%src%em%b_top, 0, 0)
+          if (bat%thermal) call score_net(lay, tal, p, scn%src%em, p%w, scn%src%em%b_top, 0, 0)
           return
         case default   ! EV_KILLED
           return
@@ -238,7 +248,7 @@ contains
     case (LAYER_ABSORBING)
       wn = p%w*exp(-scn%atm%ext1(p%iz)*d)
       tal%buf(lay%i_abs + p%iz) = tal%buf(lay%i_abs + p%iz) + (p%w - wn)
-      if (bat%thermal) call score_net(lay, tal, p, p%w - wn, &
+      if (bat%thermal) call score_net(lay, tal, p, scn%src%em, p%w - wn, &
         emission_b_segment(scn%src%em, scn%atm, p%iz, p%z, zb, scn%atm%ext1(p%iz)*d), &
         lay%i_net + p%iz, 0)
       p%w = wn
@@ -276,7 +286,7 @@ contains
     p%n_events = p%n_events + 1
     if (scn%sfc%black) then
       tal%buf(lay%i_sfc + 1) = tal%buf(lay%i_sfc + 1) + p%w
-      if (scn%src%em%on) call score_net(lay, tal, p, p%w, &
+      if (scn%src%em%on) call score_net(lay, tal, p, scn%src%em, p%w, &
                                         emission_b_surface(scn%src%em, p%x, p%y), lay%i_snet + 1, 0)
       return
     end if
@@ -288,7 +298,7 @@ contains
       albedo = scn%sfc%albedo_at(p%x, p%y)
     end if
     tal%buf(lay%i_sfc + 1) = tal%buf(lay%i_sfc + 1) + p%w*(1.0_wp - albedo)
-    if (scn%src%em%on) call score_net(lay, tal, p, p%w*(1.0_wp - albedo), &
+    if (scn%src%em%on) call score_net(lay, tal, p, scn%src%em, p%w*(1.0_wp - albedo), &
                                       emission_b_surface(scn%src%em, p%x, p%y), lay%i_snet + 1, 0)
     p%w = p%w*albedo
     if (p%w <= 0.0_wp) return
@@ -376,7 +386,7 @@ contains
       ! values
       iv = 0
       if (in3d .and. lay%do_voxel) iv = lay%i_vnet + (kr - 1)*lay%ncol + ix + (iy - 1)*scn%atm%nx
-      call score_net(lay, tal, p, p%w - wn, emission_b_point(scn%src%em, scn%atm, p%iz, p%z, ix, &
+      call score_net(lay, tal, p, scn%src%em, p%w - wn, emission_b_point(scn%src%em, scn%atm, p%iz, p%z, ix, &
                      iy, kr), lay%i_net + p%iz, iv)
     end if
     p%w = wn
@@ -1025,28 +1035,47 @@ contains
   !> surface) and voxel, 0 for none. A thermal photon adds dw (b_abs/B_e - 1) to the net power
   !> of its emitter; what a cell that does not emit absorbs, and what solar photons deposit,
   !> is net power of the absorbing cell itself.
-  subroutine score_net(lay, tal, p, dw, b_abs, i_cell, i_vcell)
+  subroutine score_net(lay, tal, p, em, dw, b_abs, i_cell, i_vcell)
     type(tally_layout_t), intent(in) :: lay
     type(tally_t), intent(inout) :: tal
     type(photon_t), intent(in) :: p
+    type(emission_t), intent(in) :: em
     real(wp), intent(in) :: dw, b_abs
     integer, intent(in) :: i_cell, i_vcell
     real(wp) :: x
-    integer :: ie
+    integer :: ie, k_abs
+    logical :: cell_abs, erm
+    ! a 1-D layer whose net power is absorbed minus emitted (kumo_emission, by_abs)
+    cell_abs = .false.
+    k_abs = i_cell - lay%i_net
+    if (em%any_abs .and. i_cell > 0 .and. k_abs >= 1 .and. k_abs <= lay%nz) cell_abs = em%by_abs(k_abs)
     if (p%rbe > 0.0_wp) then
-      x = dw*(b_abs*p%rbe - 1.0_wp)
-      select case (p%emitter)
-      case (EMIT_SURFACE)
-        tal%buf(lay%i_snet + 1) = tal%buf(lay%i_snet + 1) + x
-      case (EMIT_TOP)
-      case default
-        tal%buf(lay%i_net + p%em_k) = tal%buf(lay%i_net + p%em_k) + x
-        if (p%em_v > 0 .and. lay%do_voxel) then
-          ie = lay%i_vnet + p%em_v
-          tal%buf(ie) = tal%buf(ie) + x
+      erm = .true.
+      if (p%emitter == EMIT_LAYER) then
+        if (em%by_abs(p%em_k)) then
+          ! the emitter's net is absorbed minus emitted: no net-exchange scores of its own
+          erm = .false.
+        else if (i_cell == lay%i_net + p%em_k .and. b_abs > 0.0_wp) then
+          ! exchange inside the emitting 1-D layer sums to zero (G(r, r') = G(r', r)): not
+          ! scored, which keeps the deep photons of thick layers from adding noise to its net
+          return
         end if
-      end select
-      if (b_abs > 0.0_wp) return
+      end if
+      if (erm) then
+        x = dw*(b_abs*p%rbe - 1.0_wp)
+        select case (p%emitter)
+        case (EMIT_SURFACE)
+          tal%buf(lay%i_snet + 1) = tal%buf(lay%i_snet + 1) + x
+        case (EMIT_TOP)
+        case default
+          tal%buf(lay%i_net + p%em_k) = tal%buf(lay%i_net + p%em_k) + x
+          if (p%em_v > 0 .and. lay%do_voxel) then
+            ie = lay%i_vnet + p%em_v
+            tal%buf(ie) = tal%buf(ie) + x
+          end if
+        end select
+      end if
+      if (b_abs > 0.0_wp .and. .not. cell_abs) return
     end if
     if (i_cell > 0) tal%buf(i_cell) = tal%buf(i_cell) + dw
     if (i_vcell > 0) tal%buf(i_vcell) = tal%buf(i_vcell) + dw

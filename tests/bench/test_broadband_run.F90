@@ -12,10 +12,24 @@
 !> a standard atmosphere together with a sounding, an unknown one, a solar flux or wavelength
 !> of &kumo_source, a sounding whose pressure does not fall, too many water-vapour values.
 !>
-!> Arguments: the folder of the k-distribution files (KUMO_RRTMGP_DIR) and the reference file.
-!> The namelists are written into the working directory.
+!>
+!> Longwave (tests/data/broadband/lw_gpoint_reference.txt, emissivity 0.98, nothing from
+!> above): clear columns scatter nowhere, so kumo sums the exact solution of every g-point
+!> (standard error 0); fluxes and heating rates agree with the reference within its own error
+!> plus 1e-6 of the largest flux. The same U.S. Standard column traced with photons
+!> (use_exact_thermal = .false.) within 4.5 standard errors (8 million photons).
+!>
+!> Cloudy columns (sw_cloudy_reference.txt, lw_cloudy_reference.txt of the same folder, made by
+!> bench/broadband/make_cloudy_reference.py): the U.S. Standard column with a gray
+!> Henyey-Greenstein cloud layer (g = 0.85) of optical depth 10 in layer 3; every flux at every
+!> level and every heating rate within 4 (shortwave) or 4.5 (longwave, 8 million photons)
+!> standard errors plus the reference's error.
+!>
+!> Arguments: the folder of the k-distribution files (KUMO_RRTMGP_DIR) and the shortwave
+!> reference file (the other references are read from its folder). The namelists are written
+!> into the working directory.
 module test_broadband_run_suite
-  use kumo_kinds, only: dp
+  use kumo_kinds, only: dp, i8
   use kumo_error, only: str
   use kumo_config, only: config_t, read_config
   use kumo_results, only: result_set_t
@@ -23,14 +37,18 @@ module test_broadband_run_suite
   use kumo_testing, only: error_t, unittest_t, new_unittest, check, check_sigma, check_error_words
   implicit none
   private
-  public :: collect_broadband_run, rrtmgp_dir, reference_file
+  public :: collect_broadband_run, rrtmgp_dir, reference_file, ref_dir
 
   character(len=:), allocatable :: rrtmgp_dir, reference_file
+  character(len=:), allocatable :: ref_dir           !! folder of the reference file
 
   !> A column of the reference file.
   type :: case_t
     integer :: nz = 0
+    logical :: lw = .false.                         !! a longwave reference
     real(dp) :: tsi = 0
+    real(dp) :: tsfc = 0, eps = 1                   !! longwave: surface temperature, emissivity
+    real(dp) :: cloud(4) = 0                        !! layer, optical depth, ssa, g (0: none)
     real(dp), allocatable :: lev(:, :)              !! (0:nz, 2) p [Pa], T [K]
     character(len=32), allocatable :: lay(:, :)     !! (nz, 4) p, T, h2o, o3 as written
     real(dp), allocatable :: bb(:, :)               !! (0:nz, 5) up, dif, dir, their errors
@@ -44,13 +62,19 @@ contains
     tests = [new_unittest('us1976_namelist_vs_disort', test_us1976), &
              new_unittest('rfmip_sounding_vs_disort', test_rfmip), &
              new_unittest('gray_cloud_layer', test_cloud_layer), &
+             new_unittest('sw_cloudy_vs_disort', test_sw_cloudy), &
+             new_unittest('lw_us1976_exact_sum', test_lw_us1976_exact), &
+             new_unittest('lw_rfmip_exact_sum', test_lw_rfmip_exact), &
+             new_unittest('lw_us1976_traced_vs_disort', test_lw_us1976_traced), &
+             new_unittest('lw_cloudy_vs_disort', test_lw_cloudy), &
              new_unittest('bad_inputs', test_bad_inputs)]
   end function collect_broadband_run
 
   !> One column of the reference file: its sounding as written (levels: p, T; layers: p, T,
   !> h2o, o3), TSI, broadband fluxes (0:nz, 5) and heating rates (nz, 2).
-  subroutine read_case(name, c, error)
+  subroutine read_case(name, c, error, file)
     character(len=*), intent(in) :: name
+    character(len=*), intent(in), optional :: file   !! in ref_dir (default: reference_file)
     type(case_t), intent(out) :: c
     type(error_t), allocatable, intent(out) :: error
     character(len=8192) :: line
@@ -58,9 +82,12 @@ contains
     real(dp) :: x(2)
     integer :: u, ios, idx
     logical :: on
+    character(len=:), allocatable :: path
     on = .false.
-    open (newunit=u, file=reference_file, status='old', action='read', iostat=ios)
-    call check(error, ios == 0, 'cannot open '//reference_file)
+    path = reference_file
+    if (present(file)) path = ref_dir//file
+    open (newunit=u, file=path, status='old', action='read', iostat=ios)
+    call check(error, ios == 0, 'cannot open '//path)
     if (allocated(error)) return
     do
       read (u, '(a)', iostat=ios) line
@@ -70,19 +97,31 @@ contains
       if (trim(key) == 'case') then
         read (line, *) key, w(1), w(2), c%nz
         on = trim(w(1)) == name
+        c%lw = index(w(2), '-lw-') > 0
         if (on) allocate (c%lev(0:c%nz, 2), c%lay(c%nz, 4), c%bb(0:c%nz, 5), c%heat(c%nz, 2))
+        if (on) c%bb = 0
       end if
       if (.not. on) cycle
       select case (trim(key))
       case ('setup')
-        read (line, *) key, x, c%tsi
+        if (c%lw) then
+          read (line, *) key, c%tsfc, c%eps
+        else
+          read (line, *) key, x, c%tsi
+        end if
+      case ('cloud')
+        read (line, *) key, c%cloud
       case ('level')
         read (line, *) key, idx, c%lev(idx, :)
       case ('layer')
         read (line, *) key, idx, w(1:6)
         c%lay(idx, :) = [w(1), w(2), w(4), w(6)]      ! p, T, h2o, o3 (gases h2o co2 o3 ...)
       case ('broadband')
-        read (line, *) key, idx, c%bb(idx, :)
+        if (c%lw) then
+          read (line, *) key, idx, c%bb(idx, 1:2), c%bb(idx, 4:5)   ! up, down, their errors
+        else
+          read (line, *) key, idx, c%bb(idx, :)
+        end if
       case ('heating')
         read (line, *) key, idx, c%heat(idx, :)
       case ('end')
@@ -90,37 +129,58 @@ contains
       end select
     end do
     close (u)
-    call check(error, allocated(c%bb), 'no column '//name//' in '//reference_file)
+    call check(error, allocated(c%bb), 'no column '//name//' in '//path)
   end subroutine read_case
 
   !> Write a namelist of column `c` (us1976: the standard atmosphere by name, levels as in the
   !> reference; else its sounding on 1 km layers) with `spectral_lines` added to &kumo_spectral,
   !> `source_lines` to &kumo_source and `atm_lines` to &kumo_atmosphere.
-  subroutine write_nml(path, c, spectral_lines, source_lines, n_batches, atm_lines)
+  !> A longwave case gets the longwave k-distribution, albedo 1 - emissivity and its surface
+  !> temperature; a cloudy one its cloud layer (Henyey-Greenstein); `groups` is appended.
+  subroutine write_nml(path, c, spectral_lines, source_lines, n_batches, atm_lines, groups, &
+                       n_photons)
     character(len=*), intent(in) :: path, spectral_lines, source_lines
     type(case_t), intent(in) :: c
     integer, intent(in) :: n_batches
-    character(len=*), intent(in), optional :: atm_lines
-    integer :: u, k
+    character(len=*), intent(in), optional :: atm_lines, groups
+    integer, intent(in), optional :: n_photons
+    integer :: u, k, kc
     real(dp) :: z(0:c%nz)
     logical :: us
+    character(len=:), allocatable :: npb
     us = c%nz == 35
+    npb = '20000'
+    if (present(n_photons)) npb = str(n_photons)
     do k = 0, c%nz
       z(k) = 1000.0_dp*k
       if (us .and. k >= 20) z(k) = 20000.0_dp + 4000.0_dp*(k - 20)
     end do
     open (newunit=u, file=path, status='replace', action='write')
-    write (u, '(a)') '&kumo_control', '  n_photons_per_batch = 20000', &
+    write (u, '(a)') '&kumo_control', '  n_photons_per_batch = '//npb, &
       '  n_batches = '//str(n_batches), '  seed = 20261127', '  verbose = 0', '/'
     write (u, '(a)') '&kumo_atmosphere', '  nz = '//str(c%nz), '  ext1d = '//str(c%nz)//'*0.0', &
       '  ssa1d = '//str(c%nz)//'*0.0'
     if (present(atm_lines)) write (u, '(a)') atm_lines
+    kc = nint(c%cloud(1))
+    if (kc > 0) write (u, '(a, es23.16, a, es23.16)') '  ext1d('//str(kc)//',1) = ', &
+      c%cloud(2)/(z(kc) - z(kc - 1)), new_line('a')//'  ssa1d('//str(kc)//',1) = ', c%cloud(3)
     write (u, '(a)', advance='no') '  z_levels = '
     write (u, '(*(f0.1, :, ", "))') z
-    write (u, '(a)') '/', '&kumo_surface', '  albedo = 0.2', '/', '&kumo_source', &
-      '  sza_deg = 60.0', source_lines, '/'
-    write (u, '(a)') '&kumo_spectral', '  kdist_file = '''//rrtmgp_dir//'/rrtmgp-gas-sw-g112.nc''', &
-      '  tsi = '//str(c%tsi)
+    write (u, '(a)') '/'
+    if (kc > 0) write (u, '(a, f0.6, a)') '&kumo_phase'//new_line('a')//'  phase_kind = ''hg'''// &
+      new_line('a')//'  phase_g = ', c%cloud(4), new_line('a')//'/'
+    if (c%lw) then
+      write (u, '(a, es23.16, a)') '&kumo_surface'//new_line('a')//'  albedo = ', 1 - c%eps, &
+        new_line('a')//'/'
+      write (u, '(a)') '&kumo_source', source_lines, '/'
+      write (u, '(a)') '&kumo_spectral', '  kdist_file = '''//rrtmgp_dir//'/rrtmgp-gas-lw-g128.nc'''
+      write (u, '(a, es23.16)') '  t_surface = ', c%tsfc
+    else
+      write (u, '(a)') '&kumo_surface', '  albedo = 0.2', '/', '&kumo_source', &
+        '  sza_deg = 60.0', source_lines, '/'
+      write (u, '(a)') '&kumo_spectral', '  kdist_file = '''//rrtmgp_dir//'/rrtmgp-gas-sw-g112.nc''', &
+        '  tsi = '//str(c%tsi)
+    end if
     if (us) then
       write (u, '(a)') '  profile = ''us1976'''
     else
@@ -138,6 +198,7 @@ contains
     write (u, '(a)', advance='no') '  h2o_vmr = '
     write (u, '(*(a, :, ", "))') (trim(c%lay(k, 3)), k=1, c%nz)
     write (u, '(a)') spectral_lines, '/'
+    if (present(groups)) write (u, '(a)') groups
     close (u)
   end subroutine write_nml
 
@@ -171,29 +232,37 @@ contains
   !> c of the reference, within 4 sigma plus the reference's error. With a cloud layer from
   !> level `k_cloud` - 1 to `k_cloud` (k_cloud <= nz) only the direct flux is compared: below
   !> the layer it is the reference's times `direct_factor`.
-  subroutine compare(set, summary, c, error, k_cloud, direct_factor)
+  subroutine compare(set, summary, c, error, k_cloud, direct_factor, abs_floor)
     type(result_set_t), intent(in) :: set
     type(run_summary_t), intent(in) :: summary
     type(case_t), intent(in) :: c
     type(error_t), allocatable, intent(inout) :: error
     integer, intent(in) :: k_cloud
     real(dp), intent(in) :: direct_factor
-    real(dp) :: worst, dev, fac
+    !> an absolute allowance added to every comparison (exact sums: round-off of the sums)
+    real(dp), intent(in), optional :: abs_floor
+    real(dp) :: worst, dev, fac, floor, k_sigma
     integer :: iu, idif, idir, ih, k, nz
     character(len=:), allocatable :: where
     nz = c%nz
     iu = var(set, 'flux_up_wm2', error)
     idif = var(set, 'flux_down_diffuse_wm2', error)
-    idir = var(set, 'flux_down_direct_wm2', error)
+    if (.not. c%lw) idir = var(set, 'flux_down_direct_wm2', error)
     ih = var(set, 'heating_rate_layer', error)
     if (allocated(error)) return
     worst = 0
     where = ''
+    floor = 0
+    if (present(abs_floor)) floor = abs_floor
+    ! longwave traced runs: the scores of a few photons emitted high up are large (heavier
+    ! tails than a normal distribution), 4.5 sigma over about a hundred values
+    k_sigma = 4
+    if (c%lw) k_sigma = 4.5_dp
     do k = 0, nz
       fac = 1
       if (k < k_cloud) fac = direct_factor
-      call cmp(set%vars(idir)%mean(k + 1), set%vars(idir)%stderr(k + 1), fac*c%bb(k, 3), 0.0_dp, &
-               'direct flux at level '//str(k))
+      if (.not. c%lw) call cmp(set%vars(idir)%mean(k + 1), set%vars(idir)%stderr(k + 1), &
+                               fac*c%bb(k, 3), 0.0_dp, 'direct flux at level '//str(k))
       if (k_cloud <= nz) cycle                       ! the cloud changes the diffuse light
       call cmp(set%vars(iu)%mean(k + 1), set%vars(iu)%stderr(k + 1), c%bb(k, 1), c%bb(k, 4), &
                'up flux at level '//str(k))
@@ -210,15 +279,18 @@ contains
       write (*, '(a, f0.3, a, f0.3, a, f0.3, a)') '    surface-layer heating ', set%vars(ih)%mean(1), &
         ' +- ', set%vars(ih)%stderr(1), ' K/day (DISORT ', c%heat(1, 1), ')'
     end if
-    write (*, '(a, f0.3, a, f0.3, a, f0.3, a)') '    surface direct ', set%vars(idir)%mean(1), ' +- ', &
-      set%vars(idir)%stderr(1), ' W m-2 (expected ', direct_factor*c%bb(0, 3), ')'
+    if (.not. c%lw) write (*, '(a, f0.3, a, f0.3, a, f0.3, a)') '    surface direct ', &
+      set%vars(idir)%mean(1), ' +- ', set%vars(idir)%stderr(1), ' W m-2 (expected ', &
+      direct_factor*c%bb(0, 3), ')'
     write (*, '(a, f0.2, a, f0.3, a)') '    largest deviation ', worst, ' sigma ('//where//'); ', &
       summary%wall_time, ' s'
   contains
     subroutine cmp(m, s, r, re, label)
       real(dp), intent(in) :: m, s, r, re
       character(len=*), intent(in) :: label
-      call check_sigma(error, m, r, s, 4.0_dp, label, abs_floor=re + 1.0e-9_dp*c%tsi)
+      ! a flux no photon reached has no standard error: allow three photons' worth
+      call check_sigma(error, m, r, s, k_sigma, label, abs_floor=re + 1.0e-9_dp*c%tsi + floor + &
+                       3*c%tsi*0.5_dp/real(max(1_i8, summary%n_photons), dp))
       if (s > 0) then
         dev = abs(m - r)/s
         if (dev > worst) then
@@ -282,6 +354,88 @@ contains
                str(set%vars(ic)%mean(1))//' is not 1')
   end subroutine test_cloud_layer
 
+  !> The U.S. Standard column with the gray Henyey-Greenstein cloud of sw_cloudy_reference.txt:
+  !> every flux and heating rate within 4 sigma.
+  subroutine test_sw_cloudy(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(case_t) :: c
+    type(result_set_t) :: set
+    type(run_summary_t) :: summary
+    call read_case('us1976_cloud', c, error, 'sw_cloudy_reference.txt')
+    if (allocated(error)) return
+    call write_nml('broadband_sw_cloudy.nml', c, '  floor_share = 0.2', '', 40)
+    call run('broadband_sw_cloudy.nml', set, summary, error)
+    if (allocated(error)) return
+    call compare(set, summary, c, error, huge(1), 1.0_dp)
+  end subroutine test_sw_cloudy
+
+  !> Longwave, U.S. Standard column, clear: the exact sum over g-points (no photons; standard
+  !> errors 0) against the reference within its error plus 1e-6 of the surface emission.
+  subroutine test_lw_us1976_exact(error)
+    type(error_t), allocatable, intent(out) :: error
+    call lw_exact('us1976', 'lw_exact_us1976.nml', error)
+  end subroutine test_lw_us1976_exact
+
+  !> Longwave, RFMIP site 0 as a sounding with its own surface temperature (303.5 K over a
+  !> lowest level at 296.9 K): the exact sum.
+  subroutine test_lw_rfmip_exact(error)
+    type(error_t), allocatable, intent(out) :: error
+    call lw_exact('rfmip_site0', 'lw_exact_rfmip.nml', error)
+  end subroutine test_lw_rfmip_exact
+
+  subroutine lw_exact(name, nml, error)
+    character(len=*), intent(in) :: name, nml
+    type(error_t), allocatable, intent(out) :: error
+    type(case_t) :: c
+    type(result_set_t) :: set
+    type(run_summary_t) :: summary
+    integer :: iu
+    call read_case(name, c, error, 'lw_gpoint_reference.txt')
+    if (allocated(error)) return
+    call write_nml(nml, c, '', '', 3, n_photons=100)
+    call run(nml, set, summary, error)
+    if (allocated(error)) return
+    iu = var(set, 'flux_up_wm2', error)
+    if (allocated(error)) return
+    call check(error, maxval(set%vars(iu)%stderr) == 0 .and. summary%n_photons > 0, &
+               'the clear longwave column is not summed exactly (standard error '// &
+               str(maxval(set%vars(iu)%stderr))//')')
+    if (allocated(error)) return
+    call compare(set, summary, c, error, huge(1), 1.0_dp, abs_floor=1.0e-6_dp*c%bb(0, 1))
+  end subroutine lw_exact
+
+  !> The clear U.S. Standard column traced with photons (use_exact_thermal = .false.), g-points
+  !> drawn by their exchange: every flux and heating rate within 4 sigma of the reference.
+  subroutine test_lw_us1976_traced(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(case_t) :: c
+    type(result_set_t) :: set
+    type(run_summary_t) :: summary
+    call read_case('us1976', c, error, 'lw_gpoint_reference.txt')
+    if (allocated(error)) return
+    call write_nml('lw_traced_us1976.nml', c, '  floor_share = 0.2', '', 200, &
+                   groups='&kumo_vr'//new_line('a')//'  use_exact_thermal = .false.'// &
+                   new_line('a')//'/', n_photons=40000)
+    call run('lw_traced_us1976.nml', set, summary, error)
+    if (allocated(error)) return
+    call compare(set, summary, c, error, huge(1), 1.0_dp)
+  end subroutine test_lw_us1976_traced
+
+  !> The U.S. Standard column with the gray scattering cloud of lw_cloudy_reference.txt (optical
+  !> depth 10, single-scattering albedo 0.4, g = 0.85): every flux and heating rate within 4 sigma.
+  subroutine test_lw_cloudy(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(case_t) :: c
+    type(result_set_t) :: set
+    type(run_summary_t) :: summary
+    call read_case('us1976_cloud', c, error, 'lw_cloudy_reference.txt')
+    if (allocated(error)) return
+    call write_nml('lw_cloudy.nml', c, '  floor_share = 0.2', '', 200, n_photons=40000)
+    call run('lw_cloudy.nml', set, summary, error)
+    if (allocated(error)) return
+    call compare(set, summary, c, error, huge(1), 1.0_dp)
+  end subroutine test_lw_cloudy
+
   subroutine test_bad_inputs(error)
     type(error_t), allocatable, intent(out) :: error
     type(case_t) :: c
@@ -289,8 +443,9 @@ contains
     if (allocated(error)) return
     call expect('  kdist_file = ''no-such-kdist.nc''', '', &
                 [character(len=32) :: 'no-such-kdist.nc', '&kumo_spectral'])
-    call expect('  kdist_file = '''//rrtmgp_dir//'/rrtmgp-gas-lw-g128.nc''', '', &
-                [character(len=32) :: 'longwave', 'lw-g128'])
+    call expect('  t_surface = 300.0', '', [character(len=32) :: 't_surface = 300', 'longwave', &
+                'shortwave one'])
+    call expect('  t_surface = -5.0', '', [character(len=32) :: 't_surface = -5', 'must be'])
     call expect('  kdist_file = '''//reference_file//'''', '', &
                 [character(len=32) :: 'RRTMGP file', 'sw_gpoint_reference.txt'])
     call expect('  tsi = -5.0', '', [character(len=32) :: 'tsi = -5', 'must be'])
@@ -324,7 +479,7 @@ contains
 end module test_broadband_run_suite
 
 program test_broadband_run
-  use test_broadband_run_suite, only: collect_broadband_run, rrtmgp_dir, reference_file
+  use test_broadband_run_suite, only: collect_broadband_run, rrtmgp_dir, reference_file, ref_dir
   use kumo_testing, only: run_unittests
   use kumo_parallel, only: par_init, par_finalize
   implicit none
@@ -338,6 +493,7 @@ program test_broadband_run
   rrtmgp_dir = trim(arg)
   call get_command_argument(2, arg)
   reference_file = trim(arg)
+  ref_dir = reference_file(1:index(reference_file, '/', back=.true.))
   call par_init()
   call run_unittests('broadband run', collect_broadband_run(), n_failed)
   call par_finalize()

@@ -30,6 +30,7 @@ module kumo_config
   use kumo_nml_text, only: nml_group_t, nml_scan, nml_diagnose, closest_name, nml_probe_i, &
                            nml_find_nan, nml_find_long_string
   use kumo_textio, only: read_line
+  use kumo_vr, only: ABS_ESTIMATOR_NAMES, absorption_estimator_code
   implicit none
   private
   public :: config_t, control_cfg_t, atmosphere_cfg_t, phase_cfg_t, surface_cfg_t, &
@@ -217,6 +218,7 @@ module kumo_config
     integer :: diffusion_max = 30                  !! largest spread half-width [columns]
     real(wp) :: ddis_eps = 0.1_wp                  !! detector directional importance sampling
     logical :: use_exact_thermal = .true.          !! non-scattering thermal columns solved exactly
+    character(len=16) :: absorption_estimator = 'collision'  !! one of ABS_ESTIMATOR_NAMES (kumo_vr)
   end type vr_cfg_t
 
   !> &kumo_radiance: radiances by local estimation at levels, in chosen directions.
@@ -1571,7 +1573,7 @@ contains
     integer :: sv_max_layers, ios, ip
     logical :: use_supervoxels, use_1d_layers, use_absorbing_layers, stratify_source, &
                use_exact_thermal
-    character(len=16) :: vr_preset
+    character(len=16) :: vr_preset, absorption_estimator
     real(wp) :: zeta_min, trunc_theta_max_deg, trunc_peak, cf_tau_min, diffusion, ddis_eps
     integer :: trunc_levels, diffusion_max
     character(len=512) :: msg
@@ -1579,7 +1581,7 @@ contains
     namelist /kumo_vr/ rr_threshold, rr_weight, use_supervoxels, sv_fsupg, sv_fsupi, &
       sv_max_layers, use_1d_layers, use_absorbing_layers, use_exact_thermal, vr_preset, zeta_min, &
       trunc_theta_max_deg, trunc_levels, trunc_peak, cf_tau_min, diffusion, diffusion_max, &
-      ddis_eps, stratify_source
+      ddis_eps, stratify_source, absorption_estimator
     rr_threshold = cfg%rr_threshold
     rr_weight = cfg%rr_weight
     use_supervoxels = cfg%use_supervoxels
@@ -1599,6 +1601,7 @@ contains
     diffusion = UNSET
     diffusion_max = cfg%diffusion_max
     ddis_eps = UNSET
+    absorption_estimator = cfg%absorption_estimator
     rewind (unit)
     msg = ''
     read (unit, nml=kumo_vr, iostat=ios, iomsg=msg)
@@ -1668,6 +1671,10 @@ contains
     cfg%use_absorbing_layers = use_absorbing_layers
     cfg%use_exact_thermal = use_exact_thermal
     cfg%stratify_source = stratify_source
+    ip = absorption_estimator_code(absorption_estimator)
+    call require(ip >= 0, CTX, 'absorption_estimator', absorption_estimator, 'must be one of '// &
+                 join(ABS_ESTIMATOR_NAMES), error)
+    if (ip >= 0) cfg%absorption_estimator = ABS_ESTIMATOR_NAMES(ip)
   contains
     !> Read one assignment of &kumo_vr (or write the namelist), for check_read.
     subroutine probe(text, out_unit, ios, msg)
@@ -1839,6 +1846,11 @@ contains
       call spectral_checks(cfg, error)
       if (allocated(error)) return
     end if
+    call require(.not. cfg%thermal%enabled .or. cfg%vr%absorption_estimator == 'collision', &
+                 '&kumo_vr: ', 'absorption_estimator', cfg%vr%absorption_estimator, 'is for '// &
+                 'solar runs only: with &kumo_thermal the net-exchange tallies score absorption '// &
+                 'at collisions; set absorption_estimator = ''collision'' (the default)', error)
+    if (allocated(error)) return
     if (cfg%thermal%enabled .and. cfg%thermal%include_sun .and. &
         cfg%source%solar_flux <= 0.0_wp) then
       call set_error(error, '&kumo_thermal: include_sun = .true. needs &kumo_source: '// &
@@ -2325,6 +2337,8 @@ contains
            'kumo_vr.ddis_eps = '//str(cfg%vr%ddis_eps)//nl
     ! echoed only when changed, so that the configuration attribute of other runs stays as it was
     if (.not. cfg%vr%use_exact_thermal) text = text//'kumo_vr.use_exact_thermal = F'//nl
+    if (cfg%vr%absorption_estimator /= 'collision') text = text// &
+      'kumo_vr.absorption_estimator = '//trim(cfg%vr%absorption_estimator)//nl
     if (allocated(cfg%rad%mu)) text = text// &
       'kumo_radiance.rad_mu = '//join(cfg%rad%mu)//nl// &
       'kumo_radiance.rad_phi_deg = '//join(cfg%rad%phi_deg)//nl// &

@@ -32,7 +32,8 @@ module kumo_scene_setup
   use kumo_emission, only: emission_t, emission_init
   use kumo_planck, only: spectral_band_t, band_from_wavenumbers, band_monochromatic_wavelength, &
                          band_radiance, band_units
-  use kumo_vr, only: collision_forcing, ddis_phases, spiky_without_vr, SPIKY_PEAK, DDIS_CONE_DEG
+  use kumo_vr, only: collision_forcing, ddis_phases, spiky_without_vr, SPIKY_PEAK, DDIS_CONE_DEG, &
+                    absorption_estimator_code
   use kumo_scene, only: scene_t
   use kumo_config, only: config_t, resolve_path, config_inputs, input_file_t
   use kumo_cloud_scene, only: build_cloud_atmosphere, rayleigh_layers, cloud_temperature_t
@@ -285,6 +286,7 @@ contains
     end if
     scene%vr%rr_threshold = cfg%vr%rr_threshold
     scene%vr%rr_weight = cfg%vr%rr_weight
+    scene%vr%abs_estimator = absorption_estimator_code(cfg%vr%absorption_estimator)
     scene%max_events = cfg%control%max_events
     select case (cfg%control%mode_3d)
     case ('ica')

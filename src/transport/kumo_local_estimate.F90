@@ -44,6 +44,8 @@ module kumo_local_estimate
   private
   public :: detectors_t, detectors_init, le_particle, le_surface, le_boundary_emission, &
             ddis_factor, ddis_direction
+  ! the steps of the voxel walk, also taken by the track-length absorption score (kumo_transport)
+  public :: face_distance, cross_face, advance
 
   real(wp), parameter :: INV_4PI = 0.25_wp/PI
 

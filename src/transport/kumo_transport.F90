@@ -12,7 +12,10 @@
 !> Per layer class (see kumo_atmosphere): clear layers are crossed in one step, purely absorbing
 !> layers multiply the weight by exp(-tau) along the path and deposit the difference, uniform
 !> scattering layers are traced analytically, and the 3-D region uses maximum-cross-section
-!> (null-collision) tracking inside super-voxels (seed text section 4.1). Photons carry the
+!> (null-collision) tracking inside super-voxels (seed text section 4.1). Absorption is scored
+!> at real collisions, or (`vr_t%abs_estimator`, kumo_vr) as its expectation along the flights:
+!> w k_abs s for every piece of path, voxel by voxel (`absorb_path`), or w k_abs / k_majorant
+!> at every tentative collision of the 3-D walk; the random walk is the same. Photons carry the
 !> index of their layer and super-voxel; positions are set exactly onto faces when crossing them,
 !> and a position that round-off puts outside its cell is clamped back (and counted).
 !>
@@ -25,7 +28,8 @@ module kumo_transport
   use kumo_phase, only: phase_sample_mu
   use kumo_truncation, only: trunc_sample_mu
   use kumo_local_estimate, only: detectors_t, le_particle, le_surface, ddis_factor, &
-                                 ddis_direction, le_boundary_emission
+                                 ddis_direction, le_boundary_emission, face_distance, &
+                                 cross_face, advance
   use kumo_atmosphere, only: atmosphere_t, column_of, column_xy, LAYER_CLEAR, &
                              LAYER_ABSORBING, LAYER_SCATTERING, LAYER_3D
   use kumo_brdf, only: brdf_albedo, brdf_sample
@@ -35,7 +39,7 @@ module kumo_transport
   use kumo_source, only: launch_plan_t, source_begin_batch, source_launch
   use kumo_emission, only: emission_b_point, emission_b_segment, emission_b_surface, &
                            EMIT_SOLAR, EMIT_TOP, EMIT_SURFACE, EMIT_LAYER, emission_t
-  use kumo_vr, only: roulette
+  use kumo_vr, only: roulette, ABS_COLLISION, ABS_TRACK, ABS_TENTATIVE
   use kumo_scene, only: scene_t
   implicit none
   private
@@ -55,6 +59,9 @@ module kumo_transport
     logical :: plain     !! no local estimates, forcing or truncation: the plain scattering
     real(wp) :: inv_cf   !! 1/(collision-forcing factor)
     logical :: thermal   !! thermal emission: net-exchange tallies (kumo_emission)
+    !> absorption scored along the flights (ABS_TRACK or ABS_TENTATIVE), not at collisions
+    logical :: track
+    integer :: est3      !! ABS_* estimator of the 3-D null-collision walk
   end type batch_t
 
   !> DDIS secondaries of the current photon waiting to be traced, last in first out: position,
@@ -91,6 +98,11 @@ contains
     bat%inv_cf = 1.0_wp/scn%vr%cf_factor
     bat%plain = .not. (scn%det%active .or. bat%forced .or. scn%atm%truncated)
     bat%thermal = scn%src%em%on
+    ! The expected-value absorption scores serve solar runs; the net-exchange tallies of thermal
+    ! runs need the Planck radiance where the weight is absorbed, so those stay at collisions.
+    bat%est3 = scn%vr%abs_estimator
+    if (bat%thermal) bat%est3 = ABS_COLLISION
+    bat%track = bat%est3 /= ABS_COLLISION
     call source_begin_batch(scn%src, n_photons, rng, plan)
     do ip = 1, n_photons
       call source_launch(scn%src, plan, scn%atm, scn%sfc, rng, ip, p)
@@ -200,10 +212,10 @@ contains
     if (cls == LAYER_3D) then
       if (p%column) then
         call fly_column(scn%atm, lay, tal, p%x, p%y, p%z, p%uz, p%w, p%order, p%iz, tau, &
-                        p%n_steps, scn%max_steps, ev, ix, iy, kr)
+                        p%n_steps, scn%max_steps, bat%track, ev, ix, iy, kr)
       else
         call fly_3d(scn%atm, lay, tal, rng, p%x, p%y, p%z, p%ux, p%uy, p%uz, p%w, p%order, p%iz, &
-                    tau, p%n_steps, scn%max_steps, bat%inv_cf, ev, ix, iy, kr)
+                    tau, p%n_steps, scn%max_steps, bat%inv_cf, bat%est3, ev, ix, iy, kr)
       end if
       in3d = .true.
       return
@@ -220,6 +232,7 @@ contains
       e = scn%atm%ext1(p%iz)
       if (tau < e*d) then
         d = tau/e
+        if (bat%track) call score_track(lay, tal, p%iz, p%w*(tau*(1.0_wp - scn%atm%omg1(p%iz))))
         p%z = p%z + p%uz*d
         if (move_xy) then
           p%x = p%x + p%ux*d
@@ -230,6 +243,7 @@ contains
         ev = EV_COLLISION
         return
       end if
+      if (bat%track) call score_track(lay, tal, p%iz, p%w*((e*d)*(1.0_wp - scn%atm%omg1(p%iz))))
       tau = tau - e*d
     case (LAYER_ABSORBING)
       wn = p%w*exp(-scn%atm%ext1(p%iz)*d)
@@ -357,10 +371,15 @@ contains
     else
       wn = p%w*omega
     end if
-    tal%buf(lay%i_abs + p%iz) = tal%buf(lay%i_abs + p%iz) + (p%w - wn)
-    if (in3d .and. lay%do_voxel) then
-      ic = lay%i_vox + (kr - 1)*lay%ncol + ix + (iy - 1)*scn%atm%nx
-      tal%buf(ic) = tal%buf(ic) + (p%w - wn)
+    if (bat%track) then
+      ! absorption was scored along the flight; what the weight loses here is booked against it
+      tal%buf(lay%i_rr + 1) = tal%buf(lay%i_rr + 1) - (p%w - wn)
+    else
+      tal%buf(lay%i_abs + p%iz) = tal%buf(lay%i_abs + p%iz) + (p%w - wn)
+      if (in3d .and. lay%do_voxel) then
+        ic = lay%i_vox + (kr - 1)*lay%ncol + ix + (iy - 1)*scn%atm%nx
+        tal%buf(ic) = tal%buf(ic) + (p%w - wn)
+      end if
     end if
     if (bat%thermal) then
       ! 1-D layers come with ix = iy = kr = 0 (fly), for which emission_b_point takes the level
@@ -648,7 +667,7 @@ contains
   !> inside the region (within a super-layer or between two) are tallied here and the walk goes
   !> on, so that the caller sees the photon again only at a collision or when it leaves.
   subroutine fly_3d(atm, lay, tal, rng, x, y, z, ux, uy, uz, w, order, iz, tau, n_steps, &
-                    max_steps, inv_cf, ev, ix, iy, kr)
+                    max_steps, inv_cf, est, ev, ix, iy, kr)
     type(atmosphere_t), intent(in) :: atm
     type(tally_layout_t), intent(in) :: lay
     type(tally_t), intent(inout) :: tal
@@ -660,9 +679,11 @@ contains
     integer(i8), intent(inout) :: n_steps
     integer(i8), intent(in) :: max_steps
     real(wp), intent(in) :: inv_cf  !! 1/(collision-forcing factor)
+    integer, intent(in) :: est      !! absorption estimator (ABS_*): what is scored on the way
     integer, intent(out) :: ev, ix, iy, kr
     integer :: s, jx, jy, bx, by, nbx, nby, off, ixlo, ixhi, iylo, iyhi, face
     real(wp) :: dxf, dyf, dzf, d, smax, bdx, bdy, xlo, ylo, rux, ruy, ruz, e
+    real(wp) :: xs, ys, sl  !! ABS_TRACK: start and length of the straight path in this layer
 
     ev = 0
     ix = 0
@@ -680,6 +701,9 @@ contains
     else
       dzf = max(0.0_wp, (z - atm%z(iz - 1))*ruz)
     end if
+    xs = x
+    ys = y
+    sl = 0.0_wp
 
     superlayer: do
       ! enter super-layer s: the block under the photon and the distances to its x and y faces
@@ -728,6 +752,7 @@ contains
         if (smax*d > tau) then
           ! tentative collision inside the block
           d = tau/smax
+          sl = sl + d
           x = x + ux*d
           y = y + uy*d
           z = z + uz*d
@@ -746,6 +771,10 @@ contains
             tal%anomalies(ANOM_POSITION_REPAIR) = tal%anomalies(ANOM_POSITION_REPAIR) + 1
           end if
           e = atm%ext3(ix, iy, kr)
+          ! tentative collisions come at the rate smax/inv_cf: w k_abs inv_cf/smax at each is
+          ! the track-length score in expectation
+          if (est == ABS_TENTATIVE) call score_voxel(atm, lay, tal, iz, ix, iy, kr, &
+            w*((e*(1.0_wp - atm%omg3(ix, iy, kr)))*(inv_cf/smax)))
           ! real with probability e/smax; no random number is needed when the voxel is its
           ! block's majorant (always so for a block of one voxel)
           if (e < smax) then
@@ -756,12 +785,14 @@ contains
           end if
           call wrap(x, atm%lx)
           call wrap(y, atm%ly)
+          if (est == ABS_TRACK) call absorb_path(atm, lay, tal, iz, xs, ys, ux, uy, sl, w)
           ev = EV_COLLISION
           return
         end if
 
         ! cross the nearest face
         tau = tau - smax*d
+        sl = sl + d
         if (face == 3) then
           ! a level: tally it; leave the region, or go on in the next layer
           x = x + ux*d
@@ -774,6 +805,12 @@ contains
             z = atm%z(iz)
           else
             z = atm%z(iz - 1)
+          end if
+          if (est == ABS_TRACK) then
+            call absorb_path(atm, lay, tal, iz, xs, ys, ux, uy, sl, w)
+            xs = x
+            ys = y
+            sl = 0.0_wp
           end if
           call cross_level(atm, lay, tal, x, y, uz, w, order, iz, ev)
           if (ev /= 0 .or. iz < atm%k3_lo .or. iz > atm%k3_hi) return
@@ -847,8 +884,8 @@ contains
   !> 3-D orders): the column is a stack of uniform voxels, crossed layer by layer like the 1-D
   !> layers, without null collisions. Ends like fly_3d: a collision in voxel (ix, iy, kr)
   !> (ev = EV_COLLISION), or the photon leaves the region (ev from cross_level).
-  subroutine fly_column(atm, lay, tal, x, y, z, uz, w, order, iz, tau, n_steps, max_steps, ev, &
-                        ix, iy, kr)
+  subroutine fly_column(atm, lay, tal, x, y, z, uz, w, order, iz, tau, n_steps, max_steps, track, &
+                        ev, ix, iy, kr)
     type(atmosphere_t), intent(in) :: atm
     type(tally_layout_t), intent(in) :: lay
     type(tally_t), intent(inout) :: tal
@@ -858,6 +895,7 @@ contains
     integer, intent(inout) :: iz
     integer(i8), intent(inout) :: n_steps
     integer(i8), intent(in) :: max_steps
+    logical, intent(in) :: track  !! score absorption along the path (ABS_TRACK, ABS_TENTATIVE)
     integer, intent(out) :: ev, ix, iy, kr
     real(wp) :: zb, d, e
     ev = 0
@@ -871,15 +909,91 @@ contains
       e = atm%ext3(ix, iy, kr)
       if (tau < e*d) then
         z = min(atm%z(iz), max(atm%z(iz - 1), z + uz*(tau/e)))
+        if (track) call score_voxel(atm, lay, tal, iz, ix, iy, kr, &
+                                    w*(tau*(1.0_wp - atm%omg3(ix, iy, kr))))
         ev = EV_COLLISION
         return
       end if
+      if (track) call score_voxel(atm, lay, tal, iz, ix, iy, kr, &
+                                  w*((e*d)*(1.0_wp - atm%omg3(ix, iy, kr))))
       tau = tau - e*d
       z = zb
       call cross_level(atm, lay, tal, x, y, uz, w, order, iz, ev)
       if (ev /= 0 .or. iz < atm%k3_lo .or. iz > atm%k3_hi) return
     end do
   end subroutine fly_column
+
+  !> Track-length absorption score (ABS_TRACK) of a straight piece of flight of length s inside
+  !> the 3-D layer iz, from (x, y) along the horizontal direction (ux, uy): w k_abs l for each
+  !> voxel the piece crosses, l the length inside it, found by the steps of the line-of-sight
+  !> walk (kumo_local_estimate). Given the path, this is the expectation of what the collision
+  !> score would deposit in each voxel before the photon collides or leaves.
+  subroutine absorb_path(atm, lay, tal, iz, x, y, ux, uy, s, w)
+    type(atmosphere_t), intent(in) :: atm
+    type(tally_layout_t), intent(in) :: lay
+    type(tally_t), intent(inout) :: tal
+    integer, intent(in) :: iz
+    real(wp), intent(in) :: x, y, ux, uy, s, w
+    real(wp) :: xc, yc, rem, tx, ty, step, a, dep
+    integer :: kr, ix, iy, iv0
+    if (s <= 0.0_wp) return
+    kr = iz - atm%k3_lo + 1
+    if (atm%uniform3(kr) .and. .not. lay%do_voxel) then
+      a = w*((atm%ext3(1, 1, kr)*(1.0_wp - atm%omg3(1, 1, kr)))*s)
+    else
+      call column_xy(atm, x, y, ix, iy)
+      xc = x
+      yc = y
+      rem = s
+      a = 0.0_wp
+      iv0 = lay%i_vox + (kr - 1)*lay%ncol - atm%nx
+      do
+        tx = face_distance(ix, xc, ux, atm%dx)
+        ty = face_distance(iy, yc, uy, atm%dy)
+        step = min(tx, ty, rem)
+        dep = w*((atm%ext3(ix, iy, kr)*(1.0_wp - atm%omg3(ix, iy, kr)))*step)
+        a = a + dep
+        if (lay%do_voxel) tal%buf(iv0 + ix + iy*atm%nx) = tal%buf(iv0 + ix + iy*atm%nx) + dep
+        if (step >= rem) exit
+        rem = rem - step
+        if (tx <= ty) then
+          call cross_face(ix, xc, ux, atm%nx, atm%dx, atm%lx)
+          call advance(iy, yc, uy*step, atm%ny, atm%ly, atm%inv_dy)
+        else
+          call cross_face(iy, yc, uy, atm%ny, atm%dy, atm%ly)
+          call advance(ix, xc, ux*step, atm%nx, atm%lx, atm%inv_dx)
+        end if
+      end do
+    end if
+    call score_track(lay, tal, iz, a)
+  end subroutine absorb_path
+
+  !> An expected-value absorption score `a` in voxel (ix, iy, kr) of layer iz.
+  subroutine score_voxel(atm, lay, tal, iz, ix, iy, kr, a)
+    type(atmosphere_t), intent(in) :: atm
+    type(tally_layout_t), intent(in) :: lay
+    type(tally_t), intent(inout) :: tal
+    integer, intent(in) :: iz, ix, iy, kr
+    real(wp), intent(in) :: a
+    integer :: ic
+    if (lay%do_voxel) then
+      ic = lay%i_vox + (kr - 1)*lay%ncol + ix + (iy - 1)*atm%nx
+      tal%buf(ic) = tal%buf(ic) + a
+    end if
+    call score_track(lay, tal, iz, a)
+  end subroutine score_voxel
+
+  !> An expected-value absorption score `a` in layer iz: absorbed there, and booked in the
+  !> weight balance against the weight the photons lose at their collisions (`collide`), so that
+  !> the balance is zero in expectation and the energy budget closes to round-off.
+  subroutine score_track(lay, tal, iz, a)
+    type(tally_layout_t), intent(in) :: lay
+    type(tally_t), intent(inout) :: tal
+    integer, intent(in) :: iz
+    real(wp), intent(in) :: a
+    tal%buf(lay%i_abs + iz) = tal%buf(lay%i_abs + iz) + a
+    tal%buf(lay%i_rr + 1) = tal%buf(lay%i_rr + 1) + a
+  end subroutine score_track
 
   !> A photon from a run with thermal emission starts: its launch weight is booked, levels it
   !> starts on are tallied (the sun and the top: downward at the top; the surface: upward at

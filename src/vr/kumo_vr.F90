@@ -7,6 +7,10 @@
 !>   photon loop after absorption, reflection and scattering.
 !> * Collision forcing (section 4.2.4 a): `vr_t%cf_factor`, derived by `collision_forcing`; the
 !>   photon loop samples free paths in cf_factor x the extinction.
+!> * The absorption estimator (seed text section 3.8, analytic absorption): `vr_t%abs_estimator`,
+!>   absorption scored at real collisions (ABS_COLLISION), as w k_abs s along every flight
+!>   (ABS_TRACK), or as w k_abs / k_majorant at every tentative collision of the null-collision
+!>   walk (ABS_TENTATIVE); `absorption_estimator_code` reads its name.
 !> * Truncation of forward peaks (eq. 4.2.19): the ladder is built by kumo_truncation and held by
 !>   the atmosphere; the photon loop samples it at scatterings.
 !> * Local-estimate roulette, numerical diffusion and DDIS: held by the detectors
@@ -36,12 +40,27 @@ module kumo_vr
   public :: roulette_balance_warning, student_t_quantile, RR_BALANCE_MIN, RR_BALANCE_TAIL
   public :: runaway_cost_check, los_crossings, LOS_CROSSINGS_WARN, LOS_CROSSINGS_MAX, &
             FLIGHT_CROSSINGS_WARN
+  public :: ABS_COLLISION, ABS_TRACK, ABS_TENTATIVE, ABS_ESTIMATOR_NAMES, absorption_estimator_code
+
+  !> How absorption is scored (the photons' random walk is the same for all three; so are the
+  !> fluxes and radiances, to the last bit):
+  !> * ABS_COLLISION: w (1 - omega) at each real collision, the weight the photon loses there;
+  !> * ABS_TRACK: w k_abs s for every piece s of every flight, voxel by voxel, the expectation
+  !>   of the collision score given the path (seed text section 3.8, analytic absorption);
+  !> * ABS_TENTATIVE: w k_abs / k_majorant at every tentative (real or null) collision of the
+  !>   3-D null-collision walk, and the track score in the 1-D layers and ICA columns.
+  !> The two expected-value scores are booked against the weight the photons lose at their
+  !> collisions in the roulette weight balance, so that the energy budget closes to round-off.
+  integer, parameter :: ABS_COLLISION = 0, ABS_TRACK = 1, ABS_TENTATIVE = 2
+  character(len=9), parameter :: ABS_ESTIMATOR_NAMES(0:2) = &
+                                 [character(len=9) :: 'collision', 'track', 'tentative']
 
   !> The variance-reduction settings the photon loop reads.
   type :: vr_t
     real(wp) :: rr_threshold = 0.25_wp  !! Russian roulette below this weight ...
     real(wp) :: rr_weight = 0.5_wp      !! ... survivors continue with this weight
     real(wp) :: cf_factor = 1.0_wp      !! collision forcing: extinction multiplied by this (>= 1)
+    integer :: abs_estimator = ABS_COLLISION  !! how absorption is scored: ABS_*
   end type vr_t
 
   !> A phase function whose forward value exceeds this is "spiky" for local estimates.
@@ -116,6 +135,23 @@ contains
     factor = 1.0_wp
     if (tau_col > 0.0_wp .and. tau_col < tau_min) factor = tau_min/tau_col
   end function collision_forcing
+
+  !> The ABS_* code of an absorption-estimator name (case-insensitive, leading blanks ignored),
+  !> -1 for an unknown name.
+  pure integer function absorption_estimator_code(name) result(code)
+    character(len=*), intent(in) :: name
+    character(len=len(name)) :: low
+    integer :: i, c
+    low = adjustl(name)
+    do i = 1, len(low)
+      c = iachar(low(i:i))
+      if (c >= iachar('A') .and. c <= iachar('Z')) low(i:i) = achar(c + 32)
+    end do
+    code = -1
+    do i = lbound(ABS_ESTIMATOR_NAMES, 1), ubound(ABS_ESTIMATOR_NAMES, 1)
+      if (trim(low) == trim(ABS_ESTIMATOR_NAMES(i))) code = i
+    end do
+  end function absorption_estimator_code
 
   !> Which phase functions DDIS serves: those with a forward value above DDIS_PEAK.
   function ddis_phases(phases) result(flags)

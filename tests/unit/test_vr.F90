@@ -1,12 +1,13 @@
 ! SPDX-License-Identifier: BSD-3-Clause
 !> Unit tests of kumo_vr's roulette-balance rule: the Student t quantile it judges the balance
-!> with, and when the rule warns.
+!> with, and when the rule warns; the names of the absorption estimators.
 module test_kumo_vr
   use kumo_kinds, only: dp, i8
   use kumo_constants, only: PI
   use kumo_error, only: error_t
   use kumo_vr, only: roulette_balance_warning, student_t_quantile, RR_BALANCE_MIN, &
-                     RR_BALANCE_TAIL
+                     RR_BALANCE_TAIL, absorption_estimator_code, ABS_COLLISION, ABS_TRACK, &
+                     ABS_TENTATIVE
   use kumo_testing, only: unittest_t, new_unittest, check, check_close
   implicit none
   private
@@ -18,7 +19,8 @@ contains
     type(unittest_t), allocatable :: tests(:)
     tests = [new_unittest('t_quantile_closed_forms', test_closed_forms), &
              new_unittest('t_quantile_tables', test_tables), &
-             new_unittest('roulette_balance_rule', test_balance_rule)]
+             new_unittest('roulette_balance_rule', test_balance_rule), &
+             new_unittest('absorption_estimator_names', test_estimator_names)]
   end function collect_vr
 
   !> 1 and 2 degrees of freedom have closed-form quantiles: t = cot(pi p/2) (Cauchy) and
@@ -87,6 +89,16 @@ contains
     call check(error, len(roulette_balance_warning(-0.1_dp, 0.0_dp, 1_i8)) == 0, &
                'warning from a single batch (no standard error)')
   end subroutine test_balance_rule
+
+  !> Names are read case-insensitively with leading blanks; unknown ones give -1.
+  subroutine test_estimator_names(error)
+    type(error_t), allocatable, intent(out) :: error
+    call check(error, absorption_estimator_code('collision') == ABS_COLLISION, 'collision')
+    call check(error, absorption_estimator_code('  Track') == ABS_TRACK, '  Track')
+    call check(error, absorption_estimator_code('TENTATIVE') == ABS_TENTATIVE, 'TENTATIVE')
+    call check(error, absorption_estimator_code('tracks') == -1, 'tracks is unknown')
+    call check(error, absorption_estimator_code('') == -1, 'an empty name is unknown')
+  end subroutine test_estimator_names
 end module test_kumo_vr
 
 program test_vr

@@ -92,9 +92,15 @@ contains
       call put('absorptance_surface', 'power absorbed by the surface'//NORM, [lay%i_sfc + 1])
       call put('absorptance_layer', 'power absorbed in each layer'//NORM, &
                [(lay%i_abs + k, k=1, nz)], dims=['layer'])
-      call put('roulette_weight_balance', 'net weight created by Russian roulette and DDIS'// &
-               ' splitting'//NORM// &
-               ' (zero in expectation)', [lay%i_rr + 1])
+      if (cfg%vr%absorption_estimator == 'collision') then
+        call put('roulette_weight_balance', 'net weight created by Russian roulette and DDIS'// &
+                 ' splitting'//NORM//' (zero in expectation)', [lay%i_rr + 1])
+      else
+        call put('roulette_weight_balance', 'net weight created by Russian roulette and DDIS'// &
+                 ' splitting, and expected-value absorption scores minus the weight lost at'// &
+                 ' collisions (absorption_estimator = '//trim(cfg%vr%absorption_estimator)//')'// &
+                 NORM//' (zero in expectation)', [lay%i_rr + 1])
+      end if
       call put('weight_lost', 'weight of photons stopped at a loop cap'//NORM, [lay%i_lost + 1])
       call put('energy_closure', 'reflectance + absorptance_atmosphere + absorptance_surface'// &
                ' - roulette_weight_balance + weight_lost (1 to round-off)', [lay%i_closure + 1])
@@ -280,6 +286,10 @@ contains
         bal = stats_mean(st, lay%i_rr + 1, lay%i_rr + 1)
         bal_err = stats_stderr(st, lay%i_rr + 1, lay%i_rr + 1)
         rr_warn = roulette_balance_warning(bal(1), bal_err(1), st%n_batches)
+        if (len(rr_warn) > 0 .and. cfg%vr%absorption_estimator /= 'collision') rr_warn = &
+          rr_warn//' (with absorption_estimator = '//trim(cfg%vr%absorption_estimator)//' the '// &
+          'balance also holds the expected-value absorption scores minus the weight lost at '// &
+          'collisions)'
         warn = scene%warnings
         if (len(rr_warn) > 0) then
           write (error_unit, '(a)') 'kumo: warning: '//trim(rr_warn)

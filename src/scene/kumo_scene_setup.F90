@@ -652,6 +652,14 @@ contains
     if (allocated(error)) return
     ng = status(2)
     lw = status(3) == 1
+    if (lw .and. cfg%vr%absorption_estimator /= 'collision') then
+      call set_error(error, '&kumo_vr: absorption_estimator = '''// &
+                     trim(cfg%vr%absorption_estimator)//''' is for solar runs only; '// &
+                     cfg%spectral%kdist_path//' is a longwave k-distribution, whose net-exchange '// &
+                     'tallies score absorption at collisions: set absorption_estimator = '// &
+                     '''collision'' (the default)')
+      return
+    end if
     spec%longwave = lw
     if (par_is_root()) then
       tau_abs = col%tau_abs

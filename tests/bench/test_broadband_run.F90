@@ -75,6 +75,7 @@ contains
              new_unittest('sw_3d_homogeneous_vs_disort', test_sw_3d), &
              new_unittest('lw_3d_homogeneous_vs_disort', test_lw_3d), &
              new_unittest('lw_3d_voxel_temperatures_refused', test_lw_3d_temperatures), &
+             new_unittest('lw_track_estimator_refused', test_lw_track_refused), &
              new_unittest('bad_inputs', test_bad_inputs)]
   end function collect_broadband_run
 
@@ -467,6 +468,24 @@ contains
   !> A scene file with voxel temperatures in a broadband longwave run is refused with a message
   !> that says why (the temperatures would need each g-point's Planck fractions per voxel),
   !> never replaced silently by the layers' sources.
+  subroutine test_lw_track_refused(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(case_t) :: c
+    type(config_t) :: cfg
+    type(result_set_t) :: set
+    type(run_summary_t) :: summary
+    type(error_t), allocatable :: err
+    call read_case('us1976', c, error, 'lw_gpoint_reference.txt')
+    if (allocated(error)) return
+    call write_nml('broadband_lw_track.nml', c, '', '', 2, n_photons=100, &
+                   groups='&kumo_vr'//new_line('a')//'  absorption_estimator = ''track'''// &
+                   new_line('a')//'/')
+    call read_config('broadband_lw_track.nml', cfg, err)
+    if (.not. allocated(err)) call simulate(cfg, set, summary, err)
+    call check_error_words(error, err, [character(len=32) :: 'absorption_estimator', &
+                           'solar runs only', 'longwave'])
+  end subroutine test_lw_track_refused
+
   subroutine test_lw_3d_temperatures(error)
     type(error_t), allocatable, intent(out) :: error
     type(case_t) :: c

@@ -2154,8 +2154,18 @@ contains
       integer :: m, j
       if (allocated(error)) return
       m = count(given /= UNSET)
-      call require(m == n .and. all(given(n + 1:) == UNSET), CTX, name, rule='needs '// &
-                   str(n)//' '//what//', '//str(m)//' given', error=error)
+      if (m == n .and. any(given(n + 1:) /= UNSET)) then
+        ! as many values as needed, but not at positions 1..n (e.g. a comment right after
+        ! "name =" reads as an empty first value)
+        call require(.false., CTX, name, rule='needs '//str(n)//' '//what//' at positions '// &
+                     '1..'//str(n)//'; '//str(m)//' are given, the last at position '// &
+                     str(findloc(given /= UNSET, .true., back=.true., dim=1))//' (an empty '// &
+                     'value, e.g. a comment right after "'//name//' =", takes position 1)', &
+                     error=error)
+      else
+        call require(m == n .and. all(given(n + 1:) == UNSET), CTX, name, rule='needs '// &
+                     str(n)//' '//what//', '//str(m)//' given', error=error)
+      end if
       do j = 1, min(m, n)
         call require(within(given(j), lo, BIG), CTX, name//'('//str(j)//')', given(j), &
                      'must be finite and >= '//str(lo), error)

@@ -620,7 +620,7 @@ contains
     ! rank 0: the k-distribution and the column; the others get the optical depths and sources
     status = 0
     if (par_is_root()) then
-      call read_rrtmgp_kdist(cfg%spectral%kdist_path, kd, error)
+      call read_rrtmgp_kdist(kdist_location(cfg%spectral%kdist_file, cfg%spectral%kdist_path), kd, error)
       if (.not. allocated(error)) then
         allocate (vmr(nz, kd%n_gas))
         vmr = 0.0_wp
@@ -965,6 +965,45 @@ contains
                        b_layer_top=spec%src_top(:, g), escape_sampling=.true.)
     if (allocated(error)) call add_context(error, '&kumo_spectral: g-point '//str(g))
   end subroutine gpoint_emission
+
+  !> Where the k-distribution is: `path` (kdist_file resolved against the namelist's folder)
+  !> if it exists; otherwise, for a bare file name, the folder scripts/fetch-rrtmgp.sh fills
+  !> ($KUMO_DATA_DIR, else $XDG_CACHE_HOME/kumo/rrtmgp, else $HOME/.cache/kumo/rrtmgp) if the
+  !> file is there; else `path` (whose reading then fails with the name the user gave).
+  function kdist_location(name, path) result(loc)
+    character(len=*), intent(in) :: name, path
+    character(len=:), allocatable :: loc, dir
+    logical :: there
+    loc = path
+    inquire (file=path, exist=there)
+    if (there .or. index(name, '/') > 0) return
+    dir = env_text('KUMO_DATA_DIR')
+    if (len(dir) == 0) then
+      dir = env_text('XDG_CACHE_HOME')
+      if (len(dir) == 0) then
+        dir = env_text('HOME')
+        if (len(dir) == 0) return
+        dir = dir//'/.cache'
+      end if
+      dir = dir//'/kumo/rrtmgp'
+    end if
+    inquire (file=dir//'/'//trim(name), exist=there)
+    if (there) loc = dir//'/'//trim(name)
+  end function kdist_location
+
+  !> The value of an environment variable ('' if unset).
+  function env_text(var) result(val)
+    character(len=*), intent(in) :: var
+    character(len=:), allocatable :: val
+    integer :: n, st
+    call get_environment_variable(var, length=n, status=st)
+    if (st /= 0 .or. n == 0) then
+      val = ''
+      return
+    end if
+    allocate (character(len=n) :: val)
+    call get_environment_variable(var, val)
+  end function env_text
 
   !> The namelist's path ('' when the configuration was not read from a file).
   function cfg_path(cfg) result(path)

@@ -20,13 +20,11 @@
 !> Pade coefficients the files also hold are not read. Shortwave tables stored in RRTMG's band
 !> order are put into RRTMGP's order (band_cloud_sw_reorder; `bc%reordered` tells).
 module kumo_rrtmgp_cloud_file
-  use, intrinsic :: ieee_arithmetic, only: ieee_is_nan
-  use netcdf, only: nf90_open, nf90_close, nf90_inq_varid, nf90_inquire_variable, &
-                    nf90_inquire_dimension, nf90_inq_dimid, nf90_get_var, nf90_strerror, &
-                    NF90_NOWRITE, NF90_NOERR, NF90_CHAR, NF90_MAX_VAR_DIMS, NF90_MAX_NAME
+  use netcdf, only: nf90_open, nf90_close, nf90_strerror, NF90_NOWRITE, NF90_NOERR
   use kumo_kinds, only: wp
-  use kumo_error, only: error_t, set_error, str, join
+  use kumo_error, only: error_t, set_error, str
   use kumo_band_cloud, only: band_cloud_t, band_cloud_init, band_cloud_sw_reorder
+  use kumo_rrtmgp_file, only: rrtmgp_dim_len, rrtmgp_get_real
   implicit none
   private
 
@@ -35,6 +33,7 @@ module kumo_rrtmgp_cloud_file
   !> Relative tolerance of the check of the index factors against the grid (the factors are
   !> stored in single precision in some files: radice_fac = 0.100000001490116).
   real(wp), parameter :: FAC_TOL = 1.0e-6_wp
+  character(len=*), parameter :: KIND = 'RRTMGP cloud file'
 
 contains
 
@@ -136,73 +135,15 @@ contains
     call band_cloud_sw_reorder(bc)
   end subroutine read_body
 
-  ! ---------------------------------------------------------------------------------------------
+  ! the checked netCDF access of kumo_rrtmgp_file, with this file's name in the messages
 
   subroutine dim_len(path, ncid, name, n, error)
     character(len=*), intent(in) :: path, name
     integer, intent(in) :: ncid
     integer, intent(out) :: n
     type(error_t), allocatable, intent(out) :: error
-    integer :: dimid
-    n = 0
-    if (nf90_inq_dimid(ncid, name, dimid) /= NF90_NOERR) then
-      call set_error(error, 'RRTMGP cloud file ' // path // ': dimension ' // name // ' missing')
-      return
-    end if
-    if (nf90_inquire_dimension(ncid, dimid, len=n) /= NF90_NOERR) then
-      call set_error(error, 'RRTMGP cloud file ' // path // ': cannot read dimension ' // name)
-    end if
+    call rrtmgp_dim_len(path, ncid, name, n, error, KIND)
   end subroutine dim_len
-
-  !> Variable id after checking presence, kind (numbers) and dimension names (Fortran order);
-  !> `counts` are the dimension lengths.
-  subroutine find_var(path, ncid, name, dims, varid, counts, error)
-    character(len=*), intent(in) :: path, name
-    integer, intent(in) :: ncid
-    character(len=*), intent(in) :: dims(:)
-    integer, intent(out) :: varid
-    integer, allocatable, intent(out) :: counts(:)
-    type(error_t), allocatable, intent(out) :: error
-    integer :: xtype, ndims, dimids(NF90_MAX_VAR_DIMS), i
-    character(len=NF90_MAX_NAME) :: dname
-    character(len=NF90_MAX_NAME), allocatable :: found(:)
-
-    if (nf90_inq_varid(ncid, name, varid) /= NF90_NOERR) then
-      call set_error(error, 'RRTMGP cloud file ' // path // ': variable ' // name // ' missing')
-      return
-    end if
-    if (nf90_inquire_variable(ncid, varid, xtype=xtype, ndims=ndims, dimids=dimids) /= NF90_NOERR) then
-      call set_error(error, 'RRTMGP cloud file ' // path // ': cannot inquire variable ' // name)
-      return
-    end if
-    if (xtype == NF90_CHAR) then
-      call set_error(error, 'RRTMGP cloud file ' // path // ': variable ' // name // &
-                     ' must hold numbers, not text')
-      return
-    end if
-    allocate(counts(ndims), found(ndims))
-    do i = 1, ndims
-      if (nf90_inquire_dimension(ncid, dimids(i), name=dname, len=counts(i)) /= NF90_NOERR) then
-        call set_error(error, 'RRTMGP cloud file ' // path // ': cannot inquire the dimensions of ' // name)
-        return
-      end if
-      found(i) = dname
-    end do
-    if (ndims /= size(dims)) then
-      call set_error(error, 'RRTMGP cloud file ' // path // ': variable ' // name // ' has ' // &
-                     str(ndims) // ' dimensions (' // join(found) // '), expected (' // join(dims) // &
-                     ') in Fortran order')
-      return
-    end if
-    do i = 1, ndims
-      if (trim(found(i)) /= trim(dims(i))) then
-        call set_error(error, 'RRTMGP cloud file ' // path // ': variable ' // name // &
-                       ' has dimensions (' // join(found) // '), expected (' // join(dims) // &
-                       ') in Fortran order')
-        return
-      end if
-    end do
-  end subroutine find_var
 
   subroutine get_real(path, ncid, name, dims, values, error)
     character(len=*), intent(in) :: path, name
@@ -210,21 +151,7 @@ contains
     character(len=*), intent(in) :: dims(:)
     real(wp), allocatable, intent(out) :: values(:)
     type(error_t), allocatable, intent(out) :: error
-    integer :: varid, status
-    integer, allocatable :: counts(:)
-
-    call find_var(path, ncid, name, dims, varid, counts, error)
-    if (allocated(error)) return
-    allocate(values(product(counts)))
-    status = nf90_get_var(ncid, varid, values, start=spread(1, 1, size(counts)), count=counts)
-    if (status /= NF90_NOERR) then
-      call set_error(error, 'RRTMGP cloud file ' // path // ': reading ' // name // ': ' // &
-                     trim(nf90_strerror(status)))
-      return
-    end if
-    if (any(ieee_is_nan(values))) then
-      call set_error(error, 'RRTMGP cloud file ' // path // ': variable ' // name // ' holds NaN')
-    end if
+    call rrtmgp_get_real(path, ncid, name, dims, values, error, KIND)
   end subroutine get_real
 
   subroutine get_scalar(path, ncid, name, value, error)
@@ -232,20 +159,11 @@ contains
     integer, intent(in) :: ncid
     real(wp), intent(out) :: value
     type(error_t), allocatable, intent(out) :: error
-    integer :: varid, status
-    integer, allocatable :: counts(:)
+    real(wp), allocatable :: v(:)
     character(len=1), parameter :: NO_DIMS(0) = [character(len=1) ::]
-
     value = 0.0_wp
-    call find_var(path, ncid, name, NO_DIMS, varid, counts, error)
-    if (allocated(error)) return
-    status = nf90_get_var(ncid, varid, value)
-    if (status /= NF90_NOERR) then
-      call set_error(error, 'RRTMGP cloud file ' // path // ': reading ' // name // ': ' // &
-                     trim(nf90_strerror(status)))
-    else if (ieee_is_nan(value)) then
-      call set_error(error, 'RRTMGP cloud file ' // path // ': variable ' // name // ' holds NaN')
-    end if
+    call rrtmgp_get_real(path, ncid, name, NO_DIMS, v, error, KIND)
+    if (.not. allocated(error)) value = v(1)
   end subroutine get_scalar
 
 end module kumo_rrtmgp_cloud_file

@@ -23,6 +23,9 @@ module kumo_rrtmgp_file
   private
 
   public :: read_rrtmgp_kdist
+  ! the checked netCDF access that the RRTMGP readers share (kumo_rrtmgp_cloud_file too); `kind`
+  ! names the file in messages ('RRTMGP file' unless given)
+  public :: rrtmgp_dim_len, rrtmgp_get_real
 
 contains
 
@@ -237,25 +240,60 @@ contains
     has_var = nf90_inq_varid(ncid, name, varid) == NF90_NOERR
   end function has_var
 
-  subroutine dim_len(path, ncid, name, n, error)
+  subroutine dim_len(path, ncid, name, n, error, kind)
     character(len=*), intent(in) :: path, name
     integer, intent(in) :: ncid
     integer, intent(out) :: n
     type(error_t), allocatable, intent(out) :: error
+    character(len=*), intent(in), optional :: kind
     integer :: dimid
     n = 0
     if (nf90_inq_dimid(ncid, name, dimid) /= NF90_NOERR) then
-      call set_error(error, 'RRTMGP file ' // path // ': dimension ' // name // ' missing')
+      call set_error(error, label(path, kind) // ': dimension ' // name // ' missing')
       return
     end if
     if (nf90_inquire_dimension(ncid, dimid, len=n) /= NF90_NOERR) then
-      call set_error(error, 'RRTMGP file ' // path // ': cannot read dimension ' // name)
+      call set_error(error, label(path, kind) // ': cannot read dimension ' // name)
     end if
   end subroutine dim_len
 
+  !> 'RRTMGP file <path>' (or `kind` <path>), the start of every message.
+  function label(path, kind) result(text)
+    character(len=*), intent(in) :: path
+    character(len=*), intent(in), optional :: kind
+    character(len=:), allocatable :: text
+    if (present(kind)) then
+      text = kind // ' ' // path
+    else
+      text = 'RRTMGP file ' // path
+    end if
+  end function label
+
+  !> Length of dimension `name` (public name of dim_len).
+  subroutine rrtmgp_dim_len(path, ncid, name, n, error, kind)
+    character(len=*), intent(in) :: path, name
+    integer, intent(in) :: ncid
+    integer, intent(out) :: n
+    type(error_t), allocatable, intent(out) :: error
+    character(len=*), intent(in), optional :: kind
+    call dim_len(path, ncid, name, n, error, kind)
+  end subroutine rrtmgp_dim_len
+
+  !> A numeric variable with dimensions `dims` (Fortran order; none for a scalar), flattened,
+  !> without NaN (public name of get_real).
+  subroutine rrtmgp_get_real(path, ncid, name, dims, values, error, kind)
+    character(len=*), intent(in) :: path, name
+    integer, intent(in) :: ncid
+    character(len=*), intent(in) :: dims(:)
+    real(wp), allocatable, intent(out) :: values(:)
+    type(error_t), allocatable, intent(out) :: error
+    character(len=*), intent(in), optional :: kind
+    call get_real(path, ncid, name, dims, values, error, kind)
+  end subroutine rrtmgp_get_real
+
   !> Variable id after checking presence, kind (text or numbers) and dimension names (Fortran
   !> order); `counts` are the dimension lengths.
-  subroutine find_var(path, ncid, name, dims, text, varid, counts, error)
+  subroutine find_var(path, ncid, name, dims, text, varid, counts, error, kind)
     character(len=*), intent(in) :: path, name
     integer, intent(in) :: ncid
     character(len=*), intent(in) :: dims(:)
@@ -263,24 +301,25 @@ contains
     integer, intent(out) :: varid
     integer, allocatable, intent(out) :: counts(:)
     type(error_t), allocatable, intent(out) :: error
+    character(len=*), intent(in), optional :: kind
     integer :: xtype, ndims, dimids(NF90_MAX_VAR_DIMS), i
     character(len=NF90_MAX_NAME) :: dname
     character(len=NF90_MAX_NAME), allocatable :: found(:)
 
     if (nf90_inq_varid(ncid, name, varid) /= NF90_NOERR) then
-      call set_error(error, 'RRTMGP file ' // path // ': variable ' // name // ' missing')
+      call set_error(error, label(path, kind) // ': variable ' // name // ' missing')
       return
     end if
     if (nf90_inquire_variable(ncid, varid, xtype=xtype, ndims=ndims, dimids=dimids) &
         /= NF90_NOERR) then
-      call set_error(error, 'RRTMGP file ' // path // ': cannot inquire variable ' // name)
+      call set_error(error, label(path, kind) // ': cannot inquire variable ' // name)
       return
     end if
     if ((xtype == NF90_CHAR) .neqv. text) then
       if (text) then
-        call set_error(error, 'RRTMGP file ' // path // ': variable ' // name // ' must be text')
+        call set_error(error, label(path, kind) // ': variable ' // name // ' must be text')
       else
-        call set_error(error, 'RRTMGP file ' // path // ': variable ' // name // &
+        call set_error(error, label(path, kind) // ': variable ' // name // &
                        ' must hold numbers, not text')
       end if
       return
@@ -288,19 +327,19 @@ contains
     allocate(counts(ndims), found(ndims))
     do i = 1, ndims
       if (nf90_inquire_dimension(ncid, dimids(i), name=dname, len=counts(i)) /= NF90_NOERR) then
-        call set_error(error, 'RRTMGP file ' // path // ': cannot inquire the dimensions of ' // name)
+        call set_error(error, label(path, kind) // ': cannot inquire the dimensions of ' // name)
         return
       end if
       found(i) = dname
     end do
     if (ndims /= size(dims)) then
-      call set_error(error, 'RRTMGP file ' // path // ': variable ' // name // ' has dimensions (' &
+      call set_error(error, label(path, kind) // ': variable ' // name // ' has dimensions (' &
                      // join(found) // '), expected (' // join(dims) // ') in Fortran order')
       return
     end if
     do i = 1, ndims
       if (trim(found(i)) /= trim(dims(i))) then
-        call set_error(error, 'RRTMGP file ' // path // ': variable ' // name // &
+        call set_error(error, label(path, kind) // ': variable ' // name // &
                        ' has dimensions (' // join(found) // '), expected (' // join(dims) // &
                        ') in Fortran order')
         return
@@ -308,16 +347,17 @@ contains
     end do
   end subroutine find_var
 
-  subroutine get_real(path, ncid, name, dims, values, error)
+  subroutine get_real(path, ncid, name, dims, values, error, kind)
     character(len=*), intent(in) :: path, name
     integer, intent(in) :: ncid
     character(len=*), intent(in) :: dims(:)
     real(wp), allocatable, intent(out) :: values(:)
     type(error_t), allocatable, intent(out) :: error
+    character(len=*), intent(in), optional :: kind
     integer :: varid, status
     integer, allocatable :: counts(:)
 
-    call find_var(path, ncid, name, dims, .false., varid, counts, error)
+    call find_var(path, ncid, name, dims, .false., varid, counts, error, kind)
     if (allocated(error)) return
     allocate(values(product(counts)))
     if (size(counts) == 0) then
@@ -326,12 +366,12 @@ contains
       status = nf90_get_var(ncid, varid, values, start=spread(1, 1, size(counts)), count=counts)
     end if
     if (status /= NF90_NOERR) then
-      call set_error(error, 'RRTMGP file ' // path // ': reading ' // name // ': ' // &
+      call set_error(error, label(path, kind) // ': reading ' // name // ': ' // &
                      trim(nf90_strerror(status)))
       return
     end if
     if (any(ieee_is_nan(values))) then
-      call set_error(error, 'RRTMGP file ' // path // ': variable ' // name // ' holds NaN')
+      call set_error(error, label(path, kind) // ': variable ' // name // ' holds NaN')
     end if
   end subroutine get_real
 

@@ -1252,9 +1252,10 @@ contains
       call add('&kumo_surface surface_file', resolve_path(cfg%surface%surface_file, nml_path))
     if (cfg%thermal%enabled .and. len_trim(cfg%thermal%t_surface_file) > 0) &
       call add('&kumo_thermal t_surface_file', resolve_path(cfg%thermal%t_surface_file, nml_path))
+    if (cfg%spectral%enabled .and. allocated(cfg%spectral%kdist_path)) &
+      call add('&kumo_spectral kdist_file', cfg%spectral%kdist_path)
     if (.not. cfg%cloud%enabled) return
     if (allocated(cfg%cloud%req%path)) call add('&kumo_cloud cloud_file', cfg%cloud%req%path)
-    if (cfg%spectral%enabled) call add('&kumo_spectral kdist_file', cfg%spectral%kdist_path)
     if (allocated(cfg%cloud%req%mcarats%phase_path)) then
       if (len_trim(cfg%cloud%req%mcarats%phase_path) > 0) &
         call add('&kumo_cloud mcarats_phase_file', cfg%cloud%req%mcarats%phase_path)

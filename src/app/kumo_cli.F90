@@ -7,7 +7,8 @@ module kumo_cli
   use, intrinsic :: iso_fortran_env, only: compiler_version, compiler_options
   use kumo_error, only: error_t, set_error, str
   use kumo_constants, only: KUMO_VERSION
-  use kumo_config, only: config_t, read_config, config_echo, input_file_t, config_inputs
+  use kumo_config, only: config_t, config_echo, input_file_t, config_inputs
+  use kumo_scene_setup, only: load_config
   use kumo_netcdf, only: check_writable
   use kumo_parallel, only: PAR_IS_MPI
   use kumo_build_info, only: BUILD_GIT_COMMIT, BUILD_TYPE
@@ -148,7 +149,7 @@ contains
     logical :: exists
 
     report = ''
-    call read_config(path, cfg, error)
+    call load_config(path, cfg, error, local=.true.)   ! rank 0 alone
     if (allocated(error)) return
     files = ''
     problems = ''

@@ -19,7 +19,7 @@ module kumo_driver
   use kumo_transport, only: trace_batch
   use kumo_exact_column, only: exact_thermal_possible, exact_thermal_batch
   use kumo_results, only: result_set_t, add_attr
-  use kumo_config, only: config_t, read_config, config_echo, input_file_t, config_inputs
+  use kumo_config, only: config_t, config_echo, input_file_t, config_inputs
   use kumo_textio, only: read_line, same_file
   use kumo_netcdf, only: write_results, check_writable
   use kumo_parallel, only: par_rank, par_size, par_is_root, par_sum_to_root, par_allreduce_sum, &
@@ -28,7 +28,7 @@ module kumo_driver
                              fingerprint_add_file, fingerprint_add_build, ckpt_create, &
                              ckpt_put_slot, ckpt_commit, ckpt_open, ckpt_get_slot, ckpt_close, &
                              ckpt_remove, CKPT_SUFFIX
-  use kumo_scene_setup, only: setup_scene, spectral_scene_t, spectral_set_gpoint
+  use kumo_scene_setup, only: load_config, setup_scene, spectral_scene_t, spectral_set_gpoint
   use kumo_spectral, only: spectral_begin_batch
   use kumo_output, only: run_summary_t, build_results, log_summary
   use kumo_vr, only: runaway_cost_check
@@ -87,7 +87,7 @@ contains
     call share_error(error)
     if (allocated(error)) return
     call par_bcast_text(raw_text)
-    call read_config(path, cfg, error, text=raw_text)
+    call load_config(path, cfg, error, text=raw_text)
     if (allocated(error)) return
     nml_text = trim_lines(raw_text)   ! the namelist attribute of the output
     if (par_is_root()) then

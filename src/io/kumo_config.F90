@@ -1,17 +1,23 @@
 ! SPDX-License-Identifier: BSD-3-Clause
-!> Namelist configuration: one group per area, read into validated `*_cfg_t` types.
+!> Namelist configuration: one group per area, parsed and validated into `*_cfg_t` types.
 !>
 !> Groups: &kumo_control (photon budget, seed, stopping rule, solver mode), &kumo_atmosphere
 !> (levels, 1-D layers, 3-D region, Rayleigh layers), &kumo_cloud (model output and other codes'
 !> cloud files), &kumo_phase (phase functions), &kumo_surface (Lambert, BRDF, maps),
 !> &kumo_source, &kumo_output, &kumo_vr (variance reduction and tracer fast paths),
-!> &kumo_radiance, &kumo_camera. Every variable, its default, units and range is listed in
-!> namelists/reference.nml. The groups are found by kumo's own scanner (kumo_nml_text), which
-!> names unknown, misspelt and repeated groups; namelist variables are local variables copied
-!> into the types, so the file syntax does not depend on component names. A run reads the
-!> namelist file once, on rank 0, and every rank parses and validates that same text (the
-!> `text` argument of read_config), so all ranks fail the same way. A cloud file's grid and
-!> pressure are still read here (to check the levels against it), not only in scene set-up.
+!> &kumo_radiance, &kumo_camera, &kumo_thermal, &kumo_spectral. Every variable, its default,
+!> units and range is listed in namelists/reference.nml. The groups are found by kumo's own
+!> scanner (kumo_nml_text), which names unknown, misspelt and repeated groups; namelist
+!> variables are local variables copied into the types, so the file syntax does not depend on
+!> component names. A run reads the namelist file once, on rank 0, and every rank parses and
+!> validates that same text (the `text` argument of read_config), so all ranks fail the same
+!> way.
+!>
+!> This module opens no file but the namelist. The one fact of another file that validation
+!> needs, the grid of a &kumo_cloud file (its levels set or check z_levels, lx, ly, nx, ny,
+!> nz3) and, for rayleigh_profile = 'cloud_file', its pressure profile, comes from the
+!> `read_grid` procedure the caller passes (kumo_scene_setup's `load_config` reads it on rank 0
+!> and broadcasts it); the fields of the inputs are read when the scene is built.
 module kumo_config
   use, intrinsic :: iso_fortran_env, only: iostat_end
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
@@ -24,8 +30,8 @@ module kumo_config
   use kumo_mie, only: dist_kind_from_name, size_dist_validate
   use kumo_std_atmosphere, only: std_atmosphere_kind_from_name, STD_ATMOSPHERE_NAMES
   use kumo_les_netcdf, only: LES_NAME_LEN
-  use kumo_cloud_input, only: cloud_input_t, cloud_request_t, read_cloud_input, &
-                              cloud_format_check, CLOUD_OPTICS, CLOUD_MCARATS
+  use kumo_cloud_input, only: cloud_input_t, cloud_request_t, cloud_format_check, CLOUD_OPTICS, &
+                              CLOUD_MCARATS
   use kumo_mcarats_files, only: is_ctl_path, mcarats_request_t
   use kumo_nml_text, only: nml_group_t, nml_scan, nml_diagnose, closest_name, nml_probe_i, &
                            nml_find_nan, nml_find_long_string
@@ -36,7 +42,7 @@ module kumo_config
   public :: config_t, control_cfg_t, atmosphere_cfg_t, phase_cfg_t, surface_cfg_t, &
             source_cfg_t, output_cfg_t, vr_cfg_t, radiance_cfg_t, camera_cfg_t, cloud_cfg_t, &
             thermal_cfg_t, spectral_cfg_t, &
-            read_config, config_echo, resolve_path, input_file_t, config_inputs
+            read_config, config_echo, resolve_path, input_file_t, config_inputs, cloud_grid_reader
   public :: MAX_LAYERS, MAX_COMP, MAX_PHASE, MAX_DIR, MAX_CAMERAS, TARGET_NAMES, PRESET_NAMES, &
             MODE_NAMES
   public :: RAYLEIGH_LEVELS, RAYLEIGH_CLOUD_FILE
@@ -83,6 +89,20 @@ module kumo_config
   real(wp), parameter :: PRESET_CF_TAU(4) = [0.0_wp, 1.0_wp, 2.0_wp, 3.0_wp]
   real(wp), parameter :: PRESET_DIFF(4) = [0.0_wp, 0.0_wp, 60.0_wp, 150.0_wp]
   real(wp), parameter :: PRESET_DDIS(4) = [0.0_wp, 0.1_wp, 0.1_wp, 0.1_wp]
+
+  !> How read_config learns the grid of a cloud file: `grid` gets the file's columns, widths and
+  !> layer edges (nx, ny, nz, dx, dy, z) and the kind of content, plus the layer pressures
+  !> (`pressure`, `pressure_source`) when `req%pressure_profile` is set; no field data. Every
+  !> rank that parses the namelist calls it at the same points with the same request.
+  abstract interface
+    subroutine cloud_grid_reader(req, grid, error)
+      import :: cloud_request_t, cloud_input_t, error_t
+      implicit none
+      type(cloud_request_t), intent(in) :: req
+      type(cloud_input_t), intent(out) :: grid
+      type(error_t), allocatable, intent(out) :: error
+    end subroutine cloud_grid_reader
+  end interface
 
   !> An input file a configuration names, and the namelist entry that names it.
   type :: input_file_t
@@ -301,12 +321,14 @@ contains
   !> Read and validate every group of the namelist file `path`. With `text` (the file's
   !> content, read once on rank 0 and broadcast by kumo_driver, so that every rank parses the
   !> same text) the file is not opened: the text is parsed from a scratch copy; `path` still
-  !> locates the relative file names it gives.
-  subroutine read_config(path, cfg, error, text)
+  !> locates the relative file names it gives. A namelist with a &kumo_cloud file needs
+  !> `read_grid`, which gives the file's grid (kumo_scene_setup's `load_config` passes one).
+  subroutine read_config(path, cfg, error, text, read_grid)
     character(len=*), intent(in) :: path
     type(config_t), intent(out) :: cfg
     type(error_t), allocatable, intent(out) :: error
     character(len=*), intent(in), optional :: text
+    procedure(cloud_grid_reader), optional :: read_grid
     integer :: unit, ios
     character(len=512) :: msg
     logical :: present_groups(size(GROUP_NAMES))
@@ -323,9 +345,10 @@ contains
     end if
     call scan_groups(unit, present_groups, error)
     if (.not. allocated(error)) call read_control(unit, present_groups(1), cfg%control, error)
-    if (.not. allocated(error)) call read_cloud(unit, present_groups(10), path, cfg%cloud, error)
+    if (.not. allocated(error)) call read_cloud(unit, present_groups(10), path, cfg%cloud, error, &
+                                                read_grid)
     if (.not. allocated(error)) call read_atmosphere(unit, present_groups(2), cfg%cloud, &
-                                                     cfg%atm, error)
+                                                     cfg%atm, error, read_grid)
     if (.not. allocated(error)) call read_phase(unit, present_groups(3), cfg%phase, error)
     if (.not. allocated(error)) call read_surface(unit, present_groups(4), cfg%surface, error)
     if (.not. allocated(error)) call read_source(unit, present_groups(5), cfg%source, error)
@@ -534,12 +557,13 @@ contains
     end subroutine probe
   end subroutine read_control
 
-  subroutine read_atmosphere(unit, present, cloud, cfg, error)
+  subroutine read_atmosphere(unit, present, cloud, cfg, error, read_grid)
     integer, intent(in) :: unit
     logical, intent(in) :: present
     type(cloud_cfg_t), intent(in) :: cloud
     type(atmosphere_cfg_t), intent(inout) :: cfg
     type(error_t), allocatable, intent(out) :: error
+    procedure(cloud_grid_reader), optional :: read_grid   !! present whenever cloud%enabled
     integer :: nz, n_components, k3d_bottom, nx, ny, nz3, n_components_3d, ios, k, ic
     real(wp) :: lx, ly, cp_air, co2_ppm, latitude_deg, rayleigh_depol
     logical :: rayleigh
@@ -728,7 +752,7 @@ contains
     cfg%n_components_3d = n_components_3d
     cfg%phase3d = phase3d(1:n_components_3d)
     cfg%cp_air = cp_air
-    call rayleigh_pressure(pressure_levels_hpa, cloud, cfg, error)
+    call rayleigh_pressure(pressure_levels_hpa, cloud, cfg, error, read_grid)
   contains
     !> Read one assignment of &kumo_atmosphere (or write the namelist), for check_read.
     subroutine probe(text, out_unit, ios, msg)
@@ -804,13 +828,14 @@ contains
 
   !> The pressure of the Rayleigh layers when it does not come from a standard atmosphere:
   !> `pressure_levels_hpa` for RAYLEIGH_LEVELS, or the layer pressures of the &kumo_cloud LES
-  !> file for RAYLEIGH_CLOUD_FILE, read here (grid and a pressure profile only, no 3-D field
-  !> is kept). Runs after the levels are set (cfg%nz, cfg%z).
-  subroutine rayleigh_pressure(pressure_levels_hpa, cloud, cfg, error)
+  !> file for RAYLEIGH_CLOUD_FILE, from `read_grid` (grid and a pressure profile only, no 3-D
+  !> field). Runs after the levels are set (cfg%nz, cfg%z).
+  subroutine rayleigh_pressure(pressure_levels_hpa, cloud, cfg, error, read_grid)
     real(wp), intent(in) :: pressure_levels_hpa(0:)  !! the namelist array, UNSET where not given
     type(cloud_cfg_t), intent(in) :: cloud
     type(atmosphere_cfg_t), intent(inout) :: cfg
     type(error_t), allocatable, intent(out) :: error
+    procedure(cloud_grid_reader), optional :: read_grid   !! present whenever cloud%enabled
     character(len=*), parameter :: CTX = '&kumo_atmosphere: '
     character(len=:), allocatable :: ctx_cloud
     type(cloud_request_t) :: req
@@ -875,7 +900,7 @@ contains
       end if
       req = cloud%req
       req%pressure_profile = .true.
-      call read_cloud_input(req, c, error, grid_only=.true.)
+      call grid_of(req, c, error, read_grid)
       if (allocated(error)) then
         error%message = ctx_cloud//error%message
         return
@@ -978,13 +1003,14 @@ contains
   end subroutine levels_with_cloud
 
   !> &kumo_cloud: the cloud file, what it lacks, and how kumo computes its optics. The file's
-  !> grid is read here, so that the levels are known to the other groups.
-  subroutine read_cloud(unit, present, nml_path, cfg, error)
+  !> grid comes from `read_grid` here, so that the levels are known to the other groups.
+  subroutine read_cloud(unit, present, nml_path, cfg, error, read_grid)
     integer, intent(in) :: unit
     logical, intent(in) :: present
     character(len=*), intent(in) :: nml_path
     type(cloud_cfg_t), intent(inout) :: cfg
     type(error_t), allocatable, intent(out) :: error
+    procedure(cloud_grid_reader), optional :: read_grid
     character(len=PATH_LEN) :: cloud_file, mie_cache, ice_optics_file, mcarats_phase_file
     character(len=16) :: cloud_format, size_distribution
     character(len=LES_NAME_LEN) :: les_lwc, les_reff, les_number, les_iwc, les_reff_ice, &
@@ -1106,17 +1132,8 @@ contains
     cfg%ice_optics_file = ''
     if (len_trim(ice_optics_file) > 0) cfg%ice_optics_file = resolve_path(ice_optics_file, &
                                                                           nml_path)
-    call read_cloud_input(cfg%req, cfg%grid, error, grid_only=.true.)
-    if (allocated(error)) then
-      error%message = '&kumo_cloud: '//error%message
-      return
-    end if
-    ! keep the grid and the kind of content only; the driver reads the fields
-    if (allocated(cfg%grid%lwc)) deallocate (cfg%grid%lwc)
-    if (allocated(cfg%grid%reff)) deallocate (cfg%grid%reff)
-    if (allocated(cfg%grid%ext)) deallocate (cfg%grid%ext)
-    if (allocated(cfg%grid%ssa)) deallocate (cfg%grid%ssa)
-    if (allocated(cfg%grid%iphase)) deallocate (cfg%grid%iphase)
+    call grid_of(cfg%req, cfg%grid, error, read_grid)
+    if (allocated(error)) error%message = '&kumo_cloud: '//error%message
   contains
     !> Read one assignment of &kumo_cloud (or write the namelist), for check_read.
     subroutine probe(text, out_unit, ios, msg)
@@ -1131,6 +1148,21 @@ contains
       end if
     end subroutine probe
   end subroutine read_cloud
+
+  !> The grid of the cloud file `req%path` from the caller's reader (see read_config).
+  subroutine grid_of(req, grid, error, read_grid)
+    type(cloud_request_t), intent(in) :: req
+    type(cloud_input_t), intent(out) :: grid
+    type(error_t), allocatable, intent(out) :: error
+    procedure(cloud_grid_reader), optional :: read_grid
+    if (present(read_grid)) then
+      call read_grid(req, grid, error)
+    else
+      call set_error(error, 'cloud_file '//req%path//': its grid is needed to check the '// &
+                     'levels, but read_config was given no reader of cloud-file grids '// &
+                     '(load_config of kumo_scene_setup passes one)')
+    end if
+  end subroutine grid_of
 
   !> &kumo_cloud mcarats_*: checks, and the request for `from_mcarats`. They apply to
   !> cloud_format = 'mcarats' only. A binary atmosphere file takes the sizes not given from
@@ -1225,9 +1257,10 @@ contains
       call add('&kumo_surface surface_file', resolve_path(cfg%surface%surface_file, nml_path))
     if (cfg%thermal%enabled .and. len_trim(cfg%thermal%t_surface_file) > 0) &
       call add('&kumo_thermal t_surface_file', resolve_path(cfg%thermal%t_surface_file, nml_path))
+    if (cfg%spectral%enabled .and. allocated(cfg%spectral%kdist_path)) &
+      call add('&kumo_spectral kdist_file', cfg%spectral%kdist_path)
     if (.not. cfg%cloud%enabled) return
     if (allocated(cfg%cloud%req%path)) call add('&kumo_cloud cloud_file', cfg%cloud%req%path)
-    if (cfg%spectral%enabled) call add('&kumo_spectral kdist_file', cfg%spectral%kdist_path)
     if (allocated(cfg%cloud%req%mcarats%phase_path)) then
       if (len_trim(cfg%cloud%req%mcarats%phase_path) > 0) &
         call add('&kumo_cloud mcarats_phase_file', cfg%cloud%req%mcarats%phase_path)

@@ -1,9 +1,13 @@
 ! SPDX-License-Identifier: BSD-3-Clause
-!> From a configuration to a scene: every input file the configuration names is read (on rank 0,
-!> then broadcast, so that all ranks hold the same arrays or the same error) and turned into the
-!> scene_t the photon loop reads: phase functions, the atmosphere (namelist layers, scene file or
-!> cloud file, Rayleigh layers), the surface (albedo, BRDF or MCARaTS surface maps), the source,
-!> the detectors and the variance reduction that serves them.
+!> From a namelist to a scene. `load_config` parses and validates the namelist on every rank
+!> (kumo_config), with the grid of a cloud file read on rank 0 and broadcast. `setup_scene`
+!> turns the configuration into the scene_t the photon loop reads: phase functions, the
+!> atmosphere (namelist layers, scene file or cloud file, Rayleigh layers), the surface
+!> (albedo, BRDF or MCARaTS surface maps), the source, the detectors and the variance
+!> reduction that serves them. Every input file is read on rank 0 and broadcast with one
+!> pack-and-broadcast (`bundle_t` of kumo_bundle), so that all ranks hold the same arrays or
+!> the same error; the cloud file and its companions are the exception (`cloud_on_ranks`,
+!> `check_same_inputs`).
 module kumo_scene_setup
   use kumo_kinds, only: wp, dp, vp, i8
   use kumo_constants, only: DEG2RAD, PI
@@ -35,7 +39,9 @@ module kumo_scene_setup
   use kumo_vr, only: collision_forcing, ddis_phases, spiky_without_vr, SPIKY_PEAK, DDIS_CONE_DEG, &
                     absorption_estimator_code
   use kumo_scene, only: scene_t
-  use kumo_config, only: config_t, resolve_path, config_inputs, input_file_t
+  use kumo_config, only: config_t, resolve_path, config_inputs, input_file_t, read_config
+  use kumo_cloud_input, only: cloud_input_t, cloud_request_t, read_cloud_input
+  use kumo_bundle, only: bundle_t
   use kumo_cloud_scene, only: build_cloud_atmosphere, rayleigh_layers, cloud_temperature_t
   use kumo_rayleigh, only: depol_from_king, king_factor_air
   use kumo_textio, only: read_two_columns
@@ -47,7 +53,7 @@ module kumo_scene_setup
   use kumo_checkpoint, only: fingerprint_t, fingerprint_add_file
   implicit none
   private
-  public :: setup_scene, spectral_scene_t, spectral_set_gpoint
+  public :: load_config, setup_scene, spectral_scene_t, spectral_set_gpoint
 
   !> A broadband run (&kumo_spectral): the g-point sampling plan and the optics of the 1-D
   !> layers for every g-point (setup_spectral), which spectral_set_gpoint puts into the
@@ -92,6 +98,100 @@ module kumo_scene_setup
 
 contains
 
+  !> Read and validate the namelist `path` (its `text` when given, see read_config) on every
+  !> rank, with the grid of a &kumo_cloud file read on rank 0 and broadcast
+  !> (`cloud_grid_on_root`): the configuration of a run. With `local` = .true. the calling
+  !> process reads the grid itself and talks to no other rank (`kumo --check` on rank 0).
+  subroutine load_config(path, cfg, error, text, local)
+    character(len=*), intent(in) :: path
+    type(config_t), intent(out) :: cfg
+    type(error_t), allocatable, intent(out) :: error
+    character(len=*), intent(in), optional :: text
+    logical, intent(in), optional :: local
+    logical :: alone
+    alone = .false.
+    if (present(local)) alone = local
+    if (alone) then
+      call read_config(path, cfg, error, text, read_grid=cloud_grid_here)
+    else
+      call read_config(path, cfg, error, text, read_grid=cloud_grid_on_root)
+    end if
+  end subroutine load_config
+
+  !> The grid of a cloud file for read_config (kumo_config's `cloud_grid_reader`): rank 0 reads
+  !> the columns, widths and layer edges (and the layer pressures when `req%pressure_profile`
+  !> is set) and every rank gets them, or rank 0's error. Every rank calls it.
+  subroutine cloud_grid_on_root(req, grid, error)
+    type(cloud_request_t), intent(in) :: req
+    type(cloud_input_t), intent(out) :: grid
+    type(error_t), allocatable, intent(out) :: error
+    type(bundle_t) :: b
+    if (par_is_root()) call cloud_grid_read(req, b, error)
+    call b%share(error)
+    if (.not. allocated(error)) call cloud_grid_take(b, grid)
+  end subroutine cloud_grid_on_root
+
+  !> `cloud_grid_on_root` for one process alone.
+  subroutine cloud_grid_here(req, grid, error)
+    type(cloud_request_t), intent(in) :: req
+    type(cloud_input_t), intent(out) :: grid
+    type(error_t), allocatable, intent(out) :: error
+    type(bundle_t) :: b
+    call cloud_grid_read(req, b, error)
+    if (.not. allocated(error)) call cloud_grid_take(b, grid)
+  end subroutine cloud_grid_here
+
+  !> Read the grid of a cloud file (read_cloud_input with `grid_only`) into a bundle.
+  subroutine cloud_grid_read(req, b, error)
+    type(cloud_request_t), intent(in) :: req
+    type(bundle_t), intent(inout) :: b
+    type(error_t), allocatable, intent(out) :: error
+    type(cloud_input_t) :: grid
+    call read_cloud_input(req, grid, error, grid_only=.true.)
+    if (allocated(error)) return
+    call b%put(grid%format)
+    call b%put(grid%nx)
+    call b%put(grid%ny)
+    call b%put(grid%nz)
+    call b%put(grid%content)
+    call b%put(grid%dx)
+    call b%put(grid%dy)
+    call b%put(grid%points)
+    call b%put(grid%has_ice)
+    call b%put(allocated(grid%z))
+    if (allocated(grid%z)) call b%put(grid%z)
+    call b%put(allocated(grid%pressure))
+    if (allocated(grid%pressure)) then
+      call b%put(grid%pressure)
+      call b%put(grid%pressure_source)
+    end if
+  end subroutine cloud_grid_read
+
+  !> The grid out of a bundle of `cloud_grid_read`: no field data.
+  subroutine cloud_grid_take(b, grid)
+    type(bundle_t), intent(inout) :: b
+    type(cloud_input_t), intent(out) :: grid
+    character(len=:), allocatable :: fmt
+    logical :: has
+    call b%get(fmt)
+    grid%format = fmt
+    call b%get(grid%nx)
+    call b%get(grid%ny)
+    call b%get(grid%nz)
+    call b%get(grid%content)
+    call b%get(grid%dx)
+    call b%get(grid%dy)
+    call b%get(grid%points)
+    call b%get(grid%has_ice)
+    call b%get(has)
+    if (has) call b%get(grid%z)
+    call b%get(has)
+    if (has) then
+      call b%get(grid%pressure)
+      call b%get(grid%pressure_source)
+    end if
+  end subroutine cloud_grid_take
+
   !> Build the scene (phase functions, atmosphere, surface, source) from a configuration.
   subroutine setup_scene(cfg, scene, error, spec)
     type(config_t), intent(in) :: cfg
@@ -125,7 +225,7 @@ contains
       case (PHASE_HG)
         phases(i) = new_phase_hg(cfg%phase%g(i), error)
       case (PHASE_TABLE)
-        call read_two_columns(resolve_path(cfg%phase%file(i), nml_path), ang, val, error)
+        call phase_table_on_root(resolve_path(cfg%phase%file(i), nml_path), ang, val, error)
         if (.not. allocated(error)) phases(i) = phase_from_table(ang, val, cfg%phase%n_table, error)
       case default
         call set_error(error, 'unknown phase-function kind code '//str(cfg%phase%kind(i)))
@@ -233,8 +333,8 @@ contains
     ! photon arrives at that angle, bit for bit)
     scene%src = solar_source(cfg%source%sza_deg, cfg%source%phi0_deg)
     if (len_trim(cfg%surface%albedo_file) > 0) then
-      call read_albedo_on_root(resolve_path(cfg%surface%albedo_file, nml_path), &
-                               trim(cfg%surface%albedo_var), alb, error)
+      call map_on_root(resolve_path(cfg%surface%albedo_file, nml_path), &
+                       trim(cfg%surface%albedo_var), .false., alb, error)
       if (allocated(error)) return
     else
       allocate (alb(1, 1))
@@ -314,10 +414,13 @@ contains
     call check_same_inputs(cfg, error)
   end subroutine setup_scene
 
-  !> The inputs that every rank reads itself (phase tables, the cloud file and its companions)
-  !> must be the same bytes as rank 0's: each rank hashes them and compares with rank 0's hashes,
-  !> so that ranks never build different scenes from a file that changed during the start or
-  !> that they see differently. A rank that differs fails and names the file.
+  !> The inputs that every rank still reads itself, the &kumo_cloud files (the cloud file, its
+  !> MCARaTS phase-function file, the ice optics table: kumo_cloud_scene reads them species by
+  !> species while it builds the atmosphere, so that no second copy of a large field is held),
+  !> must be the same bytes as rank 0's: each rank hashes them and compares with rank 0's
+  !> hashes, so that ranks never build different scenes from a file that changed during the
+  !> start or that they see differently. A rank that differs fails and names the file. Every
+  !> other input is read by rank 0 alone and broadcast (bundle_t), so it needs no check.
   subroutine check_same_inputs(cfg, error)
     type(config_t), intent(in) :: cfg
     type(error_t), allocatable, intent(out) :: error
@@ -331,8 +434,7 @@ contains
     path = ''
     if (allocated(cfg%path)) path = cfg%path
     inputs = config_inputs(cfg, path)
-    inputs = pack(inputs, [(index(inputs(i)%label, '&kumo_cloud') == 1 .or. &
-                           index(inputs(i)%label, '&kumo_phase') == 1, i=1, size(inputs))])
+    inputs = pack(inputs, [(index(inputs(i)%label, '&kumo_cloud') == 1, i=1, size(inputs))])
     if (size(inputs) == 0) return
     do i = 1, size(inputs)
       call fingerprint_add_file(fp, inputs(i)%label, inputs(i)%path)
@@ -414,8 +516,8 @@ contains
     if (len_trim(cfg%thermal%t_surface_file) > 0 .and. has_band) then
       nml_path = ''
       if (allocated(cfg%path)) nml_path = cfg%path
-      call temperature_map_on_root(resolve_path(cfg%thermal%t_surface_file, nml_path), &
-                                   trim(cfg%thermal%t_surface_var), tmap, error)
+      call map_on_root(resolve_path(cfg%thermal%t_surface_file, nml_path), &
+                       trim(cfg%thermal%t_surface_var), .true., tmap, error)
       if (allocated(error)) then
         call add_context(error, '&kumo_thermal t_surface_file')
         return
@@ -1093,30 +1195,33 @@ contains
     real(wp), allocatable, intent(out) :: ext3(:, :, :, :), ssa3(:, :, :, :)
     integer, allocatable, intent(out) :: iph3(:, :, :, :)
     type(error_t), allocatable, intent(out) :: error
-    integer :: status(2), i, n(4)
+    type(bundle_t) :: b
+    integer :: i
     logical :: has_iph
-    n = [cfg%atm%nx, cfg%atm%ny, cfg%atm%nz3, cfg%atm%n_components_3d]
-    status = 0
     if (par_is_root()) then
-      call read_scene_3d(path, n(1), n(2), n(3), n(4), ext3, ssa3, iph3, has_iph, error)
-      if (allocated(error)) status(1) = 1
-      if (has_iph) status(2) = 1
+      call read_scene_3d(path, cfg%atm%nx, cfg%atm%ny, cfg%atm%nz3, cfg%atm%n_components_3d, &
+                         ext3, ssa3, iph3, has_iph, error)
+      if (.not. allocated(error)) then
+        call b%put(ext3)
+        call b%put(ssa3)
+        call b%put(has_iph)
+        if (has_iph) call b%put(iph3)
+      end if
     end if
-    call share_read_status(status, path, error)
+    call b%share(error)
     if (allocated(error)) return
-    if (.not. par_is_root()) allocate (ext3(n(1), n(2), n(3), n(4)), ssa3(n(1), n(2), n(3), n(4)))
-    if (status(2) == 0) then
+    call b%get(ext3)
+    call b%get(ssa3)
+    call b%get(has_iph)
+    if (has_iph) then
+      call b%get(iph3)
+    else
       if (allocated(iph3)) deallocate (iph3)
-      allocate (iph3(n(1), n(2), n(3), n(4)))
-      do i = 1, n(4)
+      allocate (iph3(size(ext3, 1), size(ext3, 2), size(ext3, 3), size(ext3, 4)))
+      do i = 1, size(ext3, 4)
         iph3(:, :, :, i) = cfg%atm%phase3d(i)
       end do
-    else if (.not. par_is_root()) then
-      allocate (iph3(n(1), n(2), n(3), n(4)))
     end if
-    call share_reals(ext3, size(ext3))
-    call share_reals(ssa3, size(ssa3))
-    if (status(2) /= 0) call share_ints(iph3, size(iph3))
   end subroutine read_scene_on_root
 
   !> The cloud's atmosphere on every rank. Rank 0 goes first, so that a Mie table it computes
@@ -1134,13 +1239,9 @@ contains
     type(error_t), allocatable, intent(out) :: error
     !> thermal runs with a spectral interval: the cloud file's temperatures, if it has them
     type(cloud_temperature_t), intent(out) :: cloud_t
-    integer :: status(1)
-    status = 0
-    if (par_is_root()) then
-      call build(error)
-      if (allocated(error)) status = 1
-    end if
-    call share_read_status(status, cfg%cloud%req%path, error)
+    type(bundle_t) :: b
+    if (par_is_root()) call build(error)
+    call b%share(error)   ! rank 0's error, if any, on every rank
     if (allocated(error) .or. par_is_root()) return
     call build(error)
   contains
@@ -1161,7 +1262,7 @@ contains
   end subroutine cloud_on_ranks
 
   !> Give every rank rank 0's read status (status(1) /= 0: failed; the rest: sizes); ranks
-  !> other than 0 get an error naming the file when the read failed.
+  !> other than 0 get an error naming the file when the read failed (setup_spectral).
   subroutine share_read_status(status, path, error)
     integer, intent(inout) :: status(:)
     character(len=*), intent(in) :: path
@@ -1172,38 +1273,67 @@ contains
     end if
   end subroutine share_read_status
 
+  !> Rank 0 reads a phase-function table (angle [deg], value) and broadcasts it.
+  subroutine phase_table_on_root(path, ang, val, error)
+    character(len=*), intent(in) :: path
+    real(wp), allocatable, intent(out) :: ang(:), val(:)
+    type(error_t), allocatable, intent(out) :: error
+    type(bundle_t) :: b
+    if (par_is_root()) then
+      call read_two_columns(path, ang, val, error)
+      if (.not. allocated(error)) then
+        call b%put(ang)
+        call b%put(val)
+      end if
+    end if
+    call b%share(error)
+    if (allocated(error)) return
+    call b%get(ang)
+    call b%get(val)
+  end subroutine phase_table_on_root
+
   !> Rank 0 reads the BRDF map and broadcasts it.
   subroutine brdf_map_on_root(path, default_kind, bmap, error)
     character(len=*), intent(in) :: path
     integer, intent(in) :: default_kind
     type(brdf_params_t), allocatable, intent(out) :: bmap(:, :)
     type(error_t), allocatable, intent(out) :: error
-    integer :: status(3), i, j
+    type(bundle_t) :: b
+    integer :: nx, ny
     integer, allocatable :: kind(:, :)
     real(wp), allocatable :: c(:, :, :)
-    status = 0
     if (par_is_root()) then
-      call read_brdf_map(path, default_kind, status(2), status(3), kind, c, error)
-      if (allocated(error)) status(1) = 1
+      call read_brdf_map(path, default_kind, nx, ny, kind, c, error)
+      if (.not. allocated(error)) then
+        call b%put(kind)
+        call b%put(c)
+      end if
     end if
-    call share_read_status(status, path, error)
+    call b%share(error)
     if (allocated(error)) return
-    if (.not. par_is_root()) allocate (kind(status(2), status(3)), &
-                                       c(BRDF_NPAR, status(2), status(3)))
-    call share_ints(kind, size(kind))
-    call share_reals(c, size(c))
-    allocate (bmap(status(2), status(3)))
-    do j = 1, status(3)
-      do i = 1, status(2)
+    call b%get(kind)
+    call b%get(c)
+    call brdf_map_from(kind, c, bmap)
+  end subroutine brdf_map_on_root
+
+  !> A BRDF map from its kind codes (nx, ny) and parameters (BRDF_NPAR, nx, ny).
+  subroutine brdf_map_from(kind, c, bmap)
+    integer, intent(in) :: kind(:, :)
+    real(wp), intent(in) :: c(:, :, :)
+    type(brdf_params_t), allocatable, intent(out) :: bmap(:, :)
+    integer :: i, j
+    allocate (bmap(size(kind, 1), size(kind, 2)))
+    do j = 1, size(kind, 2)
+      do i = 1, size(kind, 1)
         bmap(i, j)%kind = kind(i, j)
         bmap(i, j)%c = c(:, i, j)
       end do
     end do
-  end subroutine brdf_map_on_root
+  end subroutine brdf_map_from
 
   !> Rank 0 reads an MCARaTS surface file (&kumo_surface surface_file, binary, pixel counts
   !> and enabled models from the namelist) and broadcasts kumo's BRDF map of it; the notes
-  !> (rank 0 only) say what the file held and what was taken from the namelist.
+  !> say what the file held and what was taken from the namelist.
   subroutine mcarats_surface_on_root(cfg, path, bmap, notes, error)
     type(config_t), intent(in) :: cfg
     character(len=*), intent(in) :: path
@@ -1211,56 +1341,48 @@ contains
     character(len=:), allocatable, intent(out) :: notes
     type(error_t), allocatable, intent(out) :: error
     type(mcarats_surface_t) :: sfc
-    integer :: status(1), i, j, nxb, nyb, it
+    type(bundle_t) :: b
+    integer :: i, j, nxb, nyb, it
     integer, allocatable :: kind(:, :)
     real(wp), allocatable :: c(:, :, :)
     character(len=*), parameter :: KIND_NAMES(0:4) = &
       [character(len=7) :: 'black', 'Lambert', 'DSM', 'RPV', 'LSRT']
     nxb = cfg%surface%surface_nxb
     nyb = cfg%surface%surface_nyb
-    notes = ''
-    status = 0
     if (par_is_root()) then
       call read_mcarats_surface(path, nxb, nyb, mcarats_surface_npsfc(cfg%surface%surface_mbrdf), &
                                 sfc, error, cfg%surface%surface_idread)
       if (.not. allocated(error)) call mcarats_surface_brdf(sfc, cfg%surface%surface_mbrdf, path, &
                                                             bmap, error)
-      if (allocated(error)) status = 1
-    end if
-    call share_read_status(status, path, error)
-    if (allocated(error)) return
-    if (par_is_root()) then
-      notes = 'surface file '//path//' (MCARaTS): dataset '//str(sfc%idread)//' of '// &
-              str(sfc%ndatasets)//', '//str(nxb)//' x '//str(nyb)//' pixels:'
-      do it = 0, 4
-        if (any(sfc%brdf_type == it)) notes = notes//' '//trim(KIND_NAMES(it))//' '// &
-                                              str(count(sfc%brdf_type == it))
-      end do
-      notes = notes//'; its temperatures are not used (solar radiation only)'//new_line('a')// &
-              'the file does not give its pixel counts (surface_nxb, surface_nyb) and the '// &
-              'extent they cover (the domain lx x ly = '//str(cfg%atm%lx)//' x '// &
-              str(cfg%atm%ly)//' m); taken from the namelist'//new_line('a')
-    end if
-    if (par_size() == 1) return
-    allocate (kind(nxb, nyb), c(BRDF_NPAR, nxb, nyb))
-    if (par_is_root()) then
-      do j = 1, nyb
-        do i = 1, nxb
-          kind(i, j) = bmap(i, j)%kind
-          c(:, i, j) = bmap(i, j)%c
+      if (.not. allocated(error)) then
+        allocate (kind(nxb, nyb), c(BRDF_NPAR, nxb, nyb))
+        do j = 1, nyb
+          do i = 1, nxb
+            kind(i, j) = bmap(i, j)%kind
+            c(:, i, j) = bmap(i, j)%c
+          end do
         end do
-      end do
-    else
-      allocate (bmap(nxb, nyb))
+        call b%put(kind)
+        call b%put(c)
+        notes = 'surface file '//path//' (MCARaTS): dataset '//str(sfc%idread)//' of '// &
+                str(sfc%ndatasets)//', '//str(nxb)//' x '//str(nyb)//' pixels:'
+        do it = 0, 4
+          if (any(sfc%brdf_type == it)) notes = notes//' '//trim(KIND_NAMES(it))//' '// &
+                                                str(count(sfc%brdf_type == it))
+        end do
+        notes = notes//'; its temperatures are not used (solar radiation only)'//new_line('a')// &
+                'the file does not give its pixel counts (surface_nxb, surface_nyb) and the '// &
+                'extent they cover (the domain lx x ly = '//str(cfg%atm%lx)//' x '// &
+                str(cfg%atm%ly)//' m); taken from the namelist'//new_line('a')
+        call b%put(notes)
+      end if
     end if
-    call share_ints(kind, size(kind))
-    call share_reals(c, size(c))
-    do j = 1, nyb
-      do i = 1, nxb
-        bmap(i, j)%kind = kind(i, j)
-        bmap(i, j)%c = c(:, i, j)
-      end do
-    end do
+    call b%share(error)
+    if (allocated(error)) return
+    call b%get(kind)
+    call b%get(c)
+    call b%get(notes)
+    call brdf_map_from(kind, c, bmap)
   end subroutine mcarats_surface_on_root
 
   !> Rank 0 reads the voxel temperatures of the scene file, if it has them, and broadcasts them
@@ -1270,70 +1392,54 @@ contains
     type(config_t), intent(in) :: cfg
     real(wp), allocatable, intent(out) :: t3(:, :, :)
     type(error_t), allocatable, intent(out) :: error
-    integer :: status(2)
+    type(bundle_t) :: b
     logical :: found
-    status = 0
     if (par_is_root()) then
       call read_scene_temperature(path, cfg%atm%nx, cfg%atm%ny, cfg%atm%nz3, t3, found, error)
-      if (allocated(error)) status(1) = 1
-      if (found) status(2) = 1
+      if (.not. allocated(error)) then
+        call b%put(found)
+        if (found) call b%put(t3)
+      end if
     end if
-    call share_read_status(status, path, error)
-    if (allocated(error) .or. status(2) == 0) then
-      if (allocated(t3)) deallocate (t3)
-      return
+    call b%share(error)
+    if (allocated(error)) return
+    call b%get(found)
+    if (found) then
+      call b%get(t3)
+    else if (allocated(t3)) then
+      deallocate (t3)
     end if
-    if (.not. par_is_root()) allocate (t3(cfg%atm%nx, cfg%atm%ny, cfg%atm%nz3))
-    call share_reals(t3, size(t3))
   end subroutine scene_temperature_on_root
 
-  !> Rank 0 reads the surface temperature map and broadcasts it.
-  subroutine temperature_map_on_root(path, varname, t, error)
+  !> Rank 0 reads a 2-D map (the surface temperature map, `temperature`, or the albedo map)
+  !> and broadcasts it.
+  subroutine map_on_root(path, varname, temperature, map, error)
     character(len=*), intent(in) :: path, varname
-    real(wp), allocatable, intent(out) :: t(:, :)
+    logical, intent(in) :: temperature
+    real(wp), allocatable, intent(out) :: map(:, :)
     type(error_t), allocatable, intent(out) :: error
-    integer :: status(3)
-    status = 0
+    type(bundle_t) :: b
+    integer :: nx, ny
     if (par_is_root()) then
-      call read_temperature_map(path, varname, status(2), status(3), t, error)
-      if (allocated(error)) status(1) = 1
+      if (temperature) then
+        call read_temperature_map(path, varname, nx, ny, map, error)
+      else
+        call read_albedo_map(path, varname, nx, ny, map, error)
+      end if
+      if (.not. allocated(error)) call b%put(map)
     end if
-    call share_read_status(status, path, error)
-    if (allocated(error)) return
-    if (.not. par_is_root()) allocate (t(status(2), status(3)))
-    call share_reals(t, size(t))
-  end subroutine temperature_map_on_root
-
-  !> Rank 0 reads the albedo map and broadcasts it.
-  subroutine read_albedo_on_root(path, varname, alb, error)
-    character(len=*), intent(in) :: path, varname
-    real(wp), allocatable, intent(out) :: alb(:, :)
-    type(error_t), allocatable, intent(out) :: error
-    integer :: status(3)
-    status = 0
-    if (par_is_root()) then
-      call read_albedo_map(path, varname, status(2), status(3), alb, error)
-      if (allocated(error)) status(1) = 1
-    end if
-    call share_read_status(status, path, error)
-    if (allocated(error)) return
-    if (.not. par_is_root()) allocate (alb(status(2), status(3)))
-    call share_reals(alb, size(alb))
-  end subroutine read_albedo_on_root
+    call b%share(error)
+    if (.not. allocated(error)) call b%get(map)
+  end subroutine map_on_root
 
   !> Give every rank rank 0's values of an array of any rank and shape (already allocated with
-  !> that shape on every rank), in place: the array is passed as its sequence of elements.
+  !> that shape on every rank), in place: the array is passed as its sequence of elements
+  !> (setup_spectral; the other readers use a bundle_t).
   subroutine share_reals(x, n)
     integer, intent(in) :: n
     real(dp), intent(inout) :: x(n)
     if (par_size() > 1) call par_bcast_real(x)
   end subroutine share_reals
 
-  !> `share_reals` for integers.
-  subroutine share_ints(x, n)
-    integer, intent(in) :: n
-    integer, intent(inout) :: x(n)
-    if (par_size() > 1) call par_bcast_int(x)
-  end subroutine share_ints
 
 end module kumo_scene_setup

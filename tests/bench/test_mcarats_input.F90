@@ -27,7 +27,8 @@ module test_mcarats_input_suite
   use kumo_kinds, only: wp, dp, vp
   use kumo_testing, only: error_t, unittest_t, new_unittest, check, check_close, check_sigma, &
                           check_error_words
-  use kumo_config, only: config_t, read_config
+  use kumo_config, only: config_t
+  use kumo_scene_setup, only: load_config
   use kumo_results, only: result_set_t
   use kumo_test_scenes, only: run_config, run_namelist, run_groups, get_scalar, get_array
   use kumo_test_text, only: shared_dir, write_text
@@ -256,7 +257,7 @@ contains
     integer :: i, j, kk, ipf, iph(4), iph_exp(4)
     call write_small_files()
     call write_text('mca_small.nml', small_mcarats_nml(1, 'mca_small_out.nc', ABS1D))
-    call read_config('mca_small.nml', cfg, error)
+    call load_config('mca_small.nml', cfg, error)
     if (allocated(error)) return
     call check(error, cfg%cloud%grid%nx == NX .and. cfg%cloud%grid%nz == NZ3 .and. &
                abs(cfg%cloud%grid%dx - 100.0_wp) < 1.0e-12_wp .and. cfg%atm%k3d_bottom == K3D, &
@@ -439,7 +440,7 @@ contains
     integer :: u, i, j, kk, ipf, iph(3), iph_exp(3), n_bad
     call write_text('mca_les05.nml', les05_atmosphere(ABS_M1, '')// &
                     les05_cloud('les05_0213.atm.ctl', 'les05_0213.sca.ctl', ''))
-    call read_config('mca_les05.nml', cfg, error)
+    call load_config('mca_les05.nml', cfg, error)
     if (allocated(error)) return
     ! the .ctl: XDEF 60, YDEF 60, 21 layers; the namelist: 30 m columns from layer 10 (250 m)
     call check(error, cfg%atm%nx == LX .and. cfg%atm%ny == LY .and. cfg%atm%nz3 == LZ .and. &
@@ -537,7 +538,7 @@ contains
           les05_cloud('les05_0213.atm', 'les05_0213.sca', &
                       ', mcarats_mtprof = 1, mcarats_nang = 203, mcarats_npf = 60')
     call write_text('mca_les05_bin.nml', nml)
-    call read_config('mca_les05_bin.nml', cfg_bin, error)
+    call load_config('mca_les05_bin.nml', cfg_bin, error)
     if (allocated(error)) return
     call build_atm(cfg_bin, NOFF, ABS_M1, 1000, atm_bin, notes, error)
     if (allocated(error)) return
@@ -553,7 +554,7 @@ contains
                     '&kumo_control n_photons_per_batch = 400, n_batches = 3, verbose = 0 /'// &
                     new_line('a')//'&kumo_surface albedo = 0.2 /'//new_line('a')// &
                     '&kumo_output file = ''mca_les05_out.nc'' /')
-    call read_config('mca_les05_run.nml', cfg, error)
+    call load_config('mca_les05_run.nml', cfg, error)
     if (allocated(error)) return
     call run_config(cfg, res, error)
     if (allocated(error)) return
@@ -578,7 +579,7 @@ contains
     ! leaves some voxels negative
     call write_text('mca_les05_neg.nml', les05_atmosphere(1.0e-6_wp, '')// &
                     les05_cloud('les05_0213.atm.ctl', 'les05_0213.sca.ctl', ''))
-    call read_config('mca_les05_neg.nml', cfg, error)
+    call load_config('mca_les05_neg.nml', cfg, error)
     if (allocated(error)) return
     call build_atm(cfg, 1, 1.0e-6_wp, 1000, atm, notes, err)
     call check_error_words(error, err, [character(len=60) :: 'les05_0213.atm.ctl: absg3d k-term 1', &
@@ -718,7 +719,7 @@ contains
     nml = surface_nml('&kumo_surface surface_file = ''mca_rpv.sfc'', surface_nxb = 2, '// &
                       'surface_nyb = 1, surface_mbrdf = 1, 1, 0, 1 /', 1, 'mca_rpv_out.nc')
     call write_text('mca_rpv.nml', nml)
-    call read_config('mca_rpv.nml', cfg, error)
+    call load_config('mca_rpv.nml', cfg, error)
     if (allocated(error)) return
     call run_config(cfg, res, err)
     call check_error_words(error, err, [character(len=60) :: 'mca_rpv.sfc: pixel (ix=2, iy=1)', &
@@ -730,7 +731,7 @@ contains
     nml = surface_nml('&kumo_surface surface_file = ''mca_rpv.sfc'', surface_nxb = 3, '// &
                       'surface_nyb = 1, surface_mbrdf = 1, 0, 1, 0 /', 1, 'mca_rpv_out.nc')
     call write_text('mca_rpv3.nml', nml)
-    call read_config('mca_rpv3.nml', cfg, error)
+    call load_config('mca_rpv3.nml', cfg, error)
     if (allocated(error)) return
     call run_config(cfg, res, err)
     call check_error_words(error, err, [character(len=60) :: 'mca_rpv.sfc: 48 bytes', &

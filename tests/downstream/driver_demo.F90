@@ -8,7 +8,8 @@ program driver_demo
   use, intrinsic :: iso_fortran_env, only: output_unit, error_unit
   use kumo_kinds, only: dp
   use kumo_error, only: error_t
-  use kumo_config, only: config_t, read_config
+  use kumo_config, only: config_t
+  use kumo_scene_setup, only: load_config
   use kumo_results, only: result_set_t, find_var
   use kumo_parallel, only: par_init, par_finalize, par_is_root, par_size
   use kumo_driver, only: simulate, run_summary_t
@@ -28,7 +29,7 @@ program driver_demo
     error stop 2
   end if
   call get_command_argument(1, path)
-  call read_config(trim(path), cfg, error)
+  call load_config(trim(path), cfg, error)
   if (allocated(error)) call fail(error%message)
   call simulate(cfg, set, summary, error)
   if (allocated(error)) call fail(error%message)

@@ -4,7 +4,8 @@ module kumo_test_scenes
   use kumo_kinds, only: wp, dp, i8
   use kumo_error, only: error_t, set_error, str
   use kumo_phase, only: PHASE_ISOTROPIC, PHASE_RAYLEIGH, PHASE_HG
-  use kumo_config, only: config_t, read_config
+  use kumo_config, only: config_t
+  use kumo_scene_setup, only: load_config
   use kumo_test_text, only: write_text
   use kumo_results, only: result_set_t, find_var
   use kumo_driver, only: simulate, run_summary_t
@@ -160,7 +161,7 @@ contains
     type(error_t), allocatable, intent(out) :: error
     type(config_t) :: cfg
     call write_text(path, text)
-    call read_config(path, cfg, error)
+    call load_config(path, cfg, error)
     if (allocated(error)) return
     call run_config(cfg, set, error)
   end subroutine run_namelist

@@ -29,7 +29,8 @@ module test_rayleigh_profile_suite
   use kumo_kinds, only: wp
   use kumo_testing, only: error_t, unittest_t, new_unittest, check, check_close
   use kumo_error, only: str
-  use kumo_config, only: config_t, read_config
+  use kumo_config, only: config_t
+  use kumo_scene_setup, only: load_config
   use kumo_test_text, only: write_text
   use kumo_driver, only: scene_t, setup_scene
   use kumo_rayleigh, only: rayleigh_cross_section, gravity_bodhaine
@@ -240,7 +241,7 @@ contains
     type(scene_t), intent(out) :: scene
     type(error_t), allocatable, intent(out) :: error
     call write_text(path, text)
-    call read_config(path, cfg, error)
+    call load_config(path, cfg, error)
     if (allocated(error)) return
     call setup_scene(cfg, scene, error)
   end subroutine setup_case
@@ -253,7 +254,7 @@ contains
     type(error_t), allocatable :: err
     if (allocated(error)) return
     call write_text(path, text)
-    call read_config(path, cfg, err)
+    call load_config(path, cfg, err)
     if (.not. allocated(err)) then
       call check(error, .false., path//': accepted; expected an error containing "'// &
                  expected//'"')

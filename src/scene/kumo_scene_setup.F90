@@ -49,7 +49,7 @@ module kumo_scene_setup
                          read_temperature_map
   use kumo_mcarats_files, only: mcarats_surface_t, read_mcarats_surface, mcarats_surface_npsfc, &
                                 mcarats_surface_brdf
-  use kumo_parallel, only: par_size, par_is_root, par_bcast_int, par_bcast_real, par_rank
+  use kumo_parallel, only: par_size, par_is_root, par_bcast_int, par_rank
   use kumo_checkpoint, only: fingerprint_t, fingerprint_add_file
   implicit none
   private
@@ -680,7 +680,8 @@ contains
     real(wp), allocatable :: z(:), zmid(:), dz(:), plev(:), tlev(:), play(:), tlay(:), rho(:), &
                              vmr(:, :), tau_abs(:, :), tau_ray(:, :), energy(:), e(:), s(:), &
                              pmid(:)
-    integer :: nz, nc, ng, k, g, status(3), iray, ic, nadd
+    integer :: nz, nc, ng, k, g, iray, ic, nadd
+    type(bundle_t) :: b
     real(wp) :: mu0, sca, acc, tsfc
     logical :: lw
 
@@ -719,8 +720,7 @@ contains
     tsfc = cfg%spectral%t_surface
     if (tsfc <= 0.0_wp) tsfc = tlev(0)
 
-    ! rank 0: the k-distribution and the column; the others get the optical depths and sources
-    status = 0
+    ! rank 0: the k-distribution and the column; every rank gets the optical depths and sources
     if (par_is_root()) then
       call read_rrtmgp_kdist(kdist_location(cfg%spectral%kdist_file, cfg%spectral%kdist_path), kd, error)
       if (.not. allocated(error)) then
@@ -743,17 +743,35 @@ contains
         end if
       end if
       if (allocated(error)) then
-        status(1) = 1
         call add_context(error, '&kumo_spectral kdist_file')
       else
-        status(2) = col%n_gpt
-        if (kd%longwave) status(3) = 1
+        call b%put(kd%longwave)
+        call b%put(col%tau_abs)
+        call b%put(col%energy)
+        if (kd%longwave) then
+          call b%put(col%lev_src_bot)
+          call b%put(col%lev_src_top)
+          call b%put(col%sfc_src)
+        else
+          call b%put(col%tau_rayleigh)
+        end if
       end if
     end if
-    call share_read_status(status, cfg%spectral%kdist_path, error)
+    call b%share(error)
     if (allocated(error)) return
-    ng = status(2)
-    lw = status(3) == 1
+    call b%get(lw)
+    call b%get(tau_abs)
+    call b%get(energy)
+    ng = size(energy)
+    if (lw) then
+      call b%get(spec%src_bot)
+      call b%get(spec%src_top)
+      call b%get(spec%src_sfc)
+      allocate (tau_ray(nz, ng))
+      tau_ray = 0.0_wp
+    else
+      call b%get(tau_ray)
+    end if
     if (lw .and. cfg%vr%absorption_estimator /= 'collision') then
       call set_error(error, '&kumo_vr: absorption_estimator = '''// &
                      trim(cfg%vr%absorption_estimator)//''' is for solar runs only; '// &
@@ -763,31 +781,7 @@ contains
       return
     end if
     spec%longwave = lw
-    if (par_is_root()) then
-      tau_abs = col%tau_abs
-      energy = col%energy
-      if (lw) then
-        allocate (tau_ray(nz, ng))
-        tau_ray = 0.0_wp
-        spec%src_bot = col%lev_src_bot
-        spec%src_top = col%lev_src_top
-        spec%src_sfc = col%sfc_src
-      else
-        tau_ray = col%tau_rayleigh
-      end if
-    else
-      allocate (tau_abs(nz, ng), tau_ray(nz, ng), energy(ng))
-      tau_ray = 0.0_wp
-      if (lw) allocate (spec%src_bot(nz, ng), spec%src_top(nz, ng), spec%src_sfc(ng))
-    end if
-    call share_reals(tau_abs, size(tau_abs))
-    call share_reals(energy, size(energy))
-    if (lw) then
-      call share_reals(spec%src_bot, size(spec%src_bot))
-      call share_reals(spec%src_top, size(spec%src_top))
-      call share_reals(spec%src_sfc, size(spec%src_sfc))
-    else
-      call share_reals(tau_ray, size(tau_ray))
+    if (.not. lw) then
       call spectral_plan_init(energy, spec%plan, error, floor_share=cfg%spectral%floor_share)
       if (allocated(error)) then
         call add_context(error, '&kumo_spectral')
@@ -1261,18 +1255,6 @@ contains
     end subroutine build
   end subroutine cloud_on_ranks
 
-  !> Give every rank rank 0's read status (status(1) /= 0: failed; the rest: sizes); ranks
-  !> other than 0 get an error naming the file when the read failed (setup_spectral).
-  subroutine share_read_status(status, path, error)
-    integer, intent(inout) :: status(:)
-    character(len=*), intent(in) :: path
-    type(error_t), allocatable, intent(inout) :: error
-    call par_bcast_int(status)
-    if (status(1) /= 0 .and. .not. allocated(error)) then
-      call set_error(error, 'reading '//path//' failed on rank 0')
-    end if
-  end subroutine share_read_status
-
   !> Rank 0 reads a phase-function table (angle [deg], value) and broadcasts it.
   subroutine phase_table_on_root(path, ang, val, error)
     character(len=*), intent(in) :: path
@@ -1431,15 +1413,5 @@ contains
     call b%share(error)
     if (.not. allocated(error)) call b%get(map)
   end subroutine map_on_root
-
-  !> Give every rank rank 0's values of an array of any rank and shape (already allocated with
-  !> that shape on every rank), in place: the array is passed as its sequence of elements
-  !> (setup_spectral; the other readers use a bundle_t).
-  subroutine share_reals(x, n)
-    integer, intent(in) :: n
-    real(dp), intent(inout) :: x(n)
-    if (par_size() > 1) call par_bcast_real(x)
-  end subroutine share_reals
-
 
 end module kumo_scene_setup

@@ -26,6 +26,15 @@ With ``KUMO_ENABLE_LTO`` (default ON) link-time optimisation is switched on
 for Release builds of every target defined after this file is included, but
 only if a test project with LTO compiles and links; ``KUMO_LTO_ACTIVE``
 tells the outcome.
+
+Linking a test executable with LTO costs as much as linking ``kumo`` itself
+(up to 40 s of CPU each for the tests that link the driver), and there are
+about fifty of them: with ``KUMO_TEST_LTO`` OFF (the default) the libraries
+are compiled into fat LTO objects (intermediate language and machine code)
+and the test executables link their machine code without LTO, so the whole
+suite builds in a fraction of the time. ``kumo`` and the other installed
+programs always link with LTO; their results are what the golden-output tests
+pin. Switch ``KUMO_TEST_LTO`` on to build the tests exactly like ``kumo``.
 #]=======================================================================]
 
 include_guard(GLOBAL)
@@ -68,6 +77,11 @@ if(KUMO_ENABLE_LTO)
   check_ipo_supported(RESULT _kumo_ipo_ok OUTPUT _kumo_ipo_log LANGUAGES Fortran)
   if(_kumo_ipo_ok)
     set(CMAKE_INTERPROCEDURAL_OPTIMIZATION_RELEASE ON)
+    if(NOT KUMO_TEST_LTO AND CMAKE_Fortran_COMPILER_ID STREQUAL "GNU")
+      # fat objects: machine code beside the LTO intermediate language, so that the tests
+      # can link without LTO (kumo_add_test)
+      set(CMAKE_Fortran_COMPILE_OPTIONS_IPO -flto=auto -ffat-lto-objects)
+    endif()
     if(CMAKE_BUILD_TYPE STREQUAL "Release" OR CMAKE_CONFIGURATION_TYPES)
       set(KUMO_LTO_ACTIVE ON)
     endif()

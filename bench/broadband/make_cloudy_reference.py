@@ -53,11 +53,12 @@ def hg_moments(g, n):
     return g ** np.arange(n)
 
 
-def solve_sw(tau_gas, ray, flux, nquad):
-    """Broadband-ready fluxes (up, diffuse down, direct down at levels 0..nz) of one g-point."""
+def solve_sw(tau_gas, ray, flux, nquad, cloud=SW_CLOUD):
+    """Broadband-ready fluxes (up, diffuse down, direct down at levels 0..nz) of one g-point;
+    `cloud`: the cloud layer's optical depth, single-scattering albedo and HG g there."""
     nz = len(tau_gas)
     nleg = nquad + 1
-    ct, cs, cg = SW_CLOUD
+    ct, cs, cg = cloud
     tau_c = np.zeros(nz)
     tau_c[CLOUD_LAYER - 1] = ct
     sca_c = tau_c * cs
@@ -85,10 +86,10 @@ def solve_sw(tau_gas, ray, flux, nquad):
     return up, np.atleast_1d(down), np.broadcast_to(direct, up.shape)
 
 
-def solve_lw(tau_gas, bot, top, sfc, nquad):
+def solve_lw(tau_gas, bot, top, sfc, nquad, cloud=LW_CLOUD):
     nz = len(tau_gas)
     nleg = nquad + 1
-    ct, cs, cg = LW_CLOUD
+    ct, cs, cg = cloud
     tau_c = np.zeros(nz)
     tau_c[CLOUD_LAYER - 1] = ct
     dtau = np.maximum(tau_gas + tau_c, gp.TAU_MIN)

@@ -298,6 +298,14 @@ module kumo_config
     real(wp) :: floor_share = 0.2_wp               !! share of photons spread evenly over g-points
     real(wp) :: t_surface = -1.0_wp                !! longwave: surface temperature [K] (< 0:
                                                    !! the lowest level's)
+    !> cloud files: liquid optics per band, 'mie' (kumo's band-averaged Mie tables with their
+    !> phase functions) or 'rrtmgp' (RRTMGP's look-up table, Henyey-Greenstein phase functions)
+    character(len=8) :: liquid_optics = 'mie'
+    !> RRTMGP cloud-optics file (ice, and liquid with 'rrtmgp'); '' = cloudysky_sw.nc or
+    !> cloudysky_lw.nc beside the k-distribution or in the folder of scripts/fetch-rrtmgp.sh
+    character(len=PATH_LEN) :: cloud_optics_file = ''
+    character(len=:), allocatable :: cloud_optics_path  !! resolved (relative to the namelist)
+    character(len=8) :: ice_roughness = 'medium'   !! smooth, medium or rough (RRTMGP ice)
   end type spectral_cfg_t
 
   type :: config_t
@@ -1259,6 +1267,9 @@ contains
       call add('&kumo_thermal t_surface_file', resolve_path(cfg%thermal%t_surface_file, nml_path))
     if (cfg%spectral%enabled .and. allocated(cfg%spectral%kdist_path)) &
       call add('&kumo_spectral kdist_file', cfg%spectral%kdist_path)
+    if (cfg%spectral%enabled .and. cfg%cloud%enabled .and. &
+        allocated(cfg%spectral%cloud_optics_path)) &
+      call add('&kumo_spectral cloud_optics_file', cfg%spectral%cloud_optics_path)
     if (.not. cfg%cloud%enabled) return
     if (allocated(cfg%cloud%req%path)) call add('&kumo_cloud cloud_file', cfg%cloud%req%path)
     if (allocated(cfg%cloud%req%mcarats%phase_path)) then
@@ -1903,7 +1914,7 @@ contains
       call set_error(error, '&kumo_atmosphere: rayleigh = .true. needs the wavelength '// &
                      '(&kumo_source wavelength_um)')
     else if (cfg%cloud%enabled .and. cfg%source%wavelength_um <= 0.0_wp .and. &
-             cfg%cloud%grid%content /= CLOUD_OPTICS .and. &
+             .not. cfg%spectral%enabled .and. cfg%cloud%grid%content /= CLOUD_OPTICS .and. &
              cfg%cloud%grid%content /= CLOUD_MCARATS) then
       call set_error(error, '&kumo_cloud: the cloud file ('//trim(cfg%cloud%req%format)// &
                      ') gives no optical properties; kumo computes them for the wavelength '// &
@@ -1917,9 +1928,6 @@ contains
     type(config_t), intent(inout) :: cfg
     type(error_t), allocatable, intent(inout) :: error
     character(len=*), parameter :: CTX = '&kumo_spectral: '
-    call require(.not. cfg%cloud%enabled, CTX, 'spectral', rule='= .true. takes plane-parallel '// &
-                 'layers or a scene file: broadband runs with a &kumo_cloud file are not '// &
-                 'available yet', error=error)
     call require(.not. cfg%thermal%enabled, CTX, 'spectral', rule='= .true. cannot be '// &
                  'combined with &kumo_thermal: a longwave k-distribution file makes the run '// &
                  'thermal, with t_surface here and the temperatures of the gas profile', error=error)
@@ -2086,15 +2094,17 @@ contains
     real(wp) :: p_levels(MAX_LAYERS + 1), t_levels(MAX_LAYERS + 1), p_layers(MAX_LAYERS), &
                 t_layers(MAX_LAYERS), h2o_vmr(MAX_LAYERS), o3_vmr(MAX_LAYERS)
     real(wp) :: tsi, floor_share, t_surface
-    character(len=PATH_LEN) :: kdist_file
+    character(len=PATH_LEN) :: kdist_file, cloud_optics_file
     character(len=16) :: profile
+    character(len=8) :: liquid_optics, ice_roughness
     logical :: spectral
     integer :: ios, kind, i
     character(len=512) :: msg
     character(len=*), parameter :: CTX = '&kumo_spectral: '
     type(error_t), allocatable :: err
     namelist /kumo_spectral/ spectral, kdist_file, profile, p_levels, t_levels, p_layers, &
-      t_layers, h2o_vmr, o3_vmr, tsi, floor_share, t_surface
+      t_layers, h2o_vmr, o3_vmr, tsi, floor_share, t_surface, liquid_optics, cloud_optics_file, &
+      ice_roughness
     spectral = present
     kdist_file = cfg%kdist_file
     profile = cfg%profile
@@ -2107,6 +2117,9 @@ contains
     tsi = cfg%tsi
     floor_share = cfg%floor_share
     t_surface = cfg%t_surface
+    liquid_optics = cfg%liquid_optics
+    cloud_optics_file = cfg%cloud_optics_file
+    ice_roughness = cfg%ice_roughness
     rewind (unit)
     msg = ''
     read (unit, nml=kumo_spectral, iostat=ios, iomsg=msg)
@@ -2125,6 +2138,13 @@ contains
                  'must be finite and > 0 [W m-2] (total solar irradiance)', error)
     call require(within(floor_share, 0.0_wp, nearest(1.0_wp, -1.0_wp)), CTX, 'floor_share', &
                  floor_share, 'must satisfy 0 <= floor_share < 1', error)
+    call require(liquid_optics == 'mie' .or. liquid_optics == 'rrtmgp', CTX, 'liquid_optics', &
+                 liquid_optics, 'must be ''mie'' (kumo''s band-averaged Mie tables) or '// &
+                 '''rrtmgp'' (RRTMGP''s cloud-optics table)', error)
+    call require(ice_roughness == 'smooth' .or. ice_roughness == 'medium' .or. &
+                 ice_roughness == 'rough', CTX, 'ice_roughness', ice_roughness, 'must be '// &
+                 '''smooth'', ''medium'' or ''rough'' (the ice-crystal surfaces of RRTMGP''s '// &
+                 'ice optics)', error)
     if (allocated(error)) return
     if (len_trim(profile) > 0) then
       call std_atmosphere_kind_from_name(profile, kind, err)
@@ -2176,6 +2196,11 @@ contains
     cfg%tsi = tsi
     cfg%floor_share = floor_share
     cfg%t_surface = t_surface
+    cfg%liquid_optics = liquid_optics
+    cfg%ice_roughness = ice_roughness
+    cfg%cloud_optics_file = cloud_optics_file
+    if (len_trim(cloud_optics_file) > 0) cfg%cloud_optics_path = resolve_path(cloud_optics_file, &
+                                                                             nml_path)
   contains
     !> n values of `name`, without gaps, each finite and >= lo.
     subroutine level_values(name, given, n, what, lo, out)
@@ -2400,6 +2425,11 @@ contains
              'kumo_spectral.kdist_file = '//trim(cfg%spectral%kdist_file)//nl// &
              'kumo_spectral.tsi = '//str(cfg%spectral%tsi)//nl// &
              'kumo_spectral.floor_share = '//str(cfg%spectral%floor_share)//nl
+      if (cfg%cloud%enabled) text = text// &
+        'kumo_spectral.liquid_optics = '//trim(cfg%spectral%liquid_optics)//nl// &
+        'kumo_spectral.ice_roughness = '//trim(cfg%spectral%ice_roughness)//nl
+      if (len_trim(cfg%spectral%cloud_optics_file) > 0) text = text// &
+        'kumo_spectral.cloud_optics_file = '//trim(cfg%spectral%cloud_optics_file)//nl
       if (len_trim(cfg%spectral%profile) > 0) text = text// &
         'kumo_spectral.profile = '//trim(cfg%spectral%profile)//nl
       if (allocated(cfg%spectral%p_levels)) text = text// &

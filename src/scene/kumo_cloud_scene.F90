@@ -46,7 +46,7 @@ module kumo_cloud_scene
   use kumo_config, only: cloud_cfg_t
   implicit none
   private
-  public :: build_cloud_atmosphere, rayleigh_layers, cloud_temperature_t
+  public :: build_cloud_atmosphere, rayleigh_layers, cloud_temperature_t, mie_voxels
 
   !> Temperatures of a cloud file for thermal emission, on the columns and layers of the 3-D
   !> region the file defines (voxel (ix, iy, k) is layer k3_lo + k - 1 of the atmosphere).

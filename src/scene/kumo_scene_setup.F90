@@ -16,6 +16,7 @@ module kumo_scene_setup
                         phase_from_table, new_phase_rayleigh_depol, PHASE_ISOTROPIC, &
                         PHASE_RAYLEIGH, PHASE_HG, PHASE_TABLE
   use kumo_atmosphere, only: atmosphere_t, atmosphere_options_t, atmosphere_init, &
+                             atmosphere_begin, atmosphere_end, &
                              atmosphere_set_truncation, LAYER_CLEAR, LAYER_ABSORBING, &
                              LAYER_SCATTERING
   use kumo_std_atmosphere, only: std_atmosphere_profile
@@ -43,6 +44,7 @@ module kumo_scene_setup
   use kumo_cloud_input, only: cloud_input_t, cloud_request_t, read_cloud_input
   use kumo_bundle, only: bundle_t
   use kumo_cloud_scene, only: build_cloud_atmosphere, rayleigh_layers, cloud_temperature_t
+  use kumo_spectral_cloud, only: spectral_cloud_t, spectral_cloud_init, spectral_cloud_put
   use kumo_rayleigh, only: depol_from_king, king_factor_air
   use kumo_textio, only: read_two_columns
   use kumo_netcdf, only: read_scene_3d, read_albedo_map, read_brdf_map, read_scene_temperature, &
@@ -94,6 +96,12 @@ module kumo_scene_setup
     real(wp) :: floor = 0.1_wp                    !! emission floor (longwave)
     real(dp), allocatable :: exact_buf(:)         !! the exact batch tallies, once computed
     integer(i8) :: exact_n = 0_i8                 !! for this batch size
+    integer :: g_setup = 0                        !! g-point of the atmosphere after set-up
+    integer, allocatable :: gpt_band(:)           !! (n_gpt) band of each g-point
+    real(wp), allocatable :: band_wn(:, :)        !! (2, n_band) band limits [cm-1]
+    ! cloud files (&kumo_cloud): the fields and their optics per band (kumo_spectral_cloud)
+    logical :: cloud_on = .false.
+    type(spectral_cloud_t) :: cloud
   end type spectral_scene_t
 
 contains
@@ -204,7 +212,7 @@ contains
     real(wp), allocatable :: ang(:), val(:), ext3(:, :, :, :), ssa3(:, :, :, :), alb(:, :)
     type(brdf_params_t), allocatable :: bmap(:, :)
     integer, allocatable :: iph3(:, :, :, :), phase1d(:, :)
-    integer :: i
+    integer :: i, n_out_liq, n_out_ice
     character(len=:), allocatable :: nml_path
     real(wp), allocatable :: ext1d(:, :), ssa1d(:, :), ray_ext(:), ray_rho(:)
     character(len=:), allocatable :: ray_notes
@@ -296,7 +304,40 @@ contains
     aopts%sv%fsupg = cfg%vr%sv_fsupg
     aopts%sv%fsupi = cfg%vr%sv_fsupi
     aopts%sv%max_layers = cfg%vr%sv_max_layers
-    if (cfg%cloud%enabled) then
+    if (cfg%cloud%enabled .and. cfg%spectral%enabled) then
+      ! a broadband run: the cloud's optics per band, its atmosphere rebuilt per g-point
+      call spectral_cloud_init(cfg%cloud, cfg%spectral, cloud_optics_location(cfg), &
+                               band_mie_default_cache(cfg, spec%longwave), spec%band_wn, &
+                               spec%longwave, cfg%phase%n_table, phases, spec%cloud, cloud_notes, &
+                               cloud_warnings, error)
+      if (allocated(error)) return
+      spec%three_d = .true.
+      spec%cloud_on = .true.
+      spec%aopts = aopts
+      scene%notes = scene%notes//cloud_notes
+      if (spec%longwave) scene%notes = scene%notes//'  longwave emission of the cloud voxels: '// &
+        'the Planck sources of their layers (temperatures of the &kumo_spectral profile; the '// &
+        'cloud file''s temperatures are not used)'//new_line('a')
+      call atmosphere_begin(scene%atm, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, ext1d, ssa1d, &
+                            phase1d, phases, aopts, error, cfg%atm%k3d_bottom, spec%cloud%nx, &
+                            spec%cloud%ny, spec%cloud%nz, spec%cloud%nc3, blend=.true.)
+      if (allocated(error)) return
+      call spectral_cloud_put(spec%cloud, spec%gpt_band(spec%g_setup), scene%atm, n_out_liq, &
+                              n_out_ice)
+      call atmosphere_end(scene%atm, aopts, error)
+      if (allocated(error)) return
+      ! the tables of all bands have the same radii: the counts of one band are everyone's
+      if (n_out_liq > 0) scene%warnings = scene%warnings//str(n_out_liq)//' cloud voxel '// &
+        'values have a droplet effective radius outside the liquid optics table ('// &
+        str(spec%cloud%liq_tab(1)%r_eff_um(1))//' - '// &
+        str(spec%cloud%liq_tab(1)%r_eff_um(size(spec%cloud%liq_tab(1)%r_eff_um)))// &
+        ' um) and were given the nearest table radius. '
+      if (n_out_ice > 0) scene%warnings = scene%warnings//str(n_out_ice)//' ice voxel values '// &
+        'have an effective radius outside the ice optics table ('// &
+        str(spec%cloud%ice_tab(1)%r_eff_um(1))//' - '// &
+        str(spec%cloud%ice_tab(1)%r_eff_um(size(spec%cloud%ice_tab(1)%r_eff_um)))// &
+        ' um) and were given the nearest table radius. '
+    else if (cfg%cloud%enabled) then
       call cloud_on_ranks(cfg, ext1d, ssa1d, phase1d, phases, aopts, scene%atm, cloud_notes, &
                           cloud_warnings, error, cloud_t)
       if (allocated(error)) return
@@ -746,6 +787,8 @@ contains
         call add_context(error, '&kumo_spectral kdist_file')
       else
         call b%put(kd%longwave)
+        call b%put(col%gpt_band)
+        call b%put(col%band_wavenumber)
         call b%put(col%tau_abs)
         call b%put(col%energy)
         if (kd%longwave) then
@@ -760,6 +803,8 @@ contains
     call b%share(error)
     if (allocated(error)) return
     call b%get(lw)
+    call b%get(spec%gpt_band)
+    call b%get(spec%band_wn)
     call b%get(tau_abs)
     call b%get(energy)
     ng = size(energy)
@@ -846,6 +891,7 @@ contains
     spec%tau_ray = tau_ray
     spec%floor = cfg%thermal%emission_floor
     g = maxloc(energy, 1)
+    spec%g_setup = g
     if (lw) then
       ext1d = reshape([ext1d, tau_abs(:, g)/dz], [nz, nc + 1])
       ssa1d = reshape([ssa1d, spread(0.0_wp, 1, nz)], [nz, nc + 1])
@@ -1012,7 +1058,8 @@ contains
     type(error_t), allocatable, intent(out) :: error
     real(wp), allocatable :: e(:, :), w(:, :), dz(:)
     integer, allocatable :: ip(:, :)
-    integer :: nz
+    type(phase_t), allocatable :: ph(:)
+    integer :: nz, n_out_liq, n_out_ice
     if (.not. spec%three_d) then
       atm%ext1(:) = spec%ext1(:, g)
       atm%omg1(:) = spec%omg1(:, g)
@@ -1034,7 +1081,17 @@ contains
       ip = reshape([spec%phase1d, spread(spec%iray, 1, nz), spread(1, 1, nz)], &
                    [nz, size(spec%ext1d, 2) + 2])
     end if
-    if (allocated(spec%iph3)) then
+    if (spec%cloud_on) then
+      ! the cloud's voxels at the g-point's band over its gas layers; the phase functions (every
+      ! band's) move out of the atmosphere and back in, uncopied
+      call move_alloc(atm%phases, ph)
+      call atmosphere_begin(atm, spec%z, spec%lx, spec%ly, e, w, ip, ph, spec%aopts, error, &
+                            spec%k3d_bottom, spec%cloud%nx, spec%cloud%ny, spec%cloud%nz, &
+                            spec%cloud%nc3, blend=.true.)
+      if (allocated(error)) return
+      call spectral_cloud_put(spec%cloud, spec%gpt_band(g), atm, n_out_liq, n_out_ice)
+      call atmosphere_end(atm, spec%aopts, error)
+    else if (allocated(spec%iph3)) then
       call atmosphere_init(atm, spec%z, spec%lx, spec%ly, e, w, ip, spec%phases, spec%aopts, &
                            error, spec%k3d_bottom, spec%ext3, spec%ssa3, spec%iph3)
     else
@@ -1086,6 +1143,36 @@ contains
     inquire (file=dir//'/'//trim(name), exist=there)
     if (there) loc = dir//'/'//trim(name)
   end function kdist_location
+
+  !> The RRTMGP cloud-optics file of a broadband run with a cloud file: &kumo_spectral
+  !> cloud_optics_file if given (found like the k-distribution, kdist_location), otherwise
+  !> cloudysky_sw.nc or cloudysky_lw.nc (by the k-distribution's kind, from its file name) in
+  !> the k-distribution's folder or, failing that, in the folder scripts/fetch-rrtmgp.sh fills.
+  function cloud_optics_location(cfg) result(loc)
+    type(config_t), intent(in) :: cfg
+    character(len=:), allocatable :: loc, kd, name
+    integer :: slash
+    if (allocated(cfg%spectral%cloud_optics_path)) then
+      loc = kdist_location(cfg%spectral%cloud_optics_file, cfg%spectral%cloud_optics_path)
+      return
+    end if
+    kd = kdist_location(cfg%spectral%kdist_file, cfg%spectral%kdist_path)
+    name = 'cloudysky_sw.nc'
+    if (index(kd, '-lw-') > 0 .or. index(kd, '_lw') > 0) name = 'cloudysky_lw.nc'
+    slash = index(kd, '/', back=.true.)
+    loc = kdist_location(name, kd(1:slash)//name)
+  end function cloud_optics_location
+
+  !> Where broadband runs keep kumo's band-averaged Mie tables unless &kumo_cloud mie_cache
+  !> says: kumo-band-mie-sw.nc or kumo-band-mie-lw.nc in the k-distribution's folder (a file
+  !> whose request differs is computed again and replaced).
+  function band_mie_default_cache(cfg, longwave) result(path)
+    type(config_t), intent(in) :: cfg
+    logical, intent(in) :: longwave
+    character(len=:), allocatable :: path, kd
+    kd = kdist_location(cfg%spectral%kdist_file, cfg%spectral%kdist_path)
+    path = kd(1:index(kd, '/', back=.true.))//'kumo-band-mie-'//merge('lw', 'sw', longwave)//'.nc'
+  end function band_mie_default_cache
 
   !> The value of an environment variable ('' if unset).
   function env_text(var) result(val)

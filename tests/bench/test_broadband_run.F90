@@ -39,6 +39,7 @@ module test_broadband_run_suite
   use kumo_results, only: result_set_t
   use kumo_netcdf, only: write_scene_3d
   use kumo_driver, only: simulate, run_summary_t
+  use kumo_scene_setup, only: load_config
   use kumo_testing, only: error_t, unittest_t, new_unittest, check, check_sigma, check_error_words
   implicit none
   private
@@ -54,6 +55,7 @@ module test_broadband_run_suite
     real(dp) :: tsi = 0
     real(dp) :: tsfc = 0, eps = 1                   !! longwave: surface temperature, emissivity
     real(dp) :: cloud(4) = 0                        !! layer, optical depth, ssa, g (0: none)
+    real(dp) :: liquid(3) = 0                       !! layer, LWC [g m-3], r_eff [um] (0: none)
     real(dp), allocatable :: lev(:, :)              !! (0:nz, 2) p [Pa], T [K]
     character(len=32), allocatable :: lay(:, :)     !! (nz, 4) p, T, h2o, o3 as written
     real(dp), allocatable :: bb(:, :)               !! (0:nz, 5) up, dif, dir, their errors
@@ -76,6 +78,9 @@ contains
              new_unittest('lw_3d_homogeneous_vs_disort', test_lw_3d), &
              new_unittest('lw_3d_voxel_temperatures_refused', test_lw_3d_temperatures), &
              new_unittest('lw_track_estimator_refused', test_lw_track_refused), &
+             new_unittest('sw_liquid_cloud_file_vs_disort', test_sw_liquid), &
+             new_unittest('lw_liquid_cloud_file_vs_disort', test_lw_liquid), &
+             new_unittest('cloud_file_without_water_refused', test_cloud_optics_refused), &
              new_unittest('bad_inputs', test_bad_inputs)]
   end function collect_broadband_run
 
@@ -120,6 +125,8 @@ contains
         end if
       case ('cloud')
         read (line, *) key, c%cloud
+      case ('liquid')
+        read (line, *) key, c%liquid
       case ('level')
         read (line, *) key, idx, c%lev(idx, :)
       case ('layer')
@@ -231,7 +238,7 @@ contains
     type(error_t), allocatable, intent(out) :: error
     type(config_t) :: cfg
     type(error_t), allocatable :: err
-    call read_config(path, cfg, err)
+    call load_config(path, cfg, err)
     if (.not. allocated(err)) call simulate(cfg, set, summary, err)
     if (allocated(err)) call check(error, .false., path//': '//err%message// &
                                    ' (scripts/fetch-rrtmgp.sh fetches the k-distributions)')
@@ -540,6 +547,88 @@ contains
     if (allocated(error)) return
     call compare(set, summary, c, error, huge(1), 1.0_dp)
   end subroutine homogeneous_3d
+
+  !> A cloud file (an I3RC LWC file of 3 x 2 equal columns in layer 3) whose optics change
+  !> from band to band: RRTMGP's liquid table (liquid_optics = 'rrtmgp'), against the summed
+  !> discrete-ordinates solutions of sw_liquid_reference.txt, whose cloud optics per band come
+  !> from jax-rrtmgp (bench/broadband/make_liquid_reference.py).
+  subroutine test_sw_liquid(error)
+    type(error_t), allocatable, intent(out) :: error
+    call liquid_cloud_file('sw', 40, 20000, error)
+  end subroutine test_sw_liquid
+
+  subroutine test_lw_liquid(error)
+    type(error_t), allocatable, intent(out) :: error
+    call liquid_cloud_file('lw', 200, 40000, error)
+  end subroutine test_lw_liquid
+
+  subroutine liquid_cloud_file(kind, n_batches, n_photons, error)
+    character(len=*), intent(in) :: kind
+    integer, intent(in) :: n_batches, n_photons
+    type(error_t), allocatable, intent(out) :: error
+    type(case_t) :: c
+    type(result_set_t) :: set
+    type(run_summary_t) :: summary
+    character(len=:), allocatable :: stem
+    stem = kind//'_liquid'
+    call read_case('us1976_cloud', c, error, kind//'_liquid_reference.txt')
+    if (allocated(error)) return
+    call check(error, nint(c%liquid(1)) == 3, 'the liquid cloud of the reference is in layer 3')
+    if (allocated(error)) return
+    call write_lwc(stem//'.lwc', c%liquid(2), c%liquid(3))
+    call write_nml(stem//'.nml', c, '  floor_share = 0.2'//new_line('a')// &
+                   '  liquid_optics = ''rrtmgp'''//new_line('a')//'  cloud_optics_file = '''// &
+                   rrtmgp_dir//'/cloudysky_'//kind//'.nc''', '', n_batches, &
+                   groups='&kumo_cloud'//new_line('a')//'  cloud_file = '''//stem//'.lwc'''// &
+                   new_line('a')//'  cloud_format = ''lwc'''//new_line('a')//'/', &
+                   n_photons=n_photons)
+    call run(stem//'.nml', set, summary, error)
+    if (allocated(error)) return
+    call compare(set, summary, c, error, huge(1), 1.0_dp)
+  end subroutine liquid_cloud_file
+
+  !> An I3RC 2-parameter LWC file: 3 x 2 columns of 1 km, one layer from 2 to 3 km, every
+  !> point with the same water content [g m-3] and effective radius [um].
+  subroutine write_lwc(path, lwc, reff)
+    character(len=*), intent(in) :: path
+    real(dp), intent(in) :: lwc, reff
+    integer :: u, ix, iy
+    open (newunit=u, file=path, status='replace', action='write')
+    write (u, '(a)') '2', '3 2 1', '1.0 1.0', '2.0 3.0', '280.0 280.0'
+    do ix = 1, 3
+      do iy = 1, 2
+        write (u, '(3(i0, 1x), 2(es23.16, 1x))') ix, iy, 1, lwc, reff
+      end do
+    end do
+    close (u)
+  end subroutine write_lwc
+
+  !> A cloud file that gives optical properties at one wavelength (a SHDOM property file) has
+  !> no optics per band: refused, with what to use instead.
+  subroutine test_cloud_optics_refused(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(case_t) :: c
+    type(config_t) :: cfg
+    type(result_set_t) :: set
+    type(run_summary_t) :: summary
+    type(error_t), allocatable :: err
+    integer :: u
+    call read_case('us1976', c, error)
+    if (allocated(error)) return
+    open (newunit=u, file='gray.prp', status='replace', action='write')
+    write (u, '(a)') 'tabulated phase function format', '3 2 1', '1.0 1.0 2.0 3.0', '1', &
+      '2 1.5 1.25', '1 1 1 280.0 10.0 0.99 1', '1 2 1 280.0 10.0 0.99 1', &
+      '2 1 1 280.0 10.0 0.99 1', '2 2 1 280.0 10.0 0.99 1', '3 1 1 280.0 10.0 0.99 1', &
+      '3 2 1 280.0 10.0 0.99 1'
+    close (u)
+    call write_nml('cloud_prp.nml', c, '', '', 2, groups='&kumo_cloud'//new_line('a')// &
+                   '  cloud_file = ''gray.prp'''//new_line('a')//'  cloud_format = ''prp'''// &
+                   new_line('a')//'/')
+    call load_config('cloud_prp.nml', cfg, err)
+    if (.not. allocated(err)) call simulate(cfg, set, summary, err)
+    call check_error_words(error, err, [character(len=32) :: 'gray.prp', 'per band', &
+                           'scene file'])
+  end subroutine test_cloud_optics_refused
 
   subroutine test_bad_inputs(error)
     type(error_t), allocatable, intent(out) :: error

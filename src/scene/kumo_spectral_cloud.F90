@@ -1,0 +1,324 @@
+! SPDX-License-Identifier: BSD-3-Clause
+!> Cloud files in broadband runs: the cloud's optics per band of the k-distribution, put into
+!> the atmosphere of each g-point (docs/broadband.md, "Cloud files"; docs/cloud-optics-bands.md).
+!>
+!> The fields stay as the file gives them (liquid water content and effective radius, and ice
+!> water content and effective radius when the file has ice); what changes from band to band is
+!> the table that turns them into optics:
+!>
+!> * liquid, `liquid_optics = 'mie'` (default): kumo's Mie tables averaged over each band with a
+!>   source weighting (kumo_band_mie: the Planck function of the Sun's effective temperature in
+!>   the shortwave, of 280 K in the longwave), with the full phase function of every table
+!>   radius; the radii are those of &kumo_cloud (reff_min_um, reff_max_um, n_reff, geometric),
+!>   the size distribution too. Computing them for all bands takes minutes (7 min for the 14
+!>   shortwave bands and 40 radii up to 40 um), so they are kept in a file and reused while
+!>   the request matches: &kumo_cloud mie_cache, or by default `default_cache` (beside the
+!>   k-distribution);
+!> * liquid, `liquid_optics = 'rrtmgp'`: RRTMGP's look-up table (Pincus, Mlawer and Delamere
+!>   2019), Henyey-Greenstein phase functions with the table's asymmetry parameter;
+!> * ice: RRTMGP's table for the roughness class `ice_roughness`, Henyey-Greenstein.
+!>
+!> A voxel whose radius lies between two table radii is the mixture of the two tabulated
+!> populations that has that effective radius, with the blend of their phase functions, as in
+!> monochromatic runs (kumo_cloud_scene); radii outside a table are clamped to its ends and
+!> counted in a warning. Only the table radii's phase functions exist: n_band x n_radii of them.
+module kumo_spectral_cloud
+  use kumo_kinds, only: wp
+  use kumo_error, only: error_t, set_error, str
+  use kumo_phase, only: phase_t, phase_from_table, new_phase_hg
+  use kumo_mie, only: mie_table_t, dist_kind_from_name
+  use kumo_band_mie, only: band_mie_t, band_mie_table, T_SUN_K, T_CLOUD_K
+  use kumo_band_mie_file, only: band_mie_cached
+  use kumo_band_cloud, only: band_cloud_t, band_cloud_check_bands, ICE_SMOOTH, ICE_MEDIUM, &
+                             ICE_ROUGH
+  use kumo_rrtmgp_cloud_file, only: read_rrtmgp_cloud_optics
+  use kumo_cloud_input, only: cloud_input_t, cloud_request_t, read_cloud_input, CLOUD_WATER
+  use kumo_cloud_scene, only: mie_voxels
+  use kumo_atmosphere, only: atmosphere_t
+  use kumo_bundle, only: bundle_t
+  use kumo_parallel, only: par_is_root
+  use kumo_config, only: cloud_cfg_t, spectral_cfg_t
+  implicit none
+  private
+  public :: spectral_cloud_t, spectral_cloud_init, spectral_cloud_put
+
+  !> Nodes per band of the band-averaged Mie tables (kumo_band_mie: wide bands get more).
+  integer, parameter :: MIE_NODES = 8
+
+  !> A cloud file's fields and its optics tables per band.
+  type :: spectral_cloud_t
+    type(cloud_input_t) :: liq                    !! lwc, reff (g m-3, um)
+    type(cloud_input_t) :: ice                    !! iwc, reff_ice, when has_ice
+    logical :: has_ice = .false.
+    integer :: n_band = 0
+    integer :: nx = 0, ny = 0, nz = 0             !! voxels of the cloud file
+    integer :: nc3 = 1                            !! voxel components (species x planes)
+    type(mie_table_t), allocatable :: liq_tab(:)  !! (n_band) liquid optics per band
+    type(mie_table_t), allocatable :: ice_tab(:)  !! (n_band) ice optics per band
+    integer, allocatable :: off_liq(:)            !! (n_band) phase functions before the band's
+    integer, allocatable :: off_ice(:)
+  end type spectral_cloud_t
+
+contains
+
+  !> Read the cloud file (rank 0 first, then the others, as monochromatic runs do), make the
+  !> optics tables per band of `band_wavenumber` (2, n_band) [cm-1] on rank 0 and share them,
+  !> and append the tables' phase functions to `phases`. `optics_path`: the RRTMGP cloud-optics
+  !> file (read when liquid_optics = 'rrtmgp' or the file has ice).
+  subroutine spectral_cloud_init(ccfg, scfg, optics_path, default_cache, band_wavenumber, &
+                                 longwave, n_table, phases, sc, notes, warnings, error)
+    type(cloud_cfg_t), intent(in) :: ccfg
+    type(spectral_cfg_t), intent(in) :: scfg
+    character(len=*), intent(in) :: optics_path
+    !> the band-averaged Mie tables' file when &kumo_cloud mie_cache is not given
+    character(len=*), intent(in) :: default_cache
+    real(wp), intent(in) :: band_wavenumber(:, :)
+    logical, intent(in) :: longwave
+    integer, intent(in) :: n_table
+    type(phase_t), allocatable, intent(inout) :: phases(:)
+    type(spectral_cloud_t), intent(out) :: sc
+    character(len=:), allocatable, intent(out) :: notes, warnings
+    type(error_t), allocatable, intent(out) :: error
+    type(bundle_t) :: b, bt
+    type(phase_t), allocatable :: more(:)
+    integer :: nb, ib, i, nr
+    logical :: hg_liq
+
+    notes = ''
+    warnings = ''
+    nb = size(band_wavenumber, 2)
+    sc%n_band = nb
+    hg_liq = scfg%liquid_optics == 'rrtmgp'
+    ! the fields: rank 0 reads first, so that a bad file gives one error on every rank
+    if (par_is_root()) call read_fields(error)
+    call b%share(error)
+    if (allocated(error)) return
+    if (.not. par_is_root()) then
+      call read_fields(error)
+      if (allocated(error)) return
+    end if
+    sc%nx = sc%liq%nx
+    sc%ny = sc%liq%ny
+    sc%nz = sc%liq%nz
+    sc%nc3 = merge(2, 1, sc%liq%points)*merge(2, 1, sc%has_ice)
+
+    ! the tables, on rank 0
+    if (par_is_root()) then
+      call make_tables(error)
+      if (.not. allocated(error)) then
+        call bt%put(notes)
+        do ib = 1, nb
+          call bt%put(sc%liq_tab(ib)%r_eff_um)
+          call bt%put(sc%liq_tab(ib)%ext_per_lwc)
+          call bt%put(sc%liq_tab(ib)%ssa)
+          call bt%put(sc%liq_tab(ib)%g)
+          if (.not. hg_liq) then
+            call bt%put(sc%liq_tab(ib)%angle_deg)
+            call bt%put(sc%liq_tab(ib)%phase)
+          end if
+          if (sc%has_ice) then
+            call bt%put(sc%ice_tab(ib)%r_eff_um)
+            call bt%put(sc%ice_tab(ib)%ext_per_lwc)
+            call bt%put(sc%ice_tab(ib)%ssa)
+            call bt%put(sc%ice_tab(ib)%g)
+          end if
+        end do
+      end if
+    end if
+    call bt%share(error)
+    if (allocated(error)) return
+    call bt%get(notes)
+    if (.not. par_is_root()) then
+      allocate (sc%liq_tab(nb))
+      if (sc%has_ice) allocate (sc%ice_tab(nb))
+      do ib = 1, nb
+        call bt%get(sc%liq_tab(ib)%r_eff_um)
+        call bt%get(sc%liq_tab(ib)%ext_per_lwc)
+        call bt%get(sc%liq_tab(ib)%ssa)
+        call bt%get(sc%liq_tab(ib)%g)
+        if (.not. hg_liq) then
+          call bt%get(sc%liq_tab(ib)%angle_deg)
+          call bt%get(sc%liq_tab(ib)%phase)
+        end if
+        if (sc%has_ice) then
+          call bt%get(sc%ice_tab(ib)%r_eff_um)
+          call bt%get(sc%ice_tab(ib)%ext_per_lwc)
+          call bt%get(sc%ice_tab(ib)%ssa)
+          call bt%get(sc%ice_tab(ib)%g)
+        end if
+      end do
+    end if
+
+    ! phase functions: every band's liquid radii, then every band's ice sizes
+    allocate (sc%off_liq(nb), sc%off_ice(nb))
+    sc%off_ice = 0
+    do ib = 1, nb
+      sc%off_liq(ib) = size(phases)
+      nr = size(sc%liq_tab(ib)%r_eff_um)
+      allocate (more(nr))
+      do i = 1, nr
+        if (hg_liq) then
+          more(i) = new_phase_hg(sc%liq_tab(ib)%g(i), error)
+        else
+          more(i) = phase_from_table(sc%liq_tab(ib)%angle_deg, sc%liq_tab(ib)%phase(:, i), &
+                                     n_table, error)
+        end if
+        if (allocated(error)) then
+          error%message = 'liquid optics of band '//str(ib)//', radius '// &
+                          str(sc%liq_tab(ib)%r_eff_um(i))//' um: '//error%message
+          return
+        end if
+      end do
+      phases = [phases, more]
+      deallocate (more)
+    end do
+    if (sc%has_ice) then
+      do ib = 1, nb
+        sc%off_ice(ib) = size(phases)
+        nr = size(sc%ice_tab(ib)%r_eff_um)
+        allocate (more(nr))
+        do i = 1, nr
+          more(i) = new_phase_hg(sc%ice_tab(ib)%g(i), error)
+          if (allocated(error)) then
+            error%message = 'ice optics of band '//str(ib)//': '//error%message
+            return
+          end if
+        end do
+        phases = [phases, more]
+        deallocate (more)
+      end do
+    end if
+    notes = 'cloud file '//ccfg%req%path//' ('//trim(sc%liq%format)//'): '//sc%liq%notes// &
+            new_line('a')//notes
+
+  contains
+
+    subroutine read_fields(err)
+      type(error_t), allocatable, intent(out) :: err
+      type(cloud_request_t) :: req
+      req = ccfg%req
+      req%temperature = .false.
+      call read_cloud_input(req, sc%liq, err, part='liquid')
+      if (allocated(err)) return
+      if (sc%liq%content /= CLOUD_WATER) then
+        call set_error(err, ccfg%req%path//': broadband runs compute the cloud''s optics '// &
+                       'per band from liquid (and ice) water content and effective radius; '// &
+                       'this file gives optical properties at one wavelength ('// &
+                       trim(sc%liq%format)//'): use an LES/CRM or water-content file, or '// &
+                       'a scene file of gray voxels (&kumo_atmosphere scene_file)')
+        return
+      end if
+      sc%has_ice = sc%liq%has_ice
+      if (sc%has_ice) then
+        call read_cloud_input(req, sc%ice, err, part='ice')
+        if (allocated(err)) return
+      end if
+    end subroutine read_fields
+
+    !> Rank 0: the liquid (and ice) tables of every band; `notes` says how they were made.
+    subroutine make_tables(err)
+      type(error_t), allocatable, intent(out) :: err
+      type(band_cloud_t) :: bc
+      type(band_mie_t) :: bm
+      character(len=:), allocatable :: action, cache
+      real(wp), allocatable :: r(:)
+      real(wp) :: t_src
+      integer :: dist, n, j, rough
+      allocate (sc%liq_tab(nb))
+      if (sc%has_ice) allocate (sc%ice_tab(nb))
+      if (hg_liq .or. sc%has_ice) then
+        call read_rrtmgp_cloud_optics(optics_path, bc, err)
+        if (.not. allocated(err)) call band_cloud_check_bands(bc, band_wavenumber, err)
+        if (allocated(err)) then
+          err%message = err%message//' (&kumo_spectral cloud_optics_file)'
+          return
+        end if
+        notes = notes//'RRTMGP cloud optics '//optics_path
+        if (bc%reordered) notes = notes//' (shortwave tables put into the k-distribution''s '// &
+                                  'band order, docs/cloud-optics-bands.md)'
+        notes = notes//new_line('a')
+      end if
+      if (hg_liq) then
+        n = nint((bc%liq_hi - bc%liq_lo)/bc%liq_step) + 1
+        do ib = 1, nb
+          sc%liq_tab(ib)%r_eff_um = [(bc%liq_lo + (j - 1)*bc%liq_step, j=1, n)]
+          ! m2 kg-1 -> m2 g-1: per g m-3 of water, like kumo's Mie tables
+          sc%liq_tab(ib)%ext_per_lwc = 1.0e-3_wp*bc%liq_ext(:, ib)
+          sc%liq_tab(ib)%ssa = bc%liq_ssa(:, ib)
+          sc%liq_tab(ib)%g = bc%liq_asy(:, ib)
+        end do
+        notes = notes//'liquid: RRTMGP table, '//str(n)//' radii '//str(bc%liq_lo)//' ... '// &
+                str(bc%liq_hi)//' um, Henyey-Greenstein phase functions'//new_line('a')
+      else
+        n = ccfg%n_reff
+        allocate (r(n))
+        do j = 1, n
+          r(j) = ccfg%reff_min_um*(ccfg%reff_max_um/ccfg%reff_min_um)**(real(j - 1, wp)/(n - 1))
+        end do
+        r(n) = ccfg%reff_max_um
+        call dist_kind_from_name(ccfg%size_distribution, dist, err)
+        if (allocated(err)) return
+        t_src = T_SUN_K
+        if (longwave) t_src = T_CLOUD_K
+        cache = default_cache
+        if (len_trim(ccfg%mie_cache) > 0) cache = trim(ccfg%mie_cache)
+        call band_mie_cached(cache, band_wavenumber(1, :), band_wavenumber(2, :), t_src, dist, &
+                             ccfg%v_eff, r, MIE_NODES, bm, action, err)
+        if (allocated(err) .and. len_trim(ccfg%mie_cache) == 0 .and. bm%nband == nb) then
+          ! computed, but the default place cannot keep it: the run goes on
+          action = action//'; not kept: '//err%message
+          deallocate (err)
+        end if
+        if (allocated(err)) return
+        action = action//' ('//cache//')'
+        do ib = 1, nb
+          call band_mie_table(bm, ib, sc%liq_tab(ib), err)
+          if (allocated(err)) return
+        end do
+        notes = notes//'liquid: band-averaged Mie tables ('//trim(ccfg%size_distribution)// &
+                ' v_eff = '//str(ccfg%v_eff)//', '//str(n)//' radii '//str(r(1))//' ... '// &
+                str(r(n))//' um, Planck weighting at '//str(t_src)//' K): '//action//new_line('a')
+      end if
+      if (sc%has_ice) then
+        select case (scfg%ice_roughness)
+        case ('smooth')
+          rough = ICE_SMOOTH
+        case ('rough')
+          rough = ICE_ROUGH
+        case default
+          rough = ICE_MEDIUM
+        end select
+        n = nint((bc%ice_hi - bc%ice_lo)/bc%ice_step) + 1
+        do ib = 1, nb
+          ! the table's sizes are diameters: radii are half of them
+          sc%ice_tab(ib)%r_eff_um = [(0.5_wp*(bc%ice_lo + (j - 1)*bc%ice_step), j=1, n)]
+          sc%ice_tab(ib)%ext_per_lwc = 1.0e-3_wp*bc%ice_ext(:, ib, rough)
+          sc%ice_tab(ib)%ssa = bc%ice_ssa(:, ib, rough)
+          sc%ice_tab(ib)%g = bc%ice_asy(:, ib, rough)
+        end do
+        notes = notes//'ice: RRTMGP table ('//trim(scfg%ice_roughness)//' crystals), '// &
+                str(n)//' effective radii '//str(0.5_wp*bc%ice_lo)//' ... '// &
+                str(0.5_wp*bc%ice_hi)//' um, Henyey-Greenstein phase functions'//new_line('a')
+      end if
+    end subroutine make_tables
+  end subroutine spectral_cloud_init
+
+  !> Put the cloud's voxels at band `band` into an atmosphere begun (atmosphere_begin) with
+  !> the cloud file's grid, sc%nc3 voxel components and phase blends: liquid first, then ice.
+  !> `n_out_liq`, `n_out_ice`: voxel values whose radius lies outside the table (clamped).
+  subroutine spectral_cloud_put(sc, band, atm, n_out_liq, n_out_ice)
+    type(spectral_cloud_t), intent(in) :: sc
+    integer, intent(in) :: band
+    type(atmosphere_t), intent(inout) :: atm
+    integer, intent(out) :: n_out_liq, n_out_ice
+    integer :: np
+    np = merge(2, 1, sc%liq%points)
+    n_out_liq = 0
+    n_out_ice = 0
+    call mie_voxels(sc%liq, sc%liq%lwc, sc%liq%reff, sc%liq_tab(band), sc%off_liq(band), &
+                    .false., atm, 0, n_out_liq)
+    if (sc%has_ice) call mie_voxels(sc%ice, sc%ice%iwc, sc%ice%reff_ice, sc%ice_tab(band), &
+                                    sc%off_ice(band), .false., atm, np, n_out_ice)
+  end subroutine spectral_cloud_put
+
+end module kumo_spectral_cloud

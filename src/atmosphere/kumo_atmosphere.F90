@@ -18,7 +18,8 @@ module kumo_atmosphere
   use kumo_error, only: error_t, set_error, str
   use kumo_phase, only: phase_t
   use kumo_truncation, only: truncation_t
-  use kumo_supervoxel, only: supervoxel_grid_t, supervoxel_options_t, build_supervoxels
+  use kumo_supervoxel, only: supervoxel_grid_t, supervoxel_options_t, build_supervoxels, &
+                             supervoxel_majorants
   implicit none
   private
   public :: atmosphere_t, atmosphere_options_t, atmosphere_init, atmosphere_set_truncation
@@ -150,6 +151,8 @@ contains
     logical, intent(in), optional :: blend     !! some voxels blend two phase tables
     integer :: nz, k, ic, nc1, klo, khi, ncomp, na1, ix, iy, kr
     real(wp) :: e, s
+    real(vp), allocatable :: bg_sca(:)
+    integer, allocatable :: bg_iph(:)
 
     nz = size(z) - 1
     nc1 = size(ext1d, 2)
@@ -250,23 +253,26 @@ contains
         atm%wph3 = 0.0_vp
       end if
     end if
+    ! the background is the same in every voxel of a layer: its values once per layer
+    allocate (bg_sca(max(ncomp - 1, 1)), bg_iph(ncomp))
     do kr = 1, atm%n3
       k = klo + kr - 1
+      e = 0.0_wp
+      s = 0.0_wp
+      bg_sca = 0.0_vp
+      bg_iph = 1
+      do ic = 1, na1
+        e = e + ext1d(k, atm%act1(ic))
+        s = s + ext1d(k, atm%act1(ic))*ssa1d(k, atm%act1(ic))
+        if (ic < ncomp) bg_sca(ic) = real(ext1d(k, atm%act1(ic))*ssa1d(k, atm%act1(ic)), vp)
+        bg_iph(ic) = iph1d(k, atm%act1(ic))
+      end do
+      atm%ext3(:, :, kr) = real(e, vp)
+      atm%omg3(:, :, kr) = real(s, vp)
       do iy = 1, atm%ny
         do ix = 1, atm%nx
-          e = 0.0_wp
-          s = 0.0_wp
-          do ic = 1, na1
-            e = e + ext1d(k, atm%act1(ic))
-            s = s + ext1d(k, atm%act1(ic))*ssa1d(k, atm%act1(ic))
-            if (ic < ncomp) atm%csca3(ic, ix, iy, kr) = real(ext1d(k, atm%act1(ic))* &
-                                                             ssa1d(k, atm%act1(ic)), vp)
-          end do
-          atm%ext3(ix, iy, kr) = real(e, vp)
-          atm%omg3(ix, iy, kr) = real(s, vp)
-          atm%iph3(1:na1, ix, iy, kr) = iph1d(k, atm%act1)
-          atm%iph3(na1 + 1:, ix, iy, kr) = 1
-          if (ncomp > 1 .and. na1 < ncomp - 1) atm%csca3(na1 + 1:, ix, iy, kr) = 0.0_vp
+          atm%iph3(:, ix, iy, kr) = bg_iph
+          if (ncomp > 1) atm%csca3(:, ix, iy, kr) = bg_sca(1:ncomp - 1)
         end do
       end do
     end do
@@ -299,32 +305,47 @@ contains
 
   !> Last step: albedo and cumulative scattering fractions from the sums, checks of the phase
   !> indices, storage dropped where nothing varies, the super-voxel grid.
-  subroutine atmosphere_end(atm, opts, error)
+  !> With `sv_layout` (the super-voxel grid of an earlier atmosphere of the same region) the
+  !> grid keeps those blocks and only takes the new majorants (supervoxel_majorants).
+  subroutine atmosphere_end(atm, opts, error, sv_layout)
     type(atmosphere_t), intent(inout) :: atm
     type(atmosphere_options_t), intent(in) :: opts
     type(error_t), allocatable, intent(out) :: error
+    type(supervoxel_grid_t), intent(in), optional :: sv_layout
     integer :: ic, ix, iy, kr, nc, np, klo, khi
     real(wp) :: ext_tot, sca_tot, acc
-    logical :: varies
+    logical :: varies, bad_index, bad_weight, bad_blend, blended
 
     if (atm%n3 == 0) return
     nc = atm%ncomp
     np = size(atm%phases)
-    if (any(atm%iph3 < 1) .or. any(atm%iph3 > np)) then
+    ! the indices and blend weights (reductions the compiler vectorises; a blend's second table
+    ! is checked only when some index could be the last)
+    bad_index = minval(atm%iph3) < 1 .or. maxval(atm%iph3) > np
+    bad_weight = .false.
+    bad_blend = .false.
+    blended = .false.
+    if (allocated(atm%wph3)) then
+      bad_weight = minval(atm%wph3) < 0.0_vp .or. maxval(atm%wph3) > 1.0_vp
+      blended = maxval(atm%wph3) > 0.0_vp
+      if (blended .and. maxval(atm%iph3) >= np) bad_blend = any(atm%wph3 > 0.0_vp .and. &
+                                                                atm%iph3 >= np)
+    end if
+    if (bad_index) then
       call set_error(error, 'atmosphere: a 3-D phase-function index is outside 1..'//str(np))
       return
     end if
     if (allocated(atm%wph3)) then
-      if (any(atm%wph3 < 0.0_vp) .or. any(atm%wph3 > 1.0_vp)) then
+      if (bad_weight) then
         call set_error(error, 'atmosphere: a phase-function blend weight is outside 0..1')
         return
       end if
-      if (any(atm%wph3 > 0.0_vp .and. atm%iph3 >= np)) then
+      if (bad_blend) then
         call set_error(error, 'atmosphere: a phase-function blend needs table iph + 1 > '// &
                        str(np))
         return
       end if
-      if (all(atm%wph3 <= 0.0_vp)) deallocate (atm%wph3)
+      if (.not. blended) deallocate (atm%wph3)
     end if
     do kr = 1, atm%n3
       do iy = 1, atm%ny
@@ -358,8 +379,12 @@ contains
 
     klo = atm%k3_lo
     khi = atm%k3_hi
-    call build_supervoxels(atm%ext3, atm%dx, atm%dy, atm%z(klo:khi) - atm%z(klo - 1:khi - 1), &
-                           opts%sv, atm%sv)
+    if (present(sv_layout)) then
+      call supervoxel_majorants(atm%ext3, sv_layout, atm%sv)
+    else
+      call build_supervoxels(atm%ext3, atm%dx, atm%dy, atm%z(klo:khi) - atm%z(klo - 1:khi - 1), &
+                             opts%sv, atm%sv)
+    end if
     allocate (atm%uniform3(atm%n3))
     do kr = 1, atm%n3
       atm%uniform3(kr) = all(atm%ext3(:, :, kr) == atm%ext3(1, 1, kr)) .and. &

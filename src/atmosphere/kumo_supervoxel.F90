@@ -13,7 +13,7 @@ module kumo_supervoxel
   use kumo_kinds, only: wp, vp
   implicit none
   private
-  public :: supervoxel_grid_t, supervoxel_options_t, build_supervoxels
+  public :: supervoxel_grid_t, supervoxel_options_t, build_supervoxels, supervoxel_majorants
 
   !> Options of the super-voxel builder.
   type :: supervoxel_options_t
@@ -91,6 +91,32 @@ contains
                            sv%maj(sv%off(k) + 1:sv%off(k) + sv%nbx(k)*sv%nby(k)))
     end do
   end subroutine build_supervoxels
+
+  !> The blocks of `layout` (a grid built by build_supervoxels for a field of the same shape)
+  !> with the majorants of `ext`: a grid that is valid for `ext` without the merge search. The
+  !> blocks need not be the ones build_supervoxels would choose for `ext` (they only set how
+  !> far a photon flies between null collisions); broadband runs use it when the extinction
+  !> changes from one g-point to the next.
+  subroutine supervoxel_majorants(ext, layout, sv)
+    real(vp), intent(in) :: ext(:, :, :)
+    type(supervoxel_grid_t), intent(in) :: layout
+    type(supervoxel_grid_t), intent(out) :: sv
+    integer :: k
+    sv%ns = layout%ns
+    sv%kb = layout%kb
+    sv%kt = layout%kt
+    sv%bx = layout%bx
+    sv%by = layout%by
+    sv%nbx = layout%nbx
+    sv%nby = layout%nby
+    sv%off = layout%off
+    sv%sl_of_layer = layout%sl_of_layer
+    allocate (sv%maj(size(layout%maj)))
+    do k = 1, sv%ns
+      call block_majorants(ext(:, :, sv%kb(k):sv%kt(k)), sv%bx(k), sv%by(k), &
+                           sv%maj(sv%off(k) + 1:sv%off(k) + sv%nbx(k)*sv%nby(k)))
+    end do
+  end subroutine supervoxel_majorants
 
   !> Double the block size along x or y while the merge rule allows it (smaller extent first).
   subroutine merge_horizontally(ext, dz, dx, dy, opts, bx, by)

@@ -45,6 +45,7 @@ module kumo_scene_setup
   use kumo_bundle, only: bundle_t
   use kumo_cloud_scene, only: build_cloud_atmosphere, rayleigh_layers, cloud_temperature_t
   use kumo_spectral_cloud, only: spectral_cloud_t, spectral_cloud_init, spectral_cloud_put
+  use kumo_supervoxel, only: supervoxel_grid_t
   use kumo_rayleigh, only: depol_from_king, king_factor_air
   use kumo_textio, only: read_two_columns
   use kumo_netcdf, only: read_scene_3d, read_albedo_map, read_brdf_map, read_scene_temperature, &
@@ -102,6 +103,7 @@ module kumo_scene_setup
     ! cloud files (&kumo_cloud): the fields and their optics per band (kumo_spectral_cloud)
     logical :: cloud_on = .false.
     type(spectral_cloud_t) :: cloud
+    type(supervoxel_grid_t) :: sv_layout          !! super-voxel blocks of the set-up's g-point
   end type spectral_scene_t
 
 contains
@@ -326,6 +328,8 @@ contains
                               n_out_ice)
       call atmosphere_end(scene%atm, aopts, error)
       if (allocated(error)) return
+      ! the other g-points keep these super-voxel blocks, with their own majorants
+      spec%sv_layout = scene%atm%sv
       ! the tables of all bands have the same radii: the counts of one band are everyone's
       if (n_out_liq > 0) scene%warnings = scene%warnings//str(n_out_liq)//' cloud voxel '// &
         'values have a droplet effective radius outside the liquid optics table ('// &
@@ -1090,7 +1094,7 @@ contains
                             spec%cloud%nc3, blend=.true.)
       if (allocated(error)) return
       call spectral_cloud_put(spec%cloud, spec%gpt_band(g), atm, n_out_liq, n_out_ice)
-      call atmosphere_end(atm, spec%aopts, error)
+      call atmosphere_end(atm, spec%aopts, error, sv_layout=spec%sv_layout)
     else if (allocated(spec%iph3)) then
       call atmosphere_init(atm, spec%z, spec%lx, spec%ly, e, w, ip, spec%phases, spec%aopts, &
                            error, spec%k3d_bottom, spec%ext3, spec%ssa3, spec%iph3)

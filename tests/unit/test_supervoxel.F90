@@ -5,7 +5,8 @@
 module test_supervoxel_suite
   use kumo_kinds, only: wp, vp
   use kumo_testing, only: error_t, unittest_t, new_unittest, check, check_close
-  use kumo_supervoxel, only: supervoxel_grid_t, supervoxel_options_t, build_supervoxels
+  use kumo_supervoxel, only: supervoxel_grid_t, supervoxel_options_t, build_supervoxels, &
+                             supervoxel_majorants
   use kumo_atmosphere, only: atmosphere_t, atmosphere_options_t, atmosphere_init, &
                              atmosphere_begin, atmosphere_put_layer, atmosphere_end, &
                              LAYER_CLEAR, LAYER_ABSORBING, LAYER_SCATTERING, LAYER_3D
@@ -25,7 +26,8 @@ contains
              new_unittest('disabled_means_one_global_majorant', test_disabled), &
              new_unittest('layer_classes', test_classes), &
              new_unittest('component_mixing', test_mixing), &
-             new_unittest('voxels_put_by_layer_with_blends', test_put_layers)]
+             new_unittest('voxels_put_by_layer_with_blends', test_put_layers), &
+             new_unittest('kept_blocks_new_majorants', test_kept_layout)]
   end function collect_supervoxel
 
   function field(nx, ny, nz) result(ext)
@@ -66,6 +68,48 @@ contains
       end do
     end do
   end subroutine test_bounds
+
+  !> Blocks kept from another field (broadband runs: the set-up's g-point) with the majorants
+  !> of a new one: the same blocks, every majorant the largest extinction of its block, and for
+  !> the field the blocks were made for, the same majorants as the full build.
+  subroutine test_kept_layout(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(supervoxel_grid_t) :: sv, kept
+    type(supervoxel_options_t) :: opts
+    real(vp) :: ext(13, 7, 5), ext2(13, 7, 5), mx
+    real(wp) :: dz(5)
+    integer :: s, i, j, k, jx, jy, b
+    ext = field(13, 7, 5)
+    dz = [100.0_wp, 100.0_wp, 50.0_wp, 200.0_wp, 100.0_wp]
+    call build_supervoxels(ext, 50.0_wp, 50.0_wp, dz, opts, sv)
+    call supervoxel_majorants(ext, sv, kept)
+    call check(error, all(kept%maj == sv%maj), 'same field: the majorants of the full build')
+    ! a new field: a layer-wise background added (the gas of another g-point)
+    do k = 1, 5
+      ext2(:, :, k) = ext(:, :, k) + real(1.0e-2_wp*k, vp)
+    end do
+    call supervoxel_majorants(ext2, sv, kept)
+    call check(error, kept%ns == sv%ns .and. all(kept%bx == sv%bx) .and. all(kept%by == sv%by) &
+               .and. all(kept%kb == sv%kb) .and. all(kept%kt == sv%kt), 'the blocks are kept')
+    if (allocated(error)) return
+    do s = 1, kept%ns
+      do jy = 1, kept%nby(s)
+        do jx = 1, kept%nbx(s)
+          mx = 0
+          do k = kept%kb(s), kept%kt(s)
+            do j = (jy - 1)*kept%by(s) + 1, min(7, jy*kept%by(s))
+              do i = (jx - 1)*kept%bx(s) + 1, min(13, jx*kept%bx(s))
+                mx = max(mx, ext2(i, j, k))
+              end do
+            end do
+          end do
+          b = kept%off(s) + jx + (jy - 1)*kept%nbx(s)
+          call check(error, kept%maj(b) == mx, 'block majorant = largest extinction in it')
+          if (allocated(error)) return
+        end do
+      end do
+    end do
+  end subroutine test_kept_layout
 
   subroutine test_uniform(error)
     type(error_t), allocatable, intent(out) :: error

@@ -23,7 +23,7 @@ module kumo_atmosphere
   implicit none
   private
   public :: atmosphere_t, atmosphere_options_t, atmosphere_init, atmosphere_set_truncation
-  public :: atmosphere_begin, atmosphere_put_layer, atmosphere_end
+  public :: atmosphere_begin, atmosphere_put_layer, atmosphere_end, atmosphere_swap_background
   public :: column_of, column_xy, sigma_trunc_3d
   public :: LAYER_CLEAR, LAYER_ABSORBING, LAYER_SCATTERING, LAYER_3D, LAYER_CLASS_NAMES
 
@@ -401,6 +401,115 @@ contains
                                                   uniform_layer(atm%wph3(:, :, :, kr))
     end do
   end subroutine atmosphere_end
+
+  !> Give an atmosphere built by atmosphere_begin, atmosphere_put_layer and atmosphere_end a new
+  !> background: the 1-D components `ext1d`, `ssa1d` (nz, ncomp1) with the phase functions they
+  !> had, and the voxel components as they were put (`cext`, `cssa`: (nx, ny, n3f, nc3),
+  !> extinction [m-1] and albedo; their phase indices and blends stay). Every number is formed
+  !> as the build would form it, in the same order, so the result is the atmosphere that
+  !> begin/put/end would give (with the super-voxel blocks of `sv_layout` and new majorants),
+  !> without allocating or checking anything again: broadband runs switch the gas of a
+  !> g-point this way. `done` is .false. (and nothing changed) when a 1-D component that the
+  !> build left out of the 3-D region, being empty there, is not empty now: build it anew.
+  subroutine atmosphere_swap_background(atm, ext1d, ssa1d, cext, cssa, opts, sv_layout, done)
+    type(atmosphere_t), intent(inout) :: atm
+    real(wp), intent(in) :: ext1d(:, :), ssa1d(:, :)
+    real(wp), intent(in) :: cext(:, :, :, :), cssa(:, :, :, :)
+    type(atmosphere_options_t), intent(in) :: opts
+    type(supervoxel_grid_t), intent(in) :: sv_layout
+    logical, intent(out) :: done
+    integer :: k, ic, j, ix, iy, kr, kf, na1, nc, nc1, icc, nf
+    real(wp) :: e, s, sca, ext_tot, sca_tot, acc
+    real(vp) :: et, st
+    real(vp), allocatable :: bg_sca(:)
+    real(wp), allocatable :: acc_bg(:)
+    done = .false.
+    nc1 = atm%ncomp1
+    if (size(ext1d, 1) /= atm%nz .or. size(ext1d, 2) /= nc1) return
+    if (atm%n3 > 0) then
+      do ic = 1, nc1
+        if (any(atm%act1 == ic)) cycle
+        if (any(ext1d(atm%k3_lo:atm%k3_hi, ic) > 0.0_wp)) return
+      end do
+    end if
+    done = .true.
+    do k = 1, atm%nz
+      call mix(ext1d(k, :), ssa1d(k, :), atm%ext1(k), atm%omg1(k), atm%csca1(1:nc1, k))
+      if (k >= atm%k3_lo .and. k <= atm%k3_hi) then
+        atm%layer_class(k) = LAYER_3D
+      else if (atm%ext1(k) <= 0.0_wp) then
+        atm%layer_class(k) = LAYER_CLEAR
+      else if (atm%omg1(k) <= 0.0_wp .and. opts%use_absorbing_layers) then
+        atm%layer_class(k) = LAYER_ABSORBING
+      else
+        atm%layer_class(k) = LAYER_SCATTERING
+      end if
+    end do
+    if (atm%n3 == 0) return
+    na1 = size(atm%act1)
+    nc = atm%ncomp
+    allocate (bg_sca(max(nc - 1, 1)), acc_bg(0:na1))
+    nf = atm%kf_hi - atm%kf_lo + 1
+    do kr = 1, atm%n3
+      k = atm%k3_lo + kr - 1
+      kf = k - atm%kf_lo + 1          ! the layer of the voxel components, if any
+      e = 0.0_wp
+      s = 0.0_wp
+      bg_sca = 0.0_vp
+      do ic = 1, na1
+        e = e + ext1d(k, atm%act1(ic))
+        s = s + ext1d(k, atm%act1(ic))*ssa1d(k, atm%act1(ic))
+        if (ic < nc) bg_sca(ic) = real(ext1d(k, atm%act1(ic))*ssa1d(k, atm%act1(ic)), vp)
+      end do
+      ! the running sums of the background's scattering, the same in every voxel of the layer
+      acc_bg(0) = 0.0_wp
+      do ic = 1, na1
+        acc_bg(ic) = acc_bg(ic - 1)
+        if (ic < nc) acc_bg(ic) = acc_bg(ic) + bg_sca(ic)
+      end do
+      do iy = 1, atm%ny
+        do ix = 1, atm%nx
+          et = real(e, vp)
+          st = real(s, vp)
+          if (kf >= 1 .and. kf <= nf) then
+            do j = 1, atm%nc3
+              sca = cext(ix, iy, kf, j)*cssa(ix, iy, kf, j)
+              et = real(et + cext(ix, iy, kf, j), vp)
+              st = real(st + sca, vp)
+            end do
+          end if
+          atm%ext3(ix, iy, kr) = et
+          ext_tot = et
+          sca_tot = st
+          if (ext_tot > 0.0_wp) then
+            atm%omg3(ix, iy, kr) = real(min(1.0_wp, sca_tot/ext_tot), vp)
+          else
+            atm%omg3(ix, iy, kr) = 1.0_vp
+          end if
+          do ic = 1, min(na1, nc - 1)
+            if (sca_tot > 0.0_wp) then
+              atm%csca3(ic, ix, iy, kr) = real(min(1.0_wp, acc_bg(ic)/sca_tot), vp)
+            else
+              atm%csca3(ic, ix, iy, kr) = real(real(ic, wp)/nc, vp)
+            end if
+          end do
+          acc = acc_bg(na1)
+          do icc = na1 + 1, nc - 1
+            sca = 0.0_wp
+            if (kf >= 1 .and. kf <= nf) sca = real(real(cext(ix, iy, kf, icc - na1)* &
+                                                        cssa(ix, iy, kf, icc - na1), vp), wp)
+            acc = acc + sca
+            if (sca_tot > 0.0_wp) then
+              atm%csca3(icc, ix, iy, kr) = real(min(1.0_wp, acc/sca_tot), vp)
+            else
+              atm%csca3(icc, ix, iy, kr) = real(real(icc, wp)/nc, vp)
+            end if
+          end do
+        end do
+      end do
+    end do
+    call supervoxel_majorants(atm%ext3, sv_layout, atm%sv)
+  end subroutine atmosphere_swap_background
 
   !> Every column of a layer holds the same values a(:, ix, iy).
   pure logical function uniform_layer(a) result(same)

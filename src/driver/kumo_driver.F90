@@ -348,9 +348,10 @@ contains
   !> (one uniform number of the batch's stream); each g-point with photons gets its optics in
   !> the 1-D layers (and, in the longwave, its emission table) and its photons are traced (the
   !> stream continues, so a batch depends on its index only, on any rank count). g-point g's
-  !> tallies enter the batch's with the factor w_g n / S: a photon then counts as 1/n of the
-  !> total source S (TSI mu0, or the total emitted power), as in a monochromatic run, and the
-  !> batch estimate is sum_g w_g x (g-point g's tallies), which is unbiased for the sum over
+  !> photons start with the weight f_g = w_g n / S instead of 1 (and play roulette with its
+  !> thresholds times f_g), straight into the batch's tallies: a photon then counts as 1/n of
+  !> the total source S (TSI mu0, or the total emitted power), as in a monochromatic run, and
+  !> the batch estimate is sum_g w_g x (g-point g's tallies), which is unbiased for the sum over
   !> g-points (docs/broadband.md). A longwave column that scatters nowhere is summed exactly
   !> over all g-points instead, each from the exact solution with weight P_g / S.
   subroutine trace_spectral_batch(spec, scene, lay, rng, nphot, tal, tal_g, error)
@@ -362,7 +363,7 @@ contains
     type(tally_t), intent(inout) :: tal, tal_g
     type(error_t), allocatable, intent(out) :: error
     type(error_t), allocatable :: err
-    real(dp) :: f
+    real(dp) :: f, rr_threshold, rr_weight
     integer :: g
     if (spec%exact) then
       ! every batch is the same: computed once (for this batch size), then copied
@@ -386,17 +387,22 @@ contains
     ! the plan and nphot >= 1 are checked at set-up: no error can occur here (the g-point
     ! switch of a 3-D scene repeats the set-up's atmosphere with other numbers)
     call spectral_begin_batch(spec%plan, nphot, rng, spec%batch, err)
+    rr_threshold = scene%vr%rr_threshold
+    rr_weight = scene%vr%rr_weight
     do g = 1, spec%n_gpt
       if (spec%batch%count(g) == 0) cycle
       call spectral_set_gpoint(spec, g, scene, error)
-      if (allocated(error)) return
-      call tally_reset(tal_g, lay)
-      call trace_batch(scene, lay, rng, spec%batch%count(g), tal_g)
+      if (allocated(error)) exit
+      ! the g-point's photons start with weight f and play roulette on the same scale
       f = spec%batch%weight(g)*real(nphot, dp)/spec%plan%total
-      tal%buf = tal%buf + f*tal_g%buf
-      tal%work = tal%work + tal_g%work
-      tal%anomalies = tal%anomalies + tal_g%anomalies
+      scene%src%w_unit = f
+      scene%vr%rr_threshold = rr_threshold*f
+      scene%vr%rr_weight = rr_weight*f
+      call trace_batch(scene, lay, rng, spec%batch%count(g), tal)
     end do
+    scene%src%w_unit = 1.0_wp
+    scene%vr%rr_threshold = rr_threshold
+    scene%vr%rr_weight = rr_weight
     if (spec%longwave) scene%src%em = spec%em_sum
   end subroutine trace_spectral_batch
 

@@ -46,7 +46,7 @@ module kumo_cloud_scene
   use kumo_config, only: cloud_cfg_t
   implicit none
   private
-  public :: build_cloud_atmosphere, rayleigh_layers, cloud_temperature_t, mie_voxels
+  public :: build_cloud_atmosphere, rayleigh_layers, cloud_temperature_t, mie_layer
 
   !> Temperatures of a cloud file for thermal emission, on the columns and layers of the 3-D
   !> region the file defines (voxel (ix, iy, k) is layer k3_lo + k - 1 of the atmosphere).
@@ -340,51 +340,69 @@ contains
     logical, intent(in) :: is_ext            !! amount is the extinction
     type(atmosphere_t), intent(inout) :: atm
     integer, intent(inout) :: n_out
-    integer :: ix, iy, k, ip, np, i1, i2, nr
-    real(wp) :: a, r, f, w_phase, e1, e2, scale
+    integer :: k, ip, np
     real(wp), allocatable :: ext(:, :), ssa(:, :), wph(:, :)
     integer, allocatable :: iph(:, :)
-    logical :: inside
     np = merge(2, 1, c%points)
-    nr = size(table%r_eff_um)
     allocate (ext(c%nx, c%ny), ssa(c%nx, c%ny), wph(c%nx, c%ny), iph(c%nx, c%ny))
     do ip = 1, np
       do k = 1, c%nz
-        do iy = 1, c%ny
-          do ix = 1, c%nx
-            a = amount(ix, iy, k + ip - 1)/np
-            if (a <= 0.0_wp) then
-              ext(ix, iy) = 0.0_wp
-              ssa(ix, iy) = table%ssa(1)
-              iph(ix, iy) = offset + 1
-              wph(ix, iy) = 0.0_wp
-              cycle
-            end if
-            r = reff(ix, iy, k + ip - 1)
-            if (r < table%r_eff_um(1) .or. r > table%r_eff_um(nr)) then
-              n_out = n_out + 1
-              r = min(max(r, table%r_eff_um(1)), table%r_eff_um(nr))
-            end if
-            ! i2 = i1 + 1, or i1 for a table of one radius
-            call mie_table_bracket(table%r_eff_um, table%ext_per_lwc, table%ssa, r, i1, i2, f, &
-                                   w_phase, inside)
-            e1 = f*table%ext_per_lwc(i1)
-            e2 = (1.0_wp - f)*table%ext_per_lwc(i2)
-            if (is_ext) then
-              scale = a/(e1 + e2)      ! the file's extinction
-            else
-              scale = a                ! extinction = water content x extinction per water
-            end if
-            ext(ix, iy) = (e1 + e2)*scale
-            ssa(ix, iy) = (e1*table%ssa(i1) + e2*table%ssa(i2))/(e1 + e2)
-            iph(ix, iy) = offset + i1
-            wph(ix, iy) = merge(1.0_wp - w_phase, 0.0_wp, i2 > i1)
-          end do
-        end do
+        call mie_layer(c, amount, reff, table, offset, is_ext, k, ip, ext, ssa, iph, wph, n_out)
         call atmosphere_put_layer(atm, first + ip, k, ext, ssa, iph, wph)
       end do
     end do
   end subroutine mie_voxels
+
+  !> Layer k of plane ip (1, or 2 for the upper plane of files on points) as mie_voxels puts
+  !> it: extinction [m-1], albedo, phase index (after `offset` phase functions) and the blend
+  !> weight of table iph + 1 of every column; `n_out` counts radii clamped to the table.
+  subroutine mie_layer(c, amount, reff, table, offset, is_ext, k, ip, ext, ssa, iph, wph, n_out)
+    type(cloud_input_t), intent(in) :: c
+    real(vp), intent(in) :: amount(:, :, :)  !! water content [g m-3] or extinction [m-1]
+    real(vp), intent(in) :: reff(:, :, :)    !! effective radius [um]
+    type(mie_table_t), intent(in) :: table
+    integer, intent(in) :: offset, k, ip
+    logical, intent(in) :: is_ext            !! amount is the extinction
+    real(wp), intent(out) :: ext(:, :), ssa(:, :), wph(:, :)   !! (nx, ny)
+    integer, intent(out) :: iph(:, :)
+    integer, intent(inout) :: n_out
+    integer :: ix, iy, np, i1, i2, nr
+    real(wp) :: a, r, f, w_phase, e1, e2, scale
+    logical :: inside
+    np = merge(2, 1, c%points)
+    nr = size(table%r_eff_um)
+    do iy = 1, c%ny
+      do ix = 1, c%nx
+        a = amount(ix, iy, k + ip - 1)/np
+        if (a <= 0.0_wp) then
+          ext(ix, iy) = 0.0_wp
+          ssa(ix, iy) = table%ssa(1)
+          iph(ix, iy) = offset + 1
+          wph(ix, iy) = 0.0_wp
+          cycle
+        end if
+        r = reff(ix, iy, k + ip - 1)
+        if (r < table%r_eff_um(1) .or. r > table%r_eff_um(nr)) then
+          n_out = n_out + 1
+          r = min(max(r, table%r_eff_um(1)), table%r_eff_um(nr))
+        end if
+        ! i2 = i1 + 1, or i1 for a table of one radius
+        call mie_table_bracket(table%r_eff_um, table%ext_per_lwc, table%ssa, r, i1, i2, f, &
+                               w_phase, inside)
+        e1 = f*table%ext_per_lwc(i1)
+        e2 = (1.0_wp - f)*table%ext_per_lwc(i2)
+        if (is_ext) then
+          scale = a/(e1 + e2)      ! the file's extinction
+        else
+          scale = a                ! extinction = water content x extinction per water
+        end if
+        ext(ix, iy) = (e1 + e2)*scale
+        ssa(ix, iy) = (e1*table%ssa(i1) + e2*table%ssa(i2))/(e1 + e2)
+        iph(ix, iy) = offset + i1
+        wph(ix, iy) = merge(1.0_wp - w_phase, 0.0_wp, i2 > i1)
+      end do
+    end do
+  end subroutine mie_layer
 
   !> The phase functions of an MCARaTS 3-D atmosphere (Iwabuchi, MCARaTS 0.10 `mcarAtm`,
   !> `mcarSca`), in the order its voxels refer to them after the scene's list: 1 isotropic,

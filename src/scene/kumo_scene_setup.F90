@@ -16,7 +16,7 @@ module kumo_scene_setup
                         phase_from_table, new_phase_rayleigh_depol, PHASE_ISOTROPIC, &
                         PHASE_RAYLEIGH, PHASE_HG, PHASE_TABLE
   use kumo_atmosphere, only: atmosphere_t, atmosphere_options_t, atmosphere_init, &
-                             atmosphere_begin, atmosphere_end, &
+                             atmosphere_begin, atmosphere_end, atmosphere_swap_background, &
                              atmosphere_set_truncation, LAYER_CLEAR, LAYER_ABSORBING, &
                              LAYER_SCATTERING
   use kumo_std_atmosphere, only: std_atmosphere_profile
@@ -44,7 +44,8 @@ module kumo_scene_setup
   use kumo_cloud_input, only: cloud_input_t, cloud_request_t, read_cloud_input
   use kumo_bundle, only: bundle_t
   use kumo_cloud_scene, only: build_cloud_atmosphere, rayleigh_layers, cloud_temperature_t
-  use kumo_spectral_cloud, only: spectral_cloud_t, spectral_cloud_init, spectral_cloud_put
+  use kumo_spectral_cloud, only: spectral_cloud_t, spectral_cloud_init, spectral_cloud_band, &
+                                 spectral_cloud_put
   use kumo_supervoxel, only: supervoxel_grid_t
   use kumo_rayleigh, only: depol_from_king, king_factor_air
   use kumo_textio, only: read_two_columns
@@ -324,8 +325,8 @@ contains
                             phase1d, phases, aopts, error, cfg%atm%k3d_bottom, spec%cloud%nx, &
                             spec%cloud%ny, spec%cloud%nz, spec%cloud%nc3, blend=.true.)
       if (allocated(error)) return
-      call spectral_cloud_put(spec%cloud, spec%gpt_band(spec%g_setup), scene%atm, n_out_liq, &
-                              n_out_ice)
+      call spectral_cloud_band(spec%cloud, spec%gpt_band(spec%g_setup), n_out_liq, n_out_ice)
+      call spectral_cloud_put(spec%cloud, scene%atm)
       call atmosphere_end(scene%atm, aopts, error)
       if (allocated(error)) return
       ! the other g-points keep these super-voxel blocks, with their own majorants
@@ -1040,7 +1041,7 @@ contains
   !> Rayleigh) layers, which inside the 3-D region are the voxels' background; in the longwave
   !> also the g-point's emission table (stored for 1-D columns, rebuilt for 3-D scenes).
   subroutine spectral_set_gpoint(spec, g, scene, error)
-    type(spectral_scene_t), intent(in) :: spec
+    type(spectral_scene_t), intent(inout) :: spec
     integer, intent(in) :: g
     type(scene_t), intent(inout) :: scene
     type(error_t), allocatable, intent(out) :: error
@@ -1056,7 +1057,7 @@ contains
 
   !> The optics of g-point g in the atmosphere (see spectral_set_gpoint).
   subroutine spectral_set_optics(spec, g, atm, error)
-    type(spectral_scene_t), intent(in) :: spec
+    type(spectral_scene_t), intent(inout) :: spec
     integer, intent(in) :: g
     type(atmosphere_t), intent(inout) :: atm
     type(error_t), allocatable, intent(out) :: error
@@ -1064,6 +1065,7 @@ contains
     integer, allocatable :: ip(:, :)
     type(phase_t), allocatable :: ph(:)
     integer :: nz, n_out_liq, n_out_ice
+    logical :: done
     if (.not. spec%three_d) then
       atm%ext1(:) = spec%ext1(:, g)
       atm%omg1(:) = spec%omg1(:, g)
@@ -1086,14 +1088,22 @@ contains
                    [nz, size(spec%ext1d, 2) + 2])
     end if
     if (spec%cloud_on) then
-      ! the cloud's voxels at the g-point's band over its gas layers; the phase functions (every
-      ! band's) move out of the atmosphere and back in, uncopied
+      ! the cloud's voxels at the g-point's band over its gas layers. Within a band only the
+      ! gas changes: the background is swapped. A new band builds the atmosphere anew; its
+      ! phase functions (every band's) move out of it and back in, uncopied.
+      if (spec%gpt_band(g) == spec%cloud%band) then
+        call atmosphere_swap_background(atm, e, w, spec%cloud%cext, spec%cloud%cssa, &
+                                        spec%aopts, spec%sv_layout, done)
+        if (done) return
+      else
+        call spectral_cloud_band(spec%cloud, spec%gpt_band(g), n_out_liq, n_out_ice)
+      end if
       call move_alloc(atm%phases, ph)
       call atmosphere_begin(atm, spec%z, spec%lx, spec%ly, e, w, ip, ph, spec%aopts, error, &
                             spec%k3d_bottom, spec%cloud%nx, spec%cloud%ny, spec%cloud%nz, &
                             spec%cloud%nc3, blend=.true.)
       if (allocated(error)) return
-      call spectral_cloud_put(spec%cloud, spec%gpt_band(g), atm, n_out_liq, n_out_ice)
+      call spectral_cloud_put(spec%cloud, atm)
       call atmosphere_end(atm, spec%aopts, error, sv_layout=spec%sv_layout)
     else if (allocated(spec%iph3)) then
       call atmosphere_init(atm, spec%z, spec%lx, spec%ly, e, w, ip, spec%phases, spec%aopts, &

@@ -33,14 +33,15 @@ module kumo_spectral_cloud
                              ICE_ROUGH
   use kumo_rrtmgp_cloud_file, only: read_rrtmgp_cloud_optics
   use kumo_cloud_input, only: cloud_input_t, cloud_request_t, read_cloud_input, CLOUD_WATER
-  use kumo_cloud_scene, only: mie_voxels
-  use kumo_atmosphere, only: atmosphere_t
+  use kumo_kinds, only: vp
+  use kumo_cloud_scene, only: mie_layer
+  use kumo_atmosphere, only: atmosphere_t, atmosphere_put_layer
   use kumo_bundle, only: bundle_t
   use kumo_parallel, only: par_is_root
   use kumo_config, only: cloud_cfg_t, spectral_cfg_t
   implicit none
   private
-  public :: spectral_cloud_t, spectral_cloud_init, spectral_cloud_put
+  public :: spectral_cloud_t, spectral_cloud_init, spectral_cloud_band, spectral_cloud_put
 
   !> Nodes per band of the band-averaged Mie tables (kumo_band_mie: wide bands get more).
   integer, parameter :: MIE_NODES = 8
@@ -57,6 +58,12 @@ module kumo_spectral_cloud
     type(mie_table_t), allocatable :: ice_tab(:)  !! (n_band) ice optics per band
     integer, allocatable :: off_liq(:)            !! (n_band) phase functions before the band's
     integer, allocatable :: off_ice(:)
+    !> the voxel components of band `band` as they are put into an atmosphere (nx, ny, nz,
+    !> nc3): extinction [m-1], albedo, phase index, blend weight (spectral_cloud_band)
+    integer :: band = 0
+    real(wp), allocatable :: cext(:, :, :, :), cssa(:, :, :, :)
+    integer, allocatable :: ciph(:, :, :, :)
+    real(vp), allocatable :: cwph(:, :, :, :)
   end type spectral_cloud_t
 
 contains
@@ -303,22 +310,57 @@ contains
     end subroutine make_tables
   end subroutine spectral_cloud_init
 
-  !> Put the cloud's voxels at band `band` into an atmosphere begun (atmosphere_begin) with
-  !> the cloud file's grid, sc%nc3 voxel components and phase blends: liquid first, then ice.
-  !> `n_out_liq`, `n_out_ice`: voxel values whose radius lies outside the table (clamped).
-  subroutine spectral_cloud_put(sc, band, atm, n_out_liq, n_out_ice)
-    type(spectral_cloud_t), intent(in) :: sc
+  !> The cloud's voxel components at band `band` (liquid planes first, then ice), kept in `sc`
+  !> for spectral_cloud_put and for the g-points of the band that follow (their atmospheres
+  !> differ only in the gas). `n_out_liq`, `n_out_ice`: voxel values whose radius lies outside
+  !> the table (clamped).
+  subroutine spectral_cloud_band(sc, band, n_out_liq, n_out_ice)
+    type(spectral_cloud_t), intent(inout) :: sc
     integer, intent(in) :: band
-    type(atmosphere_t), intent(inout) :: atm
     integer, intent(out) :: n_out_liq, n_out_ice
-    integer :: np
+    integer :: np, ip, k
     np = merge(2, 1, sc%liq%points)
     n_out_liq = 0
     n_out_ice = 0
-    call mie_voxels(sc%liq, sc%liq%lwc, sc%liq%reff, sc%liq_tab(band), sc%off_liq(band), &
-                    .false., atm, 0, n_out_liq)
-    if (sc%has_ice) call mie_voxels(sc%ice, sc%ice%iwc, sc%ice%reff_ice, sc%ice_tab(band), &
-                                    sc%off_ice(band), .false., atm, np, n_out_ice)
+    if (.not. allocated(sc%cext)) allocate (sc%cext(sc%nx, sc%ny, sc%nz, sc%nc3), &
+                                            sc%cssa(sc%nx, sc%ny, sc%nz, sc%nc3), &
+                                            sc%ciph(sc%nx, sc%ny, sc%nz, sc%nc3), &
+                                            sc%cwph(sc%nx, sc%ny, sc%nz, sc%nc3))
+    do ip = 1, np
+      do k = 1, sc%nz
+        call layer(sc%liq, sc%liq%lwc, sc%liq%reff, sc%liq_tab(band), sc%off_liq(band), ip, &
+                   n_out_liq)
+        if (sc%has_ice) call layer(sc%ice, sc%ice%iwc, sc%ice%reff_ice, sc%ice_tab(band), &
+                                   sc%off_ice(band), np + ip, n_out_ice)
+      end do
+    end do
+    sc%band = band
+  contains
+    subroutine layer(c, amount, reff, table, offset, ic, n_out)
+      type(cloud_input_t), intent(in) :: c
+      real(vp), intent(in) :: amount(:, :, :), reff(:, :, :)
+      type(mie_table_t), intent(in) :: table
+      integer, intent(in) :: offset, ic
+      integer, intent(inout) :: n_out
+      real(wp) :: wph(sc%nx, sc%ny)
+      call mie_layer(c, amount, reff, table, offset, .false., k, ip, &
+                     sc%cext(:, :, k, ic), sc%cssa(:, :, k, ic), sc%ciph(:, :, k, ic), wph, n_out)
+      sc%cwph(:, :, k, ic) = real(wph, vp)
+    end subroutine layer
+  end subroutine spectral_cloud_band
+
+  !> Put the voxel components of the current band (spectral_cloud_band) into an atmosphere
+  !> begun with the cloud file's grid, sc%nc3 voxel components and phase blends.
+  subroutine spectral_cloud_put(sc, atm)
+    type(spectral_cloud_t), intent(in) :: sc
+    type(atmosphere_t), intent(inout) :: atm
+    integer :: ic, k
+    do ic = 1, sc%nc3
+      do k = 1, sc%nz
+        call atmosphere_put_layer(atm, ic, k, sc%cext(:, :, k, ic), sc%cssa(:, :, k, ic), &
+                                  sc%ciph(:, :, k, ic), real(sc%cwph(:, :, k, ic), wp))
+      end do
+    end do
   end subroutine spectral_cloud_put
 
 end module kumo_spectral_cloud

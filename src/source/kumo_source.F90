@@ -50,6 +50,9 @@ module kumo_source
     integer :: nsx = 1, nsy = 1                         !! grid of entry cells (1 x 1: off)
     real(wp) :: shift_x = 0.0_wp, shift_y = 0.0_wp      !! grid offset [m]
     type(emission_t) :: em                              !! thermal emission (em%on: a source)
+    !> factor on every launched weight (1: a photon carries 1/n of the source); broadband runs
+    !> trace each g-point's photons with their g-point's weight w_g n / S here, into one tally
+    real(wp) :: w_unit = 1.0_wp
   end type source_t
 
   !> What a source decides once per batch (stratified beam: the first entry cell, the photons
@@ -165,6 +168,8 @@ contains
         call emission_launch(src%em, atm, sfc, rng, emission_entry(src%em, &
                              (real(ip - 1, wp) + plan%u_em)/real(plan%n, wp)), plan%n, &
                              plan%u_em, p)
+        p%w = p%w*src%w_unit
+        p%w_entry = p%w_entry*src%w_unit
         return
       end if
     end if
@@ -192,7 +197,7 @@ contains
     p%ux = src%ux
     p%uy = src%uy
     p%uz = src%uz
-    p%w = 1.0_wp
+    p%w = src%w_unit
     p%order = 0
     p%lev = 1
     p%iz = atm%nz
@@ -200,7 +205,7 @@ contains
     p%n_steps = 0
     p%secondary = .false.
     if (src%em%on) then
-      p%w = emission_weight(src%em, 1, plan%n, plan%u_em)
+      p%w = emission_weight(src%em, 1, plan%n, plan%u_em)*src%w_unit
       p%emitter = EMIT_SOLAR
       p%em_k = 0
       p%em_v = 0

@@ -125,7 +125,7 @@ contains
       if (scn%src%em%any_abs) then
         do k = 1, lay%nz
           if (scn%src%em%by_abs(k)) tal%buf(lay%i_net + k) = tal%buf(lay%i_net + k) - &
-            scn%src%em%emit_layer(k)*real(n_photons, wp)/scn%src%em%power
+            scn%src%em%emit_layer(k)*real(n_photons, wp)/scn%src%em%power*scn%src%w_unit
         end do
       end if
     end if

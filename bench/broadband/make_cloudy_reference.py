@@ -122,6 +122,18 @@ def heating(col, net):
     return gp.gref.G0 / gp.CP * (net[1:] - net[:-1]) / dp * gp.SECONDS_PER_DAY
 
 
+def write_results(out, col, rows, net, netc):
+    """The broadband lines (one row of fluxes and their errors per level), the heating rates of
+    `net` with the difference from `netc` as their error, and the end of the block."""
+    for i, bb in enumerate(rows):
+        out.write(f"broadband {i} " + " ".join(f"{v:.10e}" for v in bb) + "\n")
+    h, hc = heating(col, net), heating(col, netc)
+    for l in range(len(h)):
+        out.write(f"heating {l + 1} {h[l]:.10e} {abs(h[l] - hc[l]):.3e}\n")
+    out.write("end\n")
+    return h, hc
+
+
 def write_head(out, col, names, vmr, cd, kdist, nq, nqc, setup):
     nl = len(col["p_lay"])
     out.write(f"case {col['name']}_cloud {kdist} {nl} {len(names)} 0\n")
@@ -156,14 +168,8 @@ def run_sw(col, out):
     write_head(out, col, names, vmr, cd, gp.KDIST, NQ_SW, NQ_SW_CHECK,
                [gp.MU0, gp.ALBEDO, col["tsi"]])
     out.write("cloud {} {:.17g} {:.17g} {:.17g}\n".format(CLOUD_LAYER, *SW_CLOUD))
-    for i in range(nl + 1):
-        bb = [up[i], dn[i], dr[i], abs(up[i] - upc[i]), abs(dn[i] - dnc[i])]
-        out.write(f"broadband {i} " + " ".join(f"{v:.10e}" for v in bb) + "\n")
-    h = heating(col, net)
-    hc = heating(col, dnc + drc - upc)
-    for l in range(nl):
-        out.write(f"heating {l + 1} {h[l]:.10e} {abs(h[l] - hc[l]):.3e}\n")
-    out.write("end\n")
+    rows = [[up[i], dn[i], dr[i], abs(up[i] - upc[i]), abs(dn[i] - dnc[i])] for i in range(nl + 1)]
+    h, hc = write_results(out, col, rows, net, dnc + drc - upc)
     print(f"{col['name']} cloudy shortwave: {time.time() - t0:.0f} s; TOA up {up[-1]:.4f}, "
           f"surface down {dn[0] + dr[0]:.4f} W m-2; {NQ_SW_CHECK} vs {NQ_SW} streams: up "
           f"{np.max(np.abs(up - upc)):.2e}, down {np.max(np.abs(dn - dnc)):.2e}, heating "
@@ -188,14 +194,8 @@ def run_lw(col, out):
     write_head(out, col, names, vmr, cd, gp.KDIST_LW, NQ_LW, NQ_LW_CHECK,
                [col["tsfc"], gp.EMISSIVITY])
     out.write("cloud {} {:.17g} {:.17g} {:.17g}\n".format(CLOUD_LAYER, *LW_CLOUD))
-    for i in range(nl + 1):
-        bb = [up[i], dn[i], abs(up[i] - upc[i]), abs(dn[i] - dnc[i])]
-        out.write(f"broadband {i} " + " ".join(f"{v:.10e}" for v in bb) + "\n")
-    h = heating(col, dn - up)
-    hc = heating(col, dnc - upc)
-    for l in range(nl):
-        out.write(f"heating {l + 1} {h[l]:.10e} {abs(h[l] - hc[l]):.3e}\n")
-    out.write("end\n")
+    rows = [[up[i], dn[i], abs(up[i] - upc[i]), abs(dn[i] - dnc[i])] for i in range(nl + 1)]
+    h, hc = write_results(out, col, rows, dn - up, dnc - upc)
     print(f"{col['name']} cloudy longwave: {time.time() - t0:.0f} s; TOA up {up[-1]:.4f}, "
           f"surface down {dn[0]:.4f} W m-2; {NQ_LW_CHECK} vs {NQ_LW} streams: up "
           f"{np.max(np.abs(up - upc)):.2e}, down {np.max(np.abs(dn - dnc)):.2e}, heating "

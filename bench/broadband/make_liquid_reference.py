@@ -112,16 +112,12 @@ def run(kind, col, out):
     out.write(f"liquid {LAYER} {LWC:.17g} {REFF:.17g}\n")
     for b, c in enumerate(clouds):
         out.write(f"band_cloud {b + 1} " + " ".join(f"{v:.17g}" for v in c) + "\n")
-    for i in range(nl + 1):
-        if sw:
-            bb = [up[i], dn[i], dr[i], abs(up[i] - upc[i]), abs(dn[i] - dnc[i])]
-        else:
-            bb = [up[i], dn[i], abs(up[i] - upc[i]), abs(dn[i] - dnc[i])]
-        out.write(f"broadband {i} " + " ".join(f"{v:.10e}" for v in bb) + "\n")
-    h, hc = cr.heating(col, net), cr.heating(col, netc)
-    for l in range(nl):
-        out.write(f"heating {l + 1} {h[l]:.10e} {abs(h[l] - hc[l]):.3e}\n")
-    out.write("end\n")
+    if sw:
+        rows = [[up[i], dn[i], dr[i], abs(up[i] - upc[i]), abs(dn[i] - dnc[i])]
+                for i in range(nl + 1)]
+    else:
+        rows = [[up[i], dn[i], abs(up[i] - upc[i]), abs(dn[i] - dnc[i])] for i in range(nl + 1)]
+    cr.write_results(out, col, rows, net, netc)
     print(f"{kind} liquid cloud: {time.time() - t0:.0f} s; TOA up {up[-1]:.4f} W m-2, cloud "
           f"optical depth {min(c[0] for c in clouds):.3f} to {max(c[0] for c in clouds):.3f}",
           flush=True)

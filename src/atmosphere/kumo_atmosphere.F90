@@ -223,15 +223,7 @@ contains
 
     allocate (atm%layer_class(nz))
     do k = 1, nz
-      if (k >= klo .and. k <= khi) then
-        atm%layer_class(k) = LAYER_3D
-      else if (atm%ext1(k) <= 0.0_wp) then
-        atm%layer_class(k) = LAYER_CLEAR
-      else if (atm%omg1(k) <= 0.0_wp .and. opts%use_absorbing_layers) then
-        atm%layer_class(k) = LAYER_ABSORBING
-      else
-        atm%layer_class(k) = LAYER_SCATTERING
-      end if
+      atm%layer_class(k) = class_of_layer(atm, k, opts)
     end do
     if (atm%n3 == 0) return
 
@@ -435,15 +427,7 @@ contains
     done = .true.
     do k = 1, atm%nz
       call mix(ext1d(k, :), ssa1d(k, :), atm%ext1(k), atm%omg1(k), atm%csca1(1:nc1, k))
-      if (k >= atm%k3_lo .and. k <= atm%k3_hi) then
-        atm%layer_class(k) = LAYER_3D
-      else if (atm%ext1(k) <= 0.0_wp) then
-        atm%layer_class(k) = LAYER_CLEAR
-      else if (atm%omg1(k) <= 0.0_wp .and. opts%use_absorbing_layers) then
-        atm%layer_class(k) = LAYER_ABSORBING
-      else
-        atm%layer_class(k) = LAYER_SCATTERING
-      end if
+      atm%layer_class(k) = class_of_layer(atm, k, opts)
     end do
     if (atm%n3 == 0) return
     na1 = size(atm%act1)
@@ -510,6 +494,22 @@ contains
     end do
     call supervoxel_majorants(atm%ext3, sv_layout, atm%sv)
   end subroutine atmosphere_swap_background
+
+  !> How the photon loop treats layer k (LAYER_*): in the 3-D region, or by its 1-D mixture.
+  pure integer function class_of_layer(atm, k, opts) result(cls)
+    type(atmosphere_t), intent(in) :: atm
+    integer, intent(in) :: k
+    type(atmosphere_options_t), intent(in) :: opts
+    if (k >= atm%k3_lo .and. k <= atm%k3_hi) then
+      cls = LAYER_3D
+    else if (atm%ext1(k) <= 0.0_wp) then
+      cls = LAYER_CLEAR
+    else if (atm%omg1(k) <= 0.0_wp .and. opts%use_absorbing_layers) then
+      cls = LAYER_ABSORBING
+    else
+      cls = LAYER_SCATTERING
+    end if
+  end function class_of_layer
 
   !> Every column of a layer holds the same values a(:, ix, iy).
   pure logical function uniform_layer(a) result(same)

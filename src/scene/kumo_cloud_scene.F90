@@ -46,7 +46,7 @@ module kumo_cloud_scene
   use kumo_config, only: cloud_cfg_t
   implicit none
   private
-  public :: build_cloud_atmosphere, rayleigh_layers, cloud_temperature_t, mie_layer
+  public :: build_cloud_atmosphere, rayleigh_layers, cloud_temperature_t, mie_layer, table_radii
 
   !> Temperatures of a cloud file for thermal emission, on the columns and layers of the 3-D
   !> region the file defines (voxel (ix, iy, k) is layer k3_lo + k - 1 of the atmosphere).
@@ -289,13 +289,8 @@ contains
     type(error_t), allocatable, intent(out) :: error
     real(wp), allocatable :: r(:)
     complex(wp) :: m
-    integer :: dist, i, n
-    n = ccfg%n_reff
-    allocate (r(n))
-    do i = 1, n
-      r(i) = ccfg%reff_min_um*(ccfg%reff_max_um/ccfg%reff_min_um)**(real(i - 1, wp)/(n - 1))
-    end do
-    r(n) = ccfg%reff_max_um
+    integer :: dist
+    r = table_radii(ccfg)
     call dist_kind_from_name(ccfg%size_distribution, dist, error)
     if (allocated(error)) return
     if (len_trim(ccfg%mie_cache) > 0) then
@@ -310,6 +305,19 @@ contains
       action = 'computed (no mie_cache given)'
     end if
   end subroutine water_table
+
+  !> The radii of the droplet tables: n_reff from reff_min_um to reff_max_um, geometric [um].
+  function table_radii(ccfg) result(r)
+    type(cloud_cfg_t), intent(in) :: ccfg
+    real(wp), allocatable :: r(:)
+    integer :: i, n
+    n = ccfg%n_reff
+    allocate (r(n))
+    do i = 1, n
+      r(i) = ccfg%reff_min_um*(ccfg%reff_max_um/ccfg%reff_min_um)**(real(i - 1, wp)/(n - 1))
+    end do
+    r(n) = ccfg%reff_max_um
+  end function table_radii
 
   !> Phase functions of every radius of a table.
   subroutine table_phases(table, n_table, phases, error)

@@ -34,7 +34,7 @@ module kumo_spectral_cloud
   use kumo_rrtmgp_cloud_file, only: read_rrtmgp_cloud_optics
   use kumo_cloud_input, only: cloud_input_t, cloud_request_t, read_cloud_input, CLOUD_WATER
   use kumo_kinds, only: vp
-  use kumo_cloud_scene, only: mie_layer
+  use kumo_cloud_scene, only: mie_layer, table_radii
   use kumo_atmosphere, only: atmosphere_t, atmosphere_put_layer
   use kumo_bundle, only: bundle_t
   use kumo_parallel, only: par_is_root
@@ -109,28 +109,10 @@ contains
     sc%nz = sc%liq%nz
     sc%nc3 = merge(2, 1, sc%liq%points)*merge(2, 1, sc%has_ice)
 
-    ! the tables, on rank 0
+    ! the tables, made on rank 0 and shared
     if (par_is_root()) then
       call make_tables(error)
-      if (.not. allocated(error)) then
-        call bt%put(notes)
-        do ib = 1, nb
-          call bt%put(sc%liq_tab(ib)%r_eff_um)
-          call bt%put(sc%liq_tab(ib)%ext_per_lwc)
-          call bt%put(sc%liq_tab(ib)%ssa)
-          call bt%put(sc%liq_tab(ib)%g)
-          if (.not. hg_liq) then
-            call bt%put(sc%liq_tab(ib)%angle_deg)
-            call bt%put(sc%liq_tab(ib)%phase)
-          end if
-          if (sc%has_ice) then
-            call bt%put(sc%ice_tab(ib)%r_eff_um)
-            call bt%put(sc%ice_tab(ib)%ext_per_lwc)
-            call bt%put(sc%ice_tab(ib)%ssa)
-            call bt%put(sc%ice_tab(ib)%g)
-          end if
-        end do
-      end if
+      if (.not. allocated(error)) call ship(.true.)
     end if
     call bt%share(error)
     if (allocated(error)) return
@@ -138,22 +120,7 @@ contains
     if (.not. par_is_root()) then
       allocate (sc%liq_tab(nb))
       if (sc%has_ice) allocate (sc%ice_tab(nb))
-      do ib = 1, nb
-        call bt%get(sc%liq_tab(ib)%r_eff_um)
-        call bt%get(sc%liq_tab(ib)%ext_per_lwc)
-        call bt%get(sc%liq_tab(ib)%ssa)
-        call bt%get(sc%liq_tab(ib)%g)
-        if (.not. hg_liq) then
-          call bt%get(sc%liq_tab(ib)%angle_deg)
-          call bt%get(sc%liq_tab(ib)%phase)
-        end if
-        if (sc%has_ice) then
-          call bt%get(sc%ice_tab(ib)%r_eff_um)
-          call bt%get(sc%ice_tab(ib)%ext_per_lwc)
-          call bt%get(sc%ice_tab(ib)%ssa)
-          call bt%get(sc%ice_tab(ib)%g)
-        end if
-      end do
+      call ship(.false.)
     end if
 
     ! phase functions: every band's liquid radii, then every band's ice sizes
@@ -199,6 +166,43 @@ contains
             new_line('a')//notes
 
   contains
+
+    !> The numbers of the tables into the bundle (`put`, rank 0, notes first) or out of it.
+    subroutine ship(put)
+      logical, intent(in) :: put
+      integer :: jb
+      if (put) call bt%put(notes)
+      do jb = 1, nb
+        call xfer(sc%liq_tab(jb)%r_eff_um, put)
+        call xfer(sc%liq_tab(jb)%ext_per_lwc, put)
+        call xfer(sc%liq_tab(jb)%ssa, put)
+        call xfer(sc%liq_tab(jb)%g, put)
+        if (.not. hg_liq) then
+          call xfer(sc%liq_tab(jb)%angle_deg, put)
+          if (put) then
+            call bt%put(sc%liq_tab(jb)%phase)
+          else
+            call bt%get(sc%liq_tab(jb)%phase)
+          end if
+        end if
+        if (sc%has_ice) then
+          call xfer(sc%ice_tab(jb)%r_eff_um, put)
+          call xfer(sc%ice_tab(jb)%ext_per_lwc, put)
+          call xfer(sc%ice_tab(jb)%ssa, put)
+          call xfer(sc%ice_tab(jb)%g, put)
+        end if
+      end do
+    end subroutine ship
+
+    subroutine xfer(x, put)
+      real(wp), allocatable, intent(inout) :: x(:)
+      logical, intent(in) :: put
+      if (put) then
+        call bt%put(x)
+      else
+        call bt%get(x)
+      end if
+    end subroutine xfer
 
     subroutine read_fields(err)
       type(error_t), allocatable, intent(out) :: err
@@ -257,12 +261,8 @@ contains
         notes = notes//'liquid: RRTMGP table, '//str(n)//' radii '//str(bc%liq_lo)//' ... '// &
                 str(bc%liq_hi)//' um, Henyey-Greenstein phase functions'//new_line('a')
       else
-        n = ccfg%n_reff
-        allocate (r(n))
-        do j = 1, n
-          r(j) = ccfg%reff_min_um*(ccfg%reff_max_um/ccfg%reff_min_um)**(real(j - 1, wp)/(n - 1))
-        end do
-        r(n) = ccfg%reff_max_um
+        r = table_radii(ccfg)
+        n = size(r)
         call dist_kind_from_name(ccfg%size_distribution, dist, err)
         if (allocated(err)) return
         t_src = T_SUN_K

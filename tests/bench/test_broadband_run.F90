@@ -81,6 +81,7 @@ contains
              new_unittest('sw_liquid_cloud_file_vs_disort', test_sw_liquid), &
              new_unittest('lw_liquid_cloud_file_vs_disort', test_lw_liquid), &
              new_unittest('sw_liquid_band_mie_cached', test_sw_liquid_mie), &
+             new_unittest('sw_ica_columns_vs_disort', test_sw_ica_columns), &
              new_unittest('cloud_file_without_water_refused', test_cloud_optics_refused), &
              new_unittest('bad_inputs', test_bad_inputs)]
   end function collect_broadband_run
@@ -155,11 +156,12 @@ contains
   !> A longwave case gets the longwave k-distribution, albedo 1 - emissivity and its surface
   !> temperature; a cloudy one its cloud layer (Henyey-Greenstein); `groups` is appended.
   subroutine write_nml(path, c, spectral_lines, source_lines, n_batches, atm_lines, groups, &
-                       n_photons)
+                       n_photons, control_lines)
     character(len=*), intent(in) :: path, spectral_lines, source_lines
     type(case_t), intent(in) :: c
     integer, intent(in) :: n_batches
     character(len=*), intent(in), optional :: atm_lines, groups
+    character(len=*), intent(in), optional :: control_lines   !! added to &kumo_control
     integer, intent(in), optional :: n_photons
     integer :: u, k, kc
     real(dp) :: z(0:c%nz)
@@ -174,7 +176,9 @@ contains
     end do
     open (newunit=u, file=path, status='replace', action='write')
     write (u, '(a)') '&kumo_control', '  n_photons_per_batch = '//npb, &
-      '  n_batches = '//str(n_batches), '  seed = 20261127', '  verbose = 0', '/'
+      '  n_batches = '//str(n_batches), '  seed = 20261127', '  verbose = 0'
+    if (present(control_lines)) write (u, '(a)') control_lines
+    write (u, '(a)') '/'
     write (u, '(a)') '&kumo_atmosphere', '  nz = '//str(c%nz), '  ext1d = '//str(c%nz)//'*0.0', &
       '  ssa1d = '//str(c%nz)//'*0.0'
     if (present(atm_lines)) write (u, '(a)') atm_lines
@@ -642,6 +646,67 @@ contains
                      set%vars(id)%stderr(1) + set%vars(idir)%stderr(1), 4.0_dp, &
                      'downward flux at the surface', abs_floor=0.02_dp*(c%bb(0, 2) + c%bb(0, 3)))
   end subroutine test_sw_liquid_mie
+
+  !> ICA of a 3-D field equals the columns' 1-D results: two columns, one with the liquid cloud
+  !> of sw_liquid_reference.txt, one clear (left out of the LWC file), traced as independent
+  !> columns (mode_3d = 'ica'); each column's upward flux at the top and downward flux at the
+  !> surface (the per-column maps, fractions of mu0 TSI) against the cloudy and the clear-sky
+  !> references, within 4 sigma plus three photons' worth of the column.
+  subroutine test_sw_ica_columns(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(case_t) :: c, clear
+    type(result_set_t) :: set
+    type(run_summary_t) :: summary
+    integer :: iu, idf, idr, u, col, nz, top
+    real(dp) :: src, floor, m, sd, r
+    call read_case('us1976_cloud', c, error, 'sw_liquid_reference.txt')
+    if (allocated(error)) return
+    call read_case('us1976', clear, error)
+    if (allocated(error)) return
+    open (newunit=u, file='sw_ica.lwc', status='replace', action='write')
+    write (u, '(a)') '2', '2 1 1', '1.0 1.0', '2.0 3.0', '280.0 280.0'
+    write (u, '(a, 2(es23.16, 1x))') '1 1 1 ', c%liquid(2), c%liquid(3)
+    close (u)
+    call write_nml('sw_ica.nml', c, '  floor_share = 0.2'//new_line('a')// &
+                   '  liquid_optics = ''rrtmgp'''//new_line('a')//'  cloud_optics_file = '''// &
+                   rrtmgp_dir//'/cloudysky_sw.nc''', '', 40, &
+                   groups='&kumo_cloud'//new_line('a')//'  cloud_file = ''sw_ica.lwc'''// &
+                   new_line('a')//'  cloud_format = ''lwc'''//new_line('a')//'/', &
+                   n_photons=40000, control_lines='  mode_3d = ''ica''')
+    call run('sw_ica.nml', set, summary, error)
+    if (allocated(error)) return
+    iu = var(set, 'flux_up_map', error)
+    idf = var(set, 'flux_down_diffuse_map', error)
+    idr = var(set, 'flux_down_direct_map', error)
+    if (allocated(error)) return
+    nz = c%nz
+    src = c%tsi*0.5_dp                      ! mu0 TSI: the maps are fractions of it
+    floor = 3*src*2/real(summary%n_photons, dp)   ! three photons' worth of one column
+    top = nz*2                              ! (x, y, level): level nz of 0..nz, 2 columns
+    do col = 1, 2
+      m = src*set%vars(iu)%mean(top + col)
+      sd = src*set%vars(iu)%stderr(top + col)
+      if (col == 1) then
+        r = c%bb(nz, 1)
+      else
+        r = clear%bb(nz, 1)
+      end if
+      write (*, '(a, i0, a, f0.3, a, f0.3, a, f0.3, a)') '    column ', col, ': TOA up ', m, &
+        ' +- ', sd, ' W m-2 (DISORT ', r, ')'
+      call check_sigma(error, m, r, sd, 4.0_dp, 'column '//str(col)//': upward flux at the top', &
+                       abs_floor=floor + c%bb(nz, 4))
+      m = src*(set%vars(idf)%mean(col) + set%vars(idr)%mean(col))
+      sd = src*(set%vars(idf)%stderr(col) + set%vars(idr)%stderr(col))
+      if (col == 1) then
+        r = c%bb(0, 2) + c%bb(0, 3)
+      else
+        r = clear%bb(0, 2) + clear%bb(0, 3)
+      end if
+      call check_sigma(error, m, r, sd, 4.0_dp, 'column '//str(col)// &
+                       ': downward flux at the surface', abs_floor=floor + c%bb(0, 5))
+      if (allocated(error)) return
+    end do
+  end subroutine test_sw_ica_columns
 
   !> An I3RC 2-parameter LWC file: 3 x 2 columns of 1 km, one layer from 2 to 3 km, every
   !> point with the same water content [g m-3] and effective radius [um].

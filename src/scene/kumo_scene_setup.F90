@@ -309,7 +309,7 @@ contains
     aopts%sv%max_layers = cfg%vr%sv_max_layers
     if (cfg%cloud%enabled .and. cfg%spectral%enabled) then
       ! a broadband run: the cloud's optics per band, its atmosphere rebuilt per g-point
-      call spectral_cloud_init(cfg%cloud, cfg%spectral, cloud_optics_location(cfg), &
+      call spectral_cloud_init(cfg%cloud, cfg%spectral, cloud_optics_location(cfg, spec%longwave), &
                                band_mie_default_cache(cfg, spec%longwave), spec%band_wn, &
                                spec%longwave, cfg%phase%n_table, phases, spec%cloud, cloud_notes, &
                                cloud_warnings, error)
@@ -1160,10 +1160,11 @@ contains
 
   !> The RRTMGP cloud-optics file of a broadband run with a cloud file: &kumo_spectral
   !> cloud_optics_file if given (found like the k-distribution, kdist_location), otherwise
-  !> cloudysky_sw.nc or cloudysky_lw.nc (by the k-distribution's kind, from its file name) in
+  !> cloudysky_sw.nc or cloudysky_lw.nc (by the kind of the k-distribution, `longwave`) in
   !> the k-distribution's folder or, failing that, in the folder scripts/fetch-rrtmgp.sh fills.
-  function cloud_optics_location(cfg) result(loc)
+  function cloud_optics_location(cfg, longwave) result(loc)
     type(config_t), intent(in) :: cfg
+    logical, intent(in) :: longwave
     character(len=:), allocatable :: loc, kd, name
     integer :: slash
     if (allocated(cfg%spectral%cloud_optics_path)) then
@@ -1171,8 +1172,7 @@ contains
       return
     end if
     kd = kdist_location(cfg%spectral%kdist_file, cfg%spectral%kdist_path)
-    name = 'cloudysky_sw.nc'
-    if (index(kd, '-lw-') > 0 .or. index(kd, '_lw') > 0) name = 'cloudysky_lw.nc'
+    name = merge('cloudysky_lw.nc', 'cloudysky_sw.nc', longwave)
     slash = index(kd, '/', back=.true.)
     loc = kdist_location(name, kd(1:slash)//name)
   end function cloud_optics_location

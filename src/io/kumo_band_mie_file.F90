@@ -24,10 +24,8 @@ module kumo_band_mie_file
   use, intrinsic :: iso_c_binding, only: c_null_char
   use netcdf, only: nf90_create, nf90_open, nf90_close, nf90_enddef, nf90_def_dim, &
                     nf90_def_var, nf90_put_att, nf90_get_att, nf90_put_var, nf90_get_var, &
-                    nf90_inq_dimid, nf90_inq_varid, nf90_inquire_dimension, &
-                    nf90_inquire_attribute, nf90_strerror, NF90_NOERR, NF90_NOWRITE, &
-                    NF90_NOCLOBBER, NF90_NETCDF4, NF90_CLASSIC_MODEL, NF90_GLOBAL, NF90_DOUBLE, &
-                    NF90_INT
+                    nf90_inq_varid, NF90_NOWRITE, NF90_NOCLOBBER, NF90_NETCDF4, &
+                    NF90_CLASSIC_MODEL, NF90_GLOBAL, NF90_INT
   use kumo_kinds, only: wp, i8
   use kumo_error, only: error_t, set_error, str
   use kumo_file_check, only: check_netcdf_complete
@@ -35,6 +33,8 @@ module kumo_band_mie_file
   use kumo_water_index, only: WATER_INDEX_SOURCE
   use kumo_band_mie, only: band_mie_t, band_mie_build
   use kumo_netcdf, only: c_rename, c_remove, explain_write_failure, reserve_space
+  use kumo_nc_table, only: nc_check, nc_def_double, nc_put_global, nc_get_global, nc_dim_len, &
+                           nc_get_values
   implicit none
   private
   public :: write_band_mie, read_band_mie, band_mie_cached, BAND_MIE_VERSION
@@ -103,11 +103,11 @@ contains
       if (.not. allocated(error)) call nc_check(nf90_def_dim(ncid, 'radius', size(bm%r_eff_um), dr), at, error)
       if (.not. allocated(error)) call nc_check(nf90_def_dim(ncid, 'angle', size(bm%angle_deg), da), at, error)
       if (allocated(error)) return
-      call def_var('wavenumber_lower', [db], 'lower limit of the band', 'cm-1', v(1))
-      call def_var('wavenumber_upper', [db], 'upper limit of the band', 'cm-1', v(2))
-      call def_var('wavenumber_lower_used', [db], 'lower limit of the averaged part of the band', &
+      call nc_def_double(ncid, at, error, 'wavenumber_lower', [db], 'lower limit of the band', 'cm-1', v(1))
+      call nc_def_double(ncid, at, error, 'wavenumber_upper', [db], 'upper limit of the band', 'cm-1', v(2))
+      call nc_def_double(ncid, at, error, 'wavenumber_lower_used', [db], 'lower limit of the averaged part of the band', &
                    'cm-1', v(3))
-      call def_var('wavenumber_upper_used', [db], 'upper limit of the averaged part of the band', &
+      call nc_def_double(ncid, at, error, 'wavenumber_upper_used', [db], 'upper limit of the averaged part of the band', &
                    'cm-1', v(4))
       if (.not. allocated(error)) then
         call nc_check(nf90_def_var(ncid, 'nodes', NF90_INT, [db], v(11)), at//':nodes', error)
@@ -116,56 +116,28 @@ contains
         call nc_check(nf90_put_att(ncid, v(11), 'long_name', 'wavenumber nodes of the band average'), &
                       at//':nodes', error)
       end if
-      call def_var('r_eff', [dr], 'effective radius of the size distribution', 'um', v(5))
-      call def_var('ext_per_lwc', [dr, db], &
+      call nc_def_double(ncid, at, error, 'r_eff', [dr], 'effective radius of the size distribution', 'um', v(5))
+      call nc_def_double(ncid, at, error, 'ext_per_lwc', [dr, db], &
                    'band-averaged extinction coefficient per unit liquid water content', 'm2 g-1', v(6))
-      call def_var('ssa', [dr, db], 'band-averaged single-scattering albedo', '1', v(7))
-      call def_var('asymmetry', [dr, db], 'band-averaged asymmetry parameter', '1', v(8))
-      call def_var('angle', [da], 'scattering angle', 'degree', v(9))
-      call def_var('phase_function', [da, dr, db], &
+      call nc_def_double(ncid, at, error, 'ssa', [dr, db], 'band-averaged single-scattering albedo', '1', v(7))
+      call nc_def_double(ncid, at, error, 'asymmetry', [dr, db], 'band-averaged asymmetry parameter', '1', v(8))
+      call nc_def_double(ncid, at, error, 'angle', [da], 'scattering angle', 'degree', v(9))
+      call nc_def_double(ncid, at, error, 'phase_function', [da, dr, db], &
                    'band-averaged phase function, (1/2) integral over cos(angle) = 1', '1', v(10))
       if (allocated(error)) return
-      call put_text('Conventions', 'CF-1.8')
-      call put_text('title', 'kumo band-averaged Mie table of liquid water clouds')
-      call put_text('size_distribution', trim(DIST_NAMES(bm%dist)))
-      call put_text('refractive_index_source', WATER_INDEX_SOURCE)
+      call nc_put_global(ncid, at, error, 'Conventions', 'CF-1.8')
+      call nc_put_global(ncid, at, error, 'title', 'kumo band-averaged Mie table of liquid water clouds')
+      call nc_put_global(ncid, at, error, 'size_distribution', trim(DIST_NAMES(bm%dist)))
+      call nc_put_global(ncid, at, error, 'refractive_index_source', WATER_INDEX_SOURCE)
       if (allocated(error)) return
       call nc_check(nf90_put_att(ncid, NF90_GLOBAL, 'kumo_band_mie_version', BAND_MIE_VERSION), at, error)
       if (.not. allocated(error)) then
         call nc_check(nf90_put_att(ncid, NF90_GLOBAL, 'nodes_per_band', bm%n_nodes), at, error)
       end if
-      call put_real('source_temperature_K', bm%t_source_k)
-      call put_real('effective_variance', bm%v_eff)
-      call put_real('dlnr_phase', bm%dlnr)
+      call nc_put_global(ncid, at, error, 'source_temperature_K', bm%t_source_k)
+      call nc_put_global(ncid, at, error, 'effective_variance', bm%v_eff)
+      call nc_put_global(ncid, at, error, 'dlnr_phase', bm%dlnr)
     end subroutine define
-
-    subroutine def_var(name, dims, long_name, units, varid)
-      character(len=*), intent(in) :: name, long_name, units
-      integer, intent(in) :: dims(:)
-      integer, intent(out) :: varid
-      varid = 0
-      if (allocated(error)) return
-      call nc_check(nf90_def_var(ncid, name, NF90_DOUBLE, dims, varid), at//':'//name, error)
-      if (.not. allocated(error)) then
-        call nc_check(nf90_put_att(ncid, varid, 'long_name', long_name), at//':'//name, error)
-      end if
-      if (.not. allocated(error)) then
-        call nc_check(nf90_put_att(ncid, varid, 'units', units), at//':'//name, error)
-      end if
-    end subroutine def_var
-
-    subroutine put_text(name, value)
-      character(len=*), intent(in) :: name, value
-      if (allocated(error)) return
-      call nc_check(nf90_put_att(ncid, NF90_GLOBAL, name, value), at//':'//name, error)
-    end subroutine put_text
-
-    subroutine put_real(name, value)
-      character(len=*), intent(in) :: name
-      real(wp), intent(in) :: value
-      if (allocated(error)) return
-      call nc_check(nf90_put_att(ncid, NF90_GLOBAL, name, value), at//':'//name, error)
-    end subroutine put_real
   end subroutine write_band_mie
 
   !> Read a table written by `write_band_mie`.
@@ -200,16 +172,11 @@ contains
       call nc_check(nf90_get_att(ncid, NF90_GLOBAL, 'nodes_per_band', n_nodes), &
                     at//':nodes_per_band', error)
       bm%n_nodes = n_nodes
-      call get_real('source_temperature_K', bm%t_source_k)
-      call get_real('effective_variance', bm%v_eff)
-      call get_real('dlnr_phase', bm%dlnr)
+      call nc_get_global(ncid, at, error, 'source_temperature_K', bm%t_source_k)
+      call nc_get_global(ncid, at, error, 'effective_variance', bm%v_eff)
+      call nc_get_global(ncid, at, error, 'dlnr_phase', bm%dlnr)
       if (allocated(error)) return
-      call nc_check(nf90_inquire_attribute(ncid, NF90_GLOBAL, 'size_distribution', len=i), &
-                    at//':size_distribution', error)
-      if (allocated(error)) return
-      allocate (character(len=i) :: dist_name)
-      call nc_check(nf90_get_att(ncid, NF90_GLOBAL, 'size_distribution', dist_name), &
-                    at//':size_distribution', error)
+      call nc_get_global(ncid, at, error, 'size_distribution', dist_name)
       if (allocated(error)) return
       bm%dist = 0
       do i = 1, size(DIST_NAMES)
@@ -219,9 +186,9 @@ contains
         call set_error(error, at//': size_distribution = "'//dist_name//'" must be gamma or lognormal')
         return
       end if
-      call dim_len('band', nb)
-      call dim_len('radius', nr)
-      call dim_len('angle', nang)
+      call nc_dim_len(ncid, at, error, 'band', nb)
+      call nc_dim_len(ncid, at, error, 'radius', nr)
+      call nc_dim_len(ncid, at, error, 'angle', nang)
       if (allocated(error)) return
       bm%nband = nb
       allocate (bm%nodes(nb))
@@ -232,62 +199,19 @@ contains
       allocate (bm%wn_lo(nb), bm%wn_hi(nb), bm%wn_lo_used(nb), bm%wn_hi_used(nb), bm%r_eff_um(nr), &
                 bm%ext_per_lwc(nr, nb), bm%ssa(nr, nb), bm%g(nr, nb), bm%angle_deg(nang), &
                 bm%phase(nang, nr, nb))
-      call get('wavenumber_lower', bm%wn_lo)
-      call get('wavenumber_upper', bm%wn_hi)
-      call get('wavenumber_lower_used', bm%wn_lo_used)
-      call get('wavenumber_upper_used', bm%wn_hi_used)
-      call get('r_eff', bm%r_eff_um)
-      call get('angle', bm%angle_deg)
+      call nc_get_values(ncid, at, error, 'wavenumber_lower', bm%wn_lo)
+      call nc_get_values(ncid, at, error, 'wavenumber_upper', bm%wn_hi)
+      call nc_get_values(ncid, at, error, 'wavenumber_lower_used', bm%wn_lo_used)
+      call nc_get_values(ncid, at, error, 'wavenumber_upper_used', bm%wn_hi_used)
+      call nc_get_values(ncid, at, error, 'r_eff', bm%r_eff_um)
+      call nc_get_values(ncid, at, error, 'angle', bm%angle_deg)
       if (allocated(error)) return
-      call get2('ext_per_lwc', bm%ext_per_lwc)
-      call get2('ssa', bm%ssa)
-      call get2('asymmetry', bm%g)
+      call nc_get_values(ncid, at, error, 'ext_per_lwc', bm%ext_per_lwc)
+      call nc_get_values(ncid, at, error, 'ssa', bm%ssa)
+      call nc_get_values(ncid, at, error, 'asymmetry', bm%g)
       if (allocated(error)) return
-      call nc_check(nf90_inq_varid(ncid, 'phase_function', i), at//':phase_function', error)
-      if (allocated(error)) return
-      call nc_check(nf90_get_var(ncid, i, bm%phase), at//':phase_function', error)
+      call nc_get_values(ncid, at, error, 'phase_function', bm%phase)
     end subroutine body
-
-    subroutine get_real(name, value)
-      character(len=*), intent(in) :: name
-      real(wp), intent(out) :: value
-      value = 0.0_wp
-      if (allocated(error)) return
-      call nc_check(nf90_get_att(ncid, NF90_GLOBAL, name, value), at//':'//name, error)
-    end subroutine get_real
-
-    subroutine dim_len(name, n)
-      character(len=*), intent(in) :: name
-      integer, intent(out) :: n
-      integer :: dimid
-      n = 0
-      if (allocated(error)) return
-      call nc_check(nf90_inq_dimid(ncid, name, dimid), at//':'//name, error)
-      if (allocated(error)) return
-      call nc_check(nf90_inquire_dimension(ncid, dimid, len=n), at//':'//name, error)
-    end subroutine dim_len
-
-    subroutine get(name, values)
-      character(len=*), intent(in) :: name
-      real(wp), intent(out) :: values(:)
-      integer :: varid
-      values = 0.0_wp
-      if (allocated(error)) return
-      call nc_check(nf90_inq_varid(ncid, name, varid), at//':'//name, error)
-      if (allocated(error)) return
-      call nc_check(nf90_get_var(ncid, varid, values), at//':'//name, error)
-    end subroutine get
-
-    subroutine get2(name, values)
-      character(len=*), intent(in) :: name
-      real(wp), intent(out) :: values(:, :)
-      integer :: varid
-      values = 0.0_wp
-      if (allocated(error)) return
-      call nc_check(nf90_inq_varid(ncid, name, varid), at//':'//name, error)
-      if (allocated(error)) return
-      call nc_check(nf90_get_var(ncid, varid, values), at//':'//name, error)
-    end subroutine get2
   end subroutine read_band_mie
 
   !> The band-averaged Mie table for the request (arguments as band_mie_build, with the default
@@ -358,13 +282,5 @@ contains
       end if
     end function mismatch
   end subroutine band_mie_cached
-
-  subroutine nc_check(status, at, error)
-    integer, intent(in) :: status
-    character(len=*), intent(in) :: at
-    type(error_t), allocatable, intent(inout) :: error
-    if (status == NF90_NOERR .or. allocated(error)) return
-    call set_error(error, at//': '//trim(nf90_strerror(status)))
-  end subroutine nc_check
 
 end module kumo_band_mie_file

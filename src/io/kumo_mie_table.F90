@@ -22,16 +22,16 @@
 module kumo_mie_table
   use, intrinsic :: iso_c_binding, only: c_null_char
   use netcdf, only: nf90_create, nf90_open, nf90_close, nf90_enddef, nf90_def_dim, &
-                    nf90_def_var, nf90_put_att, nf90_get_att, nf90_put_var, nf90_get_var, &
-                    nf90_inq_dimid, nf90_inq_varid, nf90_inquire_dimension, &
-                    nf90_inquire_attribute, nf90_strerror, NF90_NOERR, NF90_NOWRITE, &
-                    NF90_NOCLOBBER, NF90_NETCDF4, NF90_CLASSIC_MODEL, NF90_GLOBAL, NF90_DOUBLE
+                    nf90_put_att, nf90_get_att, nf90_put_var, NF90_NOWRITE, NF90_NOCLOBBER, &
+                    NF90_NETCDF4, NF90_CLASSIC_MODEL, NF90_GLOBAL
   use kumo_kinds, only: wp, i8
   use kumo_error, only: error_t, set_error, str
   use kumo_file_check, only: check_netcdf_complete
   use kumo_mie, only: mie_table_t, mie_table_build, DIST_NAMES, DLNR_DEFAULT, RHO_WATER_G_M3
   use kumo_water_index, only: water_index, WATER_INDEX_SOURCE
   use kumo_netcdf, only: c_rename, c_remove, explain_write_failure, reserve_space
+  use kumo_nc_table, only: nc_check, nc_def_double, nc_put_global, nc_get_global, nc_dim_len, &
+                           nc_get_values
   implicit none
   private
   public :: write_mie_table, read_mie_table, mie_table_cached, MIE_TABLE_VERSION
@@ -98,56 +98,30 @@ contains
       if (allocated(error)) return
       call nc_check(nf90_def_dim(ncid, 'angle', size(table%angle_deg), da), at, error)
       if (allocated(error)) return
-      call def_var('r_eff', [dr], 'effective radius of the size distribution', 'um', v_r)
-      call def_var('ext_per_lwc', [dr], &
+      call nc_def_double(ncid, at, error, 'r_eff', [dr], 'effective radius of the size distribution', 'um', v_r)
+      call nc_def_double(ncid, at, error, 'ext_per_lwc', [dr], &
                    'extinction coefficient per unit liquid water content', 'm2 g-1', v_e)
-      call def_var('ssa', [dr], 'single-scattering albedo', '1', v_s)
-      call def_var('asymmetry', [dr], 'asymmetry parameter', '1', v_g)
-      call def_var('angle', [da], 'scattering angle', 'degree', v_a)
-      call def_var('phase_function', [da, dr], &
+      call nc_def_double(ncid, at, error, 'ssa', [dr], 'single-scattering albedo', '1', v_s)
+      call nc_def_double(ncid, at, error, 'asymmetry', [dr], 'asymmetry parameter', '1', v_g)
+      call nc_def_double(ncid, at, error, 'angle', [da], 'scattering angle', 'degree', v_a)
+      call nc_def_double(ncid, at, error, 'phase_function', [da, dr], &
                    'phase function, (1/2) integral over cos(angle) = 1', '1', v_p)
       if (allocated(error)) return
-      call put_text('Conventions', 'CF-1.8')
-      call put_text('title', 'kumo Mie table of liquid water clouds')
-      call put_text('size_distribution', trim(DIST_NAMES(table%dist)))
-      call put_text('refractive_index_source', WATER_INDEX_SOURCE)
-      call put_text('refractive_index_convention', 'm = n + i k, k > 0 absorbing')
+      call nc_put_global(ncid, at, error, 'Conventions', 'CF-1.8')
+      call nc_put_global(ncid, at, error, 'title', 'kumo Mie table of liquid water clouds')
+      call nc_put_global(ncid, at, error, 'size_distribution', trim(DIST_NAMES(table%dist)))
+      call nc_put_global(ncid, at, error, 'refractive_index_source', WATER_INDEX_SOURCE)
+      call nc_put_global(ncid, at, error, 'refractive_index_convention', 'm = n + i k, k > 0 absorbing')
       if (allocated(error)) return
       call nc_check(nf90_put_att(ncid, NF90_GLOBAL, 'kumo_mie_table_version', &
                                  MIE_TABLE_VERSION), at, error)
-      call put_real('wavelength_um', table%wavelength_um)
-      call put_real('refractive_index_real', real(table%m, wp))
-      call put_real('refractive_index_imag', aimag(table%m))
-      call put_real('effective_variance', table%v_eff)
-      call put_real('dlnr_phase', table%dlnr)
-      call put_real('water_density_g_m3', RHO_WATER_G_M3)
+      call nc_put_global(ncid, at, error, 'wavelength_um', table%wavelength_um)
+      call nc_put_global(ncid, at, error, 'refractive_index_real', real(table%m, wp))
+      call nc_put_global(ncid, at, error, 'refractive_index_imag', aimag(table%m))
+      call nc_put_global(ncid, at, error, 'effective_variance', table%v_eff)
+      call nc_put_global(ncid, at, error, 'dlnr_phase', table%dlnr)
+      call nc_put_global(ncid, at, error, 'water_density_g_m3', RHO_WATER_G_M3)
     end subroutine define
-
-    subroutine def_var(name, dims, long_name, units, varid)
-      character(len=*), intent(in) :: name, long_name, units
-      integer, intent(in) :: dims(:)
-      integer, intent(out) :: varid
-      varid = 0
-      if (allocated(error)) return
-      call nc_check(nf90_def_var(ncid, name, NF90_DOUBLE, dims, varid), at//':'//name, error)
-      if (allocated(error)) return
-      call nc_check(nf90_put_att(ncid, varid, 'long_name', long_name), at//':'//name, error)
-      if (allocated(error)) return
-      call nc_check(nf90_put_att(ncid, varid, 'units', units), at//':'//name, error)
-    end subroutine def_var
-
-    subroutine put_text(name, value)
-      character(len=*), intent(in) :: name, value
-      if (allocated(error)) return
-      call nc_check(nf90_put_att(ncid, NF90_GLOBAL, name, value), at//':'//name, error)
-    end subroutine put_text
-
-    subroutine put_real(name, value)
-      character(len=*), intent(in) :: name
-      real(wp), intent(in) :: value
-      if (allocated(error)) return
-      call nc_check(nf90_put_att(ncid, NF90_GLOBAL, name, value), at//':'//name, error)
-    end subroutine put_real
   end subroutine write_mie_table
 
   !> Read a table written by `write_mie_table`.
@@ -179,14 +153,14 @@ contains
                        ' but this kumo reads version '//str(MIE_TABLE_VERSION))
         return
       end if
-      call get_real('wavelength_um', table%wavelength_um)
-      call get_real('refractive_index_real', m_re)
-      call get_real('refractive_index_imag', m_im)
-      call get_real('effective_variance', table%v_eff)
-      call get_real('dlnr_phase', table%dlnr)
+      call nc_get_global(ncid, at, error, 'wavelength_um', table%wavelength_um)
+      call nc_get_global(ncid, at, error, 'refractive_index_real', m_re)
+      call nc_get_global(ncid, at, error, 'refractive_index_imag', m_im)
+      call nc_get_global(ncid, at, error, 'effective_variance', table%v_eff)
+      call nc_get_global(ncid, at, error, 'dlnr_phase', table%dlnr)
       if (allocated(error)) return
       table%m = cmplx(m_re, m_im, kind=wp)
-      call get_text('size_distribution', dist_name)
+      call nc_get_global(ncid, at, error, 'size_distribution', dist_name)
       if (allocated(error)) return
       table%dist = 0
       do i = 1, size(DIST_NAMES)
@@ -197,61 +171,19 @@ contains
                        '" must be gamma or lognormal')
         return
       end if
-      call dim_len('radius', nr)
-      call dim_len('angle', nang)
+      call nc_dim_len(ncid, at, error, 'radius', nr)
+      call nc_dim_len(ncid, at, error, 'angle', nang)
       if (allocated(error)) return
       allocate (table%r_eff_um(nr), table%ext_per_lwc(nr), table%ssa(nr), table%g(nr), &
                 table%angle_deg(nang), table%phase(nang, nr))
-      call get_1d('r_eff', table%r_eff_um)
-      call get_1d('ext_per_lwc', table%ext_per_lwc)
-      call get_1d('ssa', table%ssa)
-      call get_1d('asymmetry', table%g)
-      call get_1d('angle', table%angle_deg)
+      call nc_get_values(ncid, at, error, 'r_eff', table%r_eff_um)
+      call nc_get_values(ncid, at, error, 'ext_per_lwc', table%ext_per_lwc)
+      call nc_get_values(ncid, at, error, 'ssa', table%ssa)
+      call nc_get_values(ncid, at, error, 'asymmetry', table%g)
+      call nc_get_values(ncid, at, error, 'angle', table%angle_deg)
       if (allocated(error)) return
-      call nc_check(nf90_inq_varid(ncid, 'phase_function', i), at//':phase_function', error)
-      if (allocated(error)) return
-      call nc_check(nf90_get_var(ncid, i, table%phase), at//':phase_function', error)
+      call nc_get_values(ncid, at, error, 'phase_function', table%phase)
     end subroutine body
-
-    subroutine get_real(name, value)
-      character(len=*), intent(in) :: name
-      real(wp), intent(out) :: value
-      value = 0.0_wp
-      if (allocated(error)) return
-      call nc_check(nf90_get_att(ncid, NF90_GLOBAL, name, value), at//':'//name, error)
-    end subroutine get_real
-
-    subroutine get_text(name, value)
-      character(len=*), intent(in) :: name
-      character(len=:), allocatable, intent(out) :: value
-      integer :: n
-      call nc_check(nf90_inquire_attribute(ncid, NF90_GLOBAL, name, len=n), at//':'//name, error)
-      if (allocated(error)) return
-      allocate (character(len=n) :: value)
-      call nc_check(nf90_get_att(ncid, NF90_GLOBAL, name, value), at//':'//name, error)
-    end subroutine get_text
-
-    subroutine dim_len(name, n)
-      character(len=*), intent(in) :: name
-      integer, intent(out) :: n
-      integer :: dimid
-      n = 0
-      if (allocated(error)) return
-      call nc_check(nf90_inq_dimid(ncid, name, dimid), at//':'//name, error)
-      if (allocated(error)) return
-      call nc_check(nf90_inquire_dimension(ncid, dimid, len=n), at//':'//name, error)
-    end subroutine dim_len
-
-    subroutine get_1d(name, values)
-      character(len=*), intent(in) :: name
-      real(wp), intent(out) :: values(:)
-      integer :: varid
-      values = 0.0_wp
-      if (allocated(error)) return
-      call nc_check(nf90_inq_varid(ncid, name, varid), at//':'//name, error)
-      if (allocated(error)) return
-      call nc_check(nf90_get_var(ncid, varid, values), at//':'//name, error)
-    end subroutine get_1d
   end subroutine read_mie_table
 
   !> The Mie table of liquid water (index from `water_index`) for the request: read from
@@ -342,11 +274,4 @@ contains
     call move_alloc(from%phase, to%phase)
   end subroutine move_table
 
-  subroutine nc_check(status, at, error)
-    integer, intent(in) :: status
-    character(len=*), intent(in) :: at
-    type(error_t), allocatable, intent(inout) :: error
-    if (status == NF90_NOERR .or. allocated(error)) return
-    call set_error(error, at//': '//trim(nf90_strerror(status)))
-  end subroutine nc_check
 end module kumo_mie_table

@@ -394,7 +394,7 @@ contains
       call spectral_set_gpoint(spec, g, scene, error)
       if (allocated(error)) exit
       ! the g-point's photons start with weight f and play roulette on the same scale
-      f = spec%batch%weight(g)*real(nphot, dp)/spec%plan%total
+      f = spec%batch%weight(g)*real(nphot, dp)/spec%norm
       scene%src%w_unit = f
       scene%vr%rr_threshold = rr_threshold*f
       scene%vr%rr_weight = rr_weight*f

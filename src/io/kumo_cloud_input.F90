@@ -54,6 +54,10 @@ module kumo_cloud_input
     real(wp) :: droplet_number_cm3 = 0.0_wp      !! 1-parameter LWC files: N [cm-3]
     !> LES grid-only reads: also the pressure of every layer (required; `cloud_input_t%pressure`)
     logical :: pressure_profile = .false.
+    !> LES grid-only reads: also the gas state of every layer for broadband runs (column means
+    !> of temperature, pressure and water vapour where the file has them; `cloud_input_t`'s
+    !> t_profile, pressure and h2o_profile)
+    logical :: state_profile = .false.
     type(mcarats_request_t) :: mcarats           !! MCARaTS files: sizes and grid from the namelist
     !> thermal runs: also the temperatures the file has (LES: the temperature, or a potential
     !> temperature and the pressure, read only then; the other formats hold theirs anyway)
@@ -87,6 +91,10 @@ module kumo_cloud_input
     !> in double precision; a 3-D variable is averaged over the columns of each layer
     real(wp), allocatable :: pressure(:)
     character(len=:), allocatable :: pressure_source !! variable and whether it was averaged
+    !> LES grid-only reads with `state_profile`: per layer, bottom first, the column mean of
+    !> the temperature [K] and of the water vapour's volume mixing ratio of dry air
+    !> [mol mol-1], when the file has them
+    real(wp), allocatable :: t_profile(:), h2o_profile(:)
     !> temperatures of the file, when requested and present (not for `grid_only` reads):
     !> (nx, ny, nt) or a profile (1, 1, nt); nt = nz (one per voxel) or nz + 1 (`t_planes`: on
     !> the planes or levels that bound the layers, the voxel between planes k and k + 1)
@@ -162,7 +170,7 @@ contains
     type(les_field_t) :: f
     call read_les_field(req%path, req%names, req%time_index, f, error, req%k_factor, &
                         req%z_edges_from_midpoints, grid, part, req%pressure_profile, &
-                        req%temperature .and. .not. grid)
+                        req%temperature .and. .not. grid, req%state_profile .and. grid)
     if (allocated(error)) return
     call set_grid(cloud, f%nx, f%ny, f%nz, f%dx, f%dy, f%z_edges, .false.)
     if (allocated(f%pressure_profile)) then
@@ -175,7 +183,12 @@ contains
         cloud%pressure_source = cloud%pressure_source//', a profile'
       end if
     end if
-    if (grid) return
+    if (allocated(f%t_profile)) call move_alloc(f%t_profile, cloud%t_profile)
+    if (allocated(f%h2o_profile)) call move_alloc(f%h2o_profile, cloud%h2o_profile)
+    if (grid) then
+      if (req%state_profile) cloud%notes = f%notes
+      return
+    end if
     cloud%content = CLOUD_WATER
     if (allocated(f%lwc)) call move_alloc(f%lwc, cloud%lwc)
     if (allocated(f%reff)) call move_alloc(f%reff, cloud%reff)

@@ -306,6 +306,13 @@ module kumo_config
     character(len=PATH_LEN) :: cloud_optics_file = ''
     character(len=:), allocatable :: cloud_optics_path  !! resolved (relative to the namelist)
     character(len=8) :: ice_roughness = 'medium'   !! smooth, medium or rough (RRTMGP ice)
+    !> the gas state in the layers of an LES/CRM cloud file: 'cloud_file' (the file's
+    !> temperature, pressure and water vapour, column means per layer, where it has them) or
+    !> 'profile' (the profile of this group everywhere)
+    character(len=16) :: gas_state = 'cloud_file'
+    !> 0: every g-point (broadband); g > 0: g-point g alone (its own share of the fluxes and
+    !> heating rates, e.g. to compare with a monochromatic code or to time one g-point)
+    integer :: gpoint = 0
   end type spectral_cfg_t
 
   type :: config_t
@@ -1023,7 +1030,7 @@ contains
     character(len=16) :: cloud_format, size_distribution
     character(len=LES_NAME_LEN) :: les_lwc, les_reff, les_number, les_iwc, les_reff_ice, &
                                    les_temperature, les_pressure, les_air_density, les_x, les_y, &
-                                   les_z, les_x_edges, les_y_edges, les_z_edges
+                                   les_z, les_x_edges, les_y_edges, les_z_edges, les_vapour
     integer :: les_time_index, n_reff, ios, dist
     integer :: mcarats_np3d, mcarats_nkd, mcarats_mtprof, mcarats_idread, mcarats_ikd, &
                mcarats_nang, mcarats_npf
@@ -1033,7 +1040,7 @@ contains
     character(len=*), parameter :: CTX = '&kumo_cloud: '
     namelist /kumo_cloud/ cloud_file, cloud_format, les_time_index, les_lwc, les_reff, &
       les_number, les_iwc, les_reff_ice, les_temperature, les_pressure, les_air_density, &
-      les_x, les_y, les_z, les_x_edges, les_y_edges, les_z_edges, les_k_factor, &
+      les_vapour, les_x, les_y, les_z, les_x_edges, les_y_edges, les_z_edges, les_k_factor, &
       les_z_edges_from_midpoints, droplet_number_cm3, size_distribution, v_eff, reff_min_um, &
       reff_max_um, n_reff, mie_cache, ice_optics_file, mcarats_np3d, mcarats_nkd, mcarats_mtprof, &
       mcarats_idread, mcarats_ikd, mcarats_phase_file, mcarats_nang, mcarats_npf
@@ -1049,6 +1056,7 @@ contains
     les_temperature = ''
     les_pressure = ''
     les_air_density = ''
+    les_vapour = ''
     les_x = ''
     les_y = ''
     les_z = ''
@@ -1121,6 +1129,7 @@ contains
     cfg%req%names%temperature = les_temperature
     cfg%req%names%pressure = les_pressure
     cfg%req%names%air_density = les_air_density
+    cfg%req%names%vapour = les_vapour
     cfg%req%names%x = les_x
     cfg%req%names%y = les_y
     cfg%req%names%z = les_z
@@ -2097,6 +2106,8 @@ contains
     character(len=PATH_LEN) :: kdist_file, cloud_optics_file
     character(len=16) :: profile
     character(len=8) :: liquid_optics, ice_roughness
+    character(len=16) :: gas_state
+    integer :: gpoint
     logical :: spectral
     integer :: ios, kind, i
     character(len=512) :: msg
@@ -2104,7 +2115,7 @@ contains
     type(error_t), allocatable :: err
     namelist /kumo_spectral/ spectral, kdist_file, profile, p_levels, t_levels, p_layers, &
       t_layers, h2o_vmr, o3_vmr, tsi, floor_share, t_surface, liquid_optics, cloud_optics_file, &
-      ice_roughness
+      ice_roughness, gas_state, gpoint
     spectral = present
     kdist_file = cfg%kdist_file
     profile = cfg%profile
@@ -2120,6 +2131,8 @@ contains
     liquid_optics = cfg%liquid_optics
     cloud_optics_file = cfg%cloud_optics_file
     ice_roughness = cfg%ice_roughness
+    gas_state = cfg%gas_state
+    gpoint = cfg%gpoint
     rewind (unit)
     msg = ''
     read (unit, nml=kumo_spectral, iostat=ios, iomsg=msg)
@@ -2145,6 +2158,11 @@ contains
                  ice_roughness == 'rough', CTX, 'ice_roughness', ice_roughness, 'must be '// &
                  '''smooth'', ''medium'' or ''rough'' (the ice-crystal surfaces of RRTMGP''s '// &
                  'ice optics)', error)
+    call require(gas_state == 'cloud_file' .or. gas_state == 'profile', CTX, 'gas_state', &
+                 gas_state, 'must be ''cloud_file'' (temperature, pressure and water vapour of '// &
+                 'the &kumo_cloud file in its layers, where it has them) or ''profile''', error)
+    call require(gpoint >= 0, CTX, 'gpoint', gpoint, 'must be 0 (every g-point) or the '// &
+                 'index of one g-point of the k-distribution', error)
     if (allocated(error)) return
     if (len_trim(profile) > 0) then
       call std_atmosphere_kind_from_name(profile, kind, err)
@@ -2198,6 +2216,8 @@ contains
     cfg%t_surface = t_surface
     cfg%liquid_optics = liquid_optics
     cfg%ice_roughness = ice_roughness
+    cfg%gas_state = gas_state
+    cfg%gpoint = gpoint
     cfg%cloud_optics_file = cloud_optics_file
     if (len_trim(cloud_optics_file) > 0) cfg%cloud_optics_path = resolve_path(cloud_optics_file, &
                                                                              nml_path)
@@ -2427,7 +2447,9 @@ contains
              'kumo_spectral.floor_share = '//str(cfg%spectral%floor_share)//nl
       if (cfg%cloud%enabled) text = text// &
         'kumo_spectral.liquid_optics = '//trim(cfg%spectral%liquid_optics)//nl// &
-        'kumo_spectral.ice_roughness = '//trim(cfg%spectral%ice_roughness)//nl
+        'kumo_spectral.ice_roughness = '//trim(cfg%spectral%ice_roughness)//nl// &
+        'kumo_spectral.gas_state = '//trim(cfg%spectral%gas_state)//nl// &
+        'kumo_spectral.gpoint = '//str(cfg%spectral%gpoint)//nl
       if (len_trim(cfg%spectral%cloud_optics_file) > 0) text = text// &
         'kumo_spectral.cloud_optics_file = '//trim(cfg%spectral%cloud_optics_file)//nl
       if (len_trim(cfg%spectral%profile) > 0) text = text// &

@@ -26,7 +26,7 @@ module kumo_les_netcdf
   use kumo_error, only: error_t, set_error, str, join
   use kumo_file_check, only: check_netcdf_complete
   use kumo_units, only: unit_factor, QTY_WATER_CONTENT, QTY_LENGTH, QTY_RADIUS, QTY_NUMBER, &
-                        QTY_TEMPERATURE, QTY_PRESSURE, QTY_AIR_DENSITY
+                        QTY_TEMPERATURE, QTY_PRESSURE, QTY_AIR_DENSITY, QTY_HUMIDITY
   implicit none
   private
   public :: les_names_t, les_field_t, read_les_field
@@ -84,6 +84,13 @@ module kumo_les_netcdf
                                                                      'potential_temperature']
   character(len=*), parameter :: DEFAULT_PRESSURE(4) = [character(len=8) :: &
                                                         'pressure', 'pres', 'p', 'PRES']
+  !> Water vapour (broadband gas state): specific humidities and mixing ratios. Total-water
+  !> variables (qt, q of several models) hold the condensate too and are not on the list.
+  character(len=*), parameter :: DEFAULT_VAPOUR(7) = [character(len=21) :: &
+                                                      'qv', 'QV', 'QVAPOR', 'qvapor', 'hus', &
+                                                      'specific_humidity', 'humidity_mixing_ratio']
+  !> Molar masses of dry air and water [kg mol-1] (U.S. Standard Atmosphere 1976; CRC).
+  real(wp), parameter :: M_DRY_AIR = 28.9644e-3_wp, M_WATER = 18.0153e-3_wp
   character(len=*), parameter :: DEFAULT_AIR_DENSITY(5) = [character(len=11) :: &
                                                            'rho', 'rho_air', 'rhoa', 'RHO', &
                                                            'air_density']
@@ -109,6 +116,7 @@ module kumo_les_netcdf
     character(len=LES_NAME_LEN) :: potential_temperature = ''
     character(len=LES_NAME_LEN) :: pressure = ''     !! pressure
     character(len=LES_NAME_LEN) :: air_density = ''  !! air density (for mixing ratios)
+    character(len=LES_NAME_LEN) :: vapour = ''       !! water vapour (broadband gas state)
     character(len=LES_NAME_LEN) :: x = ''            !! x dimension (centres)
     character(len=LES_NAME_LEN) :: y = ''            !! y dimension (centres)
     character(len=LES_NAME_LEN) :: z = ''            !! z dimension (centres)
@@ -144,6 +152,11 @@ module kumo_les_netcdf
     !> precision, the horizontal mean of a 3-D variable (`pressure_averaged`)
     real(wp), allocatable :: pressure_profile(:)
     logical :: pressure_averaged = .false.
+    !> grid-only reads with `state_profile`: per layer, the mean over the columns of the
+    !> temperature [K] (`t_profile`) and of the water vapour's volume mixing ratio relative to
+    !> dry air [mol mol-1] (`h2o_profile`), each allocated when the file has it, and the
+    !> pressure in `pressure_profile` when the file has one
+    real(wp), allocatable :: t_profile(:), h2o_profile(:)
     type(les_names_t) :: used                         !! names actually read (blank: not read)
     character(len=:), allocatable :: notes            !! one line per variable: name, unit, origin
   end type les_field_t
@@ -160,6 +173,14 @@ module kumo_les_netcdf
     character(len=NF90_MAX_NAME) :: names(3) = ''  !! names of the x, y, z dimensions
     character(len=NF90_MAX_NAME) :: tname = ''     !! name of the time dimension
   end type les_file_t
+
+  !> A variable read one layer at a time (read_state_profile).
+  type :: layer_var_t
+    integer :: id = -1, ndims = 0
+    character(len=:), allocatable :: name, at, units
+    logical :: profile = .false., positive = .false., has_missing = .false.
+    real(wp) :: factor = 1.0_wp, fill = 0.0_wp, missing = 0.0_wp
+  end type layer_var_t
 
   character(len=*), parameter :: PROC = 'read_les_field'
   character(len=*), parameter :: AXES(3) = ['x', 'y', 'z']
@@ -191,7 +212,7 @@ contains
   !> centres only when `z_edges_from_midpoints` is true, since it is one convention among several.
   subroutine read_les_field(path, names, time_index, field, error, k_factor, &
                             z_edges_from_midpoints, grid_only, part, pressure_profile, &
-                            temperature)
+                            temperature, state_profile)
     character(len=*), intent(in) :: path               !! netCDF file
     type(les_names_t), intent(in) :: names             !! variable names (blank: defaults)
     integer, intent(in) :: time_index                  !! time step (1-based), or -1: no time dim
@@ -214,6 +235,10 @@ contains
     !> also read the temperature, or a potential temperature and the pressure, when the file
     !> has them (thermal emission; default false)
     logical, intent(in), optional :: temperature
+    !> with `grid_only`: also the gas state of every layer, the column means of temperature,
+    !> pressure and water vapour where the file has them (`t_profile`, `pressure_profile`,
+    !> `h2o_profile`), read one layer at a time (default false)
+    logical, intent(in), optional :: state_profile
     type(les_file_t) :: f
     type(error_t), allocatable :: close_error
     logical :: liquid, ice
@@ -255,7 +280,7 @@ contains
     if (allocated(error)) return
     field%notes = ''
     call read_body(f, names, k, midpoints, liquid, ice, field, error, grid_only, &
-                   pressure_profile, temperature)
+                   pressure_profile, temperature, state_profile)
     status = nf90_close(f%ncid)
     if (.not. allocated(error)) then
       call nc_check(status, PROC//'('//f%path//')', close_error)
@@ -267,7 +292,7 @@ contains
   ! ------------------------------------------------------------------------------------------------
 
   subroutine read_body(f, names, k, midpoints, liquid, ice, field, error, grid_only, &
-                       pressure_profile, want_temperature)
+                       pressure_profile, want_temperature, state_profile)
     type(les_file_t), intent(inout) :: f
     type(les_names_t), intent(in) :: names
     real(wp), intent(in) :: k
@@ -275,7 +300,7 @@ contains
     logical, intent(in) :: liquid, ice     !! read these species
     type(les_field_t), intent(inout) :: field
     type(error_t), allocatable, intent(out) :: error
-    logical, intent(in), optional :: grid_only, pressure_profile, want_temperature
+    logical, intent(in), optional :: grid_only, pressure_profile, want_temperature, state_profile
     integer :: lwc_id, reff_id, num_id, iwc_id, rei_id, t_id, p_id, rho_id
     character(len=:), allocatable :: lwc_name, reff_name, num_name, iwc_name, rei_name
     character(len=:), allocatable :: t_name, p_name, rho_name, text
@@ -314,6 +339,10 @@ contains
       if (grid_only) then
         if (present(pressure_profile)) then
           if (pressure_profile) call read_pressure_profile(f, names, field, error)
+        end if
+        if (allocated(error)) return
+        if (present(state_profile)) then
+          if (state_profile) call read_state_profile(f, names, field, error)
         end if
         return
       end if
@@ -973,6 +1002,199 @@ contains
     field%used%pressure = p_name
   end subroutine read_pressure_profile
 
+  !> The gas state of the layers for broadband runs (`state_profile`): the mean over the columns
+  !> of each layer of the temperature, or of theta (p/p0)^kappa from a potential temperature
+  !> and the pressure; of the pressure (unless `read_pressure_profile` read it); and of the
+  !> water vapour's volume mixing ratio relative to dry air, r M_d/M_w with the mass mixing
+  !> ratio r, or q/(1 - q) from a specific humidity q. Each variable may be a profile over z or
+  !> 3-D and is read one layer at a time. What the file lacks stays unallocated and `notes`
+  !> says what was tried.
+  subroutine read_state_profile(f, names, field, error)
+    type(les_file_t), intent(in) :: f
+    type(les_names_t), intent(in) :: names
+    type(les_field_t), intent(inout) :: field
+    type(error_t), allocatable, intent(out) :: error
+    type(layer_var_t) :: vt, vp_, vq
+    integer :: t_id, p_id, q_id, iz, nz
+    character(len=:), allocatable :: t_name, p_name, q_name, sname
+    real(wp), allocatable :: t(:, :, :), p(:, :, :), q(:, :, :), tt(:, :, :)
+    integer :: ix, iy
+    logical :: theta, specific, found
+
+    nz = f%n(3)
+    theta = .false.
+    call find_var(f, 'temperature', names%temperature, DEFAULT_TEMPERATURE, .false., t_id, &
+                  t_name, error)
+    if (allocated(error)) return
+    if (t_id < 0) then
+      call find_var(f, 'potential temperature', names%potential_temperature, &
+                    DEFAULT_POTENTIAL_TEMPERATURE, .false., t_id, t_name, error)
+      if (allocated(error)) return
+      theta = t_id >= 0
+    end if
+    call find_var(f, 'pressure', names%pressure, DEFAULT_PRESSURE, .false., p_id, p_name, error)
+    if (allocated(error)) return
+    call find_var(f, 'water vapour', names%vapour, DEFAULT_VAPOUR, .false., q_id, q_name, error)
+    if (allocated(error)) return
+    if (theta .and. p_id < 0) then
+      field%notes = field%notes//'potential temperature "'//t_name//'" not used: no pressure '// &
+                    'to convert it (tried '//tried(names%pressure, DEFAULT_PRESSURE)//')'//NL
+      t_id = -1
+    end if
+    if (t_id >= 0) call open_layer_var(f, t_id, t_name, QTY_TEMPERATURE, .true., vt, error)
+    if (allocated(error)) return
+    if (p_id >= 0) call open_layer_var(f, p_id, p_name, QTY_PRESSURE, .true., vp_, error)
+    if (allocated(error)) return
+    specific = .false.
+    if (q_id >= 0) then
+      call open_layer_var(f, q_id, q_name, QTY_HUMIDITY, .false., vq, error)
+      if (allocated(error)) return
+      call get_text_att(f, q_id, q_name, 'standard_name', sname, found, error)
+      if (allocated(error)) return
+      if (found) then
+        specific = trim(sname) == 'specific_humidity'
+      else
+        specific = q_name == 'hus' .or. q_name == 'specific_humidity'
+      end if
+    end if
+
+    if (t_id >= 0) allocate (field%t_profile(nz))
+    if (q_id >= 0) allocate (field%h2o_profile(nz))
+    if (p_id >= 0 .and. .not. allocated(field%pressure_profile)) then
+      allocate (field%pressure_profile(nz))
+      field%pressure_averaged = .not. vp_%profile
+    end if
+    do iz = 1, nz
+      if (p_id >= 0) then
+        call layer_values(f, vp_, iz, p, error)
+        if (allocated(error)) return
+        field%pressure_profile(iz) = sum(p)/real(size(p), wp)
+      end if
+      if (t_id >= 0) then
+        call layer_values(f, vt, iz, t, error)
+        if (allocated(error)) return
+        if (theta) then
+          ! T = theta (p/p0)^kappa voxel by voxel; either may be a profile
+          allocate (tt(max(size(t, 1), size(p, 1)), max(size(t, 2), size(p, 2)), 1))
+          do iy = 1, size(tt, 2)
+            do ix = 1, size(tt, 1)
+              tt(ix, iy, 1) = t(min(ix, size(t, 1)), min(iy, size(t, 2)), 1)* &
+                              (p(min(ix, size(p, 1)), min(iy, size(p, 2)), 1)/P_REFERENCE)**KAPPA_DRY_AIR
+            end do
+          end do
+          call move_alloc(tt, t)
+        end if
+        field%t_profile(iz) = sum(t)/real(size(t), wp)
+      end if
+      if (q_id >= 0) then
+        call layer_values(f, vq, iz, q, error)
+        if (allocated(error)) return
+        if (specific) then
+          if (any(q >= 1.0_wp)) then
+            call set_error(error, at_text(f, q_name)//': a specific humidity of '// &
+                           str(maxval(q))//' kg/kg in layer '//str(iz)//' is not below 1')
+            return
+          end if
+          q = q/(1.0_wp - q)
+        end if
+        field%h2o_profile(iz) = (M_DRY_AIR/M_WATER)*sum(q)/real(size(q), wp)
+      end if
+    end do
+
+    if (t_id >= 0) then
+      if (theta) then
+        field%notes = field%notes//'gas state: temperature theta (p/p0)^kappa from "'//t_name// &
+                      '" and "'//p_name//'" (p0 = 1000 hPa, kappa = 2/7), '//vt%units
+      else
+        field%notes = field%notes//'gas state: temperature "'//t_name//'" ['//vt%units//']'
+      end if
+      field%notes = field%notes//', mean over the columns of each layer'//NL
+      field%used%temperature = t_name
+    else
+      field%notes = field%notes//'gas state: no temperature (tried '// &
+                    tried(names%temperature, DEFAULT_TEMPERATURE)//' and the potential '// &
+                    'temperatures '//tried(names%potential_temperature, &
+                                           DEFAULT_POTENTIAL_TEMPERATURE)//')'//NL
+    end if
+    if (p_id >= 0) then
+      if (len_trim(field%used%pressure) == 0) field%notes = field%notes//'gas state: pressure "'// &
+          p_name//'" ['//vp_%units//'], mean over the columns of each layer'//NL
+      field%used%pressure = p_name
+    else
+      field%notes = field%notes//'gas state: no pressure (tried '// &
+                    tried(names%pressure, DEFAULT_PRESSURE)//')'//NL
+    end if
+    if (q_id >= 0) then
+      field%notes = field%notes//'gas state: water vapour "'//q_name//'" ['//vq%units//'], '
+      if (specific) then
+        field%notes = field%notes//'a specific humidity q (standard_name or name): '// &
+                      'vmr = q/(1 - q) M_d/M_w'
+      else
+        field%notes = field%notes//'taken as a mass mixing ratio r (vmr = r M_d/M_w; '// &
+                      'give it standard_name = "specific_humidity" if it is one, which would '// &
+                      'raise the vmr by 1/(1 - q))'
+      end if
+      field%notes = field%notes//', M_d/M_w = '//str(M_DRY_AIR/M_WATER)// &
+                    ', mean over the columns of each layer'//NL
+      field%used%vapour = q_name
+    else
+      field%notes = field%notes//'gas state: no water vapour (tried '// &
+                    tried(names%vapour, DEFAULT_VAPOUR)//')'//NL
+    end if
+  end subroutine read_state_profile
+
+  !> Open a variable for reading one layer at a time: layout (3-D or profile), unit factor,
+  !> fill and missing values.
+  subroutine open_layer_var(f, varid, name, quantity, positive, v, error)
+    type(les_file_t), intent(in) :: f
+    integer, intent(in) :: varid, quantity
+    character(len=*), intent(in) :: name
+    logical, intent(in) :: positive
+    type(layer_var_t), intent(out) :: v
+    type(error_t), allocatable, intent(out) :: error
+    integer :: xtype
+    logical :: per_air, found
+    v%id = varid
+    v%name = name
+    v%positive = positive
+    v%at = at_text(f, name)
+    call check_layout(f, varid, name, .true., error, v%profile)
+    if (allocated(error)) return
+    call nc_check(nf90_inquire_variable(f%ncid, varid, xtype=xtype, ndims=v%ndims), v%at, error)
+    if (allocated(error)) return
+    call real_var_attrs(f, varid, name, xtype, quantity, v%factor, per_air, v%fill, &
+                        v%has_missing, v%missing, error)
+    if (allocated(error)) return
+    call get_text_att(f, varid, name, 'units', v%units, found, error)
+  end subroutine open_layer_var
+
+  !> Layer iz of a variable opened by open_layer_var, checked and in kumo's unit: shape
+  !> (nx, ny, 1), or (1, 1, 1) for a profile.
+  subroutine layer_values(f, v, iz, slab, error)
+    type(les_file_t), intent(in) :: f
+    type(layer_var_t), intent(in) :: v
+    integer, intent(in) :: iz
+    real(wp), allocatable, intent(inout) :: slab(:, :, :)
+    type(error_t), allocatable, intent(out) :: error
+    if (allocated(slab)) deallocate (slab)
+    if (v%profile) then
+      allocate (slab(1, 1, 1))
+      if (v%ndims == 2) then
+        call nc_check(nf90_get_var(f%ncid, v%id, slab, start=[iz, f%itime], count=[1, 1]), &
+                      v%at, error)
+      else
+        call nc_check(nf90_get_var(f%ncid, v%id, slab, start=[iz], count=[1]), v%at, error)
+      end if
+    else
+      allocate (slab(f%n(1), f%n(2), 1))
+      call get_layer(f, v%id, iz, slab, v%at, error)
+    end if
+    if (allocated(error)) return
+    call check_values(f, v%at, slab, iz - 1, v%fill, v%has_missing, v%missing, v%positive, error)
+    if (allocated(error)) return
+    slab = v%factor*slab
+  end subroutine layer_values
+
   !> Layer iz of a 3-D variable (of the chosen time step, if it has a time dimension).
   subroutine get_layer(f, varid, iz, slab, at, error)
     type(les_file_t), intent(in) :: f
@@ -1273,6 +1495,8 @@ contains
     field%temperature_from_theta = .false.
     field%has_pressure = .false.
     if (allocated(field%pressure_profile)) deallocate (field%pressure_profile)
+    if (allocated(field%t_profile)) deallocate (field%t_profile)
+    if (allocated(field%h2o_profile)) deallocate (field%h2o_profile)
     field%pressure_averaged = .false.
     field%reff_computed = .false.
   end subroutine clear_field

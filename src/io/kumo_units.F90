@@ -23,7 +23,7 @@ module kumo_units
   private
   public :: unit_factor, normalize_units, accepted_units
   public :: QTY_WATER_CONTENT, QTY_LENGTH, QTY_RADIUS, QTY_NUMBER, QTY_TEMPERATURE, QTY_PRESSURE, &
-            QTY_AIR_DENSITY, QUANTITY_NAMES
+            QTY_AIR_DENSITY, QTY_HUMIDITY, QUANTITY_NAMES
 
   !> Quantities and kumo's unit for each (index into QUANTITY_NAMES).
   enum, bind(c)
@@ -34,16 +34,18 @@ module kumo_units
     enumerator :: QTY_TEMPERATURE        !! temperature [K]
     enumerator :: QTY_PRESSURE           !! pressure [Pa]
     enumerator :: QTY_AIR_DENSITY        !! air density [kg m-3]
+    enumerator :: QTY_HUMIDITY           !! water vapour per mass of air [kg kg-1]
   end enum
   !> Name of each quantity and its unit in kumo, for messages.
-  character(len=*), parameter :: QUANTITY_NAMES(7) = [character(len=40) :: &
+  character(len=*), parameter :: QUANTITY_NAMES(8) = [character(len=40) :: &
                                                       'water content (kumo unit g m-3)', &
                                                       'length (kumo unit m)', &
                                                       'effective radius (kumo unit um)', &
                                                       'number concentration (kumo unit m-3)', &
                                                       'temperature (kumo unit K)', &
                                                       'pressure (kumo unit Pa)', &
-                                                      'air density (kumo unit kg m-3)']
+                                                      'air density (kumo unit kg m-3)', &
+                                                      'water vapour (kumo unit kg kg-1)']
 
   !> One accepted unit: normalised spelling, factor to kumo's unit, per mass of air or not.
   type :: unit_entry_t
@@ -77,6 +79,10 @@ contains
       return
     end if
     norm = normalize_units(units)
+    if (quantity == QTY_HUMIDITY .and. trim(adjustl(units)) == '1') then
+      factor = 1.0_wp                  ! the CF canonical unit of specific humidity
+      return
+    end if
     if (len_trim(units) == 0) then
       call set_error(error, 'units attribute is blank; '//accepted_text(quantity))
       return
@@ -215,6 +221,9 @@ contains
                unit_entry_t('mb', 1.0e2_wp, .false.), unit_entry_t('mbar', 1.0e2_wp, .false.)]
     case (QTY_AIR_DENSITY)
       table = [unit_entry_t('kg m-3', 1.0_wp, .false.), unit_entry_t('g m-3', 1.0e-3_wp, .false.)]
+    case (QTY_HUMIDITY)
+      ! the ratio itself: per_air_mass stays false (nothing to multiply by the air density)
+      table = [unit_entry_t('kg kg-1', 1.0_wp, .false.), unit_entry_t('g kg-1', 1.0e-3_wp, .false.)]
     case default
       allocate (table(0))
     end select
@@ -226,6 +235,8 @@ contains
     character(len=:), allocatable :: text
     text = 'accepted units for '//trim(QUANTITY_NAMES(quantity))//': '//accepted_units(quantity)
     select case (quantity)
+    case (QTY_HUMIDITY)
+      text = text//' or 1 (also written kg/kg, g/kg)'
     case (QTY_WATER_CONTENT, QTY_AIR_DENSITY, QTY_NUMBER)
       text = text//' (also written with "/", "^" or "**", e.g. kg/m3, kg/m^3, kg m^-3, '// &
              'kg m**-3, g/kg, 1/cm3)'

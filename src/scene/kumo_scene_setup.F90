@@ -47,6 +47,7 @@ module kumo_scene_setup
   use kumo_spectral_cloud, only: spectral_cloud_t, spectral_cloud_init, spectral_cloud_band, &
                                  spectral_cloud_put
   use kumo_supervoxel, only: supervoxel_grid_t
+  use kumo_gas_state, only: gas_state_merge
   use kumo_rayleigh, only: depol_from_king, king_factor_air
   use kumo_textio, only: read_two_columns
   use kumo_netcdf, only: read_scene_3d, read_albedo_map, read_brdf_map, read_scene_temperature, &
@@ -91,6 +92,10 @@ module kumo_scene_setup
     integer, allocatable :: phase1d(:, :)
     real(wp), allocatable :: tau_abs(:, :), tau_ray(:, :)  !! (nz, n_gpt) gas per layer
     integer :: iray = 0                           !! Rayleigh phase function (shortwave)
+    integer :: gpoint = 0                         !! one g-point alone (&kumo_spectral gpoint)
+    !> the power [W m-2] the tallies are fractions of, as the outputs scale them: the plan's
+    !> total, or mu0 TSI when one shortwave g-point is traced alone
+    real(wp) :: norm = 0.0_wp
     type(phase_t), allocatable :: phases(:)
     type(atmosphere_options_t) :: aopts
     real(wp), allocatable :: ext3(:, :, :, :), ssa3(:, :, :, :)  !! the scene file's voxels
@@ -725,7 +730,8 @@ contains
     type(spectral_column_t) :: col
     real(wp), allocatable :: z(:), zmid(:), dz(:), plev(:), tlev(:), play(:), tlay(:), rho(:), &
                              vmr(:, :), tau_abs(:, :), tau_ray(:, :), energy(:), e(:), s(:), &
-                             pmid(:)
+                             pmid(:), h2o(:)
+    character(len=:), allocatable :: state_note
     integer :: nz, nc, ng, k, g, iray, ic, nadd
     type(bundle_t) :: b
     real(wp) :: mu0, sca, acc, tsfc
@@ -762,6 +768,13 @@ contains
         tlay = 0.5_wp*(tlev(0:nz - 1) + tlev(1:nz))
       end if
     end if
+    ! the gas state of an LES/CRM file's layers (kumo_gas_state), on every rank
+    h2o = cfg%spectral%h2o_vmr
+    state_note = ''
+    if (cfg%cloud%enabled .and. cfg%spectral%gas_state == 'cloud_file') then
+      call cloud_gas_state(cfg, z, plev, play, tlev, tlay, h2o, state_note, error)
+      if (allocated(error)) return
+    end if
     mu0 = cos(cfg%source%sza_deg*DEG2RAD)
     tsfc = cfg%spectral%t_surface
     if (tsfc <= 0.0_wp) tsfc = tlev(0)
@@ -775,7 +788,7 @@ contains
         call gas_default_vmr(kd, play, vmr, error)
       end if
       if (.not. allocated(error)) then
-        if (gas_index(kd, 'h2o') > 0) vmr(:, gas_index(kd, 'h2o')) = cfg%spectral%h2o_vmr
+        if (gas_index(kd, 'h2o') > 0) vmr(:, gas_index(kd, 'h2o')) = h2o
         if (allocated(cfg%spectral%o3_vmr) .and. gas_index(kd, 'o3') > 0) &
           vmr(:, gas_index(kd, 'o3')) = cfg%spectral%o3_vmr
         if (kd%longwave) then
@@ -813,6 +826,22 @@ contains
     call b%get(tau_abs)
     call b%get(energy)
     ng = size(energy)
+    if (cfg%spectral%gpoint > ng) then
+      call set_error(error, '&kumo_spectral: gpoint = '//str(cfg%spectral%gpoint)// &
+                     ' must be 0 (every g-point) or between 1 and the '//str(ng)// &
+                     ' g-points of '//cfg%spectral%kdist_path)
+      return
+    end if
+    spec%gpoint = cfg%spectral%gpoint
+    if (.not. lw .and. spec%gpoint > 0) then
+      ! one g-point alone: the others get no energy and are never drawn
+      where ([(g, g=1, ng)] /= spec%gpoint) energy = 0.0_wp
+      if (.not. (energy(spec%gpoint) > 0.0_wp)) then
+        call set_error(error, '&kumo_spectral: gpoint = '//str(spec%gpoint)//' has no solar '// &
+                       'energy in '//cfg%spectral%kdist_path)
+        return
+      end if
+    end if
     if (lw) then
       call b%get(spec%src_bot)
       call b%get(spec%src_top)
@@ -837,6 +866,8 @@ contains
         call add_context(error, '&kumo_spectral')
         return
       end if
+      spec%norm = spec%plan%total
+      if (spec%gpoint > 0) spec%norm = cfg%spectral%tsi*mu0
     end if
 
     ! per g-point mixtures of the 1-D layers: components 1..nc of the namelist, then (shortwave)
@@ -915,6 +946,10 @@ contains
       scene%notes = scene%notes//'  layer air density (heating rates): (p_bottom - p_top)/'// &
                     '(g0 dz) of the &kumo_spectral profile, g0 = 9.80665 m s-2'//new_line('a')
     end if
+    scene%notes = state_note//scene%notes
+    if (spec%gpoint > 0) scene%notes = scene%notes//'  g-point '//str(spec%gpoint)// &
+                                       ' alone (&kumo_spectral gpoint): the fluxes and heating '// &
+                                       'rates are its own share'//new_line('a')
     if (lw) then
       scene%notes = 'broadband longwave: '//trim(cfg%spectral%kdist_file)//', '//str(ng)// &
                     ' g-points, surface temperature '//str(tsfc)//' K, emissivity '// &
@@ -932,6 +967,106 @@ contains
                     new_line('a')//scene%notes
     end if
   end subroutine setup_spectral
+
+  !> The gas state of a &kumo_cloud file's layers for a broadband run (&kumo_spectral gas_state
+  !> = 'cloud_file'): rank 0 reads the column means of temperature, pressure and water vapour
+  !> per layer, where an LES/CRM netCDF file has them, and every rank puts them into the
+  !> profile (kumo_gas_state). Other cloud formats carry no gas state: the profile stays, and
+  !> `note` says so.
+  subroutine cloud_gas_state(cfg, z, plev, play, tlev, tlay, h2o, note, error)
+    type(config_t), intent(in) :: cfg
+    real(wp), intent(in) :: z(0:)
+    real(wp), intent(inout) :: plev(0:), play(:), tlev(0:), tlay(:), h2o(:)
+    character(len=:), allocatable, intent(inout) :: note
+    type(error_t), allocatable, intent(out) :: error
+    type(bundle_t) :: b
+    type(cloud_input_t) :: c
+    type(cloud_request_t) :: req
+    real(wp), allocatable :: tp(:), pp(:), qp(:)
+    character(len=:), allocatable :: notes, what
+    logical :: has_t, has_p, has_q
+    real(wp) :: fb, ft
+    integer :: kb, kt, n
+
+    if (trim(cfg%cloud%req%format) /= 'les') then
+      note = '  gas state: the &kumo_spectral profile (a '//trim(cfg%cloud%req%format)// &
+             ' cloud file holds no temperature, pressure or water vapour)'//new_line('a')
+      return
+    end if
+    if (par_is_root()) then
+      req = cfg%cloud%req
+      req%state_profile = .true.
+      req%pressure_profile = .false.
+      call read_cloud_input(req, c, error, grid_only=.true.)
+      if (allocated(error)) then
+        call add_context(error, '&kumo_spectral gas_state = ''cloud_file''')
+      else
+        call b%put(c%notes)
+        call b%put(c%nz)
+        call b%put(allocated(c%t_profile))
+        if (allocated(c%t_profile)) call b%put(c%t_profile)
+        call b%put(allocated(c%pressure))
+        if (allocated(c%pressure)) call b%put(c%pressure)
+        call b%put(allocated(c%h2o_profile))
+        if (allocated(c%h2o_profile)) call b%put(c%h2o_profile)
+      end if
+    end if
+    call b%share(error)
+    if (allocated(error)) return
+    call b%get(notes)
+    call b%get(n)
+    call b%get(has_t)
+    if (has_t) call b%get(tp)
+    call b%get(has_p)
+    if (has_p) call b%get(pp)
+    call b%get(has_q)
+    if (has_q) call b%get(qp)
+    kb = cfg%atm%k3d_bottom
+    kt = kb + n - 1
+    if (kb < 1 .or. kt > size(play)) then
+      call set_error(error, '&kumo_spectral gas_state = ''cloud_file'': the cloud file''s '// &
+                     str(n)//' layers do not fit the column from layer '//str(kb))
+      return
+    end if
+    if (.not. (has_t .or. has_p .or. has_q)) then
+      note = '  gas state: the &kumo_spectral profile (the cloud file has no temperature, '// &
+             'pressure or water vapour)'//new_line('a')//indent(notes)
+      return
+    end if
+    ! an unallocated profile is an absent argument (Fortran 2008)
+    call gas_state_merge(z, kb, plev, play, tlev, tlay, h2o, error, p_file=pp, t_file=tp, &
+                         h2o_file=qp, f_below=fb, f_above=ft)
+    if (allocated(error)) then
+      call add_context(error, '&kumo_spectral gas_state = ''cloud_file'' ('// &
+                       cfg%cloud%req%path//')')
+      return
+    end if
+    what = ''
+    if (has_t) what = what//', temperature'
+    if (has_p) what = what//', pressure'
+    if (has_q) what = what//', water vapour'
+    note = '  gas state of layers '//str(kb)//' to '//str(kt)//' ('//str(z(kb - 1))//' to '// &
+           str(z(kt))//' m): the cloud file''s '//what(3:)//' (column means per layer), '// &
+           'the &kumo_spectral profile elsewhere'
+    if (has_p) note = note//'; the profile''s pressures scaled by '//str(fb)//' below and '// &
+                      str(ft)//' above to meet the file''s'
+    note = note//new_line('a')//indent(notes)
+  contains
+    !> Each line of `text` indented by four blanks.
+    function indent(text) result(out)
+      character(len=*), intent(in) :: text
+      character(len=:), allocatable :: out
+      integer :: i
+      out = ''
+      if (len(text) == 0) return
+      out = '    '
+      do i = 1, len(text)
+        out = out//text(i:i)
+        if (text(i:i) == new_line('a') .and. i < len(text)) out = out//'    '
+      end do
+      if (text(len(text):len(text)) /= new_line('a')) out = out//new_line('a')
+    end function indent
+  end subroutine cloud_gas_state
 
   !> Broadband longwave, once the atmosphere and the surface exist: for every g-point the
   !> emission table of its layers (the layers' own Planck sources at their bottom and top,
@@ -954,7 +1089,7 @@ contains
     type(spectral_scene_t), intent(inout) :: spec
     type(error_t), allocatable, intent(out) :: error
     type(thermal_column_t) :: col
-    type(emission_t) :: em, em_sum
+    type(emission_t) :: em, em_sum, em_g
     real(wp), allocatable :: t3(:, :, :)
     real(wp), allocatable :: energy(:), importance(:), tau(:), fu(:), fd(:), fdir(:), &
                              div(:), net(:), xflux(:), xheat(:), mass(:)
@@ -986,6 +1121,7 @@ contains
       call gpoint_emission(spec, g, scene, em, error)
       if (allocated(error)) return
       energy(g) = em%power
+      if (g == spec%gpoint) em_g = em
       ! totals for the outputs
       if (g == 1) then
         em_sum = em
@@ -1013,12 +1149,18 @@ contains
     ! below a tiny share of the g-point's emission (a g-point with energy is drawn)
     importance = 0.5_wp*xflux/max(tiny(1.0_wp), sum(xflux)) + 0.5_wp*xheat/max(tiny(1.0_wp), sum(xheat))
     importance = max(importance, 1.0e-9_wp*energy/sum(energy))
+    if (spec%gpoint > 0) then
+      ! one g-point alone: the others get no energy (never drawn) and leave the summary
+      where ([(g, g=1, spec%n_gpt)] /= spec%gpoint) energy = 0.0_wp
+      em_sum = em_g
+    end if
     call spectral_plan_init(energy, spec%plan, error, floor_share=cfg%spectral%floor_share, &
                             importance=importance)
     if (allocated(error)) then
       call add_context(error, '&kumo_spectral')
       return
     end if
+    spec%norm = spec%plan%total
     ! the broadband summary the outputs read: total powers, no single band
     spec%em_sum = em_sum
     spec%em_sum%power = sum(energy)

@@ -41,6 +41,8 @@ module test_broadband_run_suite
   use kumo_driver, only: simulate, run_summary_t
   use kumo_scene_setup, only: load_config
   use kumo_testing, only: error_t, unittest_t, new_unittest, check, check_sigma, check_error_words
+  use netcdf, only: nf90_create, nf90_def_dim, nf90_def_var, nf90_put_att, nf90_enddef, &
+                    nf90_put_var, nf90_close, nf90_strerror, NF90_CLOBBER, NF90_DOUBLE, NF90_NOERR
   implicit none
   private
   public :: collect_broadband_run, rrtmgp_dir, reference_file, ref_dir
@@ -82,6 +84,8 @@ contains
              new_unittest('lw_liquid_cloud_file_vs_disort', test_lw_liquid), &
              new_unittest('sw_liquid_band_mie_cached', test_sw_liquid_mie), &
              new_unittest('sw_ica_columns_vs_disort', test_sw_ica_columns), &
+             new_unittest('sw_les_gas_state_vs_disort', test_sw_les_state), &
+             new_unittest('sw_single_gpoint_vs_disort', test_single_gpoint), &
              new_unittest('cloud_file_without_water_refused', test_cloud_optics_refused), &
              new_unittest('bad_inputs', test_bad_inputs)]
   end function collect_broadband_run
@@ -707,6 +711,176 @@ contains
       if (allocated(error)) return
     end do
   end subroutine test_sw_ica_columns
+
+  !> The gas state of an LES file (&kumo_spectral gas_state = 'cloud_file', the default): the
+  !> cloud of sw_liquid_reference.txt as an LES netCDF file that also holds its layer's
+  !> temperature (3-D, K), pressure (a profile, hPa) and water vapour (3-D mixing ratio, g/kg),
+  !> varying over the 3 x 2 columns around the reference's values, which are their means. The
+  !> namelist's water vapour of that layer is 3 times the reference's. Read from the file,
+  !> every flux and heating rate agrees with the reference (4 sigma plus three photons' worth,
+  !> as sw_liquid_cloud_file_vs_disort); with gas_state = 'profile' (the namelist's vapour) the
+  !> heating rate of the cloud layer is off the reference by more than 6 sigma, so the
+  !> comparison can tell the two states apart.
+  subroutine test_sw_les_state(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(case_t) :: c
+    type(result_set_t) :: set
+    type(run_summary_t) :: summary
+    real(dp) :: t3, p3, h3, d(3, 2), mean, sd
+    character(len=:), allocatable :: spec_lines, groups
+    character(len=32) :: wet
+    integer :: ih
+    call read_case('us1976_cloud', c, error, 'sw_liquid_reference.txt')
+    if (allocated(error)) return
+    read (c%lay(3, 1), *) p3
+    read (c%lay(3, 2), *) t3
+    read (c%lay(3, 3), *) h3
+    ! column-to-column variations of zero mean
+    d = reshape([-1.0_dp, 0.5_dp, 0.5_dp, 1.0_dp, -0.25_dp, -0.75_dp], [3, 2])
+    call write_les_state('sw_state.nc', c%liquid(2), c%liquid(3), t3 + 2*d, p3/100, &
+                         (h3*(1 + 0.1_dp*d))*18.0153_dp/28.9644_dp*1000, error)
+    if (allocated(error)) return
+    write (wet, '(es23.16)') 3*h3
+    c%lay(3, 3) = wet
+    spec_lines = '  floor_share = 0.2'//new_line('a')//'  liquid_optics = ''rrtmgp'''// &
+                 new_line('a')//'  cloud_optics_file = '''//rrtmgp_dir//'/cloudysky_sw.nc'''
+    groups = '&kumo_cloud'//new_line('a')//'  cloud_file = ''sw_state.nc'''//new_line('a')//'/'
+    call write_nml('sw_state.nml', c, spec_lines, '', 40, groups=groups, n_photons=20000)
+    call run('sw_state.nml', set, summary, error)
+    if (allocated(error)) return
+    call compare(set, summary, c, error, huge(1), 1.0_dp)
+    if (allocated(error)) return
+    ! the namelist's (wrong) water vapour: the cloud layer's heating departs from the reference
+    call write_nml('sw_state_profile.nml', c, spec_lines//new_line('a')// &
+                   '  gas_state = ''profile''', '', 40, groups=groups, n_photons=20000)
+    call run('sw_state_profile.nml', set, summary, error)
+    if (allocated(error)) return
+    ih = var(set, 'heating_rate_layer', error)
+    if (allocated(error)) return
+    mean = set%vars(ih)%mean(3)
+    sd = set%vars(ih)%stderr(3)
+    write (*, '(a, f0.3, a, f0.3, a, f0.3, a)') '    gas_state = ''profile'': cloud-layer heating ', &
+      mean, ' +- ', sd, ' K/day (DISORT with the file''s vapour ', c%heat(3, 1), ')'
+    call check(error, abs(mean - c%heat(3, 1)) > 6*sd, 'with the namelist''s vapour (3 times '// &
+               'the file''s) the cloud layer''s heating '//str(mean)//' +- '//str(sd)// &
+               ' K/day is not distinguishable from the reference '//str(c%heat(3, 1)))
+  end subroutine test_sw_les_state
+
+  !> One g-point alone (gpoint = g, the most energetic one of the U.S. Standard column): its
+  !> photons carry its own energy, so its fluxes are the reference's DISORT fluxes of that
+  !> g-point (the per-g-point lines of sw_gpoint_reference.txt): the upward and diffuse
+  !> downward fluxes at every level within 4 sigma plus three photons' worth of its energy,
+  !> and the incident flux at the top mu0 F_g within 1e-10 (the reference's 11 printed digits).
+  subroutine test_single_gpoint(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(case_t) :: c
+    type(result_set_t) :: set
+    type(run_summary_t) :: summary
+    real(dp), allocatable :: f(:), up(:, :), dn(:, :)
+    character(len=8192) :: line
+    character(len=32) :: key, w(2)
+    integer :: u, ios, idx, g, k, nz, iu, idif, idir
+    logical :: on
+    real(dp) :: src, floor, worst
+    call read_case('us1976', c, error)
+    if (allocated(error)) return
+    nz = c%nz
+    ! the per-g-point lines of the column
+    open (newunit=u, file=reference_file, status='old', action='read')
+    on = .false.
+    do
+      read (u, '(a)', iostat=ios) line
+      if (ios /= 0) exit
+      if (len_trim(line) == 0 .or. line(1:1) == '#') cycle
+      read (line, *) key
+      if (trim(key) == 'case') then
+        read (line, *) key, w(1), w(2), k, k, g
+        on = trim(w(1)) == 'us1976'
+        if (on) allocate (f(g), up(g, 0:nz), dn(g, 0:nz))
+      end if
+      if (.not. on) cycle
+      select case (trim(key))
+      case ('solar_flux')
+        read (line, *) key, idx, f
+      case ('flux_up')
+        read (line, *) key, idx, up(:, idx)
+      case ('flux_down_diffuse')
+        read (line, *) key, idx, dn(:, idx)
+      case ('end')
+        exit
+      end select
+    end do
+    close (u)
+    call check(error, allocated(f), 'no per-g-point lines of us1976 in '//reference_file)
+    if (allocated(error)) return
+    g = maxloc(f, 1)
+    call write_nml('single_gpoint.nml', c, '  gpoint = '//str(g), '', 20)
+    call run('single_gpoint.nml', set, summary, error)
+    if (allocated(error)) return
+    iu = var(set, 'flux_up_wm2', error)
+    idif = var(set, 'flux_down_diffuse_wm2', error)
+    idir = var(set, 'flux_down_direct_wm2', error)
+    if (allocated(error)) return
+    src = 0.5_dp*f(g)                               ! mu0 = 0.5
+    floor = 3*src/real(summary%n_photons, dp)
+    call check_sigma(error, set%vars(idir)%mean(nz + 1), src, 0.0_dp, 4.0_dp, &
+                     'incident flux of g-point '//str(g), abs_floor=1.0e-10_dp*src)
+    worst = 0
+    do k = 0, nz
+      call check_sigma(error, set%vars(iu)%mean(k + 1), up(g, k), set%vars(iu)%stderr(k + 1), &
+                       4.0_dp, 'g-point '//str(g)//': up flux at level '//str(k), abs_floor=floor)
+      call check_sigma(error, set%vars(idif)%mean(k + 1), dn(g, k), set%vars(idif)%stderr(k + 1), &
+                       4.0_dp, 'g-point '//str(g)//': diffuse down flux at level '//str(k), &
+                       abs_floor=floor)
+      if (set%vars(iu)%stderr(k + 1) > 0) worst = max(worst, abs(set%vars(iu)%mean(k + 1) - &
+                                                                  up(g, k))/set%vars(iu)%stderr(k + 1))
+    end do
+    write (*, '(a, i0, a, f0.3, a, f0.3, a, f0.3, a, f0.2, a)') '    g-point ', g, ': TOA up ', &
+      set%vars(iu)%mean(nz + 1), ' +- ', set%vars(iu)%stderr(nz + 1), ' W m-2 (DISORT ', up(g, nz), &
+      '); largest deviation of the up fluxes ', worst, ' sigma'
+  end subroutine test_single_gpoint
+
+  !> An LES netCDF file of 3 x 2 columns of 1 km and one layer from 2 to 3 km (edges given):
+  !> liquid water [g m-3] and effective radius [um] the same everywhere, temperature t [K] and
+  !> water vapour mixing ratio r [g/kg] per column, pressure p [hPa] as a profile.
+  subroutine write_les_state(path, lwc, reff, t, p, r, error)
+    character(len=*), intent(in) :: path
+    real(dp), intent(in) :: lwc, reff, t(3, 2), p, r(3, 2)
+    type(error_t), allocatable, intent(inout) :: error
+    integer :: ncid, dx, dy, dz, dze, v(8), st
+    st = nf90_create(path, NF90_CLOBBER, ncid)
+    if (st == NF90_NOERR) st = nf90_def_dim(ncid, 'x', 3, dx)
+    if (st == NF90_NOERR) st = nf90_def_dim(ncid, 'y', 2, dy)
+    if (st == NF90_NOERR) st = nf90_def_dim(ncid, 'z', 1, dz)
+    if (st == NF90_NOERR) st = nf90_def_dim(ncid, 'nze', 2, dze)
+    if (st == NF90_NOERR) st = nf90_def_var(ncid, 'x', NF90_DOUBLE, [dx], v(1))
+    if (st == NF90_NOERR) st = nf90_def_var(ncid, 'y', NF90_DOUBLE, [dy], v(2))
+    if (st == NF90_NOERR) st = nf90_def_var(ncid, 'z_edges', NF90_DOUBLE, [dze], v(3))
+    if (st == NF90_NOERR) st = nf90_def_var(ncid, 'lwc', NF90_DOUBLE, [dx, dy, dz], v(4))
+    if (st == NF90_NOERR) st = nf90_def_var(ncid, 'reff', NF90_DOUBLE, [dx, dy, dz], v(5))
+    if (st == NF90_NOERR) st = nf90_def_var(ncid, 'temperature', NF90_DOUBLE, [dx, dy, dz], v(6))
+    if (st == NF90_NOERR) st = nf90_def_var(ncid, 'p', NF90_DOUBLE, [dz], v(7))
+    if (st == NF90_NOERR) st = nf90_def_var(ncid, 'qv', NF90_DOUBLE, [dx, dy, dz], v(8))
+    if (st == NF90_NOERR) st = nf90_put_att(ncid, v(1), 'units', 'm')
+    if (st == NF90_NOERR) st = nf90_put_att(ncid, v(2), 'units', 'm')
+    if (st == NF90_NOERR) st = nf90_put_att(ncid, v(3), 'units', 'm')
+    if (st == NF90_NOERR) st = nf90_put_att(ncid, v(4), 'units', 'g m-3')
+    if (st == NF90_NOERR) st = nf90_put_att(ncid, v(5), 'units', 'um')
+    if (st == NF90_NOERR) st = nf90_put_att(ncid, v(6), 'units', 'K')
+    if (st == NF90_NOERR) st = nf90_put_att(ncid, v(7), 'units', 'hPa')
+    if (st == NF90_NOERR) st = nf90_put_att(ncid, v(8), 'units', 'g/kg')
+    if (st == NF90_NOERR) st = nf90_enddef(ncid)
+    if (st == NF90_NOERR) st = nf90_put_var(ncid, v(1), [500.0_dp, 1500.0_dp, 2500.0_dp])
+    if (st == NF90_NOERR) st = nf90_put_var(ncid, v(2), [500.0_dp, 1500.0_dp])
+    if (st == NF90_NOERR) st = nf90_put_var(ncid, v(3), [2000.0_dp, 3000.0_dp])
+    if (st == NF90_NOERR) st = nf90_put_var(ncid, v(4), reshape(spread(lwc, 1, 6), [3, 2, 1]))
+    if (st == NF90_NOERR) st = nf90_put_var(ncid, v(5), reshape(spread(reff, 1, 6), [3, 2, 1]))
+    if (st == NF90_NOERR) st = nf90_put_var(ncid, v(6), reshape(t, [3, 2, 1]))
+    if (st == NF90_NOERR) st = nf90_put_var(ncid, v(7), [p])
+    if (st == NF90_NOERR) st = nf90_put_var(ncid, v(8), reshape(r, [3, 2, 1]))
+    if (st == NF90_NOERR) st = nf90_close(ncid)
+    call check(error, st == NF90_NOERR, 'writing '//path//': '//trim(nf90_strerror(st)))
+  end subroutine write_les_state
 
   !> An I3RC 2-parameter LWC file: 3 x 2 columns of 1 km, one layer from 2 to 3 km, every
   !> point with the same water content [g m-3] and effective radius [um].

@@ -13,7 +13,7 @@ module test_kumo_les_netcdf
                     nf90_put_var, nf90_redef, nf90_enddef, nf90_inquire_dimension, &
                     nf90_strerror, NF90_NOERR, NF90_CLOBBER, NF90_FLOAT, NF90_DOUBLE
   use kumo_kinds, only: wp, dp, sp, vp
-  use kumo_error, only: error_t
+  use kumo_error, only: error_t, str
   use kumo_units, only: unit_factor, normalize_units, QTY_WATER_CONTENT, QTY_LENGTH, QTY_RADIUS, &
                         QTY_NUMBER, QTY_TEMPERATURE, QTY_PRESSURE, QTY_AIR_DENSITY
   use kumo_les_netcdf, only: les_names_t, les_field_t, read_les_field, K_CONTINENTAL
@@ -63,12 +63,132 @@ contains
              new_unittest('error_missing_variable', test_err_missing_var), &
              new_unittest('error_time_index', test_err_time_index), &
              new_unittest('error_mixing_ratio_without_density', test_err_no_density), &
-             new_unittest('error_ice_without_radius', test_err_ice_no_radius)]
+             new_unittest('error_ice_without_radius', test_err_ice_no_radius), &
+             new_unittest('gas_state_t_p_mixing_ratio', test_state_t_p_r), &
+             new_unittest('gas_state_theta_specific_humidity', test_state_theta_q), &
+             new_unittest('gas_state_absent', test_state_absent)]
   end function collect_les_netcdf
 
   ! ------------------------------------------------------------------------------------------------
   ! Units
   ! ------------------------------------------------------------------------------------------------
+
+  !> Broadband gas state (grid-only read with state_profile): a 3-D temperature in K, a pressure
+  !> profile in hPa and a water vapour mixing ratio in g/kg (no standard_name: taken as a mass
+  !> mixing ratio r). Per layer: the mean temperature, 100 x the hPa values, and the mean of
+  !> r M_d/M_w with the molar masses of dry air and water, 28.9644 and 18.0153 g/mol (U.S.
+  !> Standard Atmosphere 1976; CRC Handbook).
+  subroutine test_state_t_p_r(error)
+    type(error_t), allocatable, intent(out) :: error
+    character(len=*), parameter :: PATH = 'test_les_state1.nc'
+    type(les_field_t) :: fld
+    type(les_names_t) :: names
+    type(error_t), allocatable :: err
+    integer :: ncid, d(3), ix, iy, iz
+    real(dp) :: t(NX, NY, NZ), r(NX, NY, NZ), p(NZ)
+    do iz = 1, NZ
+      p(iz) = 1000.0_dp - 20.0_dp*iz
+      do iy = 1, NY
+        do ix = 1, NX
+          t(ix, iy, iz) = 290.0_dp + ix - 0.5_dp*iy - 2.0_dp*iz
+          r(ix, iy, iz) = 10.0_dp - 0.5_dp*ix + 0.25_dp*iy - iz          ! g/kg
+        end do
+      end do
+    end do
+    call basic_grid(PATH, ncid, d, error)
+    call nc_var(ncid, 'lwc', d, flat(lwc_ref(1)), &
+                'g m-3', NF90_DOUBLE, error)
+    call nc_var(ncid, 'temperature', d, flat(t), 'K', NF90_DOUBLE, error)
+    call nc_var(ncid, 'pres', [d(3)], p, 'hPa', NF90_DOUBLE, error)
+    call nc_var(ncid, 'qv', d, flat(r), 'g/kg', NF90_DOUBLE, error)
+    call nc_close(ncid, error)
+    if (allocated(error)) return
+    call read_les_field(PATH, names, -1, fld, err, grid_only=.true., state_profile=.true.)
+    call no_error(error, err)
+    if (allocated(error)) return
+    call check(error, allocated(fld%t_profile) .and. allocated(fld%pressure_profile) .and. &
+               allocated(fld%h2o_profile), 'a profile of the state is missing')
+    if (allocated(error)) return
+    do iz = 1, NZ
+      call check_close(error, fld%t_profile(iz), sum(t(:, :, iz))/(NX*NY), rel_tol=TOL_DOUBLE, label= &
+                       'mean temperature of layer '//str(iz))
+      call check_close(error, fld%pressure_profile(iz), 100.0_dp*p(iz), rel_tol=TOL_DOUBLE, label= &
+                       'pressure of layer '//str(iz))
+      call check_close(error, fld%h2o_profile(iz), &
+                       1.0e-3_dp*sum(r(:, :, iz))/(NX*NY)*28.9644_dp/18.0153_dp, rel_tol=TOL_DOUBLE, label= &
+                       'water vapour of layer '//str(iz))
+    end do
+    call check(error, index(fld%notes, 'mass mixing ratio') > 0, &
+               'notes do not say the vapour is taken as a mixing ratio: '//fld%notes)
+    call remove_file(PATH)
+  end subroutine test_state_t_p_r
+
+  !> A potential temperature with a 3-D pressure in Pa, and a specific humidity ('hus', kg/kg):
+  !> T = theta (p/1000 hPa)^(2/7) voxel by voxel, then the layer mean; vmr = mean of
+  !> q/(1 - q) M_d/M_w.
+  subroutine test_state_theta_q(error)
+    type(error_t), allocatable, intent(out) :: error
+    character(len=*), parameter :: PATH = 'test_les_state2.nc'
+    type(les_field_t) :: fld
+    type(les_names_t) :: names
+    type(error_t), allocatable :: err
+    integer :: ncid, d(3), ix, iy, iz
+    real(dp) :: th(NX, NY, NZ), q(NX, NY, NZ), p(NX, NY, NZ), tm, qm
+    do iz = 1, NZ
+      do iy = 1, NY
+        do ix = 1, NX
+          th(ix, iy, iz) = 295.0_dp + 0.3_dp*ix + 0.2_dp*iy + iz
+          p(ix, iy, iz) = 95000.0_dp - 1000.0_dp*iz + 10.0_dp*ix - 7.0_dp*iy
+          q(ix, iy, iz) = 0.015_dp - 0.001_dp*iz + 1.0e-4_dp*ix
+        end do
+      end do
+    end do
+    call basic_grid(PATH, ncid, d, error)
+    call nc_var(ncid, 'lwc', d, flat(lwc_ref(1)), &
+                'g m-3', NF90_DOUBLE, error)
+    call nc_var(ncid, 'theta', d, flat(th), 'K', NF90_DOUBLE, error)
+    call nc_var(ncid, 'p', d, flat(p), 'Pa', NF90_DOUBLE, error)
+    call nc_var(ncid, 'hus', d, flat(q), 'kg kg-1', NF90_DOUBLE, error)
+    call nc_close(ncid, error)
+    if (allocated(error)) return
+    call read_les_field(PATH, names, -1, fld, err, grid_only=.true., state_profile=.true.)
+    call no_error(error, err)
+    if (allocated(error)) return
+    call check(error, allocated(fld%t_profile) .and. allocated(fld%h2o_profile), &
+               'temperature or water vapour missing')
+    if (allocated(error)) return
+    do iz = 1, NZ
+      tm = sum(th(:, :, iz)*(p(:, :, iz)/1.0e5_dp)**(2.0_dp/7.0_dp))/(NX*NY)
+      qm = sum(q(:, :, iz)/(1.0_dp - q(:, :, iz)))/(NX*NY)*28.9644_dp/18.0153_dp
+      call check_close(error, fld%t_profile(iz), tm, rel_tol=TOL_DOUBLE, label='temperature of layer '//str(iz))
+      call check_close(error, fld%pressure_profile(iz), sum(p(:, :, iz))/(NX*NY), rel_tol=TOL_DOUBLE, &
+                       label='pressure of layer '//str(iz))
+      call check_close(error, fld%h2o_profile(iz), qm, rel_tol=TOL_DOUBLE, label='water vapour of layer '//str(iz))
+    end do
+    call check(error, index(fld%notes, 'specific humidity') > 0 .and. index(fld%notes, 'theta') > 0, &
+               'notes do not say how the state was obtained: '//fld%notes)
+    call remove_file(PATH)
+  end subroutine test_state_theta_q
+
+  !> A file without temperature, pressure or water vapour: nothing allocated, and the notes
+  !> say what was tried.
+  subroutine test_state_absent(error)
+    type(error_t), allocatable, intent(out) :: error
+    character(len=*), parameter :: PATH = 'test_les_state3.nc'
+    type(les_field_t) :: fld
+    type(les_names_t) :: names
+    type(error_t), allocatable :: err
+    call write_basic(PATH, error)
+    if (allocated(error)) return
+    call read_les_field(PATH, names, -1, fld, err, grid_only=.true., state_profile=.true.)
+    call no_error(error, err)
+    if (allocated(error)) return
+    call check(error, .not. (allocated(fld%t_profile) .or. allocated(fld%pressure_profile) .or. &
+                             allocated(fld%h2o_profile)), 'a state profile from nothing')
+    call check(error, index(fld%notes, 'no temperature') > 0 .and. index(fld%notes, 'no pressure') > 0 &
+               .and. index(fld%notes, 'no water vapour (tried qv') > 0, 'notes: '//fld%notes)
+    call remove_file(PATH)
+  end subroutine test_state_absent
 
   subroutine test_units_spellings(error)
     type(error_t), allocatable, intent(out) :: error

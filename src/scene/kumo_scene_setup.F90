@@ -1174,7 +1174,9 @@ contains
     scene%exact_thermal = .false.
     scene%notes = scene%notes//'  emitted power '//str(spec%em_sum%power)//' W m-2 (layers '// &
                   str(sum(spec%em_sum%emit_layer))//', surface '//str(spec%em_sum%emit_sfc)// &
-                  '); g-points drawn by their exchange without scattering'//new_line('a')
+                  '); g-points drawn by their exchange without scattering, the largest share '// &
+                  str(maxval(spec%plan%prob))//' to g-point '//str(maxloc(spec%plan%prob, 1))// &
+                  new_line('a')
   end subroutine setup_spectral_emission
 
   !> Switch the scene to g-point g: the optics of its 1-D layers (copies of precomputed

@@ -64,7 +64,8 @@ module kumo_cloud_input
     logical :: temperature = .false.
   end type cloud_request_t
 
-  !> A cloud field on the voxels of the 3-D region.
+  !> A cloud field on the voxels of the 3-D region. Read on rank 0 and shared whole
+  !> (kumo_cloud_share): a new component needs one line in cloud_input_put and cloud_input_get.
   type :: cloud_input_t
     character(len=8) :: format = ''
     integer :: nx = 0, ny = 0                  !! columns

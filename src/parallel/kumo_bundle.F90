@@ -3,11 +3,13 @@
 !>
 !> Rank 0 reads a file and puts what it read into a `bundle_t` (scalars, allocated allocatable
 !> arrays of doubles and integers of rank 1 to 4, so that their bounds travel with them,
-!> logicals, text); `share` broadcasts the bundle and rank 0's error, if the
-!> read failed, in four messages; every rank then takes the items out in the order they were
-!> put in, each array with rank 0's bounds. Values travel as they are (doubles as doubles), so
-!> every rank holds rank 0's bits. A failed read gives every rank rank 0's message. With one
-!> rank (and in the serial build) `share` moves nothing and `get` returns the values put in.
+!> single-precision arrays of rank 3 (the voxel fields of cloud files, kept in single precision
+!> so that the bundle is no larger than they are), logicals, text); `share` broadcasts the
+!> bundle and rank 0's error, if the read failed, in up to five messages; every rank then takes
+!> the items out in the order they were put in, each array with rank 0's bounds. Values travel
+!> as they are (doubles as doubles, singles as singles), so every rank holds rank 0's bits. A
+!> failed read gives every rank rank 0's message. With one rank (and in the serial build)
+!> `share` moves nothing and `get` returns the values put in.
 !>
 !> ```fortran
 !> type(bundle_t) :: b
@@ -20,9 +22,10 @@
 !> call b%get(alb)                 ! every rank: rank 0's array
 !> ```
 module kumo_bundle
-  use kumo_kinds, only: dp
+  use kumo_kinds, only: dp, sp
   use kumo_error, only: error_t, set_error
-  use kumo_parallel, only: par_size, par_is_root, par_bcast_int, par_bcast_real, par_bcast_text
+  use kumo_parallel, only: par_size, par_is_root, par_bcast_int, par_bcast_real, par_bcast_text, &
+                           par_bcast_single
   implicit none
   private
   public :: bundle_t
@@ -34,20 +37,22 @@ module kumo_bundle
     private
     integer, allocatable :: ints(:)
     real(dp), allocatable :: reals(:)
+    real(sp), allocatable :: singles(:)
     character(len=:), allocatable :: text
     integer :: ni = 0, nr = 0, nt = 0   !! filled lengths
     integer :: ki = 0, kr = 0, kt = 0   !! taken so far
+    integer :: ns = 0, ks = 0           !! singles: filled, taken
   contains
     procedure, private :: put_r0, put_r1, put_r2, put_r3, put_r4
-    procedure, private :: put_i0, put_i1, put_i2, put_i3, put_i4, put_l0, put_text
+    procedure, private :: put_i0, put_i1, put_i2, put_i3, put_i4, put_l0, put_text, put_s3
     procedure, private :: get_r0, get_r1, get_r2, get_r3, get_r4
-    procedure, private :: get_i0, get_i1, get_i2, get_i3, get_i4, get_l0, get_text
+    procedure, private :: get_i0, get_i1, get_i2, get_i3, get_i4, get_l0, get_text, get_s3
     !> Add a value (rank 0; on other ranks a `put` before `share` is discarded by it).
     generic :: put => put_r0, put_r1, put_r2, put_r3, put_r4, put_i0, put_i1, put_i2, put_i3, &
-                      put_i4, put_l0, put_text
+                      put_i4, put_l0, put_text, put_s3
     !> Take the next value out, allocating arrays with rank 0's bounds.
     generic :: get => get_r0, get_r1, get_r2, get_r3, get_r4, get_i0, get_i1, get_i2, get_i3, &
-                      get_i4, get_l0, get_text
+                      get_i4, get_l0, get_text, get_s3
     procedure :: share
   end type bundle_t
 
@@ -59,16 +64,17 @@ contains
   subroutine share(self, error)
     class(bundle_t), intent(inout) :: self
     type(error_t), allocatable, intent(inout) :: error
-    integer :: head(4)
+    integer :: head(5)
     character(len=:), allocatable :: message
     self%ki = 0
     self%kr = 0
     self%kt = 0
+    self%ks = 0
     if (par_size() == 1) return
     head = 0
     if (par_is_root()) then
       if (allocated(error)) head(1) = 1
-      head(2:4) = [self%ni, self%nr, self%nt]
+      head(2:5) = [self%ni, self%nr, self%nt, self%ns]
     end if
     call par_bcast_int(head)
     if (head(1) /= 0) then
@@ -83,14 +89,17 @@ contains
       self%ni = head(2)
       self%nr = head(3)
       self%nt = head(4)
+      self%ns = head(5)
       if (allocated(self%ints)) deallocate (self%ints)
       if (allocated(self%reals)) deallocate (self%reals)
+      if (allocated(self%singles)) deallocate (self%singles)
       if (allocated(self%text)) deallocate (self%text)
-      allocate (self%ints(self%ni), self%reals(self%nr))
+      allocate (self%ints(self%ni), self%reals(self%nr), self%singles(self%ns))
       allocate (character(len=self%nt) :: self%text)
     end if
     if (self%ni > 0) call par_bcast_int(self%ints(1:self%ni))
     if (self%nr > 0) call par_bcast_real(self%reals(1:self%nr))
+    if (self%ns > 0) call par_bcast_single(self%singles(1:self%ns))
     if (self%nt > 0) then
       if (par_is_root()) self%text = self%text(1:self%nt)
       call par_bcast_text(self%text)
@@ -129,6 +138,21 @@ contains
     self%nr = self%nr + n
   end subroutine add_reals
 
+  subroutine add_singles(self, v, n)
+    class(bundle_t), intent(inout) :: self
+    integer, intent(in) :: n
+    real(sp), intent(in) :: v(n)
+    real(sp), allocatable :: more(:)
+    if (.not. allocated(self%singles)) allocate (self%singles(max(64, n)))
+    if (self%ns + n > size(self%singles)) then
+      allocate (more(max(2*size(self%singles), self%ns + n)))
+      more(1:self%ns) = self%singles(1:self%ns)
+      call move_alloc(more, self%singles)
+    end if
+    self%singles(self%ns + 1:self%ns + n) = v
+    self%ns = self%ns + n
+  end subroutine add_singles
+
   subroutine take_ints(self, v, n)
     class(bundle_t), intent(inout) :: self
     integer, intent(in) :: n
@@ -144,6 +168,14 @@ contains
     v = self%reals(self%kr + 1:self%kr + n)
     self%kr = self%kr + n
   end subroutine take_reals
+
+  subroutine take_singles(self, v, n)
+    class(bundle_t), intent(inout) :: self
+    integer, intent(in) :: n
+    real(sp), intent(out) :: v(n)
+    v = self%singles(self%ks + 1:self%ks + n)
+    self%ks = self%ks + n
+  end subroutine take_singles
 
   !> The bounds of the next array: `r` pairs (lower, upper).
   subroutine take_bounds(self, r, lo, hi)
@@ -200,6 +232,13 @@ contains
     call put_bounds(self, lbound(x), ubound(x))
     call add_reals(self, x, size(x))
   end subroutine put_r4
+
+  subroutine put_s3(self, x)
+    class(bundle_t), intent(inout) :: self
+    real(sp), allocatable, intent(in) :: x(:, :, :)
+    call put_bounds(self, lbound(x), ubound(x))
+    call add_singles(self, x, size(x))
+  end subroutine put_s3
 
   subroutine put_i0(self, x)
     class(bundle_t), intent(inout) :: self
@@ -301,6 +340,15 @@ contains
     allocate (x(lo(1):hi(1), lo(2):hi(2), lo(3):hi(3), lo(4):hi(4)))
     call take_reals(self, x, size(x))
   end subroutine get_r4
+
+  subroutine get_s3(self, x)
+    class(bundle_t), intent(inout) :: self
+    real(sp), allocatable, intent(out) :: x(:, :, :)
+    integer :: lo(3), hi(3)
+    call take_bounds(self, 3, lo, hi)
+    allocate (x(lo(1):hi(1), lo(2):hi(2), lo(3):hi(3)))
+    call take_singles(self, x, size(x))
+  end subroutine get_s3
 
   subroutine get_i0(self, x)
     class(bundle_t), intent(inout) :: self

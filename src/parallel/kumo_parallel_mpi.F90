@@ -7,16 +7,17 @@ module kumo_parallel
   use mpi_f08, only: MPI_Init, MPI_Initialized, MPI_Finalize, MPI_Finalized, MPI_Comm_rank, &
     MPI_Comm_size, MPI_Reduce, MPI_Allreduce, MPI_Bcast, MPI_Barrier, MPI_Wtime, MPI_Abort, &
     MPI_COMM_WORLD, MPI_IN_PLACE, MPI_DOUBLE_PRECISION, MPI_INTEGER, MPI_INTEGER8, MPI_SUM
+  use mpi_f08, only: MPI_REAL
   use mpi_f08, only: MPI_Ibarrier, MPI_Test, MPI_Request, MPI_STATUS_IGNORE
   use mpi_f08, only: MPI_Send, MPI_Recv, MPI_Gather, MPI_Gatherv, MPI_CHARACTER
   use, intrinsic :: iso_c_binding, only: c_int
   use, intrinsic :: iso_fortran_env, only: error_unit
-  use kumo_kinds, only: dp, i8
+  use kumo_kinds, only: dp, sp, i8
   implicit none
   private
   public :: par_init, par_finalize, par_rank, par_size, par_is_root, par_sum_to_root, &
             par_allreduce_sum, par_abort, par_barrier, par_wtime, par_bcast_int, par_bcast_real, PAR_IS_MPI
-  public :: par_stop, par_fail, par_bcast_text, par_move
+  public :: par_stop, par_fail, par_bcast_text, par_move, par_bcast_single
 
   logical, parameter :: PAR_IS_MPI = .true.  !! this build distributes batches over MPI ranks
 
@@ -118,6 +119,20 @@ contains
       i0 = i0 + CHUNK
     end do
   end subroutine par_bcast_real
+
+  !> Broadcast single-precision reals from rank 0 (in chunks, as par_bcast_real).
+  subroutine par_bcast_single(buf)
+    real(sp), intent(inout) :: buf(:)
+    integer(i8) :: i0, n
+    integer, parameter :: CHUNK = 2**27
+    n = size(buf, kind=i8)
+    i0 = 1
+    do while (i0 <= n)
+      call MPI_Bcast(buf(i0:min(n, i0 + CHUNK - 1)), int(min(int(CHUNK, i8), n - i0 + 1)), &
+                     MPI_REAL, 0, MPI_COMM_WORLD)
+      i0 = i0 + CHUNK
+    end do
+  end subroutine par_bcast_single
 
   !> Broadcast a string from rank 0 (any length; `text` need not be allocated elsewhere).
   subroutine par_bcast_text(text)

@@ -3,12 +3,12 @@
 module kumo_parallel
   use, intrinsic :: iso_c_binding, only: c_int
   use, intrinsic :: iso_fortran_env, only: error_unit
-  use kumo_kinds, only: dp, i8
+  use kumo_kinds, only: dp, sp, i8
   implicit none
   private
   public :: par_init, par_finalize, par_rank, par_size, par_is_root, par_sum_to_root, &
             par_allreduce_sum, par_abort, par_barrier, par_wtime, par_bcast_int, par_bcast_real, PAR_IS_MPI
-  public :: par_stop, par_fail, par_bcast_text, par_move
+  public :: par_stop, par_fail, par_bcast_text, par_move, par_bcast_single
 
   logical, parameter :: PAR_IS_MPI = .false.  !! this build runs on one process
 
@@ -80,6 +80,11 @@ contains
     character(len=:), allocatable, intent(inout) :: text
     if (.not. allocated(text)) text = ''
   end subroutine par_bcast_text
+
+  subroutine par_bcast_single(buf)
+    real(sp), intent(inout) :: buf(:)
+    if (size(buf) < 0) buf = 0.0_sp
+  end subroutine par_bcast_single
 
   !> One rank: `from` and `to` are both 0, nothing moves.
   subroutine move_dp(buf, from, to)

@@ -1,10 +1,10 @@
 ! SPDX-License-Identifier: BSD-3-Clause
 !> Optics of the 3-D region from a cloud file (&kumo_cloud), and Rayleigh layers.
 !>
-!> `build_cloud_atmosphere` reads the cloud file and builds the atmosphere with it: the cloud's
-!> phase functions join the scene's list, and its voxel optics are put into the atmosphere one
-!> species and one layer at a time, so that no copy of the whole field exists besides the
-!> atmosphere's own arrays and the one species being read.
+!> `build_cloud_atmosphere` builds the atmosphere from the fields of a cloud file, read by the
+!> caller (kumo_cloud_share's `read_cloud_on_root`: on rank 0, shared with every rank): the
+!> cloud's phase functions join the scene's list, and its voxel optics are put into the
+!> atmosphere one species and one layer at a time, each species' fields freed once put in.
 !>
 !> * Water content and effective radius: the Mie table of the namelist's size distribution at
 !>   the run's wavelength (from the cache file when it matches). A voxel with radius r between
@@ -19,8 +19,8 @@
 !> * Files on grid points: every plane is a component of the two layers it bounds, with half
 !>   of its value in each.
 !> * Ice water (LES files) uses an optics table in the Mie-table layout named by
-!>   `ice_optics_file`; kumo has no ice-crystal optics of its own. It is read after the liquid
-!>   water has been put into the atmosphere.
+!>   `ice_optics_file`; kumo has no ice-crystal optics of its own. It is put into the
+!>   atmosphere after the liquid water, whose fields are freed first.
 !> * MCARaTS 3-D atmospheres: one component per MCARaTS component with its phase-function
 !>   code turned into a kumo phase function (fractional table codes as blends), and one for the
 !>   gas-absorption perturbation (`mcarats_phases`, `mcarats_voxels`).
@@ -38,8 +38,8 @@ module kumo_cloud_scene
   use kumo_mie_table, only: mie_table_cached, read_mie_table
   use kumo_rayleigh, only: rayleigh_extinction
   use kumo_std_atmosphere, only: std_atmosphere_profile
-  use kumo_cloud_input, only: cloud_input_t, cloud_request_t, read_cloud_input, locate, CLOUD_WATER, &
-                              CLOUD_EXT_REFF, CLOUD_OPTICS, CLOUD_MCARATS
+  use kumo_cloud_input, only: cloud_input_t, locate, CLOUD_WATER, CLOUD_EXT_REFF, CLOUD_OPTICS, &
+                              CLOUD_MCARATS
   use kumo_mcarats_files, only: mcarats_request_t
   use kumo_atmosphere, only: atmosphere_t, atmosphere_options_t, atmosphere_begin, &
                              atmosphere_put_layer, atmosphere_end
@@ -70,14 +70,20 @@ module kumo_cloud_scene
 
 contains
 
-  !> Read the cloud file of `ccfg`, compute its voxel optics at `wavelength_um` and build the
-  !> atmosphere: levels `z`, domain lx x ly, the 1-D components `ext1d`, `ssa1d`, `iph1d`
-  !> (nz, ncomp1) and the cloud in the 3-D region from layer `k3_lo`. `phases` (the namelist's
-  !> and the molecules') gets the cloud's appended and moves into the atmosphere.
-  subroutine build_cloud_atmosphere(ccfg, wavelength_um, n_table, z, lx, ly, k3_lo, ext1d, &
-                                    ssa1d, iph1d, phases, aopts, atm, notes, warnings, error, &
-                                    temp)
+  !> From the fields `c` (and `c_ice`) of the cloud file of `ccfg`, compute its voxel optics at
+  !> `wavelength_um` and build the atmosphere: levels `z`, domain lx x ly, the 1-D components
+  !> `ext1d`, `ssa1d`, `iph1d` (nz, ncomp1) and the cloud in the 3-D region from layer `k3_lo`.
+  !> `phases` (the namelist's and the molecules') gets the cloud's appended and moves into the
+  !> atmosphere.
+  subroutine build_cloud_atmosphere(ccfg, c, c_ice, wavelength_um, n_table, z, lx, ly, k3_lo, &
+                                    ext1d, ssa1d, iph1d, phases, aopts, atm, notes, warnings, &
+                                    error, temp)
     type(cloud_cfg_t), intent(in) :: ccfg
+    !> the file read with part = 'liquid' (with its temperatures when `temp` is wanted); its
+    !> fields are freed as they are put into the atmosphere
+    type(cloud_input_t), intent(inout) :: c
+    !> the file read with part = 'ice' when c%has_ice (else not used)
+    type(cloud_input_t), intent(inout) :: c_ice
     real(wp), intent(in) :: wavelength_um   !! [um]; 0 when not given (optics files only)
     integer, intent(in) :: n_table          !! inverse-CDF table size of tabulated phases
     real(wp), intent(in) :: z(0:), lx, ly
@@ -91,8 +97,6 @@ contains
     type(error_t), allocatable, intent(out) :: error
     !> thermal runs: the file's temperatures (`found` false when it has none)
     type(cloud_temperature_t), intent(out), optional :: temp
-    type(cloud_input_t) :: c
-    type(cloud_request_t) :: req
     type(mie_table_t) :: liq, ice
     type(phase_t), allocatable :: more(:)
     integer :: nplanes, nspecies, nneg, i, n_out_liq, n_out_ice, offset, offset_ice
@@ -100,10 +104,6 @@ contains
     logical :: blend, has_abs
     character(len=:), allocatable :: action
 
-    req = ccfg%req
-    req%temperature = present(temp)
-    call read_cloud_input(req, c, error, part='liquid')
-    if (allocated(error)) return
     if (present(temp)) then
       call take_temperature(c, ccfg%req%path, temp, error)
       if (allocated(error)) return
@@ -152,9 +152,9 @@ contains
       end if
       deallocate (c%reff)
       if (nspecies == 2) then
-        call read_cloud_input(ccfg%req, c, error, part='ice')
-        if (allocated(error)) return
-        call mie_voxels(c, c%iwc, c%reff_ice, ice, offset_ice, .false., atm, nplanes, n_out_ice)
+        call mie_voxels(c_ice, c_ice%iwc, c_ice%reff_ice, ice, offset_ice, .false., atm, nplanes, &
+                        n_out_ice)
+        deallocate (c_ice%iwc, c_ice%reff_ice)
       end if
     case (CLOUD_OPTICS)
       if (allocated(c%chi)) then

@@ -6,8 +6,10 @@
 !> (albedo, BRDF or MCARaTS surface maps), the source, the detectors and the variance
 !> reduction that serves them. Every input file is read on rank 0 and broadcast with one
 !> pack-and-broadcast (`bundle_t` of kumo_bundle), so that all ranks hold the same arrays or
-!> the same error; the cloud file and its companions are the exception (`cloud_on_ranks`,
-!> `check_same_inputs`).
+!> the same error, then built into the scene without MPI; a cloud file travels whole as a
+!> `cloud_input_t` (kumo_cloud_share). Two companions of a cloud file are still read by every
+!> rank, after rank 0: the Mie table rank 0 computes and caches (`cloud_on_ranks`) and the ice
+!> optics table, whose bytes are checked against rank 0's (`check_same_inputs`).
 module kumo_scene_setup
   use kumo_kinds, only: wp, dp, vp, i8
   use kumo_constants, only: DEG2RAD, PI
@@ -41,7 +43,8 @@ module kumo_scene_setup
                     absorption_estimator_code
   use kumo_scene, only: scene_t
   use kumo_config, only: config_t, resolve_path, config_inputs, input_file_t, read_config
-  use kumo_cloud_input, only: cloud_input_t, cloud_request_t, read_cloud_input
+  use kumo_cloud_input, only: cloud_input_t, cloud_request_t
+  use kumo_cloud_share, only: read_cloud_on_root
   use kumo_bundle, only: bundle_t
   use kumo_cloud_scene, only: build_cloud_atmosphere, rayleigh_layers, cloud_temperature_t
   use kumo_spectral_cloud, only: spectral_cloud_t, spectral_cloud_init, spectral_cloud_band, &
@@ -141,10 +144,7 @@ contains
     type(cloud_request_t), intent(in) :: req
     type(cloud_input_t), intent(out) :: grid
     type(error_t), allocatable, intent(out) :: error
-    type(bundle_t) :: b
-    if (par_is_root()) call cloud_grid_read(req, b, error)
-    call b%share(error)
-    if (.not. allocated(error)) call cloud_grid_take(b, grid)
+    call read_cloud_on_root(req, grid, error, grid_only=.true.)
   end subroutine cloud_grid_on_root
 
   !> `cloud_grid_on_root` for one process alone.
@@ -152,61 +152,8 @@ contains
     type(cloud_request_t), intent(in) :: req
     type(cloud_input_t), intent(out) :: grid
     type(error_t), allocatable, intent(out) :: error
-    type(bundle_t) :: b
-    call cloud_grid_read(req, b, error)
-    if (.not. allocated(error)) call cloud_grid_take(b, grid)
+    call read_cloud_on_root(req, grid, error, grid_only=.true., alone=.true.)
   end subroutine cloud_grid_here
-
-  !> Read the grid of a cloud file (read_cloud_input with `grid_only`) into a bundle.
-  subroutine cloud_grid_read(req, b, error)
-    type(cloud_request_t), intent(in) :: req
-    type(bundle_t), intent(inout) :: b
-    type(error_t), allocatable, intent(out) :: error
-    type(cloud_input_t) :: grid
-    call read_cloud_input(req, grid, error, grid_only=.true.)
-    if (allocated(error)) return
-    call b%put(grid%format)
-    call b%put(grid%nx)
-    call b%put(grid%ny)
-    call b%put(grid%nz)
-    call b%put(grid%content)
-    call b%put(grid%dx)
-    call b%put(grid%dy)
-    call b%put(grid%points)
-    call b%put(grid%has_ice)
-    call b%put(allocated(grid%z))
-    if (allocated(grid%z)) call b%put(grid%z)
-    call b%put(allocated(grid%pressure))
-    if (allocated(grid%pressure)) then
-      call b%put(grid%pressure)
-      call b%put(grid%pressure_source)
-    end if
-  end subroutine cloud_grid_read
-
-  !> The grid out of a bundle of `cloud_grid_read`: no field data.
-  subroutine cloud_grid_take(b, grid)
-    type(bundle_t), intent(inout) :: b
-    type(cloud_input_t), intent(out) :: grid
-    character(len=:), allocatable :: fmt
-    logical :: has
-    call b%get(fmt)
-    grid%format = fmt
-    call b%get(grid%nx)
-    call b%get(grid%ny)
-    call b%get(grid%nz)
-    call b%get(grid%content)
-    call b%get(grid%dx)
-    call b%get(grid%dy)
-    call b%get(grid%points)
-    call b%get(grid%has_ice)
-    call b%get(has)
-    if (has) call b%get(grid%z)
-    call b%get(has)
-    if (has) then
-      call b%get(grid%pressure)
-      call b%get(grid%pressure_source)
-    end if
-  end subroutine cloud_grid_take
 
   !> Build the scene (phase functions, atmosphere, surface, source) from a configuration.
   subroutine setup_scene(cfg, scene, error, spec)
@@ -465,13 +412,13 @@ contains
     call check_same_inputs(cfg, error)
   end subroutine setup_scene
 
-  !> The inputs that every rank still reads itself, the &kumo_cloud files (the cloud file, its
-  !> MCARaTS phase-function file, the ice optics table: kumo_cloud_scene reads them species by
-  !> species while it builds the atmosphere, so that no second copy of a large field is held),
-  !> must be the same bytes as rank 0's: each rank hashes them and compares with rank 0's
-  !> hashes, so that ranks never build different scenes from a file that changed during the
-  !> start or that they see differently. A rank that differs fails and names the file. Every
-  !> other input is read by rank 0 alone and broadcast (bundle_t), so it needs no check.
+  !> The one input that every rank still reads itself, the ice optics table of a cloud file
+  !> with ice (&kumo_cloud ice_optics_file, read by kumo_cloud_scene while it builds the
+  !> atmosphere), must be the same bytes as rank 0's: each rank hashes it and compares with
+  !> rank 0's hash, so that ranks never build different scenes from a file that changed during
+  !> the start or that they see differently. A rank that differs fails and names the file.
+  !> Every other input, the cloud file and its MCARaTS phase-function file included, is read by
+  !> rank 0 alone and broadcast (bundle_t), so it needs no check.
   subroutine check_same_inputs(cfg, error)
     type(config_t), intent(in) :: cfg
     type(error_t), allocatable, intent(out) :: error
@@ -485,7 +432,7 @@ contains
     path = ''
     if (allocated(cfg%path)) path = cfg%path
     inputs = config_inputs(cfg, path)
-    inputs = pack(inputs, [(index(inputs(i)%label, '&kumo_cloud') == 1, i=1, size(inputs))])
+    inputs = pack(inputs, [(inputs(i)%label == '&kumo_cloud ice_optics_file', i=1, size(inputs))])
     if (size(inputs) == 0) return
     do i = 1, size(inputs)
       call fingerprint_add_file(fp, inputs(i)%label, inputs(i)%path)
@@ -1463,9 +1410,11 @@ contains
     end if
   end subroutine read_scene_on_root
 
-  !> The cloud's atmosphere on every rank. Rank 0 goes first, so that a Mie table it computes
-  !> is in the cache before the other ranks look for it; they then read it instead of
-  !> computing it.
+  !> The cloud's atmosphere on every rank. Rank 0 reads the cloud file (liquid water, then ice
+  !> water when the file has it) and every rank gets the fields (read_cloud_on_root); the
+  !> atmosphere is then built from them without MPI. Rank 0 builds first, so that a Mie table
+  !> it computes is in the cache before the other ranks look for it; they then read it instead
+  !> of computing it.
   subroutine cloud_on_ranks(cfg, ext1d, ssa1d, phase1d, phases, aopts, atm, notes, warnings, &
                             error, cloud_t)
     type(config_t), intent(in) :: cfg
@@ -1479,6 +1428,18 @@ contains
     !> thermal runs with a spectral interval: the cloud file's temperatures, if it has them
     type(cloud_temperature_t), intent(out) :: cloud_t
     type(bundle_t) :: b
+    type(cloud_input_t) :: c, c_ice
+    type(cloud_request_t) :: req
+    logical :: want_t
+    want_t = cfg%thermal%enabled .and. .not. allocated(cfg%thermal%planck_levels)
+    req = cfg%cloud%req
+    req%temperature = want_t
+    call read_cloud_on_root(req, c, error, part='liquid')
+    if (allocated(error)) return
+    if (c%has_ice) then
+      call read_cloud_on_root(cfg%cloud%req, c_ice, error, part='ice')
+      if (allocated(error)) return
+    end if
     if (par_is_root()) call build(error)
     call b%share(error)   ! rank 0's error, if any, on every rank
     if (allocated(error) .or. par_is_root()) return
@@ -1486,16 +1447,16 @@ contains
   contains
     subroutine build(err)
       type(error_t), allocatable, intent(out) :: err
-      if (cfg%thermal%enabled .and. .not. allocated(cfg%thermal%planck_levels)) then
-        call build_cloud_atmosphere(cfg%cloud, cfg%source%wavelength_um, cfg%phase%n_table, &
-                                    cfg%atm%z, cfg%atm%lx, cfg%atm%ly, cfg%atm%k3d_bottom, &
-                                    ext1d, ssa1d, phase1d, phases, aopts, atm, notes, warnings, &
-                                    err, cloud_t)
+      if (want_t) then
+        call build_cloud_atmosphere(cfg%cloud, c, c_ice, cfg%source%wavelength_um, &
+                                    cfg%phase%n_table, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, &
+                                    cfg%atm%k3d_bottom, ext1d, ssa1d, phase1d, phases, aopts, &
+                                    atm, notes, warnings, err, cloud_t)
       else
-        call build_cloud_atmosphere(cfg%cloud, cfg%source%wavelength_um, cfg%phase%n_table, &
-                                    cfg%atm%z, cfg%atm%lx, cfg%atm%ly, cfg%atm%k3d_bottom, &
-                                    ext1d, ssa1d, phase1d, phases, aopts, atm, notes, warnings, &
-                                    err)
+        call build_cloud_atmosphere(cfg%cloud, c, c_ice, cfg%source%wavelength_um, &
+                                    cfg%phase%n_table, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, &
+                                    cfg%atm%k3d_bottom, ext1d, ssa1d, phase1d, phases, aopts, &
+                                    atm, notes, warnings, err)
       end if
     end subroutine build
   end subroutine cloud_on_ranks

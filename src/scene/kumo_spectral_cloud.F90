@@ -32,7 +32,8 @@ module kumo_spectral_cloud
   use kumo_band_cloud, only: band_cloud_t, band_cloud_check_bands, ICE_SMOOTH, ICE_MEDIUM, &
                              ICE_ROUGH
   use kumo_rrtmgp_cloud_file, only: read_rrtmgp_cloud_optics
-  use kumo_cloud_input, only: cloud_input_t, cloud_request_t, read_cloud_input, CLOUD_WATER
+  use kumo_cloud_input, only: cloud_input_t, cloud_request_t, CLOUD_WATER
+  use kumo_cloud_share, only: read_cloud_on_root
   use kumo_kinds, only: vp
   use kumo_cloud_scene, only: mie_layer, table_radii
   use kumo_atmosphere, only: atmosphere_t, atmosphere_put_layer
@@ -68,7 +69,7 @@ module kumo_spectral_cloud
 
 contains
 
-  !> Read the cloud file (rank 0 first, then the others, as monochromatic runs do), make the
+  !> Read the cloud file (on rank 0, shared with every rank, as monochromatic runs do), make the
   !> optics tables per band of `band_wavenumber` (2, n_band) [cm-1] on rank 0 and share them,
   !> and append the tables' phase functions to `phases`. `optics_path`: the RRTMGP cloud-optics
   !> file (read when liquid_optics = 'rrtmgp' or the file has ice).
@@ -86,7 +87,7 @@ contains
     type(spectral_cloud_t), intent(out) :: sc
     character(len=:), allocatable, intent(out) :: notes, warnings
     type(error_t), allocatable, intent(out) :: error
-    type(bundle_t) :: b, bt
+    type(bundle_t) :: bt
     type(phase_t), allocatable :: more(:)
     integer :: nb, ib, i, nr
     logical :: hg_liq
@@ -96,14 +97,9 @@ contains
     nb = size(band_wavenumber, 2)
     sc%n_band = nb
     hg_liq = scfg%liquid_optics == 'rrtmgp'
-    ! the fields: rank 0 reads first, so that a bad file gives one error on every rank
-    if (par_is_root()) call read_fields(error)
-    call b%share(error)
+    ! the fields: read on rank 0 and shared (read_cloud_on_root), one error on every rank
+    call read_fields(error)
     if (allocated(error)) return
-    if (.not. par_is_root()) then
-      call read_fields(error)
-      if (allocated(error)) return
-    end if
     sc%nx = sc%liq%nx
     sc%ny = sc%liq%ny
     sc%nz = sc%liq%nz
@@ -209,7 +205,7 @@ contains
       type(cloud_request_t) :: req
       req = ccfg%req
       req%temperature = .false.
-      call read_cloud_input(req, sc%liq, err, part='liquid')
+      call read_cloud_on_root(req, sc%liq, err, part='liquid')
       if (allocated(err)) return
       if (sc%liq%content /= CLOUD_WATER) then
         call set_error(err, ccfg%req%path//': broadband runs compute the cloud''s optics '// &
@@ -221,7 +217,7 @@ contains
       end if
       sc%has_ice = sc%liq%has_ice
       if (sc%has_ice) then
-        call read_cloud_input(req, sc%ice, err, part='ice')
+        call read_cloud_on_root(req, sc%ice, err, part='ice')
         if (allocated(err)) return
       end if
     end subroutine read_fields

@@ -34,6 +34,7 @@ module test_mcarats_input_suite
   use kumo_test_text, only: shared_dir, write_text
   use kumo_netcdf, only: write_scene_3d, BRDF_MAP_VARS
   use kumo_cloud_scene, only: build_cloud_atmosphere
+  use kumo_cloud_input, only: cloud_input_t, read_cloud_input
   use kumo_atmosphere, only: atmosphere_t, atmosphere_options_t
   use kumo_phase, only: phase_t, new_phase_isotropic, PHASE_ISOTROPIC, PHASE_RAYLEIGH, PHASE_HG, &
                         PHASE_TABLE
@@ -758,7 +759,10 @@ contains
     real(wp), allocatable :: ext1d(:, :), ssa1d(:, :)
     integer, allocatable :: iph1d(:, :)
     character(len=:), allocatable :: warnings
+    type(cloud_input_t) :: c, c_ice
     integer :: i, nz
+    call read_cloud_input(cfg%cloud%req, c, error, part='liquid')
+    if (allocated(error)) return
     nz = cfg%atm%nz
     allocate (phases(noff), ext1d(nz, 1), ssa1d(nz, 1), iph1d(nz, 1))
     do i = 1, noff
@@ -767,9 +771,9 @@ contains
     ext1d = abs_m1
     ssa1d = 0.0_wp
     iph1d = 1
-    call build_cloud_atmosphere(cfg%cloud, 0.0_wp, n_table, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, &
-                                cfg%atm%k3d_bottom, ext1d, ssa1d, iph1d, phases, aopts, atm, &
-                                notes, warnings, error)
+    call build_cloud_atmosphere(cfg%cloud, c, c_ice, 0.0_wp, n_table, cfg%atm%z, cfg%atm%lx, &
+                                cfg%atm%ly, cfg%atm%k3d_bottom, ext1d, ssa1d, iph1d, phases, &
+                                aopts, atm, notes, warnings, error)
   end subroutine build_atm
 
   !> The phase indices of the components of voxel (i, j) of 3-D layer kr (iph3 is dropped

@@ -1,0 +1,313 @@
+! SPDX-License-Identifier: BSD-3-Clause
+!> A cloud file read once, on rank 0, and shared with every rank.
+!>
+!> `read_cloud_on_root` is read_cloud_input (kumo_cloud_input) for a run on several ranks: rank 0
+!> reads the file (and its companions: the MCARaTS phase-function file), puts the
+!> `cloud_input_t` it got into a `bundle_t` (`cloud_input_put`), and every rank, rank 0 too,
+!> takes it out of the shared bundle (`cloud_input_get`): all ranks hold rank 0's bits, or
+!> rank 0's error. The scene is then built from it without MPI (kumo_cloud_scene,
+!> kumo_spectral_cloud).
+!>
+!> `cloud_input_put` and `cloud_input_get` are the one pack/unpack pair of the type: every
+!> component, arrays only when allocated. A component added to `cloud_input_t` (or to the
+!> MCARaTS types it holds) needs one line in each, at the same place (see "fields" below);
+!> test_cloud_share checks that a full round trip returns every component.
+module kumo_cloud_share
+  use kumo_kinds, only: wp, vp
+  use kumo_error, only: error_t
+  use kumo_bundle, only: bundle_t
+  use kumo_parallel, only: par_is_root
+  use kumo_cloud_input, only: cloud_input_t, cloud_request_t, read_cloud_input
+  use kumo_mcarats_files, only: mcarats_atm_t, mcarats_phase_t
+  implicit none
+  private
+  public :: read_cloud_on_root, cloud_input_put, cloud_input_get
+
+  !> Put an allocatable item with its allocation status (nothing more when not allocated).
+  interface put_opt
+    module procedure put_opt_r1, put_opt_r2, put_opt_r3, put_opt_r4, put_opt_i3, &
+                     put_opt_text
+  end interface put_opt
+
+  !> Take an item of put_opt: allocated as rank 0's was, or left unallocated.
+  interface get_opt
+    module procedure get_opt_r1, get_opt_r2, get_opt_r3, get_opt_r4, get_opt_i3, &
+                     get_opt_text
+  end interface get_opt
+
+contains
+
+  !> Read a cloud file on rank 0 (read_cloud_input with the same arguments) and give every rank
+  !> what it read, or its error. Every rank must call it. With `alone` = .true. the calling
+  !> process reads the file itself and talks to no other rank (`kumo --check`); the result is
+  !> the same. With `grid_only` only the grid travels (format, sizes, widths, layer edges, and
+  !> the pressure profile when requested), whatever the reader returned besides.
+  subroutine read_cloud_on_root(req, cloud, error, grid_only, part, alone)
+    type(cloud_request_t), intent(in) :: req
+    type(cloud_input_t), intent(out) :: cloud
+    type(error_t), allocatable, intent(out) :: error
+    logical, intent(in), optional :: grid_only
+    character(len=*), intent(in), optional :: part
+    logical, intent(in), optional :: alone
+    type(bundle_t) :: b
+    logical :: here, grid, reader
+    here = .false.
+    if (present(alone)) here = alone
+    grid = .false.
+    if (present(grid_only)) grid = grid_only
+    reader = here
+    if (.not. here) reader = par_is_root()
+    if (reader) then
+      block
+        ! rank 0's copy is freed before the bundle's is taken out: one copy besides the bundle
+        type(cloud_input_t) :: c
+        call read_cloud_input(req, c, error, grid_only, part)
+        if (.not. allocated(error)) call cloud_input_put(b, c, grid)
+      end block
+    end if
+    if (.not. here) call b%share(error)
+    if (allocated(error)) return
+    call cloud_input_get(b, cloud)
+  end subroutine read_cloud_on_root
+
+  !> Put a cloud input into a bundle: every component (the grid alone with `grid_only`).
+  subroutine cloud_input_put(b, c, grid_only)
+    type(bundle_t), intent(inout) :: b
+    type(cloud_input_t), intent(in) :: c
+    logical, intent(in) :: grid_only
+    call b%put(grid_only)
+    ! the grid
+    call b%put(c%format)
+    call b%put(c%nx)
+    call b%put(c%ny)
+    call b%put(c%nz)
+    call b%put(c%content)
+    call b%put(c%dx)
+    call b%put(c%dy)
+    call b%put(c%points)
+    call b%put(c%has_ice)
+    call put_opt(b, c%z)
+    call put_opt(b, c%pressure)
+    call put_opt(b, c%pressure_source)
+    if (grid_only) return
+    ! fields: a new component of cloud_input_t takes one line here and one in cloud_input_get
+    call put_vox(b, c%lwc)
+    call put_vox(b, c%reff)
+    call put_vox(b, c%ext)
+    call put_vox(b, c%ssa)
+    call put_opt(b, c%iphase)
+    call put_opt(b, c%chi)
+    call put_opt(b, c%hg_g)
+    call put_vox(b, c%iwc)
+    call put_vox(b, c%reff_ice)
+    call put_vox(b, c%temperature)
+    call b%put(c%t_planes)
+    call b%put(c%t_perturbation)
+    call put_opt(b, c%t_source)
+    call put_mcarats(b, c%mca_atm, c%mca_phase)
+    call put_opt(b, c%notes)
+    call put_opt(b, c%missing)
+  end subroutine cloud_input_put
+
+  !> Take a cloud input out of a bundle of cloud_input_put, components in the same order.
+  subroutine cloud_input_get(b, c)
+    type(bundle_t), intent(inout) :: b
+    type(cloud_input_t), intent(out) :: c
+    character(len=:), allocatable :: fmt
+    logical :: grid_only
+    call b%get(grid_only)
+    call b%get(fmt)
+    c%format = fmt
+    call b%get(c%nx)
+    call b%get(c%ny)
+    call b%get(c%nz)
+    call b%get(c%content)
+    call b%get(c%dx)
+    call b%get(c%dy)
+    call b%get(c%points)
+    call b%get(c%has_ice)
+    call get_opt(b, c%z)
+    call get_opt(b, c%pressure)
+    call get_opt(b, c%pressure_source)
+    if (grid_only) return
+    ! fields, as in cloud_input_put
+    call get_vox(b, c%lwc)
+    call get_vox(b, c%reff)
+    call get_vox(b, c%ext)
+    call get_vox(b, c%ssa)
+    call get_opt(b, c%iphase)
+    call get_opt(b, c%chi)
+    call get_opt(b, c%hg_g)
+    call get_vox(b, c%iwc)
+    call get_vox(b, c%reff_ice)
+    call get_vox(b, c%temperature)
+    call b%get(c%t_planes)
+    call b%get(c%t_perturbation)
+    call get_opt(b, c%t_source)
+    call get_mcarats(b, c%mca_atm, c%mca_phase)
+    call get_opt(b, c%notes)
+    call get_opt(b, c%missing)
+  end subroutine cloud_input_get
+
+  !> The MCARaTS atmosphere and phase functions of a cloud input (empty for other formats).
+  subroutine put_mcarats(b, a, p)
+    type(bundle_t), intent(inout) :: b
+    type(mcarats_atm_t), intent(in) :: a
+    type(mcarats_phase_t), intent(in) :: p
+    call b%put(a%nx)
+    call b%put(a%ny)
+    call b%put(a%nz3)
+    call b%put(a%mtprof)
+    call b%put(a%nkd)
+    call b%put(a%np3d)
+    call b%put(a%idread)
+    call b%put(a%ndatasets)
+    call put_opt(b, a%tmpa)
+    call put_opt(b, a%absg)
+    call put_opt(b, a%ext)
+    call put_opt(b, a%omg)
+    call put_opt(b, a%apf)
+    call put_opt(b, a%missing)
+    call b%put(p%nang)
+    call b%put(p%npf)
+    call b%put(p%reversed)
+    call put_opt(b, p%angle_deg)
+    call put_opt(b, p%p_file)
+    call put_opt(b, p%p)
+  end subroutine put_mcarats
+
+  subroutine get_mcarats(b, a, p)
+    type(bundle_t), intent(inout) :: b
+    type(mcarats_atm_t), intent(out) :: a
+    type(mcarats_phase_t), intent(out) :: p
+    call b%get(a%nx)
+    call b%get(a%ny)
+    call b%get(a%nz3)
+    call b%get(a%mtprof)
+    call b%get(a%nkd)
+    call b%get(a%np3d)
+    call b%get(a%idread)
+    call b%get(a%ndatasets)
+    call get_opt(b, a%tmpa)
+    call get_opt(b, a%absg)
+    call get_opt(b, a%ext)
+    call get_opt(b, a%omg)
+    call get_opt(b, a%apf)
+    call get_opt(b, a%missing)
+    call b%get(p%nang)
+    call b%get(p%npf)
+    call b%get(p%reversed)
+    call get_opt(b, p%angle_deg)
+    call get_opt(b, p%p_file)
+    call get_opt(b, p%p)
+  end subroutine get_mcarats
+
+  ! ---- optional items ---------------------------------------------------------------------------
+
+  subroutine put_opt_r1(b, x)
+    type(bundle_t), intent(inout) :: b
+    real(wp), allocatable, intent(in) :: x(:)
+    call b%put(allocated(x))
+    if (allocated(x)) call b%put(x)
+  end subroutine put_opt_r1
+
+  subroutine put_opt_r2(b, x)
+    type(bundle_t), intent(inout) :: b
+    real(wp), allocatable, intent(in) :: x(:, :)
+    call b%put(allocated(x))
+    if (allocated(x)) call b%put(x)
+  end subroutine put_opt_r2
+
+  subroutine put_opt_r3(b, x)
+    type(bundle_t), intent(inout) :: b
+    real(wp), allocatable, intent(in) :: x(:, :, :)
+    call b%put(allocated(x))
+    if (allocated(x)) call b%put(x)
+  end subroutine put_opt_r3
+
+  subroutine put_opt_r4(b, x)
+    type(bundle_t), intent(inout) :: b
+    real(wp), allocatable, intent(in) :: x(:, :, :, :)
+    call b%put(allocated(x))
+    if (allocated(x)) call b%put(x)
+  end subroutine put_opt_r4
+
+  !> Voxel fields (precision vp), apart from the generic put_opt so that vp = wp also builds.
+  subroutine put_vox(b, x)
+    type(bundle_t), intent(inout) :: b
+    real(vp), allocatable, intent(in) :: x(:, :, :)
+    call b%put(allocated(x))
+    if (allocated(x)) call b%put(x)
+  end subroutine put_vox
+
+  subroutine put_opt_i3(b, x)
+    type(bundle_t), intent(inout) :: b
+    integer, allocatable, intent(in) :: x(:, :, :)
+    call b%put(allocated(x))
+    if (allocated(x)) call b%put(x)
+  end subroutine put_opt_i3
+
+  subroutine put_opt_text(b, x)
+    type(bundle_t), intent(inout) :: b
+    character(len=:), allocatable, intent(in) :: x
+    call b%put(allocated(x))
+    if (allocated(x)) call b%put(x)
+  end subroutine put_opt_text
+
+  subroutine get_opt_r1(b, x)
+    type(bundle_t), intent(inout) :: b
+    real(wp), allocatable, intent(out) :: x(:)
+    logical :: has
+    call b%get(has)
+    if (has) call b%get(x)
+  end subroutine get_opt_r1
+
+  subroutine get_opt_r2(b, x)
+    type(bundle_t), intent(inout) :: b
+    real(wp), allocatable, intent(out) :: x(:, :)
+    logical :: has
+    call b%get(has)
+    if (has) call b%get(x)
+  end subroutine get_opt_r2
+
+  subroutine get_opt_r3(b, x)
+    type(bundle_t), intent(inout) :: b
+    real(wp), allocatable, intent(out) :: x(:, :, :)
+    logical :: has
+    call b%get(has)
+    if (has) call b%get(x)
+  end subroutine get_opt_r3
+
+  subroutine get_opt_r4(b, x)
+    type(bundle_t), intent(inout) :: b
+    real(wp), allocatable, intent(out) :: x(:, :, :, :)
+    logical :: has
+    call b%get(has)
+    if (has) call b%get(x)
+  end subroutine get_opt_r4
+
+  subroutine get_vox(b, x)
+    type(bundle_t), intent(inout) :: b
+    real(vp), allocatable, intent(out) :: x(:, :, :)
+    logical :: has
+    call b%get(has)
+    if (has) call b%get(x)
+  end subroutine get_vox
+
+  subroutine get_opt_i3(b, x)
+    type(bundle_t), intent(inout) :: b
+    integer, allocatable, intent(out) :: x(:, :, :)
+    logical :: has
+    call b%get(has)
+    if (has) call b%get(x)
+  end subroutine get_opt_i3
+
+  subroutine get_opt_text(b, x)
+    type(bundle_t), intent(inout) :: b
+    character(len=:), allocatable, intent(out) :: x
+    logical :: has
+    call b%get(has)
+    if (has) call b%get(x)
+  end subroutine get_opt_text
+
+end module kumo_cloud_share

@@ -40,8 +40,9 @@ contains
   !> Read a cloud file on rank 0 (read_cloud_input with the same arguments) and give every rank
   !> what it read, or its error. Every rank must call it. With `alone` = .true. the calling
   !> process reads the file itself and talks to no other rank (`kumo --check`); the result is
-  !> the same. With `grid_only` only the grid travels (format, sizes, widths, layer edges, and
-  !> the pressure profile when requested), whatever the reader returned besides.
+  !> the same. With `grid_only` only the grid travels (format, sizes, widths, layer edges, the
+  !> pressure and gas-state profiles when requested, and the reader's notes), whatever the
+  !> reader returned besides.
   subroutine read_cloud_on_root(req, cloud, error, grid_only, part, alone)
     type(cloud_request_t), intent(in) :: req
     type(cloud_input_t), intent(out) :: cloud
@@ -89,6 +90,9 @@ contains
     call put_opt(b, c%z)
     call put_opt(b, c%pressure)
     call put_opt(b, c%pressure_source)
+    call put_opt(b, c%t_profile)
+    call put_opt(b, c%h2o_profile)
+    call put_opt(b, c%notes)
     if (grid_only) return
     ! fields: a new component of cloud_input_t takes one line here and one in cloud_input_get
     call put_vox(b, c%lwc)
@@ -105,7 +109,6 @@ contains
     call b%put(c%t_perturbation)
     call put_opt(b, c%t_source)
     call put_mcarats(b, c%mca_atm, c%mca_phase)
-    call put_opt(b, c%notes)
     call put_opt(b, c%missing)
   end subroutine cloud_input_put
 
@@ -129,6 +132,9 @@ contains
     call get_opt(b, c%z)
     call get_opt(b, c%pressure)
     call get_opt(b, c%pressure_source)
+    call get_opt(b, c%t_profile)
+    call get_opt(b, c%h2o_profile)
+    call get_opt(b, c%notes)
     if (grid_only) return
     ! fields, as in cloud_input_put
     call get_vox(b, c%lwc)
@@ -145,7 +151,6 @@ contains
     call b%get(c%t_perturbation)
     call get_opt(b, c%t_source)
     call get_mcarats(b, c%mca_atm, c%mca_phase)
-    call get_opt(b, c%notes)
     call get_opt(b, c%missing)
   end subroutine cloud_input_get
 

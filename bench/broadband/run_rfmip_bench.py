@@ -80,6 +80,7 @@ SHA256 = {
         "242950eb4817ba6291c50ed751da556bd48ac09ce98b61e87eeae01ea7ae137b",
 }
 EXPT = 0
+SEED = 20261128
 G0 = 9.80665
 R_DRY = 287.04          # J kg-1 K-1
 M_DRY, M_H2O = 28.9644e-3, 18.0153e-3   # kg mol-1, as kumo's gas_col_dry
@@ -223,7 +224,10 @@ def namelist(d, site, band, kdist, p_top, photons, batches, out):
         npb = max(1, photons // batches)
     else:
         nb, npb = 2, 1      # exact sum over the g-points: no photons are traced
-    lines += [f"  n_photons_per_batch = {npb}", f"  n_batches = {nb}", "  seed = 20261128",
+    # one seed per site: the Monte Carlo errors of the sites are then independent, and the
+    # mean difference over the sites averages them down (with one seed for all they would move
+    # together)
+    lines += [f"  n_photons_per_batch = {npb}", f"  n_batches = {nb}", f"  seed = {SEED + site}",
               "  verbose = 0", "/",
               "&kumo_atmosphere", f"  nz = {nz}", f"  z_levels = {fmt(z)}",
               f"  ext1d = {nz}*0.0", f"  ssa1d = {nz}*0.0", "/", "&kumo_surface"]

@@ -27,14 +27,16 @@ the well-mixed gases are kumo's defaults, which are the RFMIP present-day global
 against experiment 0 of the file below, to 1e-6 relative). Heights come from the hypsometric
 equation with the layer's virtual temperature (kumo needs z_levels; plane-parallel fluxes do not
 depend on them). RFMIP's top level is at 0.01 Pa; the RTE+RRTMGP RFMIP drivers move it to the
-k-distribution's lowest reference pressure (about 1 Pa: "we pretend the layer is just a bit less
-deep"), and so does this script unless --keep-top-level is given.
+k-distribution's lowest reference pressure (about 1 Pa; the top layer is made slightly thinner),
+and so does this script unless --keep-top-level is given. Each site has its own random seed, so
+the sites' Monte Carlo errors are independent.
 
 kumo's broadband up and down fluxes at every level are compared with the reference; the summary
 (mean, rms and largest |difference| over the sites at the top and at the surface, with kumo's
 largest and rms standard error) goes to stdout and to <results>/summary.md, the per-site
 differences and kumo's values to <results>/rfmip_sites.csv (these include reference-derived
-numbers: keep that folder out of the repository).
+numbers: keep that folder out of the repository). bench/broadband/rfmip_solver_check.py shows
+where the differences come from (the solvers of the reference; docs/broadband.md).
 
 Usage:
     python3 bench/broadband/run_rfmip_bench.py --kumo build/kumo [--results DIR] [-j 2]
@@ -302,7 +304,8 @@ def main():
     ap.add_argument("--results", help="results folder (default: a new folder under /tmp)")
     ap.add_argument("--sites", help="sites to run, e.g. 0,5,10-20 (default all 100)")
     ap.add_argument("-j", "--jobs", type=int, default=1, help="kumo runs at a time")
-    ap.add_argument("--photons", type=int, default=16_000_000, help="shortwave photons per site")
+    ap.add_argument("--photons", type=int, default=16_000_000,
+                    help="shortwave photons per site")
     ap.add_argument("--batches", type=int, default=200, help="shortwave batches per site")
     ap.add_argument("--kdist-sw", default="rrtmgp-gas-sw-g112.nc")
     ap.add_argument("--kdist-lw", default="rrtmgp-gas-lw-g128.nc")

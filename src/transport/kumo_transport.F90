@@ -32,7 +32,7 @@ module kumo_transport
   use kumo_voxel_walk, only: voxel_walk_t, walk_begin, walk_segment, walk_next
   use kumo_atmosphere, only: atmosphere_t, column_of, column_xy, LAYER_CLEAR, &
                              LAYER_ABSORBING, LAYER_SCATTERING, LAYER_3D
-  use kumo_brdf, only: brdf_albedo, brdf_sample
+  use kumo_brdf, only: brdf_albedo, brdf_sample, lambert_direction
   use kumo_tally, only: tally_layout_t, tally_t, ANOM_UZ_NUDGED, ANOM_EVENT_CAP, &
                         ANOM_STEP_CAP, ANOM_POSITION_REPAIR, ANOM_BRDF_ENVELOPE
   use kumo_photon, only: photon_t
@@ -279,7 +279,7 @@ contains
     type(rng_t), intent(inout) :: rng
     type(photon_t), intent(inout) :: p
     logical, intent(out) :: alive
-    real(wp) :: albedo, mu, cphi, sphi, u_out(3)
+    real(wp) :: albedo, u_out(3)
     integer :: kb
 
     alive = .false.
@@ -313,11 +313,7 @@ contains
       p%uy = u_out(2)
       p%uz = u_out(3)
     else
-      p%uz = sqrt(rng_uniform(rng))
-      call sample_azimuth(rng, cphi, sphi)
-      mu = sqrt(max(0.0_wp, 1.0_wp - p%uz*p%uz))
-      p%ux = mu*cphi
-      p%uy = mu*sphi
+      call lambert_direction(rng, p%ux, p%uy, p%uz)
     end if
     if (p%uz < UZ_MIN) then
       p%uz = UZ_MIN

@@ -119,6 +119,10 @@ contains
                      stats_mean1(lay%i_dir + lev + 1)*f_hor, stats_err1(lay%i_dir + lev + 1)*f_hor)
         call add_var(set, 'flux_down_diffuse_wm2', 'downward diffuse flux', fu, ['level'], &
                      stats_mean1(lay%i_dif + lev + 1)*f_hor, stats_err1(lay%i_dif + lev + 1)*f_hor)
+        ! formed per batch (kumo_tally), so its standard error includes the correlation of the
+        ! up and down fluxes
+        call add_var(set, 'flux_net_wm2', 'net downward flux (down - up)', fu, ['level'], &
+                     stats_mean1(lay%i_fnet + lev + 1)*f_hor, stats_err1(lay%i_fnet + lev + 1)*f_hor)
         call add_var(set, 'absorbed_power_density_layer', 'layer-mean absorbed power per volume', &
                      'W m-3'//fu(6:), ['layer'], m, e)
         if (thermal) call thermal_layer_results()
@@ -574,6 +578,8 @@ contains
             if (band_kind == 'shortwave') v%standard_name = 'direct_downwelling_shortwave_flux_in_air'
           case ('flux_down_diffuse_wm2')
             if (band_kind == 'shortwave') v%standard_name = 'diffuse_downwelling_shortwave_flux_in_air'
+          case ('flux_net_wm2')
+            v%standard_name = 'net_downward_'//band_kind//'_flux_in_air'
           case default
             if (index(v%name, 'heating_rate') == 1) &
               v%standard_name = 'tendency_of_air_temperature_due_to_'//band_kind//'_heating'

@@ -47,6 +47,7 @@ module kumo_tally
     integer :: i_dn = 0        !! derived per batch: total down flux at level k (direct + diffuse)
     integer :: i_atm = 0       !! derived per batch: absorbed by the whole atmosphere
     integer :: i_closure = 0   !! derived per batch: R + A_atm + A_sfc - roulette + lost (= 1)
+    integer :: i_fnet = 0      !! derived per batch: net downward flux (down - up) at level k
     ! Thermal emission (sizes 0 without it): launched weight, net power (absorbed - emitted)
     ! of the layers, of the surface and of the voxels, by net exchange (kumo_emission)
     logical :: thermal = .false.
@@ -145,6 +146,8 @@ contains
     pos = pos + 1
     lay%i_closure = pos
     pos = pos + 1
+    lay%i_fnet = pos
+    pos = pos + nz + 1
     if (present(thermal)) lay%thermal = thermal
     lay%i_src = pos
     lay%i_net = pos
@@ -246,6 +249,8 @@ contains
                             - xd(lay%i_rr + 1) + xd(lay%i_lost + 1)
     ! with emission, photons carry unequal launch weights: the closure is relative to them
     if (lay%thermal) xd(lay%i_closure + 1) = xd(lay%i_closure + 1)/xd(lay%i_src + 1)
+    xd(lay%i_fnet + 1:lay%i_fnet + nz + 1) = xd(lay%i_dn + 1:lay%i_dn + nz + 1) - &
+                                             xd(lay%i_up + 1:lay%i_up + nz + 1)
     st%s1(1:lay%i_map_up) = st%s1(1:lay%i_map_up) + xd
     st%s2(1:lay%i_map_up) = st%s2(1:lay%i_map_up) + xd*xd
     do i = lay%i_map_up + 1, lay%i_cam0

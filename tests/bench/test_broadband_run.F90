@@ -267,7 +267,7 @@ contains
     !> an absolute allowance added to every comparison (exact sums: round-off of the sums)
     real(dp), intent(in), optional :: abs_floor
     real(dp) :: worst, dev, fac, floor, k_sigma, source
-    integer :: iu, idif, idir, ih, k, nz
+    integer :: iu, idif, idir, ih, k, nz, inet, idn
     character(len=:), allocatable :: where
     nz = c%nz
     iu = var(set, 'flux_up_wm2', error)
@@ -288,6 +288,16 @@ contains
       source = set%vars(var(set, 'source_power', error))%mean(1)
       if (allocated(error)) return
     end if
+    ! the net flux is down - up, formed batch by batch
+    inet = var(set, 'flux_net_wm2', error)
+    idn = var(set, 'flux_down_wm2', error)
+    if (allocated(error)) return
+    do k = 0, nz
+      call check(error, abs(set%vars(inet)%mean(k + 1) - (set%vars(idn)%mean(k + 1) - &
+                 set%vars(iu)%mean(k + 1))) <= 1.0e-9_dp*source, &
+                 'net flux at level '//str(k)//' is not down - up')
+    end do
+    if (allocated(error)) return
     do k = 0, nz
       fac = 1
       if (k < k_cloud) fac = direct_factor

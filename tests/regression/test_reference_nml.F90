@@ -464,14 +464,17 @@ contains
     character(len=:), allocatable, intent(out) :: groups
     type(error_t), allocatable, intent(out) :: error
     character(len=LINE_LEN), allocatable :: lines(:)
-    character(len=LINE_LEN), allocatable :: more(:)
+    character(len=LINE_LEN), allocatable :: more(:), both(:)
     character(len=:), allocatable :: s, group, list
     integer :: j, p, n_groups
     allocate (lines(0))
     do j = 1, size(config_src_paths)
       call read_lines(trim(config_src_paths(j)), more, error)
       if (allocated(error)) return
-      lines = [lines, more]
+      allocate (both(size(lines) + size(more)))
+      both(1:size(lines)) = lines
+      both(size(lines) + 1:) = more
+      call move_alloc(both, lines)
     end do
     allocate (vars(0))
     groups = ''

@@ -61,6 +61,7 @@ module kumo_brdf
   public :: brdf_params, brdf_kind_from_name, brdf_validate
   public :: brdf_eval, brdf_eval_dir, brdf_albedo_quad
   public :: brdf_table_init, brdf_albedo, brdf_table_eval, brdf_table_eval_dir, brdf_sample
+  public :: lambert_direction
   public :: lsrt_grid_t, lsrt_grid_init, brdf_table_init_grid
   public :: cox_munk_slope_variance, fresnel_reflectance, dsm_shadowing
   public :: ross_thick_kernel, li_sparse_r_kernel, lsrt_kernel_albedos, lsrt_negative_fraction
@@ -1620,9 +1621,10 @@ contains
   ! ------------------------------------------------------------------------------------------
 
   !> Draw the reflected direction for the incoming direction u_in (u_in(3) < 0), distributed
-  !> as R mu_out/alpha(mu_in) of the table's model, u_out(3) > 0.
+  !> as R mu_out/alpha(mu_in) of the table's model, u_out(3) > 0 (>= 0 for the cosine-weighted
+  !> directions of `lambert_direction`).
   !>
-  !> * Lambert: cosine-weighted (mu = sqrt(1 - xi), polar-method azimuth).
+  !> * Lambert: cosine-weighted (`lambert_direction`).
   !> * RPV, LSRT: rejection from the density a1 mu + a0 in (mu_out, phi) (seed text
   !>   eqs. 3.6.91-104, cancellation-free root), accepted with probability
   !>   mu R/(alpha (a1 mu + a0))/b, b tries on average (about 2 for typical RPV and LSRT
@@ -1688,16 +1690,28 @@ contains
     end if
   end function model_albedo_spec
 
-  !> Cosine-weighted upward direction.
+  !> A reflected direction of a Lambert surface: cosine-weighted over the upper hemisphere,
+  !> mu = sqrt(xi) and a polar-method azimuth. The one sampler of Lambert reflection in kumo:
+  !> Lambert surfaces and albedo maps (`reflect`, kumo_transport), the Lambert BRDF kernel and
+  !> the diffuse part of DSM. uz lies in [0, 1) (0 with probability 2^-53; the photon loop
+  !> nudges directions closer to the horizontal than UZ_MIN).
+  pure subroutine lambert_direction(rng, ux, uy, uz)
+    type(rng_t), intent(inout) :: rng
+    real(wp), intent(out) :: ux, uy, uz
+    real(wp) :: xi, mu, cphi, sphi
+    call rng_next_uniform(rng, xi)
+    uz = sqrt(xi)
+    call sample_azimuth(rng, cphi, sphi)
+    mu = sqrt(max(0.0_wp, 1.0_wp - uz*uz))
+    ux = mu*cphi
+    uy = mu*sphi
+  end subroutine lambert_direction
+
+  !> Cosine-weighted upward direction (lambert_direction) as a vector.
   pure subroutine sample_cosine(rng, u_out)
     type(rng_t), intent(inout) :: rng
     real(wp), intent(out) :: u_out(3)
-    real(wp) :: xi, mu, s, cp, sp
-    call rng_next_uniform(rng, xi)
-    mu = sqrt(1.0_wp - xi)          ! in (0, 1]: xi < 1
-    call sample_azimuth(rng, cp, sp)
-    s = sin_of(mu)
-    u_out = [s*cp, s*sp, mu]
+    call lambert_direction(rng, u_out(1), u_out(2), u_out(3))
   end subroutine sample_cosine
 
   !> RPV and LSRT: rejection from the linear-in-mu density of the interval's envelope.

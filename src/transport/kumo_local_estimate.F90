@@ -23,7 +23,8 @@
 !> weak contributions through thick cloud cost no tracing.
 !>
 !> Optical depths along lines of sight are integrated exactly: layer by layer through the 1-D
-!> layers and voxel by voxel through the 3-D region. With truncation the extinction is the
+!> layers and voxel by voxel through the 3-D region (the voxel walk of kumo_voxel_walk, which
+!> the track-length absorption score of the flights takes too). With truncation the extinction is the
 !> truncated one of the truncation level the light has after scattering into Omega_d (the delta
 !> part of the phase function keeps light on the line of sight).
 module kumo_local_estimate
@@ -33,8 +34,8 @@ module kumo_local_estimate
   use kumo_math, only: wrap, rotate_direction
   use kumo_phase, only: phase_eval, phase_sample_mu
   use kumo_truncation, only: trunc_eval, trunc_sample_mu
-  use kumo_atmosphere, only: atmosphere_t, column_of, column_xy, sigma_trunc_3d, LAYER_CLEAR, &
-                             LAYER_3D
+  use kumo_atmosphere, only: atmosphere_t, column_of, sigma_trunc_3d, LAYER_CLEAR, LAYER_3D
+  use kumo_voxel_walk, only: voxel_walk_t, walk_begin, walk_segment, walk_next
   use kumo_camera, only: camera_t, camera_project
   use kumo_tally, only: tally_layout_t, tally_t
   use kumo_surface, only: surface_t
@@ -44,8 +45,6 @@ module kumo_local_estimate
   private
   public :: detectors_t, detectors_init, le_particle, le_surface, le_boundary_emission, &
             ddis_factor, ddis_direction
-  ! the steps of the voxel walk, also taken by the track-length absorption score (kumo_transport)
-  public :: face_distance, cross_face, advance
 
   real(wp), parameter :: INV_4PI = 0.25_wp/PI
 
@@ -571,8 +570,10 @@ contains
     integer, intent(in) :: iz, lev_t
     real(wp), intent(inout) :: x, y, tau
     real(wp), intent(in) :: vx, vy, s, tau_stop
-    integer :: kr, ix, iy
-    real(wp) :: tx, ty, step, rem, sig
+    type(voxel_walk_t) :: wk
+    integer :: kr
+    real(wp) :: sig
+    logical :: last
     select case (atm%layer_class(iz))
     case (LAYER_CLEAR)
     case (LAYER_3D)
@@ -580,31 +581,21 @@ contains
       if (atm%uniform3(kr)) then
         tau = tau + sigma_trunc_3d(atm, 1, 1, kr, lev_t)*s
       else
-        call column_xy(atm, x, y, ix, iy)
-        rem = s
+        call walk_begin(wk, atm, x, y, vx, vy, s)
         do
-          tx = face_distance(ix, x, vx, atm%dx)
-          ty = face_distance(iy, y, vy, atm%dy)
-          step = min(tx, ty, rem)
+          call walk_segment(wk, atm, last)
           if (lev_t > 1) then
-            sig = sigma_trunc_3d(atm, ix, iy, kr, lev_t)
+            sig = sigma_trunc_3d(atm, wk%ix, wk%iy, kr, lev_t)
           else
-            sig = atm%ext3(ix, iy, kr)
+            sig = atm%ext3(wk%ix, wk%iy, kr)
           end if
-          tau = tau + sig*step
-          if (step >= rem) exit
+          tau = tau + sig*wk%step
+          if (last) exit
           if (tau > tau_stop) return
-          rem = rem - step
-          if (tx <= ty) then
-            call cross_face(ix, x, vx, atm%nx, atm%dx, atm%lx)
-            call advance(iy, y, vy*step, atm%ny, atm%ly, atm%inv_dy)
-          else
-            call cross_face(iy, y, vy, atm%ny, atm%dy, atm%ly)
-            call advance(ix, x, vx*step, atm%nx, atm%lx, atm%inv_dx)
-          end if
+          call walk_next(wk, atm)
         end do
-        x = x + vx*rem
-        y = y + vy*rem
+        x = wk%x + vx*wk%rem
+        y = wk%y + vy*wk%rem
         call wrap(x, atm%lx)
         call wrap(y, atm%ly)
         return
@@ -621,52 +612,4 @@ contains
     call wrap(x, atm%lx)
     call wrap(y, atm%ly)
   end subroutine layer_segment
-  !> Distance along the path to the face of cell i (width d) ahead of coordinate x, for the
-  !> direction cosine v along that axis; huge for v = 0.
-  pure real(wp) function face_distance(i, x, v, d) result(t)
-    integer, intent(in) :: i
-    real(wp), intent(in) :: x, v, d
-    if (v > 0.0_wp) then
-      t = max(0.0_wp, (i*d - x)/v)
-    else if (v < 0.0_wp) then
-      t = max(0.0_wp, ((i - 1)*d - x)/v)
-    else
-      t = huge(1.0_wp)
-    end if
-  end function face_distance
-
-  !> Step into the next cell along one axis (direction cosine v /= 0), periodically: the
-  !> coordinate is set exactly onto the face that was crossed.
-  pure subroutine cross_face(i, x, v, n, d, l)
-    integer, intent(inout) :: i
-    real(wp), intent(inout) :: x
-    real(wp), intent(in) :: v, d, l
-    integer, intent(in) :: n
-    if (v > 0.0_wp) then
-      i = i + 1
-      x = (i - 1)*d
-      if (i > n) then
-        i = 1
-        x = 0.0_wp
-      end if
-    else
-      i = i - 1
-      x = i*d
-      if (i < 1) then
-        i = n
-        x = l
-      end if
-    end if
-  end subroutine cross_face
-
-  !> Move along the other axis by dx and find its cell again (periodic).
-  pure subroutine advance(i, x, dx, n, l, inv_d)
-    integer, intent(out) :: i
-    real(wp), intent(inout) :: x
-    real(wp), intent(in) :: dx, l, inv_d
-    integer, intent(in) :: n
-    x = x + dx
-    call wrap(x, l)
-    i = min(n, max(1, int(x*inv_d) + 1))
-  end subroutine advance
 end module kumo_local_estimate

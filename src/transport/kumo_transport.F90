@@ -28,11 +28,11 @@ module kumo_transport
   use kumo_phase, only: phase_sample_mu
   use kumo_truncation, only: trunc_sample_mu
   use kumo_local_estimate, only: detectors_t, le_particle, le_surface, ddis_factor, &
-                                 ddis_direction, le_boundary_emission, face_distance, &
-                                 cross_face, advance
+                                 ddis_direction, le_boundary_emission
+  use kumo_voxel_walk, only: voxel_walk_t, walk_begin, walk_segment, walk_next
   use kumo_atmosphere, only: atmosphere_t, column_of, column_xy, LAYER_CLEAR, &
                              LAYER_ABSORBING, LAYER_SCATTERING, LAYER_3D
-  use kumo_brdf, only: brdf_albedo, brdf_sample
+  use kumo_brdf, only: brdf_albedo, brdf_sample, lambert_direction
   use kumo_tally, only: tally_layout_t, tally_t, ANOM_UZ_NUDGED, ANOM_EVENT_CAP, &
                         ANOM_STEP_CAP, ANOM_POSITION_REPAIR, ANOM_BRDF_ENVELOPE
   use kumo_photon, only: photon_t
@@ -279,7 +279,7 @@ contains
     type(rng_t), intent(inout) :: rng
     type(photon_t), intent(inout) :: p
     logical, intent(out) :: alive
-    real(wp) :: albedo, mu, cphi, sphi, u_out(3)
+    real(wp) :: albedo, u_out(3)
     integer :: kb
 
     alive = .false.
@@ -313,11 +313,7 @@ contains
       p%uy = u_out(2)
       p%uz = u_out(3)
     else
-      p%uz = sqrt(rng_uniform(rng))
-      call sample_azimuth(rng, cphi, sphi)
-      mu = sqrt(max(0.0_wp, 1.0_wp - p%uz*p%uz))
-      p%ux = mu*cphi
-      p%uy = mu*sphi
+      call lambert_direction(rng, p%ux, p%uy, p%uz)
     end if
     if (p%uz < UZ_MIN) then
       p%uz = UZ_MIN
@@ -925,8 +921,8 @@ contains
 
   !> Track-length absorption score (ABS_TRACK) of a straight piece of flight of length s inside
   !> the 3-D layer iz, from (x, y) along the horizontal direction (ux, uy): w k_abs l for each
-  !> voxel the piece crosses, l the length inside it, found by the steps of the line-of-sight
-  !> walk (kumo_local_estimate). Given the path, this is the expectation of what the collision
+  !> voxel the piece crosses, l the length inside it, found by the voxel walk that the lines of
+  !> sight take too (kumo_voxel_walk). Given the path, this is the expectation of what the collision
   !> score would deposit in each voxel before the photon collides or leaves.
   subroutine absorb_path(atm, lay, tal, iz, x, y, ux, uy, s, w)
     type(atmosphere_t), intent(in) :: atm
@@ -934,35 +930,25 @@ contains
     type(tally_t), intent(inout) :: tal
     integer, intent(in) :: iz
     real(wp), intent(in) :: x, y, ux, uy, s, w
-    real(wp) :: xc, yc, rem, tx, ty, step, a, dep
-    integer :: kr, ix, iy, iv0
+    type(voxel_walk_t) :: wk
+    real(wp) :: a, dep
+    integer :: kr, iv0
+    logical :: last
     if (s <= 0.0_wp) return
     kr = iz - atm%k3_lo + 1
     if (atm%uniform3(kr) .and. .not. lay%do_voxel) then
       a = w*((atm%ext3(1, 1, kr)*(1.0_wp - atm%omg3(1, 1, kr)))*s)
     else
-      call column_xy(atm, x, y, ix, iy)
-      xc = x
-      yc = y
-      rem = s
+      call walk_begin(wk, atm, x, y, ux, uy, s)
       a = 0.0_wp
       iv0 = lay%i_vox + (kr - 1)*lay%ncol - atm%nx
       do
-        tx = face_distance(ix, xc, ux, atm%dx)
-        ty = face_distance(iy, yc, uy, atm%dy)
-        step = min(tx, ty, rem)
-        dep = w*((atm%ext3(ix, iy, kr)*(1.0_wp - atm%omg3(ix, iy, kr)))*step)
+        call walk_segment(wk, atm, last)
+        dep = w*((atm%ext3(wk%ix, wk%iy, kr)*(1.0_wp - atm%omg3(wk%ix, wk%iy, kr)))*wk%step)
         a = a + dep
-        if (lay%do_voxel) tal%buf(iv0 + ix + iy*atm%nx) = tal%buf(iv0 + ix + iy*atm%nx) + dep
-        if (step >= rem) exit
-        rem = rem - step
-        if (tx <= ty) then
-          call cross_face(ix, xc, ux, atm%nx, atm%dx, atm%lx)
-          call advance(iy, yc, uy*step, atm%ny, atm%ly, atm%inv_dy)
-        else
-          call cross_face(iy, yc, uy, atm%ny, atm%dy, atm%ly)
-          call advance(ix, xc, ux*step, atm%nx, atm%lx, atm%inv_dx)
-        end if
+        if (lay%do_voxel) tal%buf(iv0 + wk%ix + wk%iy*atm%nx) = tal%buf(iv0 + wk%ix + wk%iy*atm%nx) + dep
+        if (last) exit
+        call walk_next(wk, atm)
       end do
     end if
     call score_track(lay, tal, iz, a)

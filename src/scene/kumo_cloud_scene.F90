@@ -46,7 +46,8 @@ module kumo_cloud_scene
   use kumo_config, only: cloud_cfg_t
   implicit none
   private
-  public :: build_cloud_atmosphere, rayleigh_layers, cloud_temperature_t, mie_layer, table_radii
+  public :: build_cloud_atmosphere, rayleigh_layers, cloud_temperature_t, mie_layer, table_radii, &
+            ice_table
 
   !> Temperatures of a cloud file for thermal emission, on the columns and layers of the 3-D
   !> region the file defines (voxel (ix, iy, k) is layer k3_lo + k - 1 of the atmosphere).
@@ -77,7 +78,7 @@ contains
   !> atmosphere.
   subroutine build_cloud_atmosphere(ccfg, c, c_ice, wavelength_um, n_table, z, lx, ly, k3_lo, &
                                     ext1d, ssa1d, iph1d, phases, aopts, atm, notes, warnings, &
-                                    error, temp)
+                                    error, temp, ice_tab)
     type(cloud_cfg_t), intent(in) :: ccfg
     !> the file read with part = 'liquid' (with its temperatures when `temp` is wanted); its
     !> fields are freed as they are put into the atmosphere
@@ -97,6 +98,8 @@ contains
     type(error_t), allocatable, intent(out) :: error
     !> thermal runs: the file's temperatures (`found` false when it has none)
     type(cloud_temperature_t), intent(out), optional :: temp
+    !> the ice optics table (ice_table) when the caller has read it; else it is read here
+    type(mie_table_t), intent(in), optional :: ice_tab
     type(mie_table_t) :: liq, ice
     type(phase_t), allocatable :: more(:)
     integer :: nplanes, nspecies, nneg, i, n_out_liq, n_out_ice, offset, offset_ice
@@ -131,8 +134,12 @@ contains
       nspecies = 1
       offset_ice = size(phases)
       if (c%has_ice) then
-        call ice_table(ccfg, wavelength_um, ice, error)
-        if (allocated(error)) return
+        if (present(ice_tab)) then
+          ice = ice_tab
+        else
+          call ice_table(ccfg, wavelength_um, ice, error)
+          if (allocated(error)) return
+        end if
         notes = notes//'ice optics table '//trim(ccfg%ice_optics_file)//', '// &
                 str(size(ice%r_eff_um))//' radii'//NL
         call table_phases(ice, n_table, more, error)

@@ -6,7 +6,8 @@
 !> `cloud_input_t` it got into a `bundle_t` (`cloud_input_put`), and every rank, rank 0 too,
 !> takes it out of the shared bundle (`cloud_input_get`): all ranks hold rank 0's bits, or
 !> rank 0's error. The scene is then built from it without MPI (kumo_cloud_scene,
-!> kumo_spectral_cloud).
+!> kumo_spectral_cloud). `mie_table_put` and `mie_table_get` carry an optics table in the
+!> Mie-table layout the same way (a cloud file's ice optics table, read on rank 0).
 !>
 !> `cloud_input_put` and `cloud_input_get` are the one pack/unpack pair of the type: every
 !> component, arrays only when allocated. A component added to `cloud_input_t` (or to the
@@ -19,9 +20,10 @@ module kumo_cloud_share
   use kumo_parallel, only: par_is_root
   use kumo_cloud_input, only: cloud_input_t, cloud_request_t, read_cloud_input
   use kumo_mcarats_files, only: mcarats_atm_t, mcarats_phase_t
+  use kumo_mie, only: mie_table_t
   implicit none
   private
-  public :: read_cloud_on_root, cloud_input_put, cloud_input_get
+  public :: read_cloud_on_root, cloud_input_put, cloud_input_get, mie_table_put, mie_table_get
 
   !> Put an allocatable item with its allocation status (nothing more when not allocated).
   interface put_opt
@@ -153,6 +155,44 @@ contains
     call get_mcarats(b, c%mca_atm, c%mca_phase)
     call get_opt(b, c%missing)
   end subroutine cloud_input_get
+
+  !> Put an optics table in the Mie-table layout (a cloud file's ice optics table) into a bundle.
+  subroutine mie_table_put(b, t)
+    type(bundle_t), intent(inout) :: b
+    type(mie_table_t), intent(in) :: t
+    call b%put(t%wavelength_um)
+    call b%put(real(t%m, wp))
+    call b%put(aimag(t%m))
+    call b%put(t%dist)
+    call b%put(t%v_eff)
+    call b%put(t%dlnr)
+    call put_opt(b, t%r_eff_um)
+    call put_opt(b, t%ext_per_lwc)
+    call put_opt(b, t%ssa)
+    call put_opt(b, t%g)
+    call put_opt(b, t%angle_deg)
+    call put_opt(b, t%phase)
+  end subroutine mie_table_put
+
+  !> Take a table of mie_table_put out of a bundle.
+  subroutine mie_table_get(b, t)
+    type(bundle_t), intent(inout) :: b
+    type(mie_table_t), intent(out) :: t
+    real(wp) :: re, im
+    call b%get(t%wavelength_um)
+    call b%get(re)
+    call b%get(im)
+    t%m = cmplx(re, im, wp)
+    call b%get(t%dist)
+    call b%get(t%v_eff)
+    call b%get(t%dlnr)
+    call get_opt(b, t%r_eff_um)
+    call get_opt(b, t%ext_per_lwc)
+    call get_opt(b, t%ssa)
+    call get_opt(b, t%g)
+    call get_opt(b, t%angle_deg)
+    call get_opt(b, t%phase)
+  end subroutine mie_table_get
 
   !> The MCARaTS atmosphere and phase functions of a cloud input (empty for other formats).
   subroutine put_mcarats(b, a, p)

@@ -7,9 +7,9 @@
 !> reduction that serves them. Every input file is read on rank 0 and broadcast with one
 !> pack-and-broadcast (`bundle_t` of kumo_bundle), so that all ranks hold the same arrays or
 !> the same error, then built into the scene without MPI; a cloud file travels whole as a
-!> `cloud_input_t` (kumo_cloud_share). Two companions of a cloud file are still read by every
-!> rank, after rank 0: the Mie table rank 0 computes and caches (`cloud_on_ranks`) and the ice
-!> optics table, whose bytes are checked against rank 0's (`check_same_inputs`).
+!> `cloud_input_t`, its ice optics table as a `mie_table_t` (kumo_cloud_share). The one file
+!> other ranks still read is the Mie table of a cloud's water that rank 0 computes and keeps
+!> in the &kumo_cloud mie_cache while it builds its atmosphere first (`cloud_on_ranks`).
 module kumo_scene_setup
   use kumo_kinds, only: wp, dp, vp, i8
   use kumo_constants, only: DEG2RAD, PI
@@ -42,11 +42,12 @@ module kumo_scene_setup
   use kumo_vr, only: collision_forcing, ddis_phases, spiky_without_vr, SPIKY_PEAK, DDIS_CONE_DEG, &
                     absorption_estimator_code
   use kumo_scene, only: scene_t
-  use kumo_config, only: config_t, resolve_path, config_inputs, input_file_t, read_config
+  use kumo_config, only: config_t, resolve_path, read_config
   use kumo_cloud_input, only: cloud_input_t, cloud_request_t
-  use kumo_cloud_share, only: read_cloud_on_root
+  use kumo_cloud_share, only: read_cloud_on_root, mie_table_put, mie_table_get
+  use kumo_mie, only: mie_table_t
   use kumo_bundle, only: bundle_t
-  use kumo_cloud_scene, only: build_cloud_atmosphere, rayleigh_layers, cloud_temperature_t
+  use kumo_cloud_scene, only: build_cloud_atmosphere, rayleigh_layers, cloud_temperature_t, ice_table
   use kumo_spectral_cloud, only: spectral_cloud_t, spectral_cloud_init, spectral_cloud_band, &
                                  spectral_cloud_put
   use kumo_supervoxel, only: supervoxel_grid_t
@@ -57,8 +58,7 @@ module kumo_scene_setup
                          read_temperature_map
   use kumo_mcarats_files, only: mcarats_surface_t, read_mcarats_surface, mcarats_surface_npsfc, &
                                 mcarats_surface_brdf
-  use kumo_parallel, only: par_size, par_is_root, par_bcast_int, par_rank
-  use kumo_checkpoint, only: fingerprint_t, fingerprint_add_file
+  use kumo_parallel, only: par_is_root
   implicit none
   private
   public :: load_config, setup_scene, spectral_scene_t, spectral_set_gpoint
@@ -409,51 +409,7 @@ contains
           'exactly (exponential integrals), no photons traced; standard errors are 0'//new_line('a')
       end if
     end if
-    call check_same_inputs(cfg, error)
   end subroutine setup_scene
-
-  !> The one input that every rank still reads itself, the ice optics table of a cloud file
-  !> with ice (&kumo_cloud ice_optics_file, read by kumo_cloud_scene while it builds the
-  !> atmosphere), must be the same bytes as rank 0's: each rank hashes it and compares with
-  !> rank 0's hash, so that ranks never build different scenes from a file that changed during
-  !> the start or that they see differently. A rank that differs fails and names the file.
-  !> Every other input, the cloud file and its MCARaTS phase-function file included, is read by
-  !> rank 0 alone and broadcast (bundle_t), so it needs no check.
-  subroutine check_same_inputs(cfg, error)
-    type(config_t), intent(in) :: cfg
-    type(error_t), allocatable, intent(out) :: error
-    type(input_file_t), allocatable :: inputs(:)
-    type(fingerprint_t) :: fp
-    integer, allocatable :: mine(:), root(:)
-    integer :: i, n
-    character(len=:), allocatable :: path
-    integer(i8), parameter :: MASK31 = 2147483647_i8
-    if (par_size() == 1) return
-    path = ''
-    if (allocated(cfg%path)) path = cfg%path
-    inputs = config_inputs(cfg, path)
-    inputs = pack(inputs, [(inputs(i)%label == '&kumo_cloud ice_optics_file', i=1, size(inputs))])
-    if (size(inputs) == 0) return
-    do i = 1, size(inputs)
-      call fingerprint_add_file(fp, inputs(i)%label, inputs(i)%path)
-    end do
-    n = size(fp%hash)
-    allocate (mine(3*n))
-    ! each 64-bit hash as three pieces of at most 31 bits for the integer broadcast
-    mine(1:3*n:3) = int(iand(fp%hash, MASK31))
-    mine(2:3*n:3) = int(iand(shiftr(fp%hash, 31), MASK31))
-    mine(3:3*n:3) = int(iand(shiftr(fp%hash, 62), MASK31))
-    root = mine
-    call par_bcast_int(root)
-    do i = 1, n
-      if (any(mine(3*i - 2:3*i) /= root(3*i - 2:3*i))) then
-        call set_error(error, 'rank '//str(par_rank())//' read '//inputs(i)%label//' ('// &
-                       inputs(i)%path//') with other contents than rank 0: the file changed '// &
-                       'while the run started, or the ranks see different files')
-        return
-      end if
-    end do
-  end subroutine check_same_inputs
 
   !> Thermal emission: the Planck radiances of the levels, the surface and the top (from the
   !> temperatures and the spectral interval, or given), the emission table, and an isotropic
@@ -1399,8 +1355,9 @@ contains
   end subroutine read_scene_on_root
 
   !> The cloud's atmosphere on every rank. Rank 0 reads the cloud file (liquid water, then ice
-  !> water when the file has it) and every rank gets the fields (read_cloud_on_root); the
-  !> atmosphere is then built from them without MPI. Rank 0 builds first, so that a Mie table
+  !> water and the ice optics table when the file has ice) and every rank gets them
+  !> (read_cloud_on_root, mie_table_put/get); the atmosphere is then built from them without
+  !> MPI. Rank 0 builds first, so that a Mie table
   !> it computes is in the cache before the other ranks look for it; they then read it instead
   !> of computing it.
   subroutine cloud_on_ranks(cfg, ext1d, ssa1d, phase1d, phases, aopts, atm, notes, warnings, &
@@ -1415,9 +1372,10 @@ contains
     type(error_t), allocatable, intent(out) :: error
     !> thermal runs with a spectral interval: the cloud file's temperatures, if it has them
     type(cloud_temperature_t), intent(out) :: cloud_t
-    type(bundle_t) :: b
+    type(bundle_t) :: b, bi
     type(cloud_input_t) :: c, c_ice
     type(cloud_request_t) :: req
+    type(mie_table_t) :: ice
     logical :: want_t
     want_t = cfg%thermal%enabled .and. .not. allocated(cfg%thermal%planck_levels)
     req = cfg%cloud%req
@@ -1427,6 +1385,14 @@ contains
     if (c%has_ice) then
       call read_cloud_on_root(cfg%cloud%req, c_ice, error, part='ice')
       if (allocated(error)) return
+      ! the ice optics table, read on rank 0 and shared like the fields
+      if (par_is_root()) then
+        call ice_table(cfg%cloud, cfg%source%wavelength_um, ice, error)
+        if (.not. allocated(error)) call mie_table_put(bi, ice)
+      end if
+      call bi%share(error)
+      if (allocated(error)) return
+      call mie_table_get(bi, ice)
     end if
     if (par_is_root()) call build(error)
     call b%share(error)   ! rank 0's error, if any, on every rank
@@ -1439,12 +1405,12 @@ contains
         call build_cloud_atmosphere(cfg%cloud, c, c_ice, cfg%source%wavelength_um, &
                                     cfg%phase%n_table, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, &
                                     cfg%atm%k3d_bottom, ext1d, ssa1d, phase1d, phases, aopts, &
-                                    atm, notes, warnings, err, cloud_t)
+                                    atm, notes, warnings, err, cloud_t, ice_tab=ice)
       else
         call build_cloud_atmosphere(cfg%cloud, c, c_ice, cfg%source%wavelength_um, &
                                     cfg%phase%n_table, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, &
                                     cfg%atm%k3d_bottom, ext1d, ssa1d, phase1d, phases, aopts, &
-                                    atm, notes, warnings, err)
+                                    atm, notes, warnings, err, ice_tab=ice)
       end if
     end subroutine build
   end subroutine cloud_on_ranks

@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # SPDX-License-Identifier: BSD-3-Clause
 # A broadband run over a cloud file (the I3RC LES example of examples/broadband, fewer photons)
-# on 1 and on 2 ranks: the cloud's optics per band are made on rank 0 and shared, the fields are
-# read on every rank, and every batch must come out the same, bit for bit.
+# on 1 and on 2 ranks: the cloud's fields are read and its optics per band made on rank 0 and
+# shared, and every batch must come out the same, bit for bit.
 #
 #   broadband_ranks.sh KUMO NML MPIEXEC [MPIEXEC FLAGS...]
 set -euo pipefail

@@ -3,11 +3,13 @@
 !>
 !> namelists/reference.nml must read and validate, every value in it except the marked
 !> exceptions (nz, z_levels, the output file name) must equal the default in the code, and every
-!> variable of every namelist statement in src/io/kumo_config.F90 must be listed in it (inside
-!> its own group, in the code's group order) and have a row in its group's table in
-!> docs/namelist.md, whose default column must match the code for the scalar settings.
+!> variable of every namelist statement in the configuration's sources (src/io/kumo_config.F90
+!> and its modules of one group each, src/io/config/) must be listed in it (inside its own
+!> group, in the code's group order) and have a row in its group's table in docs/namelist.md,
+!> whose default column must match the code for the scalar settings.
 !>
-!> Command line: the paths of reference.nml, kumo_config.F90 and namelist.md, in that order.
+!> Command line: the paths of reference.nml, of the configuration's sources (in the order of
+!> their groups) and of namelist.md, in that order.
 module test_reference_nml_suite
   use kumo_kinds, only: wp, dp, i8
   use kumo_testing, only: error_t, unittest_t, new_unittest, check, check_close
@@ -29,6 +31,8 @@ module test_reference_nml_suite
                                                        'planck_surface']
 
   character(len=:), allocatable :: ref_path, config_src_path, doc_path
+  !> every source file of the configuration (config_src_path: their names, for messages)
+  character(len=4096), allocatable :: config_src_paths(:)
 
   !> Namelist variable names found in the code, with their group.
   type :: nml_var_t
@@ -39,9 +43,14 @@ module test_reference_nml_suite
 contains
 
   subroutine set_paths(ref, src, doc)
-    character(len=*), intent(in) :: ref, src, doc
+    character(len=*), intent(in) :: ref, src(:), doc
+    integer :: i
     ref_path = ref
-    config_src_path = src
+    config_src_paths = src
+    config_src_path = trim(src(1))
+    do i = 2, size(src)
+      config_src_path = config_src_path//', '//trim(src(i))
+    end do
     doc_path = doc
   end subroutine set_paths
 
@@ -448,17 +457,25 @@ contains
 
   ! --- text helpers ------------------------------------------------------------------------
 
-  !> Variables of every `namelist /group/ a, b, &` statement in kumo_config.F90, and the groups
-  !> in order as one blank-separated string.
+  !> Variables of every `namelist /group/ a, b, &` statement in the configuration's sources, and
+  !> the groups in order as one blank-separated string.
   subroutine namelist_vars(vars, groups, error)
     type(nml_var_t), allocatable, intent(out) :: vars(:)
     character(len=:), allocatable, intent(out) :: groups
     type(error_t), allocatable, intent(out) :: error
     character(len=LINE_LEN), allocatable :: lines(:)
+    character(len=LINE_LEN), allocatable :: more(:), both(:)
     character(len=:), allocatable :: s, group, list
     integer :: j, p, n_groups
-    call read_lines(config_src_path, lines, error)
-    if (allocated(error)) return
+    allocate (lines(0))
+    do j = 1, size(config_src_paths)
+      call read_lines(trim(config_src_paths(j)), more, error)
+      if (allocated(error)) return
+      allocate (both(size(lines) + size(more)))
+      both(1:size(lines)) = lines
+      both(size(lines) + 1:) = more
+      call move_alloc(both, lines)
+    end do
     allocate (vars(0))
     groups = ''
     n_groups = 0
@@ -601,18 +618,24 @@ program test_reference_nml
   use kumo_parallel, only: par_init, par_finalize
   use test_reference_nml_suite, only: collect_reference_nml, set_paths
   implicit none
-  integer :: n_failed
-  character(len=4096) :: ref, src, doc
+  integer :: n_failed, n, i
+  character(len=4096) :: ref, doc
+  character(len=4096), allocatable :: src(:)
   call par_init()
-  if (command_argument_count() /= 3) then
-    write (*, '(a)') 'usage: test_reference_nml REFERENCE.nml KUMO_CONFIG.F90 NAMELIST.md'
+  n = command_argument_count()
+  if (n < 3) then
+    write (*, '(a)') 'usage: test_reference_nml REFERENCE.nml KUMO_CONFIG.F90 [GROUP.F90 ...] '// &
+      'NAMELIST.md'
     call par_finalize()
     error stop 2
   end if
   call get_command_argument(1, ref)
-  call get_command_argument(2, src)
-  call get_command_argument(3, doc)
-  call set_paths(trim(ref), trim(src), trim(doc))
+  allocate (src(n - 2))
+  do i = 2, n - 1
+    call get_command_argument(i, src(i - 1))
+  end do
+  call get_command_argument(n, doc)
+  call set_paths(trim(ref), src, trim(doc))
   call run_unittests('reference_nml', collect_reference_nml(), n_failed)
   call par_finalize()
   if (n_failed > 0) error stop 1

@@ -504,6 +504,11 @@ contains
       text = text//'kumo_spectral.h2o_vmr = '//join(cfg%spectral%h2o_vmr)//nl
       if (allocated(cfg%spectral%o3_vmr)) text = text// &
         'kumo_spectral.o3_vmr = '//join(cfg%spectral%o3_vmr)//nl
+      if (allocated(cfg%spectral%gas_names)) then
+        if (size(cfg%spectral%gas_names) > 0) text = text// &
+          'kumo_spectral.gas_names = '//join(cfg%spectral%gas_names)//nl// &
+          'kumo_spectral.gas_vmr = '//join(cfg%spectral%gas_vmr)//nl
+      end if
     end if
     if (cfg%thermal%enabled) then
       text = text//'kumo_thermal.thermal = T'//nl

@@ -13,7 +13,7 @@
 module kumo_scene_setup
   use kumo_kinds, only: wp, dp, vp, i8
   use kumo_constants, only: DEG2RAD, PI
-  use kumo_error, only: error_t, set_error, add_context, str
+  use kumo_error, only: error_t, set_error, add_context, str, join
   use kumo_phase, only: phase_t, new_phase_isotropic, new_phase_rayleigh, new_phase_hg, &
                         phase_from_table, new_phase_rayleigh_depol, PHASE_ISOTROPIC, &
                         PHASE_RAYLEIGH, PHASE_HG, PHASE_TABLE
@@ -694,18 +694,32 @@ contains
         if (gas_index(kd, 'h2o') > 0) vmr(:, gas_index(kd, 'h2o')) = h2o
         if (allocated(cfg%spectral%o3_vmr) .and. gas_index(kd, 'o3') > 0) &
           vmr(:, gas_index(kd, 'o3')) = cfg%spectral%o3_vmr
-        if (kd%longwave) then
-          call spectral_lw_column(kd, plev, tlev, play, tlay, tsfc, vmr, col, error, &
-                                  emissivity=max(0.0_wp, min(1.0_wp, 1.0_wp - cfg%surface%albedo)))
-        else if (cfg%spectral%t_surface > 0.0_wp) then
-          call set_error(error, 't_surface = '//str(cfg%spectral%t_surface)//' K is for '// &
-                         'longwave k-distributions; '//cfg%spectral%kdist_path//' is a shortwave one')
-        else
-          call spectral_sw_column(kd, plev, play, tlay, vmr, mu0, col, error, tsi=cfg%spectral%tsi)
+        ! other gases at the constant mixing ratios of gas_names / gas_vmr
+        if (allocated(cfg%spectral%gas_names)) then
+          do k = 1, size(cfg%spectral%gas_names)
+            if (gas_index(kd, trim(cfg%spectral%gas_names(k))) == 0) then
+              call set_error(error, '&kumo_spectral: gas_names('//str(k)//') = "'// &
+                             trim(cfg%spectral%gas_names(k))//'" is not a gas of '// &
+                             cfg%spectral%kdist_path//'; its gases: '//join(kd%gas_names))
+              exit
+            end if
+            vmr(:, gas_index(kd, trim(cfg%spectral%gas_names(k)))) = cfg%spectral%gas_vmr(k)
+          end do
         end if
       end if
       if (allocated(error)) then
-        call add_context(error, '&kumo_spectral kdist_file')
+        continue                             ! the column is not made
+      else if (kd%longwave) then
+        call spectral_lw_column(kd, plev, tlev, play, tlay, tsfc, vmr, col, error, &
+                                emissivity=max(0.0_wp, min(1.0_wp, 1.0_wp - cfg%surface%albedo)))
+      else if (cfg%spectral%t_surface > 0.0_wp) then
+        call set_error(error, 't_surface = '//str(cfg%spectral%t_surface)//' K is for '// &
+                       'longwave k-distributions; '//cfg%spectral%kdist_path//' is a shortwave one')
+      else
+        call spectral_sw_column(kd, plev, play, tlay, vmr, mu0, col, error, tsi=cfg%spectral%tsi)
+      end if
+      if (allocated(error)) then
+        if (index(error%message, '&kumo_spectral') /= 1) call add_context(error, '&kumo_spectral kdist_file')
       else
         call b%put(kd%longwave)
         call b%put(col%gpt_band)

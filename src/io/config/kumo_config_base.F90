@@ -251,6 +251,10 @@ module kumo_config_base
     real(wp), allocatable :: t_layers(:)           !! (nz) layer temperature [K] (optional)
     real(wp), allocatable :: h2o_vmr(:)            !! (nz) water vapour [mol/mol of dry air]
     real(wp), allocatable :: o3_vmr(:)             !! (nz) ozone; not allocated: RCEMIP profile
+    !> other gases of the k-distribution at a constant volume mixing ratio [mol/mol of dry air],
+    !> instead of kumo's present-day defaults (e.g. 'co2' for a CO2 experiment)
+    character(len=16), allocatable :: gas_names(:)
+    real(wp), allocatable :: gas_vmr(:)
     real(wp) :: tsi = TSI_KOPP_LEAN                !! total solar irradiance [W m-2]
     real(wp) :: floor_share = 0.2_wp               !! share of photons spread evenly over g-points
     real(wp) :: t_surface = -1.0_wp                !! longwave: surface temperature [K] (< 0:

@@ -6,7 +6,7 @@
 module kumo_config_spectral
   use kumo_config_base
   use kumo_kinds, only: wp
-  use kumo_error, only: error_t, set_error, str
+  use kumo_error, only: error_t, set_error, str, to_lower
   use kumo_math, only: within
   use kumo_std_atmosphere, only: std_atmosphere_kind_from_name
   implicit none
@@ -29,6 +29,10 @@ contains
     real(wp) :: p_levels(MAX_LAYERS + 1), t_levels(MAX_LAYERS + 1), p_layers(MAX_LAYERS), &
                 t_layers(MAX_LAYERS), h2o_vmr(MAX_LAYERS), o3_vmr(MAX_LAYERS)
     real(wp) :: tsi, floor_share, t_surface
+    integer, parameter :: MAX_GASES = 32
+    character(len=16) :: gas_names(MAX_GASES)
+    real(wp) :: gas_vmr(MAX_GASES)
+    integer :: ng
     character(len=PATH_LEN) :: kdist_file, cloud_optics_file
     character(len=16) :: profile
     character(len=8) :: liquid_optics, ice_roughness
@@ -41,7 +45,7 @@ contains
     type(error_t), allocatable :: err
     namelist /kumo_spectral/ spectral, kdist_file, profile, p_levels, t_levels, p_layers, &
       t_layers, h2o_vmr, o3_vmr, tsi, floor_share, t_surface, liquid_optics, cloud_optics_file, &
-      ice_roughness, gas_state, gpoint
+      ice_roughness, gas_state, gpoint, gas_names, gas_vmr
     spectral = present
     kdist_file = cfg%kdist_file
     profile = cfg%profile
@@ -59,6 +63,8 @@ contains
     ice_roughness = cfg%ice_roughness
     gas_state = cfg%gas_state
     gpoint = cfg%gpoint
+    gas_names = ''
+    gas_vmr = UNSET
     rewind (unit)
     msg = ''
     read (unit, nml=kumo_spectral, iostat=ios, iomsg=msg)
@@ -144,6 +150,28 @@ contains
     cfg%ice_roughness = ice_roughness
     cfg%gas_state = gas_state
     cfg%gpoint = gpoint
+    ! other gases at constant mixing ratios: names without gaps, one value each
+    do i = 1, MAX_GASES
+      gas_names(i) = to_lower(gas_names(i))
+    end do
+    ng = count(gas_names /= '')
+    call require(all(gas_names(1:ng) /= '') .and. all(gas_names(ng + 1:) == ''), CTX, &
+                 'gas_names', rule='must be given without gaps from gas_names(1)', error=error)
+    call require(count(gas_vmr /= UNSET) == ng .and. all(gas_vmr(1:ng) /= UNSET), CTX, &
+                 'gas_vmr', rule='must give one value for each of the '//str(ng)// &
+                 ' gas_names, in the same order', error=error)
+    do i = 1, ng
+      call require(within(gas_vmr(i), 0.0_wp, 1.0_wp), CTX, 'gas_vmr('//str(i)//')', gas_vmr(i), &
+                   'must be a volume mixing ratio between 0 and 1 [mol/mol of dry air]', error)
+      call require(all(gas_names(i) /= [character(len=16) :: 'h2o', 'o3']), CTX, &
+                   'gas_names('//str(i)//')', gas_names(i), 'is given per layer by '// &
+                   trim(gas_names(i))//'_vmr, not as a constant', error)
+      call require(count(gas_names(1:ng) == gas_names(i)) == 1, CTX, &
+                   'gas_names('//str(i)//')', gas_names(i), 'is given twice', error)
+    end do
+    if (allocated(error)) return
+    cfg%gas_names = gas_names(1:ng)
+    cfg%gas_vmr = gas_vmr(1:ng)
     cfg%cloud_optics_file = cloud_optics_file
     if (len_trim(cloud_optics_file) > 0) cfg%cloud_optics_path = resolve_path(cloud_optics_file, &
                                                                              nml_path)

@@ -47,7 +47,7 @@ module kumo_cloud_scene
   implicit none
   private
   public :: build_cloud_atmosphere, rayleigh_layers, cloud_temperature_t, mie_layer, table_radii, &
-            ice_table
+            ice_table, water_table
 
   !> Temperatures of a cloud file for thermal emission, on the columns and layers of the 3-D
   !> region the file defines (voxel (ix, iy, k) is layer k3_lo + k - 1 of the atmosphere).
@@ -78,7 +78,7 @@ contains
   !> atmosphere.
   subroutine build_cloud_atmosphere(ccfg, c, c_ice, wavelength_um, n_table, z, lx, ly, k3_lo, &
                                     ext1d, ssa1d, iph1d, phases, aopts, atm, notes, warnings, &
-                                    error, temp, ice_tab)
+                                    error, temp, ice_tab, liq_tab, liq_action)
     type(cloud_cfg_t), intent(in) :: ccfg
     !> the file read with part = 'liquid' (with its temperatures when `temp` is wanted); its
     !> fields are freed as they are put into the atmosphere
@@ -100,6 +100,10 @@ contains
     type(cloud_temperature_t), intent(out), optional :: temp
     !> the ice optics table (ice_table) when the caller has read it; else it is read here
     type(mie_table_t), intent(in), optional :: ice_tab
+    !> the water Mie table (water_table) and how it was obtained, when the caller has it; else
+    !> it is made here (both or neither)
+    type(mie_table_t), intent(in), optional :: liq_tab
+    character(len=*), intent(in), optional :: liq_action
     type(mie_table_t) :: liq, ice
     type(phase_t), allocatable :: more(:)
     integer :: nplanes, nspecies, nneg, i, n_out_liq, n_out_ice, offset, offset_ice
@@ -122,8 +126,13 @@ contains
 
     select case (c%content)
     case (CLOUD_WATER, CLOUD_EXT_REFF)
-      call water_table(ccfg, wavelength_um, liq, action, error)
-      if (allocated(error)) return
+      if (present(liq_tab) .and. present(liq_action)) then
+        liq = liq_tab
+        action = liq_action
+      else
+        call water_table(ccfg, wavelength_um, liq, action, error)
+        if (allocated(error)) return
+      end if
       notes = notes//'Mie table of water, '//trim(ccfg%size_distribution)//' v_eff = '// &
               str(ccfg%v_eff)//', '//str(size(liq%r_eff_um))//' radii '// &
               str(liq%r_eff_um(1))//' ... '//str(liq%r_eff_um(size(liq%r_eff_um)))// &

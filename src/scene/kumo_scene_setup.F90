@@ -7,9 +7,9 @@
 !> reduction that serves them. Every input file is read on rank 0 and broadcast with one
 !> pack-and-broadcast (`bundle_t` of kumo_bundle), so that all ranks hold the same arrays or
 !> the same error, then built into the scene without MPI; a cloud file travels whole as a
-!> `cloud_input_t`, its ice optics table as a `mie_table_t` (kumo_cloud_share). The one file
-!> other ranks still read is the Mie table of a cloud's water that rank 0 computes and keeps
-!> in the &kumo_cloud mie_cache while it builds its atmosphere first (`cloud_on_ranks`).
+!> `cloud_input_t`, its ice optics table and its water Mie table (read from the &kumo_cloud
+!> mie_cache or computed, by rank 0 alone) as `mie_table_t`s (kumo_cloud_share): no other rank
+!> opens an input file.
 module kumo_scene_setup
   use kumo_kinds, only: wp, dp, vp, i8
   use kumo_constants, only: DEG2RAD, PI
@@ -43,11 +43,12 @@ module kumo_scene_setup
                     absorption_estimator_code
   use kumo_scene, only: scene_t
   use kumo_config, only: config_t, resolve_path, read_config
-  use kumo_cloud_input, only: cloud_input_t, cloud_request_t
+  use kumo_cloud_input, only: cloud_input_t, cloud_request_t, CLOUD_WATER, CLOUD_EXT_REFF
   use kumo_cloud_share, only: read_cloud_on_root, mie_table_put, mie_table_get
   use kumo_mie, only: mie_table_t
   use kumo_bundle, only: bundle_t
-  use kumo_cloud_scene, only: build_cloud_atmosphere, rayleigh_layers, cloud_temperature_t, ice_table
+  use kumo_cloud_scene, only: build_cloud_atmosphere, rayleigh_layers, cloud_temperature_t, ice_table, &
+                              water_table
   use kumo_spectral_cloud, only: spectral_cloud_t, spectral_cloud_init, spectral_cloud_band, &
                                  spectral_cloud_put
   use kumo_supervoxel, only: supervoxel_grid_t
@@ -1370,10 +1371,9 @@ contains
 
   !> The cloud's atmosphere on every rank. Rank 0 reads the cloud file (liquid water, then ice
   !> water and the ice optics table when the file has ice) and every rank gets them
-  !> (read_cloud_on_root, mie_table_put/get); the atmosphere is then built from them without
-  !> MPI. Rank 0 builds first, so that a Mie table
-  !> it computes is in the cache before the other ranks look for it; they then read it instead
-  !> of computing it.
+  !> (read_cloud_on_root, mie_table_put/get), and so does the water Mie table, which rank 0
+  !> alone reads from the cache or computes; the atmosphere is then built from them without
+  !> MPI, on rank 0 first so that its error, if any, is every rank's.
   subroutine cloud_on_ranks(cfg, ext1d, ssa1d, phase1d, phases, aopts, atm, notes, warnings, &
                             error, cloud_t)
     type(config_t), intent(in) :: cfg
@@ -1386,10 +1386,11 @@ contains
     type(error_t), allocatable, intent(out) :: error
     !> thermal runs with a spectral interval: the cloud file's temperatures, if it has them
     type(cloud_temperature_t), intent(out) :: cloud_t
-    type(bundle_t) :: b, bi
+    type(bundle_t) :: b, bi, bl
     type(cloud_input_t) :: c, c_ice
     type(cloud_request_t) :: req
-    type(mie_table_t) :: ice
+    type(mie_table_t) :: ice, liq
+    character(len=:), allocatable :: liq_action
     logical :: want_t
     want_t = cfg%thermal%enabled .and. .not. allocated(cfg%thermal%planck_levels)
     req = cfg%cloud%req
@@ -1408,6 +1409,22 @@ contains
       if (allocated(error)) return
       call mie_table_get(bi, ice)
     end if
+    if (c%content == CLOUD_WATER .or. c%content == CLOUD_EXT_REFF) then
+      ! the water Mie table, read from the cache or computed on rank 0 alone and shared
+      if (par_is_root()) then
+        call water_table(cfg%cloud, cfg%source%wavelength_um, liq, liq_action, error)
+        if (.not. allocated(error)) then
+          call bl%put(liq_action)
+          call mie_table_put(bl, liq)
+        end if
+      end if
+      call bl%share(error)
+      if (allocated(error)) return
+      call bl%get(liq_action)
+      call mie_table_get(bl, liq)
+    else
+      liq_action = ''
+    end if
     if (par_is_root()) call build(error)
     call b%share(error)   ! rank 0's error, if any, on every rank
     if (allocated(error) .or. par_is_root()) return
@@ -1419,12 +1436,14 @@ contains
         call build_cloud_atmosphere(cfg%cloud, c, c_ice, cfg%source%wavelength_um, &
                                     cfg%phase%n_table, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, &
                                     cfg%atm%k3d_bottom, ext1d, ssa1d, phase1d, phases, aopts, &
-                                    atm, notes, warnings, err, cloud_t, ice_tab=ice)
+                                    atm, notes, warnings, err, cloud_t, ice_tab=ice, &
+                                    liq_tab=liq, liq_action=liq_action)
       else
         call build_cloud_atmosphere(cfg%cloud, c, c_ice, cfg%source%wavelength_um, &
                                     cfg%phase%n_table, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, &
                                     cfg%atm%k3d_bottom, ext1d, ssa1d, phase1d, phases, aopts, &
-                                    atm, notes, warnings, err, ice_tab=ice)
+                                    atm, notes, warnings, err, ice_tab=ice, liq_tab=liq, &
+                                    liq_action=liq_action)
       end if
     end subroutine build
   end subroutine cloud_on_ranks

@@ -948,50 +948,24 @@ contains
     type(les_names_t), intent(in) :: names
     type(les_field_t), intent(inout) :: field
     type(error_t), allocatable, intent(out) :: error
-    integer :: p_id, xtype, ndims, iz
-    real(wp) :: factor, fill, missing
+    type(layer_var_t) :: v
+    integer :: p_id, iz
     real(wp), allocatable :: slab(:, :, :)
-    logical :: profile, per_air, has_missing, found
-    character(len=:), allocatable :: p_name, at, units
+    character(len=:), allocatable :: p_name
 
     call find_var(f, 'pressure', names%pressure, DEFAULT_PRESSURE, .true., p_id, p_name, error)
     if (allocated(error)) return
-    at = at_text(f, p_name)
-    call check_layout(f, p_id, p_name, .true., error, profile)
-    if (allocated(error)) return
-    call nc_check(nf90_inquire_variable(f%ncid, p_id, xtype=xtype, ndims=ndims), at, error)
-    if (allocated(error)) return
-    call real_var_attrs(f, p_id, p_name, xtype, QTY_PRESSURE, factor, per_air, fill, &
-                        has_missing, missing, error)
+    call open_layer_var(f, p_id, p_name, QTY_PRESSURE, .true., v, error)
     if (allocated(error)) return
     allocate (field%pressure_profile(f%n(3)))
-    if (profile) then
-      allocate (slab(1, 1, f%n(3)))
-      if (ndims == 2) then
-        call nc_check(nf90_get_var(f%ncid, p_id, slab, start=[1, f%itime], &
-                                   count=[f%n(3), 1]), at, error)
-      else
-        call nc_check(nf90_get_var(f%ncid, p_id, slab, start=[1], count=[f%n(3)]), at, error)
-      end if
+    do iz = 1, f%n(3)
+      call layer_values(f, v, iz, slab, error)
       if (allocated(error)) return
-      call check_values(f, at, slab, 0, fill, has_missing, missing, .true., error)
-      if (allocated(error)) return
-      field%pressure_profile = factor*slab(1, 1, :)
-    else
-      allocate (slab(f%n(1), f%n(2), 1))
-      do iz = 1, f%n(3)
-        call get_layer(f, p_id, iz, slab, at, error)
-        if (allocated(error)) return
-        call check_values(f, at, slab, iz - 1, fill, has_missing, missing, .true., error)
-        if (allocated(error)) return
-        field%pressure_profile(iz) = factor*sum(slab)/real(size(slab), wp)
-      end do
-      field%pressure_averaged = .true.
-    end if
-    call get_text_att(f, p_id, p_name, 'units', units, found, error)
-    if (allocated(error)) return
-    field%notes = field%notes//'"'//p_name//'" ['//units//']'
-    if (profile) then
+      field%pressure_profile(iz) = sum(slab)/real(size(slab), wp)
+    end do
+    field%pressure_averaged = .not. v%profile
+    field%notes = field%notes//'"'//p_name//'" ['//v%units//']'
+    if (v%profile) then
       field%notes = field%notes//' profile'
     else
       field%notes = field%notes//' 3-D, averaged over the columns of each layer'

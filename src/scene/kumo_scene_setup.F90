@@ -899,7 +899,6 @@ contains
     type(error_t), allocatable, intent(out) :: error
     type(cloud_input_t) :: c
     type(cloud_request_t) :: req
-    real(wp), allocatable :: tp(:), pp(:), qp(:)
     character(len=:), allocatable :: notes, what
     logical :: has_t, has_p, has_q
     real(wp) :: fb, ft
@@ -924,9 +923,6 @@ contains
     has_t = allocated(c%t_profile)
     has_p = allocated(c%pressure)
     has_q = allocated(c%h2o_profile)
-    if (has_t) tp = c%t_profile
-    if (has_p) pp = c%pressure
-    if (has_q) qp = c%h2o_profile
     kb = cfg%atm%k3d_bottom
     kt = kb + n - 1
     if (kb < 1 .or. kt > size(play)) then
@@ -940,8 +936,8 @@ contains
       return
     end if
     ! an unallocated profile is an absent argument (Fortran 2008)
-    call gas_state_merge(z, kb, plev, play, tlev, tlay, h2o, error, p_file=pp, t_file=tp, &
-                         h2o_file=qp, f_below=fb, f_above=ft)
+    call gas_state_merge(z, kb, n, plev, play, tlev, tlay, h2o, error, p_file=c%pressure, &
+                         t_file=c%t_profile, h2o_file=c%h2o_profile, f_below=fb, f_above=ft)
     if (allocated(error)) then
       call add_context(error, '&kumo_spectral gas_state = ''cloud_file'' ('// &
                        cfg%cloud%req%path//')')

@@ -28,43 +28,33 @@ module kumo_gas_state
 
 contains
 
-  !> Put the state of the file's layers kb..kb + n - 1 into the column (levels z(0:nz) [m],
+  !> Put the state of the file's n layers kb..kb + n - 1 into the column (levels z(0:nz) [m],
   !> level pressures plev(0:nz) [Pa] and temperatures tlev(0:nz) [K], layer pressures play,
   !> temperatures tlay and water-vapour mixing ratios h2o (nz)). Each of `p_file`, `t_file`,
-  !> `h2o_file` (n values, bottom first) is optional; those given must have the same length.
+  !> `h2o_file` (n values, bottom first) is optional.
   !> `f_below` and `f_above` return the factors applied to the profile's pressures below and
   !> above the file (1 without `p_file`).
-  subroutine gas_state_merge(z, kb, plev, play, tlev, tlay, h2o, error, p_file, t_file, &
+  subroutine gas_state_merge(z, kb, n, plev, play, tlev, tlay, h2o, error, p_file, t_file, &
                              h2o_file, f_below, f_above)
     real(wp), intent(in) :: z(0:)
-    integer, intent(in) :: kb
+    integer, intent(in) :: kb, n
     real(wp), intent(inout) :: plev(0:), play(:), tlev(0:), tlay(:), h2o(:)
     type(error_t), allocatable, intent(out) :: error
     real(wp), intent(in), optional :: p_file(:), t_file(:), h2o_file(:)
     real(wp), intent(out), optional :: f_below, f_above
     real(wp), allocatable :: zm(:), pnew(:)
     real(wp) :: fb, ft, w
-    integer :: nz, n, kt, k
+    integer :: nz, kt, k
 
     fb = 1.0_wp
     ft = 1.0_wp
     if (present(f_below)) f_below = fb
     if (present(f_above)) f_above = ft
     nz = size(play)
-    n = -1
-    if (present(p_file)) n = size(p_file)
-    if (present(t_file)) then
-      if (n >= 0 .and. size(t_file) /= n) n = -2
-      if (n == -1) n = size(t_file)
-    end if
-    if (present(h2o_file)) then
-      if (n >= 0 .and. size(h2o_file) /= n) n = -2
-      if (n == -1) n = size(h2o_file)
-    end if
-    if (n == -1) return
     kt = kb + n - 1
     if (n < 1 .or. kb < 1 .or. kt > nz .or. size(z) /= nz + 1 .or. size(plev) /= nz + 1 .or. &
-        size(tlev) /= nz + 1 .or. size(tlay) /= nz .or. size(h2o) /= nz) then
+        size(tlev) /= nz + 1 .or. size(tlay) /= nz .or. size(h2o) /= nz .or. &
+        .not. (fits(p_file) .and. fits(t_file) .and. fits(h2o_file))) then
       call set_error(error, 'gas_state_merge: the file''s layers ('//str(max(n, 0))// &
                      ' from layer '//str(kb)//', profiles of the same length) must lie within '// &
                      'the column''s '//str(nz)//' layers')
@@ -73,21 +63,13 @@ contains
     zm = 0.5_wp*(z(0:nz - 1) + z(1:nz))
 
     if (present(h2o_file)) then
-      if (any(.not. (h2o_file >= 0.0_wp))) then
-        call set_error(error, 'the water vapour of the cloud file is negative or not a number '// &
-                       'in layer '//str(kb - 1 + findloc(.not. (h2o_file >= 0.0_wp), .true., 1))// &
-                       ' of the column')
+      if (bad(h2o_file >= 0.0_wp, 'water vapour of the cloud file is negative or not a number')) &
         return
-      end if
       h2o(kb:kt) = h2o_file
     end if
 
     if (present(t_file)) then
-      if (any(.not. (t_file > 0.0_wp))) then
-        call set_error(error, 'the temperature of the cloud file is not positive in layer '// &
-                       str(kb - 1 + findloc(.not. (t_file > 0.0_wp), .true., 1))//' of the column')
-        return
-      end if
+      if (bad(t_file > 0.0_wp, 'temperature of the cloud file is not positive')) return
       tlay(kb:kt) = t_file
       do k = kb - 1, kt
         tlev(k) = between(k)
@@ -101,11 +83,7 @@ contains
     end if
 
     if (present(p_file)) then
-      if (any(.not. (p_file > 0.0_wp))) then
-        call set_error(error, 'the pressure of the cloud file is not positive in layer '// &
-                       str(kb - 1 + findloc(.not. (p_file > 0.0_wp), .true., 1))//' of the column')
-        return
-      end if
+      if (bad(p_file > 0.0_wp, 'pressure of the cloud file is not positive')) return
       allocate (pnew(kb - 1:kt))
       pnew(kb - 1) = p_file(1)*plev(kb - 1)/play(kb)
       pnew(kt) = p_file(n)*plev(kt)/play(kt)
@@ -142,6 +120,22 @@ contains
     end if
 
   contains
+
+    !> A profile of the file, when given, has n values.
+    logical function fits(x)
+      real(wp), intent(in), optional :: x(:)
+      fits = .true.
+      if (present(x)) fits = size(x) == n
+    end function fits
+
+    !> False when every value is `ok`; else the error names the first layer that is not.
+    logical function bad(ok, what)
+      logical, intent(in) :: ok(:)
+      character(len=*), intent(in) :: what
+      bad = .not. all(ok)
+      if (bad) call set_error(error, 'the '//what//' in layer '// &
+                              str(kb - 1 + findloc(ok, .false., 1))//' of the column')
+    end function bad
 
     !> Level k from the layer temperatures: linear in height between the midpoints of layers k
     !> and k + 1, or from the two nearest layers at the ends of the column.

@@ -53,7 +53,7 @@ contains
     call column(z, plev, play, tlev, tlay, h2o)
     plev0 = plev
     play0 = play
-    call gas_state_merge(z, KB, plev, play, tlev, tlay, h2o, error, &
+    call gas_state_merge(z, KB, NF, plev, play, tlev, tlay, h2o, error, &
                          p_file=1.02_wp*play0(KB:KB + NF - 1), f_below=fb, f_above=ft)
     if (allocated(error)) return
     do k = 0, NZ
@@ -77,7 +77,7 @@ contains
     tlev0 = tlev
     tlay0 = tlay
     plev0 = plev
-    call gas_state_merge(z, KB, plev, play, tlev, tlay, h2o, error, t_file=tlay0(KB:KB + NF - 1))
+    call gas_state_merge(z, KB, NF, plev, play, tlev, tlay, h2o, error, t_file=tlay0(KB:KB + NF - 1))
     if (allocated(error)) return
     do k = 0, NZ
       call check_close(error, tlev(k), tlev0(k), rel_tol=1.0e-13_wp, label='unshifted level '//str(k))
@@ -86,7 +86,7 @@ contains
     ! shifted by 2 K: levels KB..KB+NF-2 (inside) by 2 K, levels KB-1 and KB+NF-1 by 1 K
     tlay = tlay0
     tlev = tlev0
-    call gas_state_merge(z, KB, plev, play, tlev, tlay, h2o, error, &
+    call gas_state_merge(z, KB, NF, plev, play, tlev, tlay, h2o, error, &
                          t_file=tlay0(KB:KB + NF - 1) + 2.0_wp)
     if (allocated(error)) return
     do k = 0, NZ
@@ -108,7 +108,7 @@ contains
     real(wp) :: z(0:NZ), plev(0:NZ), play(NZ), tlev(0:NZ), tlay(NZ), h2o(NZ), h0(NZ)
     call column(z, plev, play, tlev, tlay, h2o)
     h0 = h2o
-    call gas_state_merge(z, KB, plev, play, tlev, tlay, h2o, error, &
+    call gas_state_merge(z, KB, NF, plev, play, tlev, tlay, h2o, error, &
                          h2o_file=[0.02_wp, 0.03_wp, 0.04_wp])
     if (allocated(error)) return
     call check(error, all(h2o(KB:KB + NF - 1) == [0.02_wp, 0.03_wp, 0.04_wp]) .and. &
@@ -121,7 +121,7 @@ contains
     real(wp) :: z(0:NZ), plev(0:NZ), play(NZ), tlev(0:NZ), tlay(NZ), h2o(NZ)
     type(error_t), allocatable :: err
     call column(z, plev, play, tlev, tlay, h2o)
-    call gas_state_merge(z, KB, plev, play, tlev, tlay, h2o, err, &
+    call gas_state_merge(z, KB, NF, plev, play, tlev, tlay, h2o, err, &
                          p_file=[play(KB), 1.1_wp*play(KB), play(KB + 2)])
     call check_error_words(error, err, [character(len=32) :: 'with the cloud file''s pressure', &
                                                  ' Pa'])

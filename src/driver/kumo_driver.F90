@@ -5,7 +5,8 @@
 !> it directly. `run_case` is what the program does: read the namelist, check that the output
 !> can be written, simulate, log and write the netCDF file. The scene is built by
 !> kumo_scene_setup, the photons are traced by kumo_transport, the products are laid out by
-!> kumo_output.
+!> kumo_output; checkpoints are written and read by kumo_checkpoint, and the small services of
+!> a run (namelist text, shared errors, test hooks) are in kumo_run_util.
 module kumo_driver
   use, intrinsic :: iso_fortran_env, only: output_unit, error_unit
   use kumo_kinds, only: wp, dp, i8

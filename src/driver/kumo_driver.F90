@@ -14,7 +14,7 @@ module kumo_driver
   use kumo_error, only: error_t, str
   use kumo_rng, only: rng_t, rng_init
   use kumo_tally, only: tally_layout_t, tally_t, stats_t, layout_init, tally_reset, stats_init, &
-                        stats_add_batch, N_ANOMALIES
+                        stats_add_batch, batch_budget, N_ANOMALIES
   use kumo_scene, only: scene_t
   use kumo_transport, only: trace_batch
   use kumo_exact_column, only: exact_thermal_possible, exact_thermal_batch
@@ -238,9 +238,7 @@ contains
             call trace_batch(scene, lay, rng, nphot, tal)
           end if
           call stats_add_batch(slot(s), lay, tal, nphot)
-          rec(1, ib) = tal%buf(lay%i_up + lay%nz + 1)/real(nphot, dp)
-          rec(2, ib) = (tal%buf(lay%i_dir + 1) + tal%buf(lay%i_dif + 1))/real(nphot, dp)
-          rec(3, ib) = sum(tal%buf(lay%i_abs + 1:lay%i_abs + lay%nz))/real(nphot, dp)
+          rec(:, ib) = batch_budget(lay, tal)/real(nphot, dp)
           if (pg%on) call report_progress(pg, cfg, ib, ib_last)
         end if
         ! checkpoints: rank 0 decides at the same batches on every rank (all batches up to ib

@@ -16,7 +16,7 @@ module kumo_tally
   implicit none
   private
   public :: tally_layout_t, tally_t, stats_t, layout_init, tally_reset, stats_init, &
-            stats_add_batch, stats_mean, stats_stderr
+            stats_add_batch, stats_mean, stats_stderr, batch_budget
   public :: score_flux, score_flux_map, score_layer_abs, score_voxel_abs, score_surface_abs, &
             score_roulette, score_lost, score_source, score_net_layer, score_net_surface, &
             score_net_voxel, score_radiance, score_radiance_map, score_camera
@@ -306,6 +306,17 @@ contains
     st%anomalies = st%anomalies + tal%anomalies
     st%work = st%work + tal%work
   end subroutine stats_add_batch
+
+  !> The energy budget of one batch's tally, summed over its photons: reflected (up at the top),
+  !> transmitted (down at the surface, direct + diffuse) and absorbed in the atmosphere.
+  pure function batch_budget(lay, tal) result(b)
+    type(tally_layout_t), intent(in) :: lay
+    type(tally_t), intent(in) :: tal
+    real(dp) :: b(3)
+    b(1) = tal%buf(lay%i_up + lay%nz + 1)
+    b(2) = tal%buf(lay%i_dir + 1) + tal%buf(lay%i_dif + 1)
+    b(3) = sum(tal%buf(lay%i_abs + 1:lay%i_abs + lay%nz))
+  end function batch_budget
 
   !> Mean over batches of entries lo..hi (1-based buffer positions).
   pure function stats_mean(st, lo, hi) result(m)

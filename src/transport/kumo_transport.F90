@@ -8,7 +8,8 @@
 !> scatters (`scatter`: truncation, local estimates, roulette, a new direction, DDIS); fluxes
 !> are scored where photons cross levels (method I of the seed text, section 3.8.2), absorption
 !> where it happens, each through its named procedure of kumo_tally (`score_flux`,
-!> `score_layer_abs`, ...), which alone knows the buffer layout. Variance-reduction settings come from kumo_vr, the scene from kumo_scene.
+!> `score_layer_abs`, ...), which alone knows the buffer layout. Variance-reduction settings
+!> come from kumo_vr, the scene from kumo_scene.
 !>
 !> Per layer class (see kumo_atmosphere): clear layers are crossed in one step, purely absorbing
 !> layers multiply the weight by exp(-tau) along the path and deposit the difference, uniform

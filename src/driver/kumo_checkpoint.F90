@@ -7,8 +7,12 @@
 !> closed without error, so a job killed while writing leaves the last complete checkpoint. It
 !> holds the configuration's fingerprint, the run's progress (batches done, the start of the
 !> current round), the per-batch records, and for every batch slot (the rank that ran the batch
-!> in the job that started the case) its sums S1, S2 and counts. The driver (kumo_driver)
-!> decides when to write and moves the slots between ranks; this module reads and writes files.
+!> in the job that started the case) its sums S1, S2 and counts.
+!>
+!> The file format (ckpt_create ... ckpt_remove) is rank 0's alone. The run-level part
+!> (checkpoint_plan_t, checkpoint_due, write_checkpoint, resume_run, early_checkpoint_check,
+!> checkpoint_fingerprint) is collective where it says so: it moves the slots between the ranks
+!> and rank 0 and shares rank 0's decisions. The driver (kumo_driver) decides when to call it.
 !>
 !> The fingerprint is a list of (label, hash) items: the namelist text, the content of every
 !> input file the configuration names, and the kumo build (version, compiler and options). A
@@ -16,17 +20,25 @@
 !> pair of polynomial hashes of the bytes modulo the primes 2^31 - 1 and 2^31 - 19 (62 bits):
 !> it detects changed files, it is not a cryptographic digest.
 module kumo_checkpoint
-  use, intrinsic :: iso_fortran_env, only: compiler_version, compiler_options, int32, int64
+  use, intrinsic :: iso_fortran_env, only: compiler_version, compiler_options, int32, int64, &
+                                          output_unit, error_unit
   use, intrinsic :: iso_c_binding, only: c_null_char, c_int
   use kumo_kinds, only: dp, i8
   use kumo_constants, only: KUMO_VERSION
   use kumo_error, only: error_t, set_error, str
   use kumo_netcdf, only: c_rename, c_remove
+  use kumo_tally, only: tally_layout_t, stats_t, stats_init, N_ANOMALIES
+  use kumo_config, only: config_t, input_file_t, config_inputs
+  use kumo_parallel, only: par_rank, par_size, par_is_root, par_sum_to_root, par_wtime, &
+                           par_bcast_int, par_move
+  use kumo_run_util, only: share_error
   implicit none
   private
   public :: fingerprint_t, ckpt_header_t, fingerprint_add_text, fingerprint_add_file, &
             fingerprint_add_build, ckpt_create, ckpt_put_slot, ckpt_commit, ckpt_open, &
             ckpt_get_slot, ckpt_close, ckpt_remove, text_hash, CKPT_SUFFIX
+  public :: checkpoint_plan_t, checkpoint_due, write_checkpoint, resume_run, &
+            early_checkpoint_check, checkpoint_fingerprint
 
   character(len=*), parameter :: CKPT_SUFFIX = '.ckpt'  !! appended to the output file name
   character(len=*), parameter :: TMP_SUFFIX = '.tmp'
@@ -52,6 +64,14 @@ module kumo_checkpoint
     integer :: n_counts = 0      !! counts per slot (batches, photons, work, anomalies)
     real(dp) :: cpu = 0.0_dp     !! CPU time spent so far, over all ranks [s]
   end type ckpt_header_t
+
+  !> Checkpoints of a run (run_case sets it up from the configuration and the command line).
+  type :: checkpoint_plan_t
+    character(len=:), allocatable :: path   !! the checkpoint file, <output>.ckpt
+    real(dp) :: interval = 0.0_dp           !! [s] between checkpoints; 0: none
+    logical :: resume = .false.             !! continue from `path` if it exists
+    type(fingerprint_t) :: fp               !! what the checkpoint belongs to (rank 0)
+  end type checkpoint_plan_t
 
 contains
 
@@ -368,5 +388,180 @@ contains
     integer(c_int) :: status
     status = c_remove(path//c_null_char)
   end subroutine remove_file
+
+  !> Rank 0 decides whether a checkpoint is due (`interval` seconds after the last one); every
+  !> rank gets the decision.
+  logical function checkpoint_due(plan, t_last) result(due)
+    type(checkpoint_plan_t), intent(in) :: plan
+    real(dp), intent(in) :: t_last
+    integer :: flag(1)
+    flag = 0
+    if (par_is_root()) then
+      if (par_wtime() - t_last >= plan%interval) flag = 1
+    end if
+    call par_bcast_int(flag)
+    due = flag(1) == 1
+  end function checkpoint_due
+
+  !> Write the checkpoint after batch `n_done` (every batch up to it is done on every rank),
+  !> in the round that began with batch `ib_round`. Collective: the slots travel to rank 0,
+  !> which writes them one by one. A checkpoint that cannot be written is a warning: the run
+  !> goes on (the previous checkpoint, if any, stays).
+  subroutine write_checkpoint(plan, cfg, lay, slot, n_slots, ib_round, n_done, rec, cpu_rank)
+    type(checkpoint_plan_t), intent(in) :: plan
+    type(config_t), intent(in) :: cfg
+    type(tally_layout_t), intent(in) :: lay
+    integer, intent(in) :: n_slots, ib_round, n_done
+    type(stats_t), intent(in) :: slot(0:n_slots - 1)
+    real(dp), intent(in) :: rec(:, :)
+    real(dp), intent(in) :: cpu_rank   !! this rank's CPU time so far (rank 0: and before)
+    type(error_t), allocatable :: err
+    type(ckpt_header_t) :: head
+    real(dp), allocatable :: flat(:), x1(:), x2(:)
+    integer(i8) :: cnt(4 + N_ANOMALIES)
+    integer :: s, owner, rank, nranks, unit
+    rank = par_rank()
+    nranks = par_size()
+    flat = [reshape(rec(:, 1:n_done), [3*n_done]), cpu_rank]
+    call par_sum_to_root(flat)   ! each record is non-zero on one rank only: the sum is exact
+    allocate (x1(lay%n), x2(lay%n))
+    if (rank == 0) then
+      head%n_slots = n_slots
+      head%ib_round = ib_round
+      head%n_done = n_done
+      head%n_values = lay%n
+      head%n_counts = size(cnt)
+      head%cpu = flat(size(flat))
+      call ckpt_create(plan%path, plan%fp, head, reshape(flat(1:3*n_done), [3, n_done]), unit, &
+                       err)
+    end if
+    do s = 0, n_slots - 1
+      owner = mod(s, nranks)
+      if (rank == owner) then
+        cnt = [slot(s)%n_batches, slot(s)%n_photons, slot(s)%work, slot(s)%anomalies]
+        x1 = slot(s)%s1
+        x2 = slot(s)%s2
+      end if
+      call par_move(cnt, owner, 0)
+      call par_move(x1, owner, 0)
+      call par_move(x2, owner, 0)
+      if (rank == 0) call ckpt_put_slot(unit, plan%path, cnt, x1, x2, err)
+    end do
+    if (rank /= 0) return
+    call ckpt_commit(unit, plan%path, err)
+    if (allocated(err)) then
+      write (error_unit, '(a)') 'kumo: warning: no checkpoint after batch '//str(n_done)// &
+        ' (the run goes on): '//err%message
+    else if (cfg%control%verbose >= 1) then
+      write (error_unit, '(a)') 'kumo: checkpoint after batch '//str(n_done)//': '//plan%path
+    end if
+    flush (error_unit)
+  end subroutine write_checkpoint
+
+  !> Continue from the checkpoint `plan%path` if it exists (else start from the first batch):
+  !> rank 0 reads it and checks it against the configuration's fingerprint; every slot goes to
+  !> the rank that runs it. Returns the slot count, the first batch of the round in progress,
+  !> the batches done, their records and the CPU time before (rank 0) and the slots' sums.
+  subroutine resume_run(plan, cfg, lay, n_slots, ib_next, n_done, rec, cpu_before, slot, error)
+    type(checkpoint_plan_t), intent(in) :: plan
+    type(config_t), intent(in) :: cfg
+    type(tally_layout_t), intent(in) :: lay
+    integer, intent(out) :: n_slots, ib_next, n_done
+    real(dp), allocatable, intent(inout) :: rec(:, :)
+    real(dp), intent(out) :: cpu_before
+    type(stats_t), allocatable, intent(out) :: slot(:)
+    type(error_t), allocatable, intent(out) :: error
+    type(ckpt_header_t) :: head
+    real(dp), allocatable :: x1(:), x2(:)
+    integer(i8) :: cnt(4 + N_ANOMALIES)
+    integer :: info(4), s, owner, rank, nranks, unit
+    logical :: exists
+    rank = par_rank()
+    nranks = par_size()
+    cpu_before = 0.0_dp
+    info = 0
+    if (rank == 0) then
+      inquire (file=plan%path, exist=exists)
+      if (exists) then
+        call ckpt_open(plan%path, plan%fp, lay%n, size(cnt), head, rec, unit, error)
+        info = [1, head%n_slots, head%ib_round, head%n_done]
+      end if
+    end if
+    call share_error(error)
+    if (allocated(error)) return
+    call par_bcast_int(info)
+    n_slots = par_size()
+    ib_next = 1
+    n_done = 0
+    if (info(1) == 0) then
+      if (rank == 0 .and. cfg%control%verbose >= 1) write (output_unit, '(a)') &
+        'no checkpoint '//plan%path//': the run starts from the first batch'
+      return
+    end if
+    n_slots = info(2)
+    ib_next = info(3)
+    n_done = info(4)
+    if (rank == 0) cpu_before = head%cpu
+    allocate (slot(0:n_slots - 1), x1(lay%n), x2(lay%n))
+    do s = 0, n_slots - 1
+      owner = mod(s, nranks)
+      if (rank == 0) call ckpt_get_slot(unit, plan%path, cnt, x1, x2, error)
+      call par_move(cnt, 0, owner)
+      call par_move(x1, 0, owner)
+      call par_move(x2, 0, owner)
+      if (rank == owner) then
+        call stats_init(slot(s), lay)
+        slot(s)%n_batches = cnt(1)
+        slot(s)%n_photons = cnt(2)
+        slot(s)%work = cnt(3:4)
+        slot(s)%anomalies = cnt(5:)
+        slot(s)%s1 = x1
+        slot(s)%s2 = x2
+      end if
+    end do
+    if (rank == 0) call ckpt_close(unit, plan%path, error)
+    call share_error(error)
+    if (allocated(error)) return
+    if (rank == 0 .and. cfg%control%verbose >= 1) write (output_unit, '(a)') &
+      'resuming from the checkpoint '//plan%path//': batches 1 to '//str(n_done)// &
+      ' are done; the results will be those of an uninterrupted run on '//str(n_slots)// &
+      ' rank'//trim(merge('s', ' ', n_slots > 1))//', the rank count that started the case'
+  end subroutine resume_run
+
+  !> Before any work (rank 0): with --resume, a checkpoint of another configuration is refused
+  !> at once; without it, an existing checkpoint that this run will replace is mentioned.
+  subroutine early_checkpoint_check(plan, cfg, error)
+    type(checkpoint_plan_t), intent(in) :: plan
+    type(config_t), intent(in) :: cfg
+    type(error_t), allocatable, intent(out) :: error
+    type(ckpt_header_t) :: head
+    real(dp), allocatable :: rec(:, :)
+    integer :: unit
+    logical :: exists
+    inquire (file=plan%path, exist=exists)
+    if (.not. exists) return
+    if (plan%resume) then
+      call ckpt_open(plan%path, plan%fp, -1, -1, head, rec, unit, error)
+    else if (plan%interval > 0.0_dp .and. cfg%control%verbose >= 1) then
+      write (output_unit, '(a)') 'note: the checkpoint '//plan%path//' of an earlier run is '// &
+        'replaced: this run starts from the first batch (kumo --resume continues from it)'
+    end if
+  end subroutine early_checkpoint_check
+
+  !> What a checkpoint of this run belongs to: the namelist text, the content of every input
+  !> file it names, the kumo build.
+  subroutine checkpoint_fingerprint(cfg, path, text, fp)
+    type(config_t), intent(in) :: cfg
+    character(len=*), intent(in) :: path, text
+    type(fingerprint_t), intent(out) :: fp
+    type(input_file_t), allocatable :: inputs(:)
+    integer :: i
+    call fingerprint_add_text(fp, 'the namelist text', text)
+    inputs = config_inputs(cfg, path)
+    do i = 2, size(inputs)   ! the namelist itself is its text
+      call fingerprint_add_file(fp, 'the input file '//inputs(i)%label, inputs(i)%path)
+    end do
+    call fingerprint_add_build(fp)
+  end subroutine checkpoint_fingerprint
 
 end module kumo_checkpoint

@@ -5,29 +5,29 @@
 !> it directly. `run_case` is what the program does: read the namelist, check that the output
 !> can be written, simulate, log and write the netCDF file. The scene is built by
 !> kumo_scene_setup, the photons are traced by kumo_transport, the products are laid out by
-!> kumo_output.
+!> kumo_output; checkpoints are written and read by kumo_checkpoint, and the small services of
+!> a run (namelist text, shared errors, test hooks) are in kumo_run_util.
 module kumo_driver
   use, intrinsic :: iso_fortran_env, only: output_unit, error_unit
-  use, intrinsic :: iso_c_binding, only: c_int
   use kumo_kinds, only: wp, dp, i8
   use kumo_constants, only: KUMO_VERSION
-  use kumo_error, only: error_t, set_error, str
+  use kumo_error, only: error_t, str
   use kumo_rng, only: rng_t, rng_init
   use kumo_tally, only: tally_layout_t, tally_t, stats_t, layout_init, tally_reset, stats_init, &
-                        stats_add_batch, N_ANOMALIES
+                        stats_add_batch, batch_budget, N_ANOMALIES
   use kumo_scene, only: scene_t
   use kumo_transport, only: trace_batch
   use kumo_exact_column, only: exact_thermal_possible, exact_thermal_batch
   use kumo_results, only: result_set_t, add_attr
-  use kumo_config, only: config_t, config_echo, input_file_t, config_inputs
-  use kumo_textio, only: read_line, same_file
+  use kumo_config, only: config_t, config_echo
   use kumo_netcdf, only: write_results, check_writable
   use kumo_parallel, only: par_rank, par_size, par_is_root, par_sum_to_root, par_allreduce_sum, &
-                           par_wtime, par_bcast_int, par_bcast_text, par_move
-  use kumo_checkpoint, only: fingerprint_t, ckpt_header_t, fingerprint_add_text, &
-                             fingerprint_add_file, fingerprint_add_build, ckpt_create, &
-                             ckpt_put_slot, ckpt_commit, ckpt_open, ckpt_get_slot, ckpt_close, &
-                             ckpt_remove, CKPT_SUFFIX
+                           par_wtime, par_bcast_text, par_move
+  use kumo_checkpoint, only: checkpoint_plan_t, checkpoint_due, write_checkpoint, resume_run, &
+                             early_checkpoint_check, checkpoint_fingerprint, ckpt_remove, &
+                             CKPT_SUFFIX
+  use kumo_run_util, only: share_error, read_text, trim_lines, refuse_input_as_output, &
+                           relative_error, test_failure_hook, env_int, kill_self
   use kumo_scene_setup, only: load_config, setup_scene, spectral_scene_t, spectral_set_gpoint
   use kumo_spectral, only: spectral_begin_batch
   use kumo_output, only: run_summary_t, build_results, log_summary
@@ -46,27 +46,6 @@ module kumo_driver
     real(dp) :: rel = -1.0_dp        !! relative error of the target after the last round
     integer :: n0 = 0                !! batches done before this run (resumed from a checkpoint)
   end type progress_t
-
-  !> Checkpoints of a run (run_case sets it up from the configuration and the command line).
-  type :: checkpoint_plan_t
-    character(len=:), allocatable :: path   !! the checkpoint file, <output>.ckpt
-    real(dp) :: interval = 0.0_dp           !! [s] between checkpoints; 0: none
-    logical :: resume = .false.             !! continue from `path` if it exists
-    type(fingerprint_t) :: fp               !! what the checkpoint belongs to (rank 0)
-  end type checkpoint_plan_t
-
-  !> Signal number of SIGKILL (POSIX), for the test hook KUMO_TEST_KILL_AFTER_CHECKPOINT.
-  integer(c_int), parameter :: SIGKILL = 9_c_int
-
-  interface
-    !> C `raise` (signal.h): send a signal to this process.
-    function c_raise(sig) bind(c, name='raise') result(status)
-      import :: c_int
-      implicit none
-      integer(c_int), value, intent(in) :: sig
-      integer(c_int) :: status
-    end function c_raise
-  end interface
 
 contains
 
@@ -100,7 +79,7 @@ contains
     plan%interval = cfg%control%checkpoint_interval
     if (present(resume)) plan%resume = resume
     if (par_is_root() .and. (plan%interval > 0.0_dp .or. plan%resume)) then
-      call fingerprint(cfg, path, raw_text, plan%fp)
+      call checkpoint_fingerprint(cfg, path, raw_text, plan%fp)
       call early_checkpoint_check(plan, cfg, error)
     end if
     call share_error(error)
@@ -259,9 +238,7 @@ contains
             call trace_batch(scene, lay, rng, nphot, tal)
           end if
           call stats_add_batch(slot(s), lay, tal, nphot)
-          rec(1, ib) = tal%buf(lay%i_up + lay%nz + 1)/real(nphot, dp)
-          rec(2, ib) = (tal%buf(lay%i_dir + 1) + tal%buf(lay%i_dif + 1))/real(nphot, dp)
-          rec(3, ib) = sum(tal%buf(lay%i_abs + 1:lay%i_abs + lay%nz))/real(nphot, dp)
+          rec(:, ib) = batch_budget(lay, tal)/real(nphot, dp)
           if (pg%on) call report_progress(pg, cfg, ib, ib_last)
         end if
         ! checkpoints: rank 0 decides at the same batches on every rank (all batches up to ib
@@ -445,32 +422,6 @@ contains
     end do
   end subroutine fold_slots
 
-  !> The output file must not be one of the run's own inputs (the namelist, a scene, surface,
-  !> cloud or phase file) nor its Mie cache: writing it would destroy what the run is made from.
-  subroutine refuse_input_as_output(cfg, path, error)
-    type(config_t), intent(in) :: cfg
-    character(len=*), intent(in) :: path
-    type(error_t), allocatable, intent(out) :: error
-    type(input_file_t), allocatable :: inputs(:)
-    character(len=:), allocatable :: out
-    integer :: i
-    out = trim(cfg%output%file)
-    inputs = config_inputs(cfg, path)
-    do i = 1, size(inputs)
-      if (same_file(out, inputs(i)%path)) then
-        call set_error(error, '&kumo_output file = '''//out//''' is this run''s '// &
-                       inputs(i)%label//' ('//inputs(i)%path//'); kumo does not overwrite '// &
-                       'its own input: choose another output file')
-        return
-      end if
-    end do
-    if (cfg%cloud%enabled .and. len_trim(cfg%cloud%mie_cache) > 0) then
-      if (same_file(out, trim(cfg%cloud%mie_cache))) call set_error(error, &
-        '&kumo_output file = '''//out//''' is this run''s &kumo_cloud mie_cache; '// &
-        'choose another output file')
-    end if
-  end subroutine refuse_input_as_output
-
   !> A progress line on standard error when it is due: batches done (rank 0 has reached batch
   !> `n_done`; the other ranks run alongside), photons per second, and the time left (fixed batch count) or the
   !> current relative error of the target output (target-error mode).
@@ -499,289 +450,5 @@ contains
     write (error_unit, '(a)') line
     flush (error_unit)
   end subroutine report_progress
-
-  !> Rank 0 decides whether a checkpoint is due (`interval` seconds after the last one); every
-  !> rank gets the decision.
-  logical function checkpoint_due(plan, t_last) result(due)
-    type(checkpoint_plan_t), intent(in) :: plan
-    real(dp), intent(in) :: t_last
-    integer :: flag(1)
-    flag = 0
-    if (par_is_root()) then
-      if (par_wtime() - t_last >= plan%interval) flag = 1
-    end if
-    call par_bcast_int(flag)
-    due = flag(1) == 1
-  end function checkpoint_due
-
-  !> Write the checkpoint after batch `n_done` (every batch up to it is done on every rank),
-  !> in the round that began with batch `ib_round`. Collective: the slots travel to rank 0,
-  !> which writes them one by one. A checkpoint that cannot be written is a warning: the run
-  !> goes on (the previous checkpoint, if any, stays).
-  subroutine write_checkpoint(plan, cfg, lay, slot, n_slots, ib_round, n_done, rec, cpu_rank)
-    type(checkpoint_plan_t), intent(in) :: plan
-    type(config_t), intent(in) :: cfg
-    type(tally_layout_t), intent(in) :: lay
-    integer, intent(in) :: n_slots, ib_round, n_done
-    type(stats_t), intent(in) :: slot(0:n_slots - 1)
-    real(dp), intent(in) :: rec(:, :)
-    real(dp), intent(in) :: cpu_rank   !! this rank's CPU time so far (rank 0: and before)
-    type(error_t), allocatable :: err
-    type(ckpt_header_t) :: head
-    real(dp), allocatable :: flat(:), x1(:), x2(:)
-    integer(i8) :: cnt(4 + N_ANOMALIES)
-    integer :: s, owner, rank, nranks, unit
-    rank = par_rank()
-    nranks = par_size()
-    flat = [reshape(rec(:, 1:n_done), [3*n_done]), cpu_rank]
-    call par_sum_to_root(flat)   ! each record is non-zero on one rank only: the sum is exact
-    allocate (x1(lay%n), x2(lay%n))
-    if (rank == 0) then
-      head%n_slots = n_slots
-      head%ib_round = ib_round
-      head%n_done = n_done
-      head%n_values = lay%n
-      head%n_counts = size(cnt)
-      head%cpu = flat(size(flat))
-      call ckpt_create(plan%path, plan%fp, head, reshape(flat(1:3*n_done), [3, n_done]), unit, &
-                       err)
-    end if
-    do s = 0, n_slots - 1
-      owner = mod(s, nranks)
-      if (rank == owner) then
-        cnt = [slot(s)%n_batches, slot(s)%n_photons, slot(s)%work, slot(s)%anomalies]
-        x1 = slot(s)%s1
-        x2 = slot(s)%s2
-      end if
-      call par_move(cnt, owner, 0)
-      call par_move(x1, owner, 0)
-      call par_move(x2, owner, 0)
-      if (rank == 0) call ckpt_put_slot(unit, plan%path, cnt, x1, x2, err)
-    end do
-    if (rank /= 0) return
-    call ckpt_commit(unit, plan%path, err)
-    if (allocated(err)) then
-      write (error_unit, '(a)') 'kumo: warning: no checkpoint after batch '//str(n_done)// &
-        ' (the run goes on): '//err%message
-    else if (cfg%control%verbose >= 1) then
-      write (error_unit, '(a)') 'kumo: checkpoint after batch '//str(n_done)//': '//plan%path
-    end if
-    flush (error_unit)
-  end subroutine write_checkpoint
-
-  !> Continue from the checkpoint `plan%path` if it exists (else start from the first batch):
-  !> rank 0 reads it and checks it against the configuration's fingerprint; every slot goes to
-  !> the rank that runs it. Returns the slot count, the first batch of the round in progress,
-  !> the batches done, their records and the CPU time before (rank 0) and the slots' sums.
-  subroutine resume_run(plan, cfg, lay, n_slots, ib_next, n_done, rec, cpu_before, slot, error)
-    type(checkpoint_plan_t), intent(in) :: plan
-    type(config_t), intent(in) :: cfg
-    type(tally_layout_t), intent(in) :: lay
-    integer, intent(out) :: n_slots, ib_next, n_done
-    real(dp), allocatable, intent(inout) :: rec(:, :)
-    real(dp), intent(out) :: cpu_before
-    type(stats_t), allocatable, intent(out) :: slot(:)
-    type(error_t), allocatable, intent(out) :: error
-    type(ckpt_header_t) :: head
-    real(dp), allocatable :: x1(:), x2(:)
-    integer(i8) :: cnt(4 + N_ANOMALIES)
-    integer :: info(4), s, owner, rank, nranks, unit
-    logical :: exists
-    rank = par_rank()
-    nranks = par_size()
-    cpu_before = 0.0_dp
-    info = 0
-    if (rank == 0) then
-      inquire (file=plan%path, exist=exists)
-      if (exists) then
-        call ckpt_open(plan%path, plan%fp, lay%n, size(cnt), head, rec, unit, error)
-        info = [1, head%n_slots, head%ib_round, head%n_done]
-      end if
-    end if
-    call share_error(error)
-    if (allocated(error)) return
-    call par_bcast_int(info)
-    n_slots = par_size()
-    ib_next = 1
-    n_done = 0
-    if (info(1) == 0) then
-      if (rank == 0 .and. cfg%control%verbose >= 1) write (output_unit, '(a)') &
-        'no checkpoint '//plan%path//': the run starts from the first batch'
-      return
-    end if
-    n_slots = info(2)
-    ib_next = info(3)
-    n_done = info(4)
-    if (rank == 0) cpu_before = head%cpu
-    allocate (slot(0:n_slots - 1), x1(lay%n), x2(lay%n))
-    do s = 0, n_slots - 1
-      owner = mod(s, nranks)
-      if (rank == 0) call ckpt_get_slot(unit, plan%path, cnt, x1, x2, error)
-      call par_move(cnt, 0, owner)
-      call par_move(x1, 0, owner)
-      call par_move(x2, 0, owner)
-      if (rank == owner) then
-        call stats_init(slot(s), lay)
-        slot(s)%n_batches = cnt(1)
-        slot(s)%n_photons = cnt(2)
-        slot(s)%work = cnt(3:4)
-        slot(s)%anomalies = cnt(5:)
-        slot(s)%s1 = x1
-        slot(s)%s2 = x2
-      end if
-    end do
-    if (rank == 0) call ckpt_close(unit, plan%path, error)
-    call share_error(error)
-    if (allocated(error)) return
-    if (rank == 0 .and. cfg%control%verbose >= 1) write (output_unit, '(a)') &
-      'resuming from the checkpoint '//plan%path//': batches 1 to '//str(n_done)// &
-      ' are done; the results will be those of an uninterrupted run on '//str(n_slots)// &
-      ' rank'//trim(merge('s', ' ', n_slots > 1))//', the rank count that started the case'
-  end subroutine resume_run
-
-  !> Before any work (rank 0): with --resume, a checkpoint of another configuration is refused
-  !> at once; without it, an existing checkpoint that this run will replace is mentioned.
-  subroutine early_checkpoint_check(plan, cfg, error)
-    type(checkpoint_plan_t), intent(in) :: plan
-    type(config_t), intent(in) :: cfg
-    type(error_t), allocatable, intent(out) :: error
-    type(ckpt_header_t) :: head
-    real(dp), allocatable :: rec(:, :)
-    integer :: unit
-    logical :: exists
-    inquire (file=plan%path, exist=exists)
-    if (.not. exists) return
-    if (plan%resume) then
-      call ckpt_open(plan%path, plan%fp, -1, -1, head, rec, unit, error)
-    else if (plan%interval > 0.0_dp .and. cfg%control%verbose >= 1) then
-      write (output_unit, '(a)') 'note: the checkpoint '//plan%path//' of an earlier run is '// &
-        'replaced: this run starts from the first batch (kumo --resume continues from it)'
-    end if
-  end subroutine early_checkpoint_check
-
-  !> What a checkpoint of this run belongs to: the namelist text, the content of every input
-  !> file it names, the kumo build.
-  subroutine fingerprint(cfg, path, text, fp)
-    type(config_t), intent(in) :: cfg
-    character(len=*), intent(in) :: path, text
-    type(fingerprint_t), intent(out) :: fp
-    type(input_file_t), allocatable :: inputs(:)
-    integer :: i
-    call fingerprint_add_text(fp, 'the namelist text', text)
-    inputs = config_inputs(cfg, path)
-    do i = 2, size(inputs)   ! the namelist itself is its text
-      call fingerprint_add_file(fp, 'the input file '//inputs(i)%label, inputs(i)%path)
-    end do
-    call fingerprint_add_build(fp)
-  end subroutine fingerprint
-
-  !> Rank 0's error (or success) on every rank, with the same message: for work only rank 0
-  !> does (reading the namelist, checking the output path, reading a checkpoint).
-  subroutine share_error(error)
-    type(error_t), allocatable, intent(inout) :: error
-    integer :: status(1)
-    character(len=:), allocatable :: message
-    status = 0
-    if (par_is_root() .and. allocated(error)) status = 1
-    call par_bcast_int(status)
-    if (status(1) == 0) return
-    if (par_is_root()) message = error%message
-    call par_bcast_text(message)
-    if (.not. par_is_root()) call set_error(error, message)
-  end subroutine share_error
-
-  !> The whole text of the file `path`, lines as they are, each ended by a line end.
-  subroutine read_text(path, text, error)
-    character(len=*), intent(in) :: path
-    character(len=:), allocatable, intent(out) :: text
-    type(error_t), allocatable, intent(out) :: error
-    character(len=:), allocatable :: line
-    character(len=512) :: msg
-    integer :: unit, ios
-    text = ''
-    open (newunit=unit, file=path, status='old', action='read', iostat=ios, iomsg=msg)
-    if (ios /= 0) then
-      call set_error(error, 'cannot open namelist file "'//trim(path)//'": '//trim(msg))
-      return
-    end if
-    do
-      call read_line(unit, line, ios)
-      if (ios /= 0) exit
-      text = text//line//new_line('a')
-    end do
-    close (unit)
-  end subroutine read_text
-
-  !> `text` with the trailing blanks of every line removed (the form the output stores).
-  pure function trim_lines(text) result(out)
-    character(len=*), intent(in) :: text
-    character(len=:), allocatable :: out
-    integer :: i0, i1
-    out = ''
-    i0 = 1
-    do while (i0 <= len(text))
-      i1 = index(text(i0:), new_line('a'))
-      if (i1 == 0) then
-        i1 = len(text) + 1
-      else
-        i1 = i0 + i1 - 1
-      end if
-      out = out//trim(text(i0:i1 - 1))//new_line('a')
-      i0 = i1 + 1
-    end do
-  end function trim_lines
-
-  !> Test hook (tests/mpi/failing_rank.sh): with the environment variable KUMO_TEST_FAIL_RANK
-  !> set to a rank, that rank fails after the scene set-up as if an input it reads could not be
-  !> read, while the other ranks go on. Not for users (docs/design.md).
-  subroutine test_failure_hook(cfg, rank, error)
-    type(config_t), intent(in) :: cfg
-    integer, intent(in) :: rank
-    type(error_t), allocatable, intent(out) :: error
-    character(len=:), allocatable :: what
-    if (env_int('KUMO_TEST_FAIL_RANK') /= rank) return
-    what = 'the scene input'
-    if (allocated(cfg%path)) what = cfg%path
-    call set_error(error, 'cannot read '//what//': input unreadable on this rank (failure '// &
-                   'injected by the test hook KUMO_TEST_FAIL_RANK)')
-  end subroutine test_failure_hook
-
-  !> A non-negative integer from the environment variable `name`; -1 when it is not set or not
-  !> such a number.
-  integer function env_int(name) result(value)
-    character(len=*), intent(in) :: name
-    character(len=32) :: text
-    integer :: length, status, ios
-    value = -1
-    call get_environment_variable(name, text, length, status)
-    if (status /= 0 .or. length == 0) return
-    read (text, *, iostat=ios) value
-    if (ios /= 0 .or. value < 0) value = -1
-  end function env_int
-
-  !> Test hook (tests/regression/checkpoint.sh): end this process with SIGKILL, as a batch
-  !> system does at the wall-time limit.
-  subroutine kill_self()
-    integer(c_int) :: status
-    flush (output_unit)
-    flush (error_unit)
-    status = c_raise(SIGKILL)
-  end subroutine kill_self
-
-  pure real(dp) function relative_error(b) result(rel)
-    real(dp), intent(in) :: b(3)  !! S1, S2, number of batches
-    real(dp) :: m, v
-    if (b(3) < 2.0_dp) then
-      rel = huge(1.0_dp)
-      return
-    end if
-    m = b(1)/b(3)
-    v = max(0.0_dp, b(2)/b(3) - m*m)/(b(3) - 1.0_dp)
-    if (m == 0.0_dp) then
-      rel = huge(1.0_dp)
-    else
-      rel = sqrt(v)/abs(m)
-    end if
-  end function relative_error
 
 end module kumo_driver

@@ -6,12 +6,20 @@
 !> batch, its normalised tallies x_b enter the running sums S1 = sum x_b and S2 = sum x_b**2,
 !> from which the mean and the standard error of the mean follow (batch method, as in the I3RC
 !> community model).
+!>
+!> The photon code scores through the named `score_*` procedures below (a level crossing, an
+!> absorption, a radiance sample, ...), never through buffer positions: only this module knows
+!> the layout. They are small and in the kernel library, so the compiler inlines them into the
+!> photon loop (link-time optimisation across modules).
 module kumo_tally
   use kumo_kinds, only: dp, i8
   implicit none
   private
   public :: tally_layout_t, tally_t, stats_t, layout_init, tally_reset, stats_init, &
-            stats_add_batch, stats_mean, stats_stderr
+            stats_add_batch, stats_mean, stats_stderr, batch_budget
+  public :: score_flux, score_flux_map, score_layer_abs, score_voxel_abs, score_surface_abs, &
+            score_roulette, score_lost, score_source, score_net_layer, score_net_surface, &
+            score_net_voxel, score_radiance, score_radiance_map, score_camera
   public :: ANOM_UZ_NUDGED, ANOM_EVENT_CAP, ANOM_STEP_CAP, ANOM_POSITION_REPAIR, &
             ANOM_BRDF_ENVELOPE, N_ANOMALIES, ANOMALY_NAMES
 
@@ -299,6 +307,17 @@ contains
     st%work = st%work + tal%work
   end subroutine stats_add_batch
 
+  !> The energy budget of one batch's tally, summed over its photons: reflected (up at the top),
+  !> transmitted (down at the surface, direct + diffuse) and absorbed in the atmosphere.
+  pure function batch_budget(lay, tal) result(b)
+    type(tally_layout_t), intent(in) :: lay
+    type(tally_t), intent(in) :: tal
+    real(dp) :: b(3)
+    b(1) = tal%buf(lay%i_up + lay%nz + 1)
+    b(2) = tal%buf(lay%i_dir + 1) + tal%buf(lay%i_dif + 1)
+    b(3) = sum(tal%buf(lay%i_abs + 1:lay%i_abs + lay%nz))
+  end function batch_budget
+
   !> Mean over batches of entries lo..hi (1-based buffer positions).
   pure function stats_mean(st, lo, hi) result(m)
     type(stats_t), intent(in) :: st
@@ -334,4 +353,159 @@ contains
       end if
     end do
   end function stats_stderr
+  ! ---- Scoring: one procedure per kind of score. Weights are in units of the photon weight;
+  ! ---- positions of columns are icol = ix + (iy - 1) nx, of voxels (kr - 1) ncol + icol.
+
+  !> Weight `w` crossing level k (0..nz): upward if `up`, else downward, direct when `order`
+  !> is 0 and diffuse otherwise (domain mean; see score_flux_map for the per-column maps).
+  pure subroutine score_flux(lay, tal, k, up, order, w)
+    type(tally_layout_t), intent(in) :: lay
+    type(tally_t), intent(inout) :: tal
+    integer, intent(in) :: k, order
+    logical, intent(in) :: up
+    real(dp), intent(in) :: w
+    integer :: i
+    if (up) then
+      i = lay%i_up + k + 1
+    else if (order == 0) then
+      i = lay%i_dir + k + 1
+    else
+      i = lay%i_dif + k + 1
+    end if
+    tal%buf(i) = tal%buf(i) + w
+  end subroutine score_flux
+
+  !> The same crossing in the flux map of column icol; `slot` = lay%map_slot(k) > 0 (levels
+  !> with maps only).
+  pure subroutine score_flux_map(lay, tal, slot, up, order, icol, w)
+    type(tally_layout_t), intent(in) :: lay
+    type(tally_t), intent(inout) :: tal
+    integer, intent(in) :: slot, order, icol
+    logical, intent(in) :: up
+    real(dp), intent(in) :: w
+    integer :: i
+    if (up) then
+      i = lay%i_map_up
+    else if (order == 0) then
+      i = lay%i_map_dir
+    else
+      i = lay%i_map_dif
+    end if
+    i = i + (slot - 1)*lay%ncol + icol
+    tal%buf(i) = tal%buf(i) + w
+  end subroutine score_flux_map
+
+  !> Weight `a` absorbed in layer k (1..nz).
+  pure subroutine score_layer_abs(lay, tal, k, a)
+    type(tally_layout_t), intent(in) :: lay
+    type(tally_t), intent(inout) :: tal
+    integer, intent(in) :: k
+    real(dp), intent(in) :: a
+    tal%buf(lay%i_abs + k) = tal%buf(lay%i_abs + k) + a
+  end subroutine score_layer_abs
+
+  !> Weight `a` absorbed in voxel (kr, icol) of the 3-D region; nothing without voxel tallies.
+  pure subroutine score_voxel_abs(lay, tal, kr, icol, a)
+    type(tally_layout_t), intent(in) :: lay
+    type(tally_t), intent(inout) :: tal
+    integer, intent(in) :: kr, icol
+    real(dp), intent(in) :: a
+    integer :: i
+    if (.not. lay%do_voxel) return
+    i = lay%i_vox + (kr - 1)*lay%ncol + icol
+    tal%buf(i) = tal%buf(i) + a
+  end subroutine score_voxel_abs
+
+  !> Weight `a` absorbed by the surface.
+  pure subroutine score_surface_abs(lay, tal, a)
+    type(tally_layout_t), intent(in) :: lay
+    type(tally_t), intent(inout) :: tal
+    real(dp), intent(in) :: a
+    tal%buf(lay%i_sfc + 1) = tal%buf(lay%i_sfc + 1) + a
+  end subroutine score_surface_abs
+
+  !> Net weight `dw` created (negative: destroyed) by Russian roulette, a DDIS split, or the
+  !> balance of expected-value absorption scores against the weight lost at collisions: the
+  !> term of the energy closure that is zero in expectation.
+  pure subroutine score_roulette(lay, tal, dw)
+    type(tally_layout_t), intent(in) :: lay
+    type(tally_t), intent(inout) :: tal
+    real(dp), intent(in) :: dw
+    tal%buf(lay%i_rr + 1) = tal%buf(lay%i_rr + 1) + dw
+  end subroutine score_roulette
+
+  !> Weight `w` of a photon stopped at a loop cap (counted, never silently dropped).
+  pure subroutine score_lost(lay, tal, w)
+    type(tally_layout_t), intent(in) :: lay
+    type(tally_t), intent(inout) :: tal
+    real(dp), intent(in) :: w
+    tal%buf(lay%i_lost + 1) = tal%buf(lay%i_lost + 1) + w
+  end subroutine score_lost
+
+  !> Launch weight `w` of a photon (thermal emission: photons start with unequal weights).
+  pure subroutine score_source(lay, tal, w)
+    type(tally_layout_t), intent(in) :: lay
+    type(tally_t), intent(inout) :: tal
+    real(dp), intent(in) :: w
+    tal%buf(lay%i_src + 1) = tal%buf(lay%i_src + 1) + w
+  end subroutine score_source
+
+  !> Net power `x` (absorbed - emitted, kumo_emission) of layer k (1..nz).
+  pure subroutine score_net_layer(lay, tal, k, x)
+    type(tally_layout_t), intent(in) :: lay
+    type(tally_t), intent(inout) :: tal
+    integer, intent(in) :: k
+    real(dp), intent(in) :: x
+    tal%buf(lay%i_net + k) = tal%buf(lay%i_net + k) + x
+  end subroutine score_net_layer
+
+  !> Net power `x` of the surface.
+  pure subroutine score_net_surface(lay, tal, x)
+    type(tally_layout_t), intent(in) :: lay
+    type(tally_t), intent(inout) :: tal
+    real(dp), intent(in) :: x
+    tal%buf(lay%i_snet + 1) = tal%buf(lay%i_snet + 1) + x
+  end subroutine score_net_surface
+
+  !> Net power `x` of voxel iv = (kr - 1) ncol + icol; nothing without voxel tallies.
+  pure subroutine score_net_voxel(lay, tal, iv, x)
+    type(tally_layout_t), intent(in) :: lay
+    type(tally_t), intent(inout) :: tal
+    integer, intent(in) :: iv
+    real(dp), intent(in) :: x
+    if (.not. lay%do_voxel) return
+    tal%buf(lay%i_vnet + iv) = tal%buf(lay%i_vnet + iv) + x
+  end subroutine score_net_voxel
+
+  !> Radiance sample `v` (pi I per unit incident flux) in direction d at the radiance level of
+  !> `slot` (= lay%rad_slot(k) > 0), domain mean.
+  pure subroutine score_radiance(lay, tal, d, slot, v)
+    type(tally_layout_t), intent(in) :: lay
+    type(tally_t), intent(inout) :: tal
+    integer, intent(in) :: d, slot
+    real(dp), intent(in) :: v
+    integer :: i
+    i = lay%i_rad + (d - 1)*lay%n_rad_lev + slot
+    tal%buf(i) = tal%buf(i) + v
+  end subroutine score_radiance
+
+  !> The same sample in the radiance map of column icol (when lay%do_rad_maps).
+  pure subroutine score_radiance_map(lay, tal, d, slot, icol, v)
+    type(tally_layout_t), intent(in) :: lay
+    type(tally_t), intent(inout) :: tal
+    integer, intent(in) :: d, slot, icol
+    real(dp), intent(in) :: v
+    integer :: i
+    i = lay%i_rad_map + ((d - 1)*lay%n_rad_lev + slot - 1)*lay%ncol + icol
+    tal%buf(i) = tal%buf(i) + v
+  end subroutine score_radiance_map
+
+  !> Sample `v` of pixel ipix (1-based) of camera c.
+  pure subroutine score_camera(lay, tal, c, ipix, v)
+    type(tally_layout_t), intent(in) :: lay
+    type(tally_t), intent(inout) :: tal
+    integer, intent(in) :: c, ipix
+    real(dp), intent(in) :: v
+    tal%buf(lay%i_cam(c) + ipix) = tal%buf(lay%i_cam(c) + ipix) + v
+  end subroutine score_camera
 end module kumo_tally

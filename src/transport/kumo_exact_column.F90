@@ -14,7 +14,8 @@ module kumo_exact_column
   use kumo_constants, only: PI
   use kumo_error, only: error_t
   use kumo_atmosphere, only: LAYER_3D
-  use kumo_tally, only: tally_layout_t, tally_t
+  use kumo_tally, only: tally_layout_t, tally_t, score_flux, score_layer_abs, score_net_layer, &
+                        score_surface_abs, score_net_surface, score_source, score_radiance
   use kumo_scene, only: scene_t
   use kumo_thermal_column, only: thermal_column_t, thermal_column_init_layers, thermal_column_fluxes, &
                                  thermal_column_radiance
@@ -61,16 +62,16 @@ contains
       ! tallies are sums over the batch's photons in units of the total source power P
       scale = real(n_photons, wp)/em%power
       do k = 0, nz
-        tal%buf(lay%i_up + k + 1) = fu(k)*scale
-        tal%buf(lay%i_dif + k + 1) = fd(k)*scale
+        call score_flux(lay, tal, k, .true., 1, fu(k)*scale)
+        call score_flux(lay, tal, k, .false., 1, fd(k)*scale)
       end do
       do k = 1, nz
-        tal%buf(lay%i_abs + k) = (net(k) + em%emit_layer(k))*scale
-        tal%buf(lay%i_net + k) = net(k)*scale
+        call score_layer_abs(lay, tal, k, (net(k) + em%emit_layer(k))*scale)
+        call score_net_layer(lay, tal, k, net(k)*scale)
       end do
-      tal%buf(lay%i_sfc + 1) = eps*fd(0)*scale
-      tal%buf(lay%i_snet + 1) = (eps*fd(0) - em%emit_sfc)*scale
-      tal%buf(lay%i_src + 1) = real(n_photons, wp)
+      call score_surface_abs(lay, tal, eps*fd(0)*scale)
+      call score_net_surface(lay, tal, (eps*fd(0) - em%emit_sfc)*scale)
+      call score_source(lay, tal, real(n_photons, wp))
       ! level detectors: pi I/P per photon; downward at the top, the radiance coming in from
       ! above is added by the output, as for traced photons
       do d = 1, lay%n_rad_dir
@@ -79,7 +80,7 @@ contains
           if (slot == 0) cycle
           rad = thermal_column_radiance(col, k, scn%det%uz(d))
           if (k == nz .and. scn%det%uz(d) < 0.0_wp) rad = rad - em%b_top
-          tal%buf(lay%i_rad + (d - 1)*lay%n_rad_lev + slot) = PI*rad*scale
+          call score_radiance(lay, tal, d, slot, PI*rad*scale)
         end do
       end do
     end associate

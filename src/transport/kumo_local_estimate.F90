@@ -37,7 +37,7 @@ module kumo_local_estimate
   use kumo_atmosphere, only: atmosphere_t, column_of, sigma_trunc_3d, LAYER_CLEAR, LAYER_3D
   use kumo_voxel_walk, only: voxel_walk_t, walk_begin, walk_segment, walk_next
   use kumo_camera, only: camera_t, camera_project
-  use kumo_tally, only: tally_layout_t, tally_t
+  use kumo_tally, only: tally_layout_t, tally_t, score_radiance, score_radiance_map, score_camera
   use kumo_surface, only: surface_t
   use kumo_brdf, only: brdf_albedo, brdf_table_eval_dir
   use kumo_emission, only: emission_surface_eps
@@ -141,8 +141,8 @@ contains
           if (.not. hit) cycle
           mu = ux*vx + uy*vy + uz*vz
           call particle_density(atm, iph, lev, mu, w, a, lev_t)
-          call camera_estimate(det, atm, tal, rng, x, y, z, iz, vx, vy, vz, dist, &
-                               factor, a, ps, lev_t, lay%i_cam(c) + ipix, column)
+          call camera_estimate(det, atm, lay, tal, rng, x, y, z, iz, vx, vy, vz, dist, &
+                               factor, a, ps, lev_t, c, ipix, column)
         end do
       end do
     end do
@@ -268,8 +268,8 @@ contains
           else
             a = w_pi*vz
           end if
-          call camera_estimate(det, atm, tal, rng, x, y, z0, 1, vx, vy, vz, dist, &
-                               factor, a, 1.0_wp, lev, lay%i_cam(c) + ipix, column)
+          call camera_estimate(det, atm, lay, tal, rng, x, y, z0, 1, vx, vy, vz, dist, &
+                               factor, a, 1.0_wp, lev, c, ipix, column)
         end do
       end do
     end do
@@ -315,8 +315,8 @@ contains
                               vx, vy, vz, factor, hit)
           if (.not. hit .or. s*vz <= 0.0_wp) cycle
           a = boundary_density(vz)
-          call camera_estimate(det, atm, tal, rng, x, y, z0, iz, vx, vy, vz, dist, &
-                               factor, a, 1.0_wp, 1, lay%i_cam(c) + ipix, column)
+          call camera_estimate(det, atm, lay, tal, rng, x, y, z0, iz, vx, vy, vz, dist, &
+                               factor, a, 1.0_wp, 1, c, ipix, column)
         end do
       end do
     end do
@@ -390,7 +390,7 @@ contains
     integer, intent(in) :: iz, k_up, d, lev_t
     logical, intent(in) :: column   !! the line of sight stays in the column of the event
     real(wp) :: a, tau_lim, tau_stop, tau, psi0, xc, yc, zc, vx, vy, vz
-    integer :: i, j, kd, izc, slot, n_lev, ib, ib_map, k
+    integer :: i, j, kd, izc, slot, n_lev
     if (size(det%levels) == 0) return
     a = a_in
     if (.not. roulette_contribution(rng, a, det%a_min*abs(det%uz(d))*ps, tau_lim, tau_stop)) then
@@ -410,7 +410,6 @@ contains
     izc = iz
     tau = 0.0_wp
     n_lev = size(det%levels)
-    ib = lay%i_rad + (d - 1)*lay%n_rad_lev
     do j = 1, n_lev
       if (vz > 0.0_wp) then
         i = j
@@ -424,27 +423,28 @@ contains
       call trace_to_level(atm, xc, yc, zc, izc, vx, vy, vz, kd, lev_t, tau, tau_stop)
       if (tau > tau_stop) return
       slot = lay%rad_slot(kd)
-      tal%buf(ib + slot) = tal%buf(ib + slot) + psi0*exp(-min(tau, tau_lim))
+      call score_radiance(lay, tal, d, slot, psi0*exp(-min(tau, tau_lim)))
       if (lay%do_rad_maps) then
-        ib_map = lay%i_rad_map + ((d - 1)*lay%n_rad_lev + slot - 1)*lay%ncol
         if (det%diff_scale > 0.0_wp) then
-          call spread_sample(det, atm, tal, ib_map, xc, yc, a, psi0*exp(-min(tau, tau_lim)))
+          call spread_sample(det, atm, lay, tal, d, slot, xc, yc, a, psi0*exp(-min(tau, tau_lim)))
         else
-          k = ib_map + column_of(atm, xc, yc)
-          tal%buf(k) = tal%buf(k) + psi0*exp(-min(tau, tau_lim))
+          call score_radiance_map(lay, tal, d, slot, column_of(atm, xc, yc), &
+                                  psi0*exp(-min(tau, tau_lim)))
         end if
       end if
     end do
   end subroutine level_estimate
 
-  !> Numerical diffusion (seed text section 4.2.5, Iwabuchi 2006): add the map sample `v` evenly
-  !> over the block of columns within r = diff_scale sqrt(pi a) of (x, y), periodic. Larger
-  !> samples spread further; the sum over the map, and so the domain mean, is unchanged.
-  subroutine spread_sample(det, atm, tal, ib_map, x, y, a, v)
+  !> Numerical diffusion (seed text section 4.2.5, Iwabuchi 2006): add the map sample `v` of
+  !> direction d at the radiance level of `slot` evenly over the block of columns within
+  !> r = diff_scale sqrt(pi a) of (x, y), periodic. Larger samples spread further; the sum over
+  !> the map, and so the domain mean, is unchanged.
+  subroutine spread_sample(det, atm, lay, tal, d, slot, x, y, a, v)
     type(detectors_t), intent(in) :: det
     type(atmosphere_t), intent(in) :: atm
+    type(tally_layout_t), intent(in) :: lay
     type(tally_t), intent(inout) :: tal
-    integer, intent(in) :: ib_map
+    integer, intent(in) :: d, slot
     real(wp), intent(in) :: x, y, a, v
     real(wp) :: r, share
     integer :: nrx, nry, ix0, iy0, i, j, ix, iy
@@ -458,21 +458,22 @@ contains
       iy = modulo(iy0 - 1 + j, atm%ny) + 1
       do i = -nrx, nrx
         ix = modulo(ix0 - 1 + i, atm%nx) + 1
-        tal%buf(ib_map + ix + (iy - 1)*atm%nx) = tal%buf(ib_map + ix + (iy - 1)*atm%nx) + share
+        call score_radiance_map(lay, tal, d, slot, ix + (iy - 1)*atm%nx, share)
       end do
     end do
   end subroutine spread_sample
 
-  !> Contribution of one event to camera pixel buf(ibuf) through the line of sight (vx, vy, vz)
-  !> of length dist.
-  subroutine camera_estimate(det, atm, tal, rng, x, y, z, iz, vx, vy, vz, dist, factor, &
-                             a_in, ps, lev_t, ibuf, column)
+  !> Contribution of one event to pixel ipix of camera c through the line of sight
+  !> (vx, vy, vz) of length dist.
+  subroutine camera_estimate(det, atm, lay, tal, rng, x, y, z, iz, vx, vy, vz, dist, factor, &
+                             a_in, ps, lev_t, c, ipix, column)
     type(detectors_t), intent(in) :: det
     type(atmosphere_t), intent(in) :: atm
+    type(tally_layout_t), intent(in) :: lay
     type(tally_t), intent(inout) :: tal
     type(rng_t), intent(inout) :: rng
     real(wp), intent(in) :: x, y, z, vx, vy, vz, dist, factor, a_in, ps
-    integer, intent(in) :: iz, lev_t, ibuf
+    integer, intent(in) :: iz, lev_t, c, ipix
     logical, intent(in) :: column   !! the line of sight stays in the column of the event
     real(wp) :: a, tau_lim, tau_stop, tau
     a = a_in
@@ -483,7 +484,7 @@ contains
       call trace_distance(atm, x, y, z, iz, vx, vy, vz, dist, lev_t, tau, tau_stop)
     end if
     if (tau > tau_stop) return
-    tal%buf(ibuf) = tal%buf(ibuf) + det%cam_scale*a*factor*exp(-min(tau, tau_lim))
+    call score_camera(lay, tal, c, ipix, det%cam_scale*a*factor*exp(-min(tau, tau_lim)))
   end subroutine camera_estimate
 
   !> Add the optical depth from (x, y, z) in layer iz along (vx, vy, vz) up or down to level kd;

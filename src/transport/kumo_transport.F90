@@ -7,7 +7,9 @@
 !> reflection at the surface (`reflect`) or an escape at the top; after a collision the photon
 !> scatters (`scatter`: truncation, local estimates, roulette, a new direction, DDIS); fluxes
 !> are scored where photons cross levels (method I of the seed text, section 3.8.2), absorption
-!> where it happens. Variance-reduction settings come from kumo_vr, the scene from kumo_scene.
+!> where it happens, each through its named procedure of kumo_tally (`score_flux`,
+!> `score_layer_abs`, ...), which alone knows the buffer layout. Variance-reduction settings
+!> come from kumo_vr, the scene from kumo_scene.
 !>
 !> Per layer class (see kumo_atmosphere): clear layers are crossed in one step, purely absorbing
 !> layers multiply the weight by exp(-tau) along the path and deposit the difference, uniform
@@ -34,7 +36,10 @@ module kumo_transport
                              LAYER_ABSORBING, LAYER_SCATTERING, LAYER_3D
   use kumo_brdf, only: brdf_albedo, brdf_sample, lambert_direction
   use kumo_tally, only: tally_layout_t, tally_t, ANOM_UZ_NUDGED, ANOM_EVENT_CAP, &
-                        ANOM_STEP_CAP, ANOM_POSITION_REPAIR, ANOM_BRDF_ENVELOPE
+                        ANOM_STEP_CAP, ANOM_POSITION_REPAIR, ANOM_BRDF_ENVELOPE, score_flux, &
+                        score_flux_map, score_layer_abs, score_voxel_abs, score_surface_abs, &
+                        score_roulette, score_lost, score_source, score_net_layer, &
+                        score_net_surface, score_net_voxel
   use kumo_photon, only: photon_t
   use kumo_source, only: launch_plan_t, source_begin_batch, source_launch
   use kumo_emission, only: emission_b_point, emission_b_segment, emission_b_surface, &
@@ -49,6 +54,8 @@ module kumo_transport
   !> reaches the surface, or was killed by roulette on its way.
   integer, parameter :: EV_NONE = 0, EV_COLLISION = 1, EV_ESCAPE = 2, EV_SURFACE = 3, &
                         EV_KILLED = 4
+  !> Where score_net books the absorbed weight besides layers 1..nz: nowhere, or the surface.
+  integer, parameter :: CELL_NONE = 0, CELL_SURFACE = -1
   !> Most DDIS secondaries queued per photon (secondaries do not split again).
   integer, parameter :: MAX_PENDING = 64
 
@@ -124,8 +131,8 @@ contains
     if (bat%thermal) then
       if (scn%src%em%any_abs) then
         do k = 1, lay%nz
-          if (scn%src%em%by_abs(k)) tal%buf(lay%i_net + k) = tal%buf(lay%i_net + k) - &
-            scn%src%em%emit_layer(k)*real(n_photons, wp)/scn%src%em%power*scn%src%w_unit
+          if (scn%src%em%by_abs(k)) call score_net_layer(lay, tal, k, &
+            -(scn%src%em%emit_layer(k)*real(n_photons, wp)/scn%src%em%power*scn%src%w_unit))
         end do
       end if
     end if
@@ -159,7 +166,7 @@ contains
         p%n_steps = p%n_steps + 1
         if (p%n_steps > scn%max_steps) then
           tal%anomalies(ANOM_STEP_CAP) = tal%anomalies(ANOM_STEP_CAP) + 1
-          tal%buf(lay%i_lost + 1) = tal%buf(lay%i_lost + 1) + p%w
+          call score_lost(lay, tal, p%w)
           return
         end if
         call fly(scn, bat, lay, tal, rng, p, move_xy, tau, ev, in3d, ix, iy, kr)
@@ -182,7 +189,8 @@ contains
           exit flight
         case (EV_ESCAPE)
           ! the top absorbs what leaves, and emits B_top
-          if (bat%thermal) call score_net(lay, tal, p, scn%src%em, p%w, scn%src%em%b_top, 0, 0)
+          if (bat%thermal) call score_net(lay, tal, p, scn%src%em, p%w, scn%src%em%b_top, &
+                                          CELL_NONE, 0)
           return
         case default   ! EV_KILLED
           return
@@ -247,10 +255,9 @@ contains
       tau = tau - e*d
     case (LAYER_ABSORBING)
       wn = p%w*exp(-scn%atm%ext1(p%iz)*d)
-      tal%buf(lay%i_abs + p%iz) = tal%buf(lay%i_abs + p%iz) + (p%w - wn)
+      call score_layer_abs(lay, tal, p%iz, p%w - wn)
       if (bat%thermal) call score_net(lay, tal, p, scn%src%em, p%w - wn, &
-        emission_b_segment(scn%src%em, scn%atm, p%iz, p%z, zb, scn%atm%ext1(p%iz)*d), &
-        lay%i_net + p%iz, 0)
+        emission_b_segment(scn%src%em, scn%atm, p%iz, p%z, zb, scn%atm%ext1(p%iz)*d), p%iz, 0)
       p%w = wn
     case default ! LAYER_CLEAR
     end select
@@ -285,9 +292,9 @@ contains
     alive = .false.
     p%n_events = p%n_events + 1
     if (scn%sfc%black) then
-      tal%buf(lay%i_sfc + 1) = tal%buf(lay%i_sfc + 1) + p%w
+      call score_surface_abs(lay, tal, p%w)
       if (scn%src%em%on) call score_net(lay, tal, p, scn%src%em, p%w, &
-                                        emission_b_surface(scn%src%em, p%x, p%y), lay%i_snet + 1, 0)
+                                        emission_b_surface(scn%src%em, p%x, p%y), CELL_SURFACE, 0)
       return
     end if
     kb = 1
@@ -297,9 +304,9 @@ contains
     else
       albedo = scn%sfc%albedo_at(p%x, p%y)
     end if
-    tal%buf(lay%i_sfc + 1) = tal%buf(lay%i_sfc + 1) + p%w*(1.0_wp - albedo)
+    call score_surface_abs(lay, tal, p%w*(1.0_wp - albedo))
     if (scn%src%em%on) call score_net(lay, tal, p, scn%src%em, p%w*(1.0_wp - albedo), &
-                                      emission_b_surface(scn%src%em, p%x, p%y), lay%i_snet + 1, 0)
+                                      emission_b_surface(scn%src%em, p%x, p%y), CELL_SURFACE, 0)
     p%w = p%w*albedo
     if (p%w <= 0.0_wp) return
     if (scn%det%active) call le_surface(scn%det, scn%atm, lay, tal, rng, scn%sfc, kb, p%x, p%y, &
@@ -369,21 +376,18 @@ contains
     end if
     if (bat%track) then
       ! absorption was scored along the flight; what the weight loses here is booked against it
-      tal%buf(lay%i_rr + 1) = tal%buf(lay%i_rr + 1) - (p%w - wn)
+      call score_roulette(lay, tal, -(p%w - wn))
     else
-      tal%buf(lay%i_abs + p%iz) = tal%buf(lay%i_abs + p%iz) + (p%w - wn)
-      if (in3d .and. lay%do_voxel) then
-        ic = lay%i_vox + (kr - 1)*lay%ncol + ix + (iy - 1)*scn%atm%nx
-        tal%buf(ic) = tal%buf(ic) + (p%w - wn)
-      end if
+      call score_layer_abs(lay, tal, p%iz, p%w - wn)
+      if (in3d) call score_voxel_abs(lay, tal, kr, ix + (iy - 1)*scn%atm%nx, p%w - wn)
     end if
     if (bat%thermal) then
       ! 1-D layers come with ix = iy = kr = 0 (fly), for which emission_b_point takes the level
       ! values
       iv = 0
-      if (in3d .and. lay%do_voxel) iv = lay%i_vnet + (kr - 1)*lay%ncol + ix + (iy - 1)*scn%atm%nx
-      call score_net(lay, tal, p, scn%src%em, p%w - wn, emission_b_point(scn%src%em, scn%atm, p%iz, p%z, ix, &
-                     iy, kr), lay%i_net + p%iz, iv)
+      if (in3d) iv = (kr - 1)*lay%ncol + ix + (iy - 1)*scn%atm%nx
+      call score_net(lay, tal, p, scn%src%em, p%w - wn, &
+                     emission_b_point(scn%src%em, scn%atm, p%iz, p%z, ix, iy, kr), p%iz, iv)
     end if
     p%w = wn
     if (p%w <= 0.0_wp) return
@@ -589,7 +593,7 @@ contains
       wn = wn + wb
     end if
     ! the split creates or removes weight, zero in expectation: booked like roulette
-    tal%buf(lay%i_rr + 1) = tal%buf(lay%i_rr + 1) + (wn - w)
+    call score_roulette(lay, tal, wn - w)
     w = w*fa
   end subroutine ddis_split
 
@@ -629,28 +633,12 @@ contains
     integer, intent(in) :: k, order
     logical, intent(in) :: up
     real(wp), intent(in) :: w, x, y
-    integer :: i, slot, icol
-    if (up) then
-      i = lay%i_up + k + 1
-    else if (order == 0) then
-      i = lay%i_dir + k + 1
-    else
-      i = lay%i_dif + k + 1
-    end if
-    tal%buf(i) = tal%buf(i) + w
+    integer :: slot
+    call score_flux(lay, tal, k, up, order, w)
     if (.not. lay%do_maps) return
     slot = lay%map_slot(k)
     if (slot == 0) return
-    icol = column_of(atm, x, y)
-    if (up) then
-      i = lay%i_map_up
-    else if (order == 0) then
-      i = lay%i_map_dir
-    else
-      i = lay%i_map_dif
-    end if
-    i = i + (slot - 1)*lay%ncol + icol
-    tal%buf(i) = tal%buf(i) + w
+    call score_flux_map(lay, tal, slot, up, order, column_of(atm, x, y), w)
   end subroutine tally_level
 
   !> Null-collision flight inside the 3-D region until a real collision (ev = EV_COLLISION, with
@@ -932,7 +920,7 @@ contains
     real(wp), intent(in) :: x, y, ux, uy, s, w
     type(voxel_walk_t) :: wk
     real(wp) :: a, dep
-    integer :: kr, iv0
+    integer :: kr
     logical :: last
     if (s <= 0.0_wp) return
     kr = iz - atm%k3_lo + 1
@@ -941,12 +929,11 @@ contains
     else
       call walk_begin(wk, atm, x, y, ux, uy, s)
       a = 0.0_wp
-      iv0 = lay%i_vox + (kr - 1)*lay%ncol - atm%nx
       do
         call walk_segment(wk, atm, last)
         dep = w*((atm%ext3(wk%ix, wk%iy, kr)*(1.0_wp - atm%omg3(wk%ix, wk%iy, kr)))*wk%step)
         a = a + dep
-        if (lay%do_voxel) tal%buf(iv0 + wk%ix + wk%iy*atm%nx) = tal%buf(iv0 + wk%ix + wk%iy*atm%nx) + dep
+        call score_voxel_abs(lay, tal, kr, wk%ix + (wk%iy - 1)*atm%nx, dep)
         if (last) exit
         call walk_next(wk, atm)
       end do
@@ -961,11 +948,7 @@ contains
     type(tally_t), intent(inout) :: tal
     integer, intent(in) :: iz, ix, iy, kr
     real(wp), intent(in) :: a
-    integer :: ic
-    if (lay%do_voxel) then
-      ic = lay%i_vox + (kr - 1)*lay%ncol + ix + (iy - 1)*atm%nx
-      tal%buf(ic) = tal%buf(ic) + a
-    end if
+    call score_voxel_abs(lay, tal, kr, ix + (iy - 1)*atm%nx, a)
     call score_track(lay, tal, iz, a)
   end subroutine score_voxel
 
@@ -977,8 +960,8 @@ contains
     type(tally_t), intent(inout) :: tal
     integer, intent(in) :: iz
     real(wp), intent(in) :: a
-    tal%buf(lay%i_abs + iz) = tal%buf(lay%i_abs + iz) + a
-    tal%buf(lay%i_rr + 1) = tal%buf(lay%i_rr + 1) + a
+    call score_layer_abs(lay, tal, iz, a)
+    call score_roulette(lay, tal, a)
   end subroutine score_track
 
   !> A photon from a run with thermal emission starts: its launch weight is booked, levels it
@@ -990,7 +973,7 @@ contains
     type(tally_t), intent(inout) :: tal
     type(rng_t), intent(inout) :: rng
     type(photon_t), intent(inout) :: p
-    tal%buf(lay%i_src + 1) = tal%buf(lay%i_src + 1) + p%w
+    call score_source(lay, tal, p%w)
     p%column = p%order >= scn%n_3d
     select case (p%emitter)
     case (EMIT_SOLAR)
@@ -1017,31 +1000,29 @@ contains
   end subroutine start_emitted
 
   !> Net-exchange bookkeeping (kumo_emission) of weight `dw` absorbed where the Planck radiance
-  !> is `b_abs`; i_cell and i_vcell are the buffer positions of the absorbing layer (or the
-  !> surface) and voxel, 0 for none. A thermal photon adds dw (b_abs/B_e - 1) to the net power
-  !> of its emitter; what a cell that does not emit absorbs, and what solar photons deposit,
-  !> is net power of the absorbing cell itself.
-  subroutine score_net(lay, tal, p, em, dw, b_abs, i_cell, i_vcell)
+  !> is `b_abs`; `cell` is the absorbing layer (1..nz), CELL_SURFACE or CELL_NONE, and `iv` the
+  !> absorbing voxel ((kr - 1) ncol + icol, 0 for none). A thermal photon adds dw (b_abs/B_e - 1)
+  !> to the net power of its emitter; what a cell that does not emit absorbs, and what solar
+  !> photons deposit, is net power of the absorbing cell itself.
+  subroutine score_net(lay, tal, p, em, dw, b_abs, cell, iv)
     type(tally_layout_t), intent(in) :: lay
     type(tally_t), intent(inout) :: tal
     type(photon_t), intent(in) :: p
     type(emission_t), intent(in) :: em
     real(wp), intent(in) :: dw, b_abs
-    integer, intent(in) :: i_cell, i_vcell
+    integer, intent(in) :: cell, iv
     real(wp) :: x
-    integer :: ie, k_abs
     logical :: cell_abs, erm
     ! a 1-D layer whose net power is absorbed minus emitted (kumo_emission, by_abs)
     cell_abs = .false.
-    k_abs = i_cell - lay%i_net
-    if (em%any_abs .and. i_cell > 0 .and. k_abs >= 1 .and. k_abs <= lay%nz) cell_abs = em%by_abs(k_abs)
+    if (em%any_abs .and. cell >= 1) cell_abs = em%by_abs(cell)
     if (p%rbe > 0.0_wp) then
       erm = .true.
       if (p%emitter == EMIT_LAYER) then
         if (em%by_abs(p%em_k)) then
           ! the emitter's net is absorbed minus emitted: no net-exchange scores of its own
           erm = .false.
-        else if (i_cell == lay%i_net + p%em_k .and. b_abs > 0.0_wp) then
+        else if (cell == p%em_k .and. b_abs > 0.0_wp) then
           ! exchange inside the emitting 1-D layer sums to zero (G(r, r') = G(r', r)): not
           ! scored, which keeps the deep photons of thick layers from adding noise to its net
           return
@@ -1051,20 +1032,21 @@ contains
         x = dw*(b_abs*p%rbe - 1.0_wp)
         select case (p%emitter)
         case (EMIT_SURFACE)
-          tal%buf(lay%i_snet + 1) = tal%buf(lay%i_snet + 1) + x
+          call score_net_surface(lay, tal, x)
         case (EMIT_TOP)
         case default
-          tal%buf(lay%i_net + p%em_k) = tal%buf(lay%i_net + p%em_k) + x
-          if (p%em_v > 0 .and. lay%do_voxel) then
-            ie = lay%i_vnet + p%em_v
-            tal%buf(ie) = tal%buf(ie) + x
-          end if
+          call score_net_layer(lay, tal, p%em_k, x)
+          if (p%em_v > 0) call score_net_voxel(lay, tal, p%em_v, x)
         end select
       end if
       if (b_abs > 0.0_wp .and. .not. cell_abs) return
     end if
-    if (i_cell > 0) tal%buf(i_cell) = tal%buf(i_cell) + dw
-    if (i_vcell > 0) tal%buf(i_vcell) = tal%buf(i_vcell) + dw
+    if (cell >= 1) then
+      call score_net_layer(lay, tal, cell, dw)
+    else if (cell == CELL_SURFACE) then
+      call score_net_surface(lay, tal, dw)
+    end if
+    if (iv > 0) call score_net_voxel(lay, tal, iv, dw)
   end subroutine score_net
 
   !> Stop a photon at a loop cap: its weight is counted as lost, never silently dropped.
@@ -1074,7 +1056,7 @@ contains
     integer, intent(in) :: which
     real(wp), intent(inout) :: w
     tal%anomalies(which) = tal%anomalies(which) + 1
-    tal%buf(lay%i_lost + 1) = tal%buf(lay%i_lost + 1) + w
+    call score_lost(lay, tal, w)
     w = 0.0_wp
   end subroutine lose_photon
 

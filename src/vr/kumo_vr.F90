@@ -32,7 +32,7 @@ module kumo_vr
   use kumo_rng, only: rng_t, rng_uniform
   use kumo_phase, only: phase_t, phase_eval
   use kumo_atmosphere, only: atmosphere_t, LAYER_3D
-  use kumo_tally, only: tally_layout_t, tally_t
+  use kumo_tally, only: tally_layout_t, tally_t, score_roulette
   implicit none
   private
   public :: vr_t, roulette, collision_forcing, ddis_phases, spiky_without_vr, &
@@ -105,10 +105,10 @@ contains
     real(wp), intent(inout) :: w
     if (w >= vr%rr_threshold) return
     if (rng_uniform(rng)*vr%rr_weight < w) then
-      tal%buf(lay%i_rr + 1) = tal%buf(lay%i_rr + 1) + (vr%rr_weight - w)
+      call score_roulette(lay, tal, vr%rr_weight - w)
       w = vr%rr_weight
     else
-      tal%buf(lay%i_rr + 1) = tal%buf(lay%i_rr + 1) - w
+      call score_roulette(lay, tal, -w)
       w = 0.0_wp
     end if
   end subroutine roulette

@@ -1,5 +1,5 @@
 ! SPDX-License-Identifier: BSD-3-Clause
-!> Direction rotation, Gauss-Legendre quadrature and batch statistics.
+!> Direction rotation, Gauss-Legendre quadrature, batch statistics and the scoring procedures.
 module test_math_tally_suite
   use kumo_kinds, only: wp, dp, i8
   use kumo_testing, only: error_t, unittest_t, new_unittest, check, check_close
@@ -7,7 +7,10 @@ module test_math_tally_suite
   use kumo_rng, only: rng_t, rng_init, sample_azimuth
   use kumo_constants, only: PI
   use kumo_tally, only: tally_layout_t, tally_t, stats_t, layout_init, tally_reset, stats_init, &
-                        stats_add_batch, stats_mean, stats_stderr
+                        stats_add_batch, stats_mean, stats_stderr, score_flux, score_flux_map, &
+                        score_layer_abs, score_voxel_abs, score_surface_abs, score_roulette, &
+                        score_lost, score_source, score_net_layer, score_net_surface, &
+                        score_net_voxel, score_radiance, score_radiance_map, score_camera
   implicit none
   private
   public :: collect_math_tally
@@ -20,6 +23,7 @@ contains
              new_unittest('rotation_of_vertical_directions', test_vertical), &
              new_unittest('batch_mean_and_standard_error', test_stats), &
              new_unittest('layout_is_contiguous', test_layout), &
+             new_unittest('each_score_has_its_own_place', test_scores), &
              new_unittest('polar_azimuth_is_uniform', test_azimuth), &
              new_unittest('gauss_legendre_is_exact_for_polynomials', test_gauss)]
   end function collect_math_tally
@@ -107,6 +111,82 @@ contains
     call check(error, lay%n == lay%i_map_dn + 2*4, 'total downward maps end the buffer')
     call check(error, lay%i_map_dif == lay%i_map_dir + 2*4, 'map blocks')
   end subroutine test_layout
+
+  !> Every scoring procedure adds its value to exactly one buffer entry, the one the layout
+  !> documents, and no two kinds of score share an entry (a layout with every block: thermal,
+  !> flux maps, voxels, radiances with maps, two cameras).
+  subroutine test_scores(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(tally_layout_t) :: lay
+    type(tally_t) :: tal
+    logical, allocatable :: used(:)
+    integer, parameter :: nz = 3, ncol = 6, n3 = 2
+    integer :: n_scores
+    call layout_init(lay, nz, ncol, n3, [1, 3], .true., n_rad_dir=2, rad_levels=[0, 3], &
+                     rad_maps=.true., cam_npix=[4, 5], region_levels=[1, 3], thermal=.true.)
+    allocate (used(lay%n))
+    used = .false.
+    n_scores = 0
+    call tally_reset(tal, lay)
+    call score_flux(lay, tal, 2, .true., 3, 1.5_dp)
+    call expect(lay%i_up + 3, 1.5_dp, 'score_flux up')
+    call score_flux(lay, tal, 0, .false., 0, 2.5_dp)
+    call expect(lay%i_dir + 1, 2.5_dp, 'score_flux direct')
+    call score_flux(lay, tal, 3, .false., 2, 3.5_dp)
+    call expect(lay%i_dif + 4, 3.5_dp, 'score_flux diffuse')
+    call score_flux_map(lay, tal, 2, .true., 1, 5, 4.5_dp)
+    call expect(lay%i_map_up + ncol + 5, 4.5_dp, 'score_flux_map up')
+    call score_flux_map(lay, tal, 1, .false., 0, 2, 5.5_dp)
+    call expect(lay%i_map_dir + 2, 5.5_dp, 'score_flux_map direct')
+    call score_flux_map(lay, tal, 1, .false., 4, 6, 6.5_dp)
+    call expect(lay%i_map_dif + 6, 6.5_dp, 'score_flux_map diffuse')
+    call score_layer_abs(lay, tal, 3, 7.5_dp)
+    call expect(lay%i_abs + 3, 7.5_dp, 'score_layer_abs')
+    call score_voxel_abs(lay, tal, 2, 4, 8.5_dp)
+    call expect(lay%i_vox + ncol + 4, 8.5_dp, 'score_voxel_abs')
+    call score_surface_abs(lay, tal, 9.5_dp)
+    call expect(lay%i_sfc + 1, 9.5_dp, 'score_surface_abs')
+    call score_roulette(lay, tal, -10.5_dp)
+    call expect(lay%i_rr + 1, -10.5_dp, 'score_roulette')
+    call score_lost(lay, tal, 11.5_dp)
+    call expect(lay%i_lost + 1, 11.5_dp, 'score_lost')
+    call score_source(lay, tal, 12.5_dp)
+    call expect(lay%i_src + 1, 12.5_dp, 'score_source')
+    call score_net_layer(lay, tal, 1, -13.5_dp)
+    call expect(lay%i_net + 1, -13.5_dp, 'score_net_layer')
+    call score_net_surface(lay, tal, 14.5_dp)
+    call expect(lay%i_snet + 1, 14.5_dp, 'score_net_surface')
+    call score_net_voxel(lay, tal, ncol + 3, 15.5_dp)
+    call expect(lay%i_vnet + ncol + 3, 15.5_dp, 'score_net_voxel')
+    call score_radiance(lay, tal, 2, 1, 16.5_dp)
+    call expect(lay%i_rad + lay%n_rad_lev + 1, 16.5_dp, 'score_radiance')
+    call score_radiance_map(lay, tal, 2, 2, 3, 17.5_dp)
+    call expect(lay%i_rad_map + (lay%n_rad_lev + 1)*ncol + 3, 17.5_dp, 'score_radiance_map')
+    call score_camera(lay, tal, 2, 5, 18.5_dp)
+    call expect(lay%i_cam(2) + 5, 18.5_dp, 'score_camera')
+    call check(error, lay%i_cam(2) + 5 <= lay%i_col_abs, 'the last camera pixel is inside its block')
+    if (allocated(error)) return
+    ! scores add: a second score of the same kind goes to the same entry
+    call score_flux(lay, tal, 2, .true., 3, 0.25_dp)
+    call check(error, tal%buf(lay%i_up + 3) == 1.75_dp .and. count(tal%buf /= 0) == n_scores, &
+               'a second score adds to the first')
+  contains
+    !> The last score added `v` at buffer entry i only, an entry no earlier score used.
+    subroutine expect(i, v, label)
+      integer, intent(in) :: i
+      real(dp), intent(in) :: v
+      character(len=*), intent(in) :: label
+      if (allocated(error)) return
+      n_scores = n_scores + 1
+      call check(error, i >= 1 .and. i <= lay%n, label//': entry inside the buffer')
+      if (allocated(error)) return
+      call check(error, .not. used(i), label//': entry shared with an earlier score')
+      if (allocated(error)) return
+      used(i) = .true.
+      call check(error, tal%buf(i) == v .and. count(tal%buf /= 0) == n_scores, &
+                 label//': value not found at its entry alone')
+    end subroutine expect
+  end subroutine test_scores
   !> n-point Gauss-Legendre on [0, 1] integrates x^k exactly for k <= 2n - 1 (to 1/(k + 1)),
   !> and underestimates x^(2n) by the remainder term (positive for a positive 2n-th derivative).
   subroutine test_gauss(error)

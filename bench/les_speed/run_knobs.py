@@ -4,7 +4,7 @@
 kumo program, with run_les_speed.py (interleaved A B B A), on the workloads it can change.
 
     python3 bench/les_speed/run_knobs.py --kumo KUMO [--rounds 2] [--only LABEL,...]
-        [--shared DIR] [--out DIR]
+        [--shared DIR] [--out DIR] [--append]
 
 Writes DIR/les_speed_knobs.md (one line per setting and metric: time to the target error,
 ratio setting/default, median and range over pairs of runs) and DIR/les_speed_knobs.csv (every
@@ -29,6 +29,9 @@ KNOBS = [
     ("fsupi1.1", FLUX, "sv_fsupi=1.1"),
     ("fsupi2", FLUX, "sv_fsupi=2.0"),
     ("svmaxlay1", FLUX, "sv_max_layers=1"),
+    ("svmaxlay2", FLUX, "sv_max_layers=2"),
+    ("svmaxlay1_fsupg4", FLUX, "sv_max_layers=1,sv_fsupg=4.0"),
+    ("svmaxlay1_fsupi1.1", FLUX, "sv_max_layers=1,sv_fsupi=1.1"),
     ("no_sv", FLUX, "use_supervoxels=.false."),
     ("rr_off", FLUX, "rr_threshold=0.0"),
     ("rr_0.1_0.2", FLUX, "rr_threshold=0.1,rr_weight=0.2"),
@@ -50,10 +53,16 @@ def main():
     ap.add_argument("--only", default="", help="comma-separated labels of KNOBS to run")
     ap.add_argument("--shared", default=os.path.join(os.path.dirname(REPO), "shared"))
     ap.add_argument("--out", default=os.path.join(os.path.dirname(HERE), "results"))
+    ap.add_argument("--append", action="store_true",
+                    help="keep the runs of les_speed_knobs.csv in DIR (other settings) and add")
     a = ap.parse_args()
     only = [s for s in a.only.split(",") if s]
     scratch = tempfile.mkdtemp(prefix="les_knobs_")
     rows = []
+    csv_path = os.path.join(a.out, "les_speed_knobs.csv")
+    if a.append and os.path.isfile(csv_path):
+        with open(csv_path) as f:
+            rows = [r for r in csv.DictReader(f) if not only or r["knob"] not in only]
     for label, workloads, vr in KNOBS:
         if only and label not in only:
             continue
@@ -67,7 +76,7 @@ def main():
                 rows.append(r)
     os.makedirs(a.out, exist_ok=True)
     keys = ["knob", "setting"] + [k for k in rows[0] if k not in ("knob", "setting")]
-    with open(os.path.join(a.out, "les_speed_knobs.csv"), "w", newline="") as f:
+    with open(csv_path, "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=keys)
         w.writeheader()
         w.writerows(rows)
@@ -83,6 +92,8 @@ def main():
              "|---|---|---|---|---|---|---|---|"]
     for label, _, vr in KNOBS:
         sel = [r for r in rows if r["knob"] == label]
+        if not sel:
+            continue
         for wl, m in dict.fromkeys((r["workload"], r["metric"]) for r in sel):
             s = {side: [r for r in sel if r["workload"] == wl and r["metric"] == m
                         and r["side"] == side] for side in ("old", "new")}

@@ -18,6 +18,10 @@ Workloads (each run is one kumo run; its CPU time is the tracing time cpu_time_s
              the hot spot at SZA 60), with vr_preset 'standard' and 'unbiased': time to 1 %.
              The standard preset's bias against the unbiased preset in every direction is
              given in sigma, from all runs of each program pooled.
+  les05_rad_standard, les05_rad_unbiased
+             the same directions on LES05 (fluxes as in les05_flux, not scored), to 1 %; at
+             SZA 0 nadir is the exact backscatter direction (optional: not in the default list,
+             so that one default comparison stays within about 10 minutes on a loaded machine).
 
 For every workload and metric, the time to the target error is t (sigma_rel / target)^2 (the
 inverse of the figure of merit 1/(sigma^2 t), scaled), and the ratio new/old is formed per pair
@@ -62,7 +66,8 @@ WORKLOADS = ["stcu_flux", "les05_flux", "stcu_rad_standard", "stcu_rad_unbiased"
 # Batches are multiples of the column count (64 x 64, 60 x 60), so that stratified entry gives
 # every column the same number of photons; 100 batches pin a run's sigma^2 to about 14 %.
 SIZES = {"stcu_flux": (4096, 100), "les05_flux": (3600, 100),
-         "stcu_rad_standard": (4096, 50), "stcu_rad_unbiased": (4096, 50)}
+         "stcu_rad_standard": (4096, 50), "stcu_rad_unbiased": (4096, 50),
+         "les05_rad_standard": (3600, 40), "les05_rad_unbiased": (3600, 40)}
 DIRS = [("nadir", 1.0, 0.0), ("fwd60", 0.5, 0.0), ("hotspot", 0.5, 180.0)]
 
 
@@ -95,12 +100,16 @@ def stcu_namelist(prp, npb, nb, seed, out, preset, extra, radiance):
     return text + vr_text(preset, extra)
 
 
-def les05_namelist(base_text, npb, nb, seed, out, extra):
+def les05_namelist(base_text, npb, nb, seed, out, extra, preset=""):
     text = re.sub(r"&kumo_control[^/]*/",
                   f"&kumo_control n_photons_per_batch = {npb}, n_batches = {nb}, "
                   f"seed = {seed}, verbose = 0 /", base_text)
     text = re.sub(r"(&kumo_output\s+file = ')[^']*'", rf"\g<1>{out}'", text)
-    return text + vr_text("", extra)
+    if preset:
+        mus = ", ".join(f"{d[1]}" for d in DIRS)
+        phis = ", ".join(f"{d[2]}" for d in DIRS)
+        text += f"&kumo_radiance rad_mu = {mus}, rad_phi_deg = {phis} /\n"
+    return text + vr_text(preset, extra)
 
 
 def les05_cloud_mask():
@@ -161,7 +170,7 @@ def main():
     workloads = [w.strip() for w in a.workloads.split(",") if w.strip()]
     for w in workloads:
         if w not in SIZES:
-            sys.exit(f"run_les_speed: unknown workload {w!r} (known: {', '.join(WORKLOADS)})")
+            sys.exit(f"run_les_speed: unknown workload {w!r} (known: {', '.join(SIZES)})")
     prp = os.path.join(os.path.abspath(a.shared), "data", "i3rc", "les_examples",
                        "les_stcu_w213.prp")
     if any(w.startswith("stcu") for w in workloads) and not os.path.isfile(prp):
@@ -170,7 +179,7 @@ def main():
     os.makedirs(work, exist_ok=True)
     cloudy = les05_cloud_mask()
     les05_base = ""
-    if "les05_flux" in workloads:
+    if any(w.startswith("les05") for w in workloads):
         env = dict(os.environ, KUMO=exe["old"], KUMO_RUN_DIR=work)
         subprocess.run(["bash", os.path.join(REPO, "examples", "mcarats_les05",
                                              "run_mcarats_les05.sh"), "1000"],
@@ -190,10 +199,10 @@ def main():
                 npb, nb = SIZES[w]
                 npb = max(100, int(round(npb * a.scale)))
                 out = f"{w}_{side}_{s}.nc"
-                if w == "les05_flux":
-                    text = les05_namelist(les05_base, npb, nb, s, out, vr[side])
+                preset = w.split("_")[-1] if "_rad_" in w else ""
+                if w.startswith("les05"):
+                    text = les05_namelist(les05_base, npb, nb, s, out, vr[side], preset)
                 else:
-                    preset = w.split("_")[-1] if "_rad_" in w else ""
                     text = stcu_namelist(prp, npb, nb, s, out, preset, vr[side], "_rad_" in w)
                 nml = os.path.join(work, f"{w}_{side}_{s}.nml")
                 with open(nml, "w") as f:
@@ -270,16 +279,19 @@ def write_results(a, rows, workloads, elapsed):
                          f"{statistics.median(ratios):.2f} ({min(ratios):.2f}-{max(ratios):.2f})"
                          f" | {us:.2f} | {statistics.median(cpur):.2f} | "
                          f"{st[0]:.1f}, {st[1]:.1f} |")
-    if "stcu_rad_standard" in workloads and "stcu_rad_unbiased" in workloads:
-        lines += ["", "Standard preset against the unbiased preset (all runs of each side pooled; "
-                  "bias in % of the unbiased value and in its combined standard error):", "",
-                  "| direction | side | standard | unbiased | bias [%] | bias [sigma] |",
+    for scene in ("stcu", "les05"):
+        std, unb = f"{scene}_rad_standard", f"{scene}_rad_unbiased"
+        if std not in workloads or unb not in workloads:
+            continue
+        lines += ["", f"{scene}: standard preset against the unbiased preset (all runs of each side "
+                  "pooled; bias in % of the unbiased value and in its combined standard error):",
+                  "", "| direction | side | standard | unbiased | bias [%] | bias [sigma] |",
                   "|---|---|---|---|---|---|"]
         for name, _, _ in DIRS:
             for side in ("old", "new"):
-                st = pooled([r for r in rows if r["workload"] == "stcu_rad_standard"
+                st = pooled([r for r in rows if r["workload"] == std
                              and r["metric"] == f"I_{name}" and r["side"] == side])
-                ub = pooled([r for r in rows if r["workload"] == "stcu_rad_unbiased"
+                ub = pooled([r for r in rows if r["workload"] == unb
                              and r["metric"] == f"I_{name}" and r["side"] == side])
                 d = st[0] - ub[0]
                 sig = (st[1] ** 2 + ub[1] ** 2) ** 0.5

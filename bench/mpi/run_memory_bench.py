@@ -16,7 +16,7 @@ photons (it is memory that is measured, not speed) and samples every rank's memo
   processes that map them; the peak of the sum over the ranks is what the node needs.
 
 Usage:  python3 bench/mpi/run_memory_bench.py KUMO [KUMO ...] [--work DIR] [--nx 400]
-        [--voxel-absorption] [--mpiexec "mpiexec --oversubscribe"]
+        [--voxel-absorption] [--column-fluxes] [--mpiexec "mpiexec --oversubscribe"]
 Prints one line per build, rank count and rank (MiB), then the node's peak.
 Needs numpy and netCDF4 (for the field), Linux /proc.
 """
@@ -43,8 +43,9 @@ def field(work, nx):
     return path
 
 
-def namelist(work, cloud, voxel_absorption):
+def namelist(work, cloud, voxel_absorption, column_fluxes):
     path = os.path.join(work, "memory.nml")
+    flag = {True: ".true.", False: ".false."}
     with open(path, "w") as f:
         f.write(f"""&kumo_control n_photons_per_batch = 2000, n_batches = 2, seed = 1 /
 &kumo_cloud cloud_file = '{os.path.basename(cloud)}', cloud_format = 'les',
@@ -52,7 +53,8 @@ def namelist(work, cloud, voxel_absorption):
 &kumo_atmosphere rayleigh = .true. /
 &kumo_surface albedo = 0.05 /
 &kumo_source sza_deg = 30.0, wavelength_um = 0.86 /
-&kumo_output file = 'memory.nc', voxel_absorption = {'.true.' if voxel_absorption else '.false.'} /
+&kumo_output file = 'memory.nc', voxel_absorption = {flag[voxel_absorption]},
+  column_fluxes = {flag[column_fluxes]} /
 """)
     return path
 
@@ -134,15 +136,17 @@ def main():
     ap.add_argument("--nx", type=int, default=400)
     ap.add_argument("--ranks", default="1,2")
     ap.add_argument("--voxel-absorption", action="store_true",
-                    help="keep the per-voxel absorption tallies on (off by default here)")
+                    help="per-voxel absorption tallies on (kumo's default; off here)")
+    ap.add_argument("--column-fluxes", action="store_true",
+                    help="per-column flux maps at every level on (kumo's default; off here)")
     ap.add_argument("--mpiexec", default="mpiexec --oversubscribe")
     a = ap.parse_args()
     os.makedirs(a.work, exist_ok=True)
     cloud = field(a.work, a.nx)
-    nml = namelist(a.work, cloud, a.voxel_absorption)
+    nml = namelist(a.work, cloud, a.voxel_absorption, a.column_fluxes)
     mib = 1.0 / 1024.0
     print(f"# field {os.path.basename(cloud)}: {a.nx} x {a.nx} x 64 voxels; "
-          f"voxel_absorption = {a.voxel_absorption}")
+          f"voxel_absorption = {a.voxel_absorption}, column_fluxes = {a.column_fluxes}")
     print("# build  ranks  rank  VmHWM  peak_RssAnon  peak_Pss  [MiB]")
     for exe in a.kumo:
         for np in [int(n) for n in a.ranks.split(",")]:

@@ -11,6 +11,7 @@
 !> mie_cache or computed, by rank 0 alone) as `mie_table_t`s (kumo_cloud_share): no other rank
 !> opens an input file.
 module kumo_scene_setup
+  use, intrinsic :: iso_fortran_env, only: output_unit
   use kumo_kinds, only: wp, dp, vp, i8
   use kumo_constants, only: DEG2RAD, PI
   use kumo_error, only: error_t, set_error, add_context, str, join
@@ -1448,7 +1449,7 @@ contains
                                   sync=par_node_sync)
       call b%share(error)   ! rank 0's error, if any, on every rank
       if (allocated(error)) return
-      call note_voxel_storage(atm, notes)
+      call note_voxel_storage(atm, cfg%control%verbose)
       return
     end if
     if (par_is_root()) call build(error)
@@ -1474,28 +1475,31 @@ contains
     end subroutine build
   end subroutine cloud_on_ranks
 
-  !> A line for the run log: where each rank's voxel arrays live (bytes it allocated itself, and
-  !> bytes of the node's shared window it allocated: the node's first rank alone). Every rank
-  !> calls it; rank 0 gets the line.
-  subroutine note_voxel_storage(atm, notes)
+  !> A line for the run log (rank 0, verbose >= 1): where each rank's voxel arrays live (bytes
+  !> it allocated itself, and bytes of the node's shared window it allocated: the node's first
+  !> rank alone). Every rank calls it. It is printed, not kept in the scene's notes, which the
+  !> output file keeps: the file does not depend on the rank count.
+  subroutine note_voxel_storage(atm, verbose)
     type(atmosphere_t), intent(in) :: atm
-    character(len=:), allocatable, intent(inout) :: notes
+    integer, intent(in) :: verbose
     integer(i8), allocatable :: own(:), win(:)
     integer(i8) :: mine
     integer :: r
+    character(len=:), allocatable :: notes
     allocate (own(par_size()), win(par_size()))
     call par_gather_i8(atm%voxel_bytes_own, own)
     mine = 0_i8
     if (atm%voxels_borrowed .and. atm%voxel_writer) mine = atm%voxel_bytes_borrowed
     call par_gather_i8(mine, win)
-    if (par_rank() /= 0) return
-    notes = notes//'voxel arrays: one copy per node in shared memory ('// &
+    if (par_rank() /= 0 .or. verbose < 1) return
+    notes = 'voxel arrays: one copy per node in shared memory ('// &
             str(atm%voxel_bytes_borrowed)//' bytes, '//str(par_node_size())// &
             ' ranks on the node of rank 0); bytes allocated per rank (own, shared window):'
     do r = 1, size(own)
       notes = notes//' rank '//str(r - 1)//' '//str(own(r))//' '//str(win(r))//';'
     end do
-    notes = notes//new_line('a')
+    write (output_unit, '(a)') notes
+    flush (output_unit)
   end subroutine note_voxel_storage
 
   !> Rank 0 reads a phase-function table (angle [deg], value) and broadcasts it.

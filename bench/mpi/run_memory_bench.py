@@ -16,7 +16,7 @@ photons (it is memory that is measured, not speed) and samples every rank's memo
   processes that map them; the peak of the sum over the ranks is what the node needs.
 
 Usage:  python3 bench/mpi/run_memory_bench.py KUMO [KUMO ...] [--work DIR] [--nx 400]
-        [--voxel-absorption] [--column-fluxes] [--mpiexec "mpiexec --oversubscribe"]
+        [--voxel-absorption] [--column-fluxes] [--broadband] [--mpiexec "mpiexec --oversubscribe"]
 Prints one line per build, rank count and rank (MiB), then the node's peak.
 Needs numpy and netCDF4 (for the field), Linux /proc.
 """
@@ -55,6 +55,37 @@ def namelist(work, cloud, voxel_absorption, column_fluxes):
 &kumo_source sza_deg = 30.0, wavelength_um = 0.86 /
 &kumo_output file = 'memory.nc', voxel_absorption = {flag[voxel_absorption]},
   column_fluxes = {flag[column_fluxes]} /
+""")
+    return path
+
+
+def broadband_namelist(work, cloud, voxel_absorption, column_fluxes):
+    """A shortwave broadband run over the field (RRTMGP g-points, the cloud's RRTMGP liquid
+    optics), levels and humidity above the field as bench/broadband/run_les_broadband_bench.py
+    sets them; the k-distribution is found through KUMO_DATA_DIR."""
+    import netCDF4
+    import numpy as np
+    sys.path.insert(0, os.path.join(REPO, "bench", "broadband"))
+    from run_les_broadband_bench import example_profile, nml_list
+    z_ex, h_ex = example_profile()
+    with netCDF4.Dataset(cloud) as f:
+        ze = np.array(f["z_edges"][:])
+    z = np.concatenate([ze, z_ex[z_ex > ze[-1] + 1.0]])
+    zmid = 0.5 * (z[1:] + z[:-1])
+    zmid_ex = 0.5 * (z_ex[1:] + z_ex[:-1])
+    h = np.exp(np.interp(zmid, zmid_ex, np.log(h_ex)))
+    flag = {True: ".true.", False: ".false."}
+    path = os.path.join(work, "memory_bb.nml")
+    with open(path, "w") as f:
+        f.write(f"""&kumo_control n_photons_per_batch = 2000, n_batches = 2, seed = 1 /
+&kumo_atmosphere nz = {len(z) - 1}, z_levels = {nml_list(z, '{:.10g}')} /
+&kumo_cloud cloud_file = '{os.path.basename(cloud)}', reff_min_um = 2.0, reff_max_um = 30.0 /
+&kumo_surface albedo = 0.05 /
+&kumo_source sza_deg = 30.0 /
+&kumo_output file = 'memory.nc', voxel_absorption = {flag[voxel_absorption]},
+  column_fluxes = {flag[column_fluxes]} /
+&kumo_spectral kdist_file = 'rrtmgp-gas-sw-g112.nc', profile = 'us1976',
+  h2o_vmr = {nml_list(h, '{:.4g}')}, floor_share = 0.2, liquid_optics = 'rrtmgp' /
 """)
     return path
 
@@ -140,13 +171,19 @@ def main():
     ap.add_argument("--column-fluxes", action="store_true",
                     help="per-column flux maps at every level on (kumo's default; off here)")
     ap.add_argument("--mpiexec", default="mpiexec --oversubscribe")
+    ap.add_argument("--broadband", action="store_true",
+                    help="a shortwave broadband run (needs KUMO_DATA_DIR with the RRTMGP files)")
     a = ap.parse_args()
     os.makedirs(a.work, exist_ok=True)
     cloud = field(a.work, a.nx)
-    nml = namelist(a.work, cloud, a.voxel_absorption, a.column_fluxes)
+    if a.broadband:
+        nml = broadband_namelist(a.work, cloud, a.voxel_absorption, a.column_fluxes)
+    else:
+        nml = namelist(a.work, cloud, a.voxel_absorption, a.column_fluxes)
     mib = 1.0 / 1024.0
     print(f"# field {os.path.basename(cloud)}: {a.nx} x {a.nx} x 64 voxels; "
-          f"voxel_absorption = {a.voxel_absorption}, column_fluxes = {a.column_fluxes}")
+          f"voxel_absorption = {a.voxel_absorption}, column_fluxes = {a.column_fluxes}, "
+          f"broadband = {a.broadband}")
     print("# build  ranks  rank  VmHWM  peak_RssAnon  peak_Pss  [MiB]")
     for exe in a.kumo:
         for np in [int(n) for n in a.ranks.split(",")]:

@@ -14,7 +14,8 @@
 !> layers are traced analytically (their extinction is uniform, no null collisions), and 3-D
 !> layers use the super-voxel majorant grid.
 module kumo_atmosphere
-  use kumo_kinds, only: wp, vp
+  use, intrinsic :: iso_c_binding, only: c_ptr, c_f_pointer, c_loc
+  use kumo_kinds, only: wp, vp, i8
   use kumo_error, only: error_t, set_error, str
   use kumo_phase, only: phase_t
   use kumo_truncation, only: truncation_t
@@ -25,11 +26,31 @@ module kumo_atmosphere
   public :: atmosphere_t, atmosphere_options_t, atmosphere_init, atmosphere_set_truncation
   public :: atmosphere_begin, atmosphere_put_layer, atmosphere_end, atmosphere_swap_background
   public :: column_of, column_xy, sigma_trunc_3d
+  public :: atmosphere_release, voxel_storage_i, voxel_sync_i
   public :: LAYER_CLEAR, LAYER_ABSORBING, LAYER_SCATTERING, LAYER_3D, LAYER_CLASS_NAMES
 
   integer, parameter :: LAYER_CLEAR = 0, LAYER_ABSORBING = 1, LAYER_SCATTERING = 2, LAYER_3D = 3
   character(len=10), parameter :: LAYER_CLASS_NAMES(0:3) = &
                                   ['clear     ', 'absorbing ', 'scattering', '3-D       ']
+
+  abstract interface
+    !> Storage for the voxel arrays of an atmosphere, handed in by the caller (atmosphere_begin's
+    !> `storage`): `base` receives the address of `nbytes` bytes (aligned for reals and integers)
+    !> that stay valid as long as the atmosphere is used, and that the caller frees. `writer` is
+    !> .true. on the one process that fills the values; the others see them after `sync`. The
+    !> parallel layer gives one copy per node this way (kumo_parallel par_node_storage).
+    subroutine voxel_storage_i(nbytes, base, writer)
+      import :: c_ptr, i8
+      implicit none
+      integer(i8), intent(in) :: nbytes
+      type(c_ptr), intent(out) :: base
+      logical, intent(out) :: writer
+    end subroutine voxel_storage_i
+    !> Returns when the writer's values are visible to every process sharing the storage.
+    subroutine voxel_sync_i()
+      implicit none
+    end subroutine voxel_sync_i
+  end interface
 
   !> Setup choices; each fast path can be switched off to test that it changes nothing.
   type :: atmosphere_options_t
@@ -58,16 +79,24 @@ module kumo_atmosphere
     real(wp), allocatable :: omg1(:)         !! 1-D layers: mixture single-scattering albedo
     real(wp), allocatable :: csca1(:, :)     !! (ncomp1, nz) cumulative scattering fraction
     integer, allocatable :: iph1(:, :)       !! (ncomp1, nz) phase function per component
-    real(vp), allocatable :: ext3(:, :, :)   !! (nx, ny, n3) total extinction [m-1]
-    real(vp), allocatable :: omg3(:, :, :)   !! (nx, ny, n3) mixture single-scattering albedo
+    ! The voxel arrays are pointers: to storage this atmosphere allocated and owns, or to
+    ! storage handed in by the caller through atmosphere_begin's `storage` (e.g. one copy shared
+    ! by the processes of a node), which the caller frees (see voxel_storage_i).
+    real(vp), pointer, contiguous :: ext3(:, :, :) => null()  !! (nx, ny, n3) total extinction [m-1]
+    real(vp), pointer, contiguous :: omg3(:, :, :) => null()  !! (nx, ny, n3) mixture albedo
     !> (ncomp - 1, nx, ny, n3) cumulative scattering fractions of components 1 .. ncomp - 1
-    !> (the last ends at 1); allocated only when ncomp > 1
-    real(vp), allocatable :: csca3(:, :, :, :)
-    integer, allocatable :: iph3(:, :, :, :) !! (ncomp, nx, ny, n3) phase function index;
-                                             !! allocated only when it varies between voxels
+    !> (the last ends at 1); associated only when ncomp > 1
+    real(vp), pointer, contiguous :: csca3(:, :, :, :) => null()
+    !> (ncomp, nx, ny, n3) phase function index; associated only when it varies between voxels
+    integer, pointer, contiguous :: iph3(:, :, :, :) => null()
     !> (ncomp, nx, ny, n3) weight w of table iph + 1: the phase function is
-    !> (1 - w) P(iph) + w P(iph + 1) (MCARaTS's fractional index); allocated only when used
-    real(vp), allocatable :: wph3(:, :, :, :)
+    !> (1 - w) P(iph) + w P(iph + 1) (MCARaTS's fractional index); associated only when used
+    real(vp), pointer, contiguous :: wph3(:, :, :, :) => null()
+    logical :: voxels_borrowed = .false.     !! the voxel arrays live in the caller's storage
+    logical :: voxel_writer = .true.         !! this process fills the voxel values (else it
+                                             !! only reads what another process wrote)
+    integer(i8) :: voxel_bytes_own = 0_i8    !! bytes of voxel arrays this process allocated
+    integer(i8) :: voxel_bytes_borrowed = 0_i8  !! bytes of voxel arrays in the caller's storage
     integer, allocatable :: iph3_const(:)    !! (ncomp) phase index when it is the same everywhere
     type(phase_t), allocatable :: phases(:)  !! phase functions referenced by index
     type(supervoxel_grid_t) :: sv            !! majorant grid of the 3-D region
@@ -88,7 +117,7 @@ contains
   !> `atmosphere_put_layer` per component and layer, and `atmosphere_end`.
   subroutine atmosphere_init(atm, z, lx, ly, ext1d, ssa1d, iph1d, phases, opts, error, &
                              k3_lo, ext3d, ssa3d, iph3d)
-    type(atmosphere_t), intent(out) :: atm
+    type(atmosphere_t), intent(inout) :: atm   !! built anew (its old voxel arrays released)
     real(wp), intent(in) :: z(0:)              !! levels [m], strictly increasing
     real(wp), intent(in) :: lx, ly             !! domain size [m]
     real(wp), intent(in) :: ext1d(:, :)        !! (nz, ncomp1) extinction [m-1]
@@ -134,9 +163,12 @@ contains
   !> with `nc3` components on nx x ny columns; `blend` reserves a per-voxel weight for phase
   !> functions that blend two consecutive tables. `phases` is moved into the atmosphere.
   !> Then `atmosphere_put_layer` for every component and layer, then `atmosphere_end`.
+  !> With `storage` the voxel arrays are placed in the caller's storage (voxel_storage_i): only
+  !> its writer fills them (background, put_layer, atmosphere_end's values), and every process
+  !> passes atmosphere_end the `sync` that makes the writer's values visible to it.
   subroutine atmosphere_begin(atm, z, lx, ly, ext1d, ssa1d, iph1d, phases, opts, error, &
-                              k3_lo, nx, ny, n3f, nc3, blend)
-    type(atmosphere_t), intent(out) :: atm
+                              k3_lo, nx, ny, n3f, nc3, blend, storage)
+    type(atmosphere_t), intent(inout) :: atm   !! built anew (its old voxel arrays released)
     real(wp), intent(in) :: z(0:)              !! levels [m], strictly increasing
     real(wp), intent(in) :: lx, ly             !! domain size [m]
     real(wp), intent(in) :: ext1d(:, :)        !! (nz, ncomp1) extinction [m-1]
@@ -149,11 +181,16 @@ contains
     integer, intent(in), optional :: nx, ny    !! columns of the 3-D region
     integer, intent(in), optional :: n3f, nc3  !! layers and components given per voxel
     logical, intent(in), optional :: blend     !! some voxels blend two phase tables
+    procedure(voxel_storage_i), optional :: storage  !! the caller's storage for the voxels
     integer :: nz, k, ic, nc1, klo, khi, ncomp, na1, ix, iy, kr
     real(wp) :: e, s
     real(vp), allocatable :: bg_sca(:)
     integer, allocatable :: bg_iph(:)
+    logical :: with_blend
+    type(atmosphere_t) :: fresh
 
+    call atmosphere_release(atm)
+    atm = fresh
     nz = size(z) - 1
     nc1 = size(ext1d, 2)
     if (nz < 1) then
@@ -236,15 +273,11 @@ contains
     ! While the layers are put, ext3 sums the extinction, omg3 the scattering coefficient and
     ! csca3 holds each component's scattering coefficient (the last component's is the rest);
     ! atmosphere_end turns them into the albedo and the cumulative fractions.
-    allocate (atm%ext3(atm%nx, atm%ny, atm%n3), atm%omg3(atm%nx, atm%ny, atm%n3))
-    if (ncomp > 1) allocate (atm%csca3(ncomp - 1, atm%nx, atm%ny, atm%n3))
-    allocate (atm%iph3(ncomp, atm%nx, atm%ny, atm%n3))
-    if (present(blend)) then
-      if (blend) then
-        allocate (atm%wph3(ncomp, atm%nx, atm%ny, atm%n3))
-        atm%wph3 = 0.0_vp
-      end if
-    end if
+    with_blend = .false.
+    if (present(blend)) with_blend = blend
+    call voxel_arrays(atm, with_blend, storage)
+    if (.not. atm%voxel_writer) return
+    if (with_blend) atm%wph3 = 0.0_vp
     ! the background is the same in every voxel of a layer: its values once per layer
     allocate (bg_sca(max(ncomp - 1, 1)), bg_iph(ncomp))
     do kr = 1, atm%n3
@@ -281,6 +314,7 @@ contains
     real(wp), intent(in), optional :: wph(:, :)    !! (nx, ny) in [0, 1]
     integer :: kr, icc, ix, iy
     real(wp) :: sca
+    if (.not. atm%voxel_writer) return
     kr = atm%kf_lo + kf - 1 - atm%k3_lo + 1
     icc = size(atm%act1) + ic
     do iy = 1, atm%ny
@@ -292,18 +326,21 @@ contains
         atm%iph3(icc, ix, iy, kr) = iph(ix, iy)
       end do
     end do
-    if (present(wph) .and. allocated(atm%wph3)) atm%wph3(icc, :, :, kr) = real(wph, vp)
+    if (present(wph) .and. associated(atm%wph3)) atm%wph3(icc, :, :, kr) = real(wph, vp)
   end subroutine atmosphere_put_layer
 
   !> Last step: albedo and cumulative scattering fractions from the sums, checks of the phase
   !> indices, storage dropped where nothing varies, the super-voxel grid.
   !> With `sv_layout` (the super-voxel grid of an earlier atmosphere of the same region) the
   !> grid keeps those blocks and only takes the new majorants (supervoxel_majorants).
-  subroutine atmosphere_end(atm, opts, error, sv_layout)
+  !> Voxels in the caller's storage: its writer forms the values, then every process calls
+  !> `sync` and derives the rest (checks, super-voxel grid) from the same values.
+  subroutine atmosphere_end(atm, opts, error, sv_layout, sync)
     type(atmosphere_t), intent(inout) :: atm
     type(atmosphere_options_t), intent(in) :: opts
     type(error_t), allocatable, intent(out) :: error
     type(supervoxel_grid_t), intent(in), optional :: sv_layout
+    procedure(voxel_sync_i), optional :: sync   !! needed with atmosphere_begin's `storage`
     integer :: ic, ix, iy, kr, nc, np, klo, khi
     real(wp) :: ext_tot, sca_tot, acc
     logical :: varies, bad_index, bad_weight, bad_blend, blended
@@ -311,13 +348,39 @@ contains
     if (atm%n3 == 0) return
     nc = atm%ncomp
     np = size(atm%phases)
+    ! the values first (they read neither the phase indices nor the blend weights)
+    if (atm%voxel_writer) then
+      do kr = 1, atm%n3
+        do iy = 1, atm%ny
+          do ix = 1, atm%nx
+            ext_tot = atm%ext3(ix, iy, kr)
+            sca_tot = atm%omg3(ix, iy, kr)
+            if (ext_tot > 0.0_wp) then
+              atm%omg3(ix, iy, kr) = real(min(1.0_wp, sca_tot/ext_tot), vp)
+            else
+              atm%omg3(ix, iy, kr) = 1.0_vp
+            end if
+            acc = 0.0_wp
+            do ic = 1, nc - 1
+              acc = acc + atm%csca3(ic, ix, iy, kr)
+              if (sca_tot > 0.0_wp) then
+                atm%csca3(ic, ix, iy, kr) = real(min(1.0_wp, acc/sca_tot), vp)
+              else
+                atm%csca3(ic, ix, iy, kr) = real(real(ic, wp)/nc, vp)
+              end if
+            end do
+          end do
+        end do
+      end do
+    end if
+    if (present(sync)) call sync()
     ! the indices and blend weights (reductions the compiler vectorises; a blend's second table
     ! is checked only when some index could be the last)
     bad_index = minval(atm%iph3) < 1 .or. maxval(atm%iph3) > np
     bad_weight = .false.
     bad_blend = .false.
     blended = .false.
-    if (allocated(atm%wph3)) then
+    if (associated(atm%wph3)) then
       bad_weight = minval(atm%wph3) < 0.0_vp .or. maxval(atm%wph3) > 1.0_vp
       blended = maxval(atm%wph3) > 0.0_vp
       if (blended .and. maxval(atm%iph3) >= np) bad_blend = any(atm%wph3 > 0.0_vp .and. &
@@ -327,7 +390,7 @@ contains
       call set_error(error, 'atmosphere: a 3-D phase-function index is outside 1..'//str(np))
       return
     end if
-    if (allocated(atm%wph3)) then
+    if (associated(atm%wph3)) then
       if (bad_weight) then
         call set_error(error, 'atmosphere: a phase-function blend weight is outside 0..1')
         return
@@ -337,37 +400,15 @@ contains
                        str(np))
         return
       end if
-      if (.not. blended) deallocate (atm%wph3)
+      if (.not. blended) call drop_real(atm%voxels_borrowed, atm%wph3)
     end if
-    do kr = 1, atm%n3
-      do iy = 1, atm%ny
-        do ix = 1, atm%nx
-          ext_tot = atm%ext3(ix, iy, kr)
-          sca_tot = atm%omg3(ix, iy, kr)
-          if (ext_tot > 0.0_wp) then
-            atm%omg3(ix, iy, kr) = real(min(1.0_wp, sca_tot/ext_tot), vp)
-          else
-            atm%omg3(ix, iy, kr) = 1.0_vp
-          end if
-          acc = 0.0_wp
-          do ic = 1, nc - 1
-            acc = acc + atm%csca3(ic, ix, iy, kr)
-            if (sca_tot > 0.0_wp) then
-              atm%csca3(ic, ix, iy, kr) = real(min(1.0_wp, acc/sca_tot), vp)
-            else
-              atm%csca3(ic, ix, iy, kr) = real(real(ic, wp)/nc, vp)
-            end if
-          end do
-        end do
-      end do
-    end do
     ! A phase index that is the same in every voxel is stored once.
     atm%iph3_const = atm%iph3(:, 1, 1, 1)
-    varies = allocated(atm%wph3)
+    varies = associated(atm%wph3)
     do ic = 1, nc
       if (any(atm%iph3(ic, :, :, :) /= atm%iph3_const(ic))) varies = .true.
     end do
-    if (.not. varies) deallocate (atm%iph3)
+    if (.not. varies) call drop_int(atm%voxels_borrowed, atm%iph3)
 
     klo = atm%k3_lo
     khi = atm%k3_hi
@@ -381,15 +422,15 @@ contains
     do kr = 1, atm%n3
       atm%uniform3(kr) = all(atm%ext3(:, :, kr) == atm%ext3(1, 1, kr)) .and. &
                          all(atm%omg3(:, :, kr) == atm%omg3(1, 1, kr))
-      if (allocated(atm%csca3)) atm%uniform3(kr) = atm%uniform3(kr) .and. &
+      if (associated(atm%csca3)) atm%uniform3(kr) = atm%uniform3(kr) .and. &
                                                    uniform_layer(atm%csca3(:, :, :, kr))
-      if (allocated(atm%iph3)) then
+      if (associated(atm%iph3)) then
         do ic = 1, nc
           atm%uniform3(kr) = atm%uniform3(kr) .and. &
                              all(atm%iph3(ic, :, :, kr) == atm%iph3(ic, 1, 1, kr))
         end do
       end if
-      if (allocated(atm%wph3)) atm%uniform3(kr) = atm%uniform3(kr) .and. &
+      if (associated(atm%wph3)) atm%uniform3(kr) = atm%uniform3(kr) .and. &
                                                   uniform_layer(atm%wph3(:, :, :, kr))
     end do
   end subroutine atmosphere_end
@@ -417,6 +458,7 @@ contains
     real(wp), allocatable :: acc_bg(:)
     done = .false.
     nc1 = atm%ncomp1
+    if (atm%voxels_borrowed) return   ! voxels in shared storage: rebuilt by their writer
     if (size(ext1d, 1) /= atm%nz .or. size(ext1d, 2) /= nc1) return
     if (atm%n3 > 0) then
       do ic = 1, nc1
@@ -494,6 +536,94 @@ contains
     end do
     call supervoxel_majorants(atm%ext3, sv_layout, atm%sv)
   end subroutine atmosphere_swap_background
+
+  !> The voxel arrays of the 3-D region (nx, ny, n3 and ncomp set): allocated here and owned,
+  !> or placed one after the other in one block of the caller's `storage` (borrowed). A new
+  !> per-voxel array takes its place in both branches and in atmosphere_release.
+  subroutine voxel_arrays(atm, blend, storage)
+    type(atmosphere_t), intent(inout) :: atm
+    logical, intent(in) :: blend
+    procedure(voxel_storage_i), optional :: storage
+    !> bytes of one value; reals of kind vp and default integers have the same size
+    integer(i8), parameter :: WORD = storage_size(1.0_vp)/8
+    integer(i8) :: nv, nw, o
+    integer :: nx, ny, n3, nc
+    real(vp), pointer, contiguous :: words(:)
+    integer, pointer, contiguous :: iwords(:)
+    type(c_ptr) :: base
+    nx = atm%nx
+    ny = atm%ny
+    n3 = atm%n3
+    nc = atm%ncomp
+    nv = int(nx, i8)*ny*n3
+    nw = nv*(2 + (nc - 1) + nc + merge(nc, 0, blend))
+    if (.not. present(storage)) then
+      allocate (atm%ext3(nx, ny, n3), atm%omg3(nx, ny, n3))
+      if (nc > 1) allocate (atm%csca3(nc - 1, nx, ny, n3))
+      allocate (atm%iph3(nc, nx, ny, n3))
+      if (blend) allocate (atm%wph3(nc, nx, ny, n3))
+      atm%voxel_bytes_own = nw*WORD
+      return
+    end if
+    call storage(nw*WORD, base, atm%voxel_writer)
+    atm%voxels_borrowed = .true.
+    atm%voxel_bytes_borrowed = nw*WORD
+    call c_f_pointer(base, words, [nw])
+    o = 0
+    atm%ext3(1:nx, 1:ny, 1:n3) => words(o + 1:o + nv)
+    o = o + nv
+    atm%omg3(1:nx, 1:ny, 1:n3) => words(o + 1:o + nv)
+    o = o + nv
+    if (nc > 1) then
+      atm%csca3(1:nc - 1, 1:nx, 1:ny, 1:n3) => words(o + 1:o + (nc - 1)*nv)
+      o = o + (nc - 1)*nv
+    end if
+    if (blend) then
+      atm%wph3(1:nc, 1:nx, 1:ny, 1:n3) => words(o + 1:o + nc*nv)
+      o = o + nc*nv
+    end if
+    call c_f_pointer(c_loc(words(o + 1)), iwords, [nc*nv])
+    atm%iph3(1:nc, 1:nx, 1:ny, 1:n3) => iwords
+  end subroutine voxel_arrays
+
+  !> Free the voxel arrays this atmosphere owns (borrowed ones are only let go: their storage
+  !> belongs to the caller). The atmosphere has no voxel arrays afterwards.
+  subroutine atmosphere_release(atm)
+    type(atmosphere_t), intent(inout) :: atm
+    if (.not. atm%voxels_borrowed) then
+      if (associated(atm%ext3)) deallocate (atm%ext3)
+      if (associated(atm%omg3)) deallocate (atm%omg3)
+      if (associated(atm%csca3)) deallocate (atm%csca3)
+      if (associated(atm%iph3)) deallocate (atm%iph3)
+      if (associated(atm%wph3)) deallocate (atm%wph3)
+    end if
+    nullify (atm%ext3, atm%omg3, atm%csca3, atm%iph3, atm%wph3)
+    atm%voxels_borrowed = .false.
+    atm%voxel_writer = .true.
+    atm%voxel_bytes_own = 0_i8
+    atm%voxel_bytes_borrowed = 0_i8
+  end subroutine atmosphere_release
+
+  !> Let go of a voxel array that is not needed (freed when owned).
+  subroutine drop_real(borrowed, a)
+    logical, intent(in) :: borrowed
+    real(vp), pointer, contiguous, intent(inout) :: a(:, :, :, :)
+    if (borrowed) then
+      nullify (a)
+    else
+      deallocate (a)
+    end if
+  end subroutine drop_real
+
+  subroutine drop_int(borrowed, a)
+    logical, intent(in) :: borrowed
+    integer, pointer, contiguous, intent(inout) :: a(:, :, :, :)
+    if (borrowed) then
+      nullify (a)
+    else
+      deallocate (a)
+    end if
+  end subroutine drop_int
 
   !> How the photon loop treats layer k (LAYER_*): in the 3-D region, or by its 1-D mixture.
   pure integer function class_of_layer(atm, k, opts) result(cls)
@@ -576,13 +706,13 @@ contains
     integer, intent(in) :: ic, ix, iy, kr, lev
     integer :: iph
     real(wp) :: w
-    if (allocated(atm%iph3)) then
+    if (associated(atm%iph3)) then
       iph = atm%iph3(ic, ix, iy, kr)
     else
       iph = atm%iph3_const(ic)
     end if
     f = atm%trunc%f(lev, iph)
-    if (allocated(atm%wph3)) then
+    if (associated(atm%wph3)) then
       w = atm%wph3(ic, ix, iy, kr)
       if (w > 0.0_wp) f = (1.0_wp - w)*f + w*atm%trunc%f(lev, iph + 1)
     end if

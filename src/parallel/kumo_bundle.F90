@@ -25,7 +25,7 @@ module kumo_bundle
   use kumo_kinds, only: dp, sp
   use kumo_error, only: error_t, set_error
   use kumo_parallel, only: par_size, par_is_root, par_bcast_int, par_bcast_real, par_bcast_text, &
-                           par_bcast_single
+                           par_bcast_single, PAR_ALL, PAR_LEADERS
   implicit none
   private
   public :: bundle_t
@@ -61,11 +61,18 @@ contains
   !> Broadcast rank 0's bundle and its error status: on return every rank holds rank 0's items,
   !> or, when `error` was allocated on rank 0, an error with rank 0's message (rank 0 keeps its
   !> own error unchanged). Every rank must call it; `error` on ranks other than 0 is replaced.
-  subroutine share(self, error)
+  !> With `leaders` = .true. the bundle goes to the first rank of every node alone (those call
+  !> it, the others do not): the node's one copy of a large input (kumo_parallel PAR_LEADERS).
+  subroutine share(self, error, leaders)
     class(bundle_t), intent(inout) :: self
     type(error_t), allocatable, intent(inout) :: error
-    integer :: head(5)
+    logical, intent(in), optional :: leaders
+    integer :: head(5), g
     character(len=:), allocatable :: message
+    g = PAR_ALL
+    if (present(leaders)) then
+      if (leaders) g = PAR_LEADERS
+    end if
     self%ki = 0
     self%kr = 0
     self%kt = 0
@@ -76,11 +83,11 @@ contains
       if (allocated(error)) head(1) = 1
       head(2:5) = [self%ni, self%nr, self%nt, self%ns]
     end if
-    call par_bcast_int(head)
+    call par_bcast_int(head, g)
     if (head(1) /= 0) then
       ! rank 0 failed: its message, nothing else
       if (par_is_root()) message = error%message
-      call par_bcast_text(message)
+      call par_bcast_text(message, g)
       if (.not. par_is_root()) call set_error(error, message)
       return
     end if
@@ -97,12 +104,12 @@ contains
       allocate (self%ints(self%ni), self%reals(self%nr), self%singles(self%ns))
       allocate (character(len=self%nt) :: self%text)
     end if
-    if (self%ni > 0) call par_bcast_int(self%ints(1:self%ni))
-    if (self%nr > 0) call par_bcast_real(self%reals(1:self%nr))
-    if (self%ns > 0) call par_bcast_single(self%singles(1:self%ns))
+    if (self%ni > 0) call par_bcast_int(self%ints(1:self%ni), g)
+    if (self%nr > 0) call par_bcast_real(self%reals(1:self%nr), g)
+    if (self%ns > 0) call par_bcast_single(self%singles(1:self%ns), g)
     if (self%nt > 0) then
       if (par_is_root()) self%text = self%text(1:self%nt)
-      call par_bcast_text(self%text)
+      call par_bcast_text(self%text, g)
     end if
   end subroutine share
 

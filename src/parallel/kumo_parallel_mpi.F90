@@ -10,7 +10,10 @@ module kumo_parallel
   use mpi_f08, only: MPI_REAL
   use mpi_f08, only: MPI_Ibarrier, MPI_Test, MPI_Request, MPI_STATUS_IGNORE
   use mpi_f08, only: MPI_Send, MPI_Recv, MPI_Gather, MPI_Gatherv, MPI_CHARACTER
-  use, intrinsic :: iso_c_binding, only: c_int
+  use mpi_f08, only: MPI_Comm, MPI_Win, MPI_Comm_split_type, MPI_Comm_split, MPI_Win_free, &
+    MPI_Win_allocate_shared, MPI_Win_shared_query, MPI_COMM_TYPE_SHARED, MPI_INFO_NULL, &
+    MPI_UNDEFINED, MPI_ADDRESS_KIND
+  use, intrinsic :: iso_c_binding, only: c_int, c_ptr
   use, intrinsic :: iso_fortran_env, only: error_unit
   use kumo_kinds, only: dp, sp, i8
   implicit none
@@ -18,6 +21,8 @@ module kumo_parallel
   public :: par_init, par_finalize, par_rank, par_size, par_is_root, par_sum_to_root, &
             par_allreduce_sum, par_abort, par_barrier, par_wtime, par_bcast_int, par_bcast_real, PAR_IS_MPI
   public :: par_stop, par_fail, par_bcast_text, par_move, par_bcast_single
+  public :: par_node_size, par_node_leader, par_node_storage, par_node_sync, par_gather_i8
+  public :: PAR_ALL, PAR_LEADERS
 
   logical, parameter :: PAR_IS_MPI = .true.  !! this build distributes batches over MPI ranks
 
@@ -29,6 +34,17 @@ module kumo_parallel
   interface par_move
     module procedure move_dp, move_i8
   end interface par_move
+
+  !> Groups of ranks for broadcasts: every rank, or the first rank of every node (the node
+  !> leaders, which include rank 0).
+  integer, parameter :: PAR_ALL = 0, PAR_LEADERS = 1
+
+  !> The ranks of this node (MPI_COMM_TYPE_SHARED), the node leaders, and the shared-memory
+  !> windows this process holds (freed by par_finalize). Set up by par_init.
+  logical, save :: node_ready = .false.
+  type(MPI_Comm), save :: node_comm, leader_comm
+  integer, save :: node_rank = 0, node_n = 1
+  type(MPI_Win), allocatable, save :: windows(:)
 
   !> How long [s] the ranks that failed wait for the others before ending the job with
   !> MPI_Abort: an error every rank found reaches them all well within it.
@@ -53,13 +69,89 @@ contains
     logical :: flag
     call MPI_Initialized(flag)
     if (.not. flag) call MPI_Init()
+    call node_setup()
   end subroutine par_init
 
   subroutine par_finalize()
     logical :: flag
+    integer :: i
     call MPI_Finalized(flag)
-    if (.not. flag) call MPI_Finalize()
+    if (flag) return
+    if (allocated(windows)) then
+      do i = 1, size(windows)
+        call MPI_Win_free(windows(i))
+      end do
+      deallocate (windows)
+    end if
+    call MPI_Finalize()
   end subroutine par_finalize
+
+  !> The communicator of the ranks that share this node's memory and that of the node leaders
+  !> (every rank calls it: par_init does; later calls do nothing).
+  subroutine node_setup()
+    integer :: rank, color
+    if (node_ready) return
+    rank = par_rank()
+    call MPI_Comm_split_type(MPI_COMM_WORLD, MPI_COMM_TYPE_SHARED, rank, MPI_INFO_NULL, node_comm)
+    call MPI_Comm_rank(node_comm, node_rank)
+    call MPI_Comm_size(node_comm, node_n)
+    color = MPI_UNDEFINED
+    if (node_rank == 0) color = 0
+    call MPI_Comm_split(MPI_COMM_WORLD, color, rank, leader_comm)
+    node_ready = .true.
+  end subroutine node_setup
+
+  !> Number of ranks on this node (that can share memory).
+  integer function par_node_size() result(n)
+    call node_setup()
+    n = node_n
+  end function par_node_size
+
+  !> This rank is its node's first (its leader).
+  logical function par_node_leader() result(leader)
+    call node_setup()
+    leader = node_rank == 0
+  end function par_node_leader
+
+  !> Storage shared by the ranks of this node (kumo_atmosphere voxel_storage_i): an MPI-3
+  !> shared-memory window of `nbytes` bytes allocated by the node's leader alone, mapped by every
+  !> rank of the node at `base`; the leader is the `writer`. Every rank of the node calls it with
+  !> the same `nbytes`. The window lives until par_finalize.
+  subroutine par_node_storage(nbytes, base, writer)
+    integer(i8), intent(in) :: nbytes
+    type(c_ptr), intent(out) :: base
+    logical, intent(out) :: writer
+    integer(kind=MPI_ADDRESS_KIND) :: mine, got
+    integer :: disp
+    type(MPI_Win) :: win
+    type(c_ptr) :: local
+    call node_setup()
+    writer = node_rank == 0
+    mine = 0
+    if (writer) mine = max(nbytes, 8_i8)
+    call MPI_Win_allocate_shared(mine, 1, MPI_INFO_NULL, node_comm, local, win)
+    call MPI_Win_shared_query(win, 0, got, disp, base)
+    if (.not. allocated(windows)) allocate (windows(0))
+    windows = [windows, win]
+  end subroutine par_node_storage
+
+  !> Returns when every rank of the node has reached it: what the leader wrote into the node's
+  !> shared storage before is then seen by all (a barrier of the node: the window's memory is
+  !> unified, and the barrier orders the leader's stores before the others' loads).
+  subroutine par_node_sync()
+    call node_setup()
+    call MPI_Barrier(node_comm)
+  end subroutine par_node_sync
+
+  !> Gather one integer per rank on rank 0 (`all`, size par_size(), in rank order; other ranks'
+  !> `all` is not set).
+  subroutine par_gather_i8(mine, all)
+    integer(i8), intent(in) :: mine
+    integer(i8), intent(out) :: all(:)
+    integer(i8) :: buf(1)
+    buf(1) = mine
+    call MPI_Gather(buf, 1, MPI_INTEGER8, all, 1, MPI_INTEGER8, 0, MPI_COMM_WORLD)
+  end subroutine par_gather_i8
 
   integer function par_rank() result(r)
     call MPI_Comm_rank(MPI_COMM_WORLD, r)
@@ -100,52 +192,70 @@ contains
                        MPI_COMM_WORLD)
   end subroutine par_allreduce_sum
 
-  !> Broadcast integers from rank 0.
-  subroutine par_bcast_int(buf)
+  !> Broadcast integers from rank 0 (to every rank, or with `group` = PAR_LEADERS to the node
+  !> leaders, which alone call it then).
+  subroutine par_bcast_int(buf, group)
     integer, intent(inout) :: buf(:)
-    call MPI_Bcast(buf, size(buf), MPI_INTEGER, 0, MPI_COMM_WORLD)
+    integer, intent(in), optional :: group
+    call MPI_Bcast(buf, size(buf), MPI_INTEGER, 0, comm_of(group))
   end subroutine par_bcast_int
 
+  !> The communicator of a group of ranks (PAR_ALL when absent).
+  function comm_of(group) result(comm)
+    integer, intent(in), optional :: group
+    type(MPI_Comm) :: comm
+    comm = MPI_COMM_WORLD
+    if (present(group)) then
+      if (group == PAR_LEADERS) then
+        call node_setup()
+        comm = leader_comm
+      end if
+    end if
+  end function comm_of
+
   !> Broadcast doubles from rank 0 (in chunks, so arrays of any size fit MPI's int counts).
-  subroutine par_bcast_real(buf)
+  subroutine par_bcast_real(buf, group)
     real(dp), intent(inout) :: buf(:)
+    integer, intent(in), optional :: group
     integer(i8) :: i0, n
     integer, parameter :: CHUNK = 2**27
     n = size(buf, kind=i8)
     i0 = 1
     do while (i0 <= n)
       call MPI_Bcast(buf(i0:min(n, i0 + CHUNK - 1)), int(min(int(CHUNK, i8), n - i0 + 1)), &
-                     MPI_DOUBLE_PRECISION, 0, MPI_COMM_WORLD)
+                     MPI_DOUBLE_PRECISION, 0, comm_of(group))
       i0 = i0 + CHUNK
     end do
   end subroutine par_bcast_real
 
   !> Broadcast single-precision reals from rank 0 (in chunks, as par_bcast_real).
-  subroutine par_bcast_single(buf)
+  subroutine par_bcast_single(buf, group)
     real(sp), intent(inout) :: buf(:)
+    integer, intent(in), optional :: group
     integer(i8) :: i0, n
     integer, parameter :: CHUNK = 2**27
     n = size(buf, kind=i8)
     i0 = 1
     do while (i0 <= n)
       call MPI_Bcast(buf(i0:min(n, i0 + CHUNK - 1)), int(min(int(CHUNK, i8), n - i0 + 1)), &
-                     MPI_REAL, 0, MPI_COMM_WORLD)
+                     MPI_REAL, 0, comm_of(group))
       i0 = i0 + CHUNK
     end do
   end subroutine par_bcast_single
 
   !> Broadcast a string from rank 0 (any length; `text` need not be allocated elsewhere).
-  subroutine par_bcast_text(text)
+  subroutine par_bcast_text(text, group)
     character(len=:), allocatable, intent(inout) :: text
+    integer, intent(in), optional :: group
     integer :: n(1)
     n = 0
     if (par_rank() == 0) n = len(text)
-    call MPI_Bcast(n, 1, MPI_INTEGER, 0, MPI_COMM_WORLD)
+    call MPI_Bcast(n, 1, MPI_INTEGER, 0, comm_of(group))
     if (par_rank() /= 0) then
       if (allocated(text)) deallocate (text)
       allocate (character(len=n(1)) :: text)
     end if
-    if (n(1) > 0) call MPI_Bcast(text, n(1), MPI_CHARACTER, 0, MPI_COMM_WORLD)
+    if (n(1) > 0) call MPI_Bcast(text, n(1), MPI_CHARACTER, 0, comm_of(group))
   end subroutine par_bcast_text
 
   !> Rank `to` receives `buf` from rank `from` (same size on both); nothing happens on other

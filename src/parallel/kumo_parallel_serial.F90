@@ -1,7 +1,7 @@
 ! SPDX-License-Identifier: BSD-3-Clause
 !> Serial build of kumo_parallel: one rank, every operation is trivial.
 module kumo_parallel
-  use, intrinsic :: iso_c_binding, only: c_int
+  use, intrinsic :: iso_c_binding, only: c_int, c_ptr, c_loc
   use, intrinsic :: iso_fortran_env, only: error_unit
   use kumo_kinds, only: dp, sp, i8
   implicit none
@@ -9,8 +9,11 @@ module kumo_parallel
   public :: par_init, par_finalize, par_rank, par_size, par_is_root, par_sum_to_root, &
             par_allreduce_sum, par_abort, par_barrier, par_wtime, par_bcast_int, par_bcast_real, PAR_IS_MPI
   public :: par_stop, par_fail, par_bcast_text, par_move, par_bcast_single
+  public :: par_node_size, par_node_leader, par_node_storage, par_node_sync, par_gather_i8
+  public :: PAR_ALL, PAR_LEADERS
 
   logical, parameter :: PAR_IS_MPI = .false.  !! this build runs on one process
+  integer, parameter :: PAR_ALL = 0, PAR_LEADERS = 1   !! groups of ranks (one rank here)
 
   interface par_sum_to_root
     module procedure sum_to_root_dp, sum_to_root_i8
@@ -66,25 +69,59 @@ contains
     if (size(buf) < 0) buf = 0.0_dp
   end subroutine par_allreduce_sum
 
-  subroutine par_bcast_int(buf)
+  subroutine par_bcast_int(buf, group)
     integer, intent(inout) :: buf(:)
+    integer, intent(in), optional :: group
     if (size(buf) < 0) buf = 0
   end subroutine par_bcast_int
 
-  subroutine par_bcast_real(buf)
+  subroutine par_bcast_real(buf, group)
     real(dp), intent(inout) :: buf(:)
+    integer, intent(in), optional :: group
     if (size(buf) < 0) buf = 0.0_dp
   end subroutine par_bcast_real
 
-  subroutine par_bcast_text(text)
+  subroutine par_bcast_text(text, group)
     character(len=:), allocatable, intent(inout) :: text
+    integer, intent(in), optional :: group
     if (.not. allocated(text)) text = ''
   end subroutine par_bcast_text
 
-  subroutine par_bcast_single(buf)
+  subroutine par_bcast_single(buf, group)
     real(sp), intent(inout) :: buf(:)
+    integer, intent(in), optional :: group
     if (size(buf) < 0) buf = 0.0_sp
   end subroutine par_bcast_single
+
+  !> One rank per node.
+  integer function par_node_size() result(n)
+    n = 1
+  end function par_node_size
+
+  logical function par_node_leader() result(leader)
+    leader = .true.
+  end function par_node_leader
+
+  !> Storage of the node for one process: an ordinary allocation of `nbytes`, kept until the
+  !> process ends (as the MPI build keeps its windows until par_finalize); this process writes.
+  subroutine par_node_storage(nbytes, base, writer)
+    integer(i8), intent(in) :: nbytes
+    type(c_ptr), intent(out) :: base
+    logical, intent(out) :: writer
+    integer(i8), pointer, contiguous :: words(:)
+    allocate (words(max(1_i8, (nbytes + 7_i8)/8_i8)))
+    base = c_loc(words)
+    writer = .true.
+  end subroutine par_node_storage
+
+  subroutine par_node_sync()
+  end subroutine par_node_sync
+
+  subroutine par_gather_i8(mine, all)
+    integer(i8), intent(in) :: mine
+    integer(i8), intent(out) :: all(:)
+    all(1) = mine
+  end subroutine par_gather_i8
 
   !> One rank: `from` and `to` are both 0, nothing moves.
   subroutine move_dp(buf, from, to)

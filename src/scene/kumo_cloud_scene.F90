@@ -41,6 +41,7 @@ module kumo_cloud_scene
   use kumo_cloud_input, only: cloud_input_t, locate, CLOUD_WATER, CLOUD_EXT_REFF, CLOUD_OPTICS, &
                               CLOUD_MCARATS
   use kumo_mcarats_files, only: mcarats_request_t
+  use kumo_atmosphere, only: voxel_storage_i, voxel_sync_i
   use kumo_atmosphere, only: atmosphere_t, atmosphere_options_t, atmosphere_begin, &
                              atmosphere_put_layer, atmosphere_end
   use kumo_config, only: cloud_cfg_t
@@ -75,10 +76,13 @@ contains
   !> `wavelength_um` and build the atmosphere: levels `z`, domain lx x ly, the 1-D components
   !> `ext1d`, `ssa1d`, `iph1d` (nz, ncomp1) and the cloud in the 3-D region from layer `k3_lo`.
   !> `phases` (the namelist's and the molecules') gets the cloud's appended and moves into the
-  !> atmosphere.
+  !> atmosphere. With `storage` and `sync` (water content only: CLOUD_WATER, CLOUD_EXT_REFF) the
+  !> voxels go into the caller's storage (atmosphere_begin): the process that is its writer
+  !> puts the fields, the others hold only the grid of the file (read_cloud_on_root per_node)
+  !> and take the values the writer formed.
   subroutine build_cloud_atmosphere(ccfg, c, c_ice, wavelength_um, n_table, z, lx, ly, k3_lo, &
                                     ext1d, ssa1d, iph1d, phases, aopts, atm, notes, warnings, &
-                                    error, temp, ice_tab, liq_tab, liq_action)
+                                    error, temp, ice_tab, liq_tab, liq_action, storage, sync)
     type(cloud_cfg_t), intent(in) :: ccfg
     !> the file read with part = 'liquid' (with its temperatures when `temp` is wanted); its
     !> fields are freed as they are put into the atmosphere
@@ -104,6 +108,8 @@ contains
     !> it is made here (both or neither)
     type(mie_table_t), intent(in), optional :: liq_tab
     character(len=*), intent(in), optional :: liq_action
+    procedure(voxel_storage_i), optional :: storage   !! the caller's storage for the voxels
+    procedure(voxel_sync_i), optional :: sync         !! with `storage`
     type(mie_table_t) :: liq, ice
     type(phase_t), allocatable :: more(:)
     integer :: nplanes, nspecies, nneg, i, n_out_liq, n_out_ice, offset, offset_ice
@@ -117,8 +123,10 @@ contains
     end if
     notes = 'cloud file '//ccfg%req%path//' ('//trim(c%format)//'): '//c%notes//NL
     warnings = ''
-    if (len(c%missing) > 0) notes = notes//'the file does not give '//c%missing// &
+    if (allocated(c%missing)) then
+      if (len(c%missing) > 0) notes = notes//'the file does not give '//c%missing// &
                                     '; taken from the namelist'//NL
+    end if
     nplanes = merge(2, 1, c%points)
     n_out_liq = 0
     n_out_ice = 0
@@ -157,17 +165,19 @@ contains
         nspecies = 2
       end if
       call atmosphere_begin(atm, z, lx, ly, ext1d, ssa1d, iph1d, phases, aopts, error, k3_lo, &
-                            c%nx, c%ny, c%nz, nspecies*nplanes, blend=.true.)
+                            c%nx, c%ny, c%nz, nspecies*nplanes, blend=.true., storage=storage)
       if (allocated(error)) return
-      if (c%content == CLOUD_WATER) then
+      if (.not. atm%voxel_writer) then
+        ! the writer puts the fields; this process has none
+      else if (c%content == CLOUD_WATER) then
         call mie_voxels(c, c%lwc, c%reff, liq, offset, .false., atm, 0, n_out_liq)
         deallocate (c%lwc)
       else
         call mie_voxels(c, c%ext, c%reff, liq, offset, .true., atm, 0, n_out_liq)
         deallocate (c%ext)
       end if
-      deallocate (c%reff)
-      if (nspecies == 2) then
+      if (atm%voxel_writer) deallocate (c%reff)
+      if (nspecies == 2 .and. atm%voxel_writer) then
         call mie_voxels(c_ice, c_ice%iwc, c_ice%reff_ice, ice, offset_ice, .false., atm, nplanes, &
                         n_out_ice)
         deallocate (c_ice%iwc, c_ice%reff_ice)
@@ -210,7 +220,7 @@ contains
       call set_error(error, ccfg%req%path//': unknown kind of cloud content '//str(c%content))
       return
     end select
-    call atmosphere_end(atm, aopts, error)
+    call atmosphere_end(atm, aopts, error, sync=sync)
     if (allocated(error)) return
     if (n_out_liq > 0) warnings = warnings//str(n_out_liq)//' cloud voxel values have an '// &
       'effective radius outside the Mie table ('//str(ccfg%reff_min_um)//' - '// &

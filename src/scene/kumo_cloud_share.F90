@@ -17,7 +17,7 @@ module kumo_cloud_share
   use kumo_kinds, only: wp, vp
   use kumo_error, only: error_t
   use kumo_bundle, only: bundle_t
-  use kumo_parallel, only: par_is_root
+  use kumo_parallel, only: par_is_root, par_node_leader
   use kumo_cloud_input, only: cloud_input_t, cloud_request_t, read_cloud_input
   use kumo_mcarats_files, only: mcarats_atm_t, mcarats_phase_t
   use kumo_mie, only: mie_table_t
@@ -44,20 +44,26 @@ contains
   !> process reads the file itself and talks to no other rank (`kumo --check`); the result is
   !> the same. With `grid_only` only the grid travels (format, sizes, widths, layer edges, the
   !> pressure and gas-state profiles when requested, and the reader's notes), whatever the
-  !> reader returned besides.
-  subroutine read_cloud_on_root(req, cloud, error, grid_only, part, alone)
+  !> reader returned besides. With `per_node` = .true. only the first rank of every node (its
+  !> leader, kumo_parallel par_node_leader) gets the fields; the other ranks get the grid alone
+  !> (as with `grid_only`) and never hold a copy of the fields: the node's leader builds the
+  !> voxels in memory the node shares (build_cloud_atmosphere's `storage`).
+  subroutine read_cloud_on_root(req, cloud, error, grid_only, part, alone, per_node)
     type(cloud_request_t), intent(in) :: req
     type(cloud_input_t), intent(out) :: cloud
     type(error_t), allocatable, intent(out) :: error
     logical, intent(in), optional :: grid_only
     character(len=*), intent(in), optional :: part
     logical, intent(in), optional :: alone
-    type(bundle_t) :: b
-    logical :: here, grid, reader
+    logical, intent(in), optional :: per_node
+    type(bundle_t) :: b, bg
+    logical :: here, grid, reader, node
     here = .false.
     if (present(alone)) here = alone
     grid = .false.
     if (present(grid_only)) grid = grid_only
+    node = .false.
+    if (present(per_node)) node = per_node .and. .not. here .and. .not. grid
     reader = here
     if (.not. here) reader = par_is_root()
     if (reader) then
@@ -66,7 +72,20 @@ contains
         type(cloud_input_t) :: c
         call read_cloud_input(req, c, error, grid_only, part)
         if (.not. allocated(error)) call cloud_input_put(b, c, grid)
+        if (.not. allocated(error) .and. node) call cloud_input_put(bg, c, .true.)
       end block
+    end if
+    if (node) then
+      ! every rank: the grid and rank 0's error; the node leaders: the fields
+      call bg%share(error)
+      if (allocated(error)) return
+      if (par_node_leader()) then
+        call b%share(error, leaders=.true.)
+        call cloud_input_get(b, cloud)
+      else
+        call cloud_input_get(bg, cloud)
+      end if
+      return
     end if
     if (.not. here) call b%share(error)
     if (allocated(error)) return

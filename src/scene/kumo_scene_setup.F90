@@ -11,6 +11,7 @@
 !> mie_cache or computed, by rank 0 alone) as `mie_table_t`s (kumo_cloud_share): no other rank
 !> opens an input file.
 module kumo_scene_setup
+  use, intrinsic :: iso_fortran_env, only: output_unit
   use kumo_kinds, only: wp, dp, vp, i8
   use kumo_constants, only: DEG2RAD, PI
   use kumo_error, only: error_t, set_error, add_context, str, join
@@ -59,7 +60,8 @@ module kumo_scene_setup
                          read_temperature_map
   use kumo_mcarats_files, only: mcarats_surface_t, read_mcarats_surface, mcarats_surface_npsfc, &
                                 mcarats_surface_brdf
-  use kumo_parallel, only: par_is_root
+  use kumo_parallel, only: par_is_root, par_size, par_rank, par_node_size, par_node_storage, &
+                           par_node_sync, par_gather_i8
   implicit none
   private
   public :: load_config, setup_scene, spectral_scene_t, spectral_set_gpoint
@@ -1370,6 +1372,13 @@ contains
   !> (read_cloud_on_root, mie_table_put/get), and so does the water Mie table, which rank 0
   !> alone reads from the cache or computes; the atmosphere is then built from them without
   !> MPI, on rank 0 first so that its error, if any, is every rank's.
+  !>
+  !> On several ranks a cloud of water content (liquid, and ice if any) is kept once per node:
+  !> only the first rank of each node gets the fields, and the ranks of a node build one
+  !> atmosphere whose voxel arrays lie in memory the node shares (kumo_parallel
+  !> par_node_storage: an MPI-3 shared-memory window), filled by that first rank. The ranks
+  !> then build together (the window and its barrier are collective); they read the same
+  !> inputs and values, so they meet the same errors. The run log says what each rank holds.
   subroutine cloud_on_ranks(cfg, ext1d, ssa1d, phase1d, phases, aopts, atm, notes, warnings, &
                             error, cloud_t)
     type(config_t), intent(in) :: cfg
@@ -1387,14 +1396,24 @@ contains
     type(cloud_request_t) :: req
     type(mie_table_t) :: ice, liq
     character(len=:), allocatable :: liq_action
-    logical :: want_t
+    logical :: want_t, per_node
     want_t = cfg%thermal%enabled .and. .not. allocated(cfg%thermal%planck_levels)
+    ! one copy per node: several ranks, water content, no voxel temperatures wanted (every
+    ! rank decides alike from the configuration and the grid read at its loading)
+    per_node = par_size() > 1 .and. .not. want_t .and. &
+               (cfg%cloud%grid%content == CLOUD_WATER .or. cfg%cloud%grid%content == CLOUD_EXT_REFF)
     req = cfg%cloud%req
     req%temperature = want_t
-    call read_cloud_on_root(req, c, error, part='liquid')
+    call read_cloud_on_root(req, c, error, part='liquid', per_node=per_node)
     if (allocated(error)) return
+    if (per_node .and. .not. (c%content == CLOUD_WATER .or. c%content == CLOUD_EXT_REFF)) then
+      ! every rank holds rank 0's content code: they all stop here alike
+      call set_error(error, cfg%cloud%req%path//': the file''s content (code '//str(c%content)// &
+                     ') is not the water content its grid announced')
+      return
+    end if
     if (c%has_ice) then
-      call read_cloud_on_root(cfg%cloud%req, c_ice, error, part='ice')
+      call read_cloud_on_root(cfg%cloud%req, c_ice, error, part='ice', per_node=per_node)
       if (allocated(error)) return
       ! the ice optics table, read on rank 0 and shared like the fields
       if (par_is_root()) then
@@ -1421,6 +1440,18 @@ contains
     else
       liq_action = ''
     end if
+    if (per_node) then
+      call build_cloud_atmosphere(cfg%cloud, c, c_ice, cfg%source%wavelength_um, &
+                                  cfg%phase%n_table, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, &
+                                  cfg%atm%k3d_bottom, ext1d, ssa1d, phase1d, phases, aopts, &
+                                  atm, notes, warnings, error, ice_tab=ice, liq_tab=liq, &
+                                  liq_action=liq_action, storage=par_node_storage, &
+                                  sync=par_node_sync)
+      call b%share(error)   ! rank 0's error, if any, on every rank
+      if (allocated(error)) return
+      call note_voxel_storage(atm, cfg%control%verbose)
+      return
+    end if
     if (par_is_root()) call build(error)
     call b%share(error)   ! rank 0's error, if any, on every rank
     if (allocated(error) .or. par_is_root()) return
@@ -1443,6 +1474,33 @@ contains
       end if
     end subroutine build
   end subroutine cloud_on_ranks
+
+  !> A line for the run log (rank 0, verbose >= 1): where each rank's voxel arrays live (bytes
+  !> it allocated itself, and bytes of the node's shared window it allocated: the node's first
+  !> rank alone). Every rank calls it. It is printed, not kept in the scene's notes, which the
+  !> output file keeps: the file does not depend on the rank count.
+  subroutine note_voxel_storage(atm, verbose)
+    type(atmosphere_t), intent(in) :: atm
+    integer, intent(in) :: verbose
+    integer(i8), allocatable :: own(:), win(:)
+    integer(i8) :: mine
+    integer :: r
+    character(len=:), allocatable :: notes
+    allocate (own(par_size()), win(par_size()))
+    call par_gather_i8(atm%voxel_bytes_own, own)
+    mine = 0_i8
+    if (atm%voxels_borrowed .and. atm%voxel_writer) mine = atm%voxel_bytes_borrowed
+    call par_gather_i8(mine, win)
+    if (par_rank() /= 0 .or. verbose < 1) return
+    notes = 'voxel arrays: one copy per node in shared memory ('// &
+            str(atm%voxel_bytes_borrowed)//' bytes, '//str(par_node_size())// &
+            ' ranks on the node of rank 0); bytes allocated per rank (own, shared window):'
+    do r = 1, size(own)
+      notes = notes//' rank '//str(r - 1)//' '//str(own(r))//' '//str(win(r))//';'
+    end do
+    write (output_unit, '(a)') notes
+    flush (output_unit)
+  end subroutine note_voxel_storage
 
   !> Rank 0 reads a phase-function table (angle [deg], value) and broadcasts it.
   subroutine phase_table_on_root(path, ang, val, error)

@@ -405,12 +405,12 @@ contains
             if (e < atm%csca3(ic, ix, iy, kr)) exit
           end do
         end if
-        if (allocated(atm%iph3)) then
+        if (associated(atm%iph3)) then
           iph = atm%iph3(ic, ix, iy, kr)
         else
           iph = atm%iph3_const(ic)
         end if
-        if (allocated(atm%wph3)) then
+        if (associated(atm%wph3)) then
           ! a blend of tables iph and iph + 1: the photon takes table iph + 1 with
           ! probability w, which samples (1 - w) P(iph) + w P(iph + 1) exactly
           wb = atm%wph3(ic, ix, iy, kr)

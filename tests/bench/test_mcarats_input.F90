@@ -287,7 +287,7 @@ contains
       call check_close(error, atm%phases(NOFF + 4 + ipf)%g, GTAB(ipf), abs_tol=2.0e-3_dp, &
                        label='table '//str(ipf)//' g')
     end do
-    call check(error, allocated(atm%wph3) .and. allocated(atm%csca3), 'blend weights and '// &
+    call check(error, associated(atm%wph3) .and. associated(atm%csca3), 'blend weights and '// &
                'scattering fractions are stored')
     if (allocated(error)) return
 
@@ -480,7 +480,7 @@ contains
     ! isotropic, Rayleigh, no HG, the 30 tables; the 1-D absorber, the cloud, the perturbation
     ! (non-zero somewhere)
     call check(error, size(atm%phases) == NOFF + 2 + 30 .and. atm%ncomp == 3 .and. &
-               .not. allocated(atm%wph3), 'phases '//str(size(atm%phases))//' (expected '// &
+               .not. associated(atm%wph3), 'phases '//str(size(atm%phases))//' (expected '// &
                str(NOFF + 32)//'), components '//str(atm%ncomp)//' (expected 3), no blend')
     if (allocated(error)) return
     do kk = 1, LZ
@@ -782,7 +782,7 @@ contains
     type(atmosphere_t), intent(in) :: atm
     integer, intent(in) :: i, j, kr
     integer, intent(out) :: iph(:)
-    if (allocated(atm%iph3)) then
+    if (associated(atm%iph3)) then
       iph = atm%iph3(:, i, j, kr)
     else
       iph = atm%iph3_const

@@ -269,7 +269,7 @@ contains
     ! voxel (2, 1, 2): only the background and component 2 (empty): all scattering by molecules
     call check_close(error, real(atm%ext3(2, 1, 2), wp), 2.0e-5_wp + 4.0e-3_wp*0.0_wp, &
                      rel_tol=1.0e-6_wp, label='extinction of the background-only voxel')
-    call check(error, allocated(atm%wph3), 'blend weights kept')
+    call check(error, associated(atm%wph3), 'blend weights kept')
     if (allocated(error)) return
     call check_close(error, real(atm%wph3(2, 1, 1, 1), wp), 0.25_wp, rel_tol=1.0e-7_wp, &
                      label='blend weight of the droplet component')
@@ -279,7 +279,7 @@ contains
     e(:, 1) = [1.0e-2_wp, 2.0e-2_wp]
     call one_layer(3, 0.0_wp)
     if (allocated(error)) return
-    call check(error, .not. allocated(atm%wph3) .and. .not. allocated(atm%iph3) .and. &
+    call check(error, .not. associated(atm%wph3) .and. .not. associated(atm%iph3) .and. &
                all(atm%iph3_const == [1, 3]), 'constant phase and no blend stored once')
     ! a blend past the last table, and a weight above 1
     call one_layer(4, 0.5_wp)

@@ -1,0 +1,57 @@
+#!/usr/bin/env bash
+# SPDX-License-Identifier: BSD-3-Clause
+# One copy of a cloud-file scene per node: a monochromatic run over an LES file with liquid and
+# ice water on 1 and on 2 ranks. On 2 ranks the voxel arrays live in an MPI-3 shared-memory
+# window that the node's first rank allocates and fills (kumo_parallel par_node_storage), and
+# the second rank holds no voxel array of its own: the run log lists the bytes each rank
+# allocated. Every batch must come out the same as on 1 rank, bit for bit.
+#
+#   shared_scene_ranks.sh KUMO CDL MPIEXEC [MPIEXEC FLAGS...]
+set -euo pipefail
+kumo=$1 cdl=$2
+shift 2
+work=shared_scene_ranks
+rm -rf "$work"
+mkdir -p "$work"
+cd "$work"
+ncgen -o cloud.nc "$cdl"
+common="&kumo_control n_photons_per_batch = 3000, n_batches = 4, seed = 5 /
+&kumo_source sza_deg = 30.0, wavelength_um = 0.86, solar_flux = 1.0 /
+&kumo_atmosphere rayleigh = .true. /
+&kumo_surface albedo = 0.1 /
+&kumo_output file = 'out.nc' /"
+cloud="cloud_file = 'cloud.nc', cloud_format = 'les', size_distribution = 'gamma',
+  v_eff = 0.1, reff_min_um = 4.0, reff_max_um = 32.0, n_reff = 6"
+# the ice optics table: a Mie table of water that a first run writes as its cache (the test
+# checks where the voxels live, not ice optics)
+printf '%s\n&kumo_cloud %s, les_iwc = %s, mie_cache = %s /\n' "$common" "$cloud" "'none'" \
+  "'ice_table.nc'" > table.nml
+"$kumo" table.nml > table.log 2>&1 || { cat table.log; exit 1; }
+printf '%s\n&kumo_cloud %s, ice_optics_file = %s, mie_cache = %s /\n' "$common" "$cloud" \
+  "'ice_table.nc'" "'mie.nc'" > run.nml
+"$kumo" run.nml > np1.log 2>&1 || { cat np1.log; exit 1; }
+mv out.nc np1.nc
+"$@" -n 2 "$kumo" run.nml > np2.log 2>&1 || { cat np2.log; exit 1; }
+mv out.nc np2.nc
+fail() { echo "shared_scene_ranks: $1"; cat np2.log; exit 1; }
+if grep -q 'voxel arrays: one copy per node' np1.log; then
+  fail "a run on 1 rank must keep its voxel arrays as before (no shared window)"
+fi
+line=$(grep 'voxel arrays: one copy per node in shared memory' np2.log) ||
+  fail "the 2-rank run does not report a shared window"
+# "... bytes allocated per rank (own, shared window): rank 0 O0 W0; rank 1 O1 W1;"
+read -r o0 w0 o1 w1 < <(sed -E 's/.*rank 0 ([0-9]+) ([0-9]+); rank 1 ([0-9]+) ([0-9]+);.*/\1 \2 \3 \4/' <<< "$line")
+[[ "$o0" == 0 && "$o1" == 0 ]] || fail "a rank allocated voxel arrays of its own ($o0, $o1 bytes)"
+[[ "$w0" -gt 0 ]] || fail "rank 0 allocated no shared window"
+[[ "$w1" == 0 ]] || fail "rank 1 allocated $w1 bytes of window: the scene is not one copy"
+for f in np1 np2; do
+  ncdump -v batch_reflectance,batch_transmittance,batch_absorptance "$f.nc" |
+    sed -n '/^data:/,$p' > "$f.txt"
+done
+if ! diff np1.txt np2.txt > /dev/null; then
+  echo "shared_scene_ranks: the batches of 1 and 2 ranks differ"
+  diff np1.txt np2.txt | head -20
+  exit 1
+fi
+echo "shared_scene_ranks: window of $w0 bytes on rank 0, none on rank 1; $(grep -c , np1.txt)" \
+  "lines of batch results identical on 1 and 2 ranks"

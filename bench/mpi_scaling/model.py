@@ -119,8 +119,7 @@ def load(paths):
 
 
 def local_network(recs):
-    pp = [(r['bytes'], r['seconds']) for r in recs
-          if r['part'] == 'collectives' and r['op'] == 'pingpong' and r['ranks'] == 2]
+    pp = sorted(collective(recs, 'pingpong', 2).items())
     alpha = st.median([t for m, t in pp if m <= 64])
     small = [(m, t) for m, t in pp if 65536 <= m <= 4194304]
     large = [(m, t) for m, t in pp if m >= 16777216]
@@ -130,8 +129,13 @@ def local_network(recs):
 
 
 def collective(recs, op, ranks):
-    return {r['bytes']: r['seconds'] for r in recs
-            if r['part'] == 'collectives' and r['op'] == op and r['ranks'] == ranks}
+    """Message size [B] -> time [s] of an operation: the fastest of the sessions (each already
+    the median of its repetitions), the one least disturbed by the host's other work."""
+    best = {}
+    for r in recs:
+        if r['part'] == 'collectives' and r['op'] == op and r['ranks'] == ranks:
+            best[r['bytes']] = min(best.get(r['bytes'], math.inf), r['seconds'])
+    return best
 
 
 def gamma_from_fold(recs, alpha, beta):

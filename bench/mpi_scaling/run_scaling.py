@@ -22,7 +22,7 @@ time and the 1-minute load average before and after. Results go to RESULTS (JSON
 by model.py. Usage:
 
   python3 bench/mpi_scaling/run_scaling.py --kumo build/kumo --prp les_stcu_w213.prp
-      --molec molec_abs_w213.dat --work /tmp/kumo_scaling [--reps 3] [--parts efficiency]
+      --molec molec_abs_w213.dat --work scaling_runs [--reps 3] [--parts efficiency]
       [--mpirun "mpirun --oversubscribe"] [--oversubscribed]
 
 The .prp and molecular absorption files are those of the I3RC community model

@@ -11,8 +11,11 @@
 !> * `fold`: the end of a run as `fold_slots` (src/driver/kumo_driver.F90) does it today: every
 !>   rank in turn sends its slot's S1 and S2 (n doubles each) to rank 0, which adds them in
 !>   slot order; the time is rank 0's;
-!> * `reduce`: one MPI_Reduce (MPI_SUM) of the 2n doubles S1 and S2, the collective that could
-!>   replace it (time on rank 0, after a barrier so that all ranks start together);
+!> * `tree`: the same sums folded in a fixed binary tree instead (at step k the rank r with
+!>   mod(r, 2^(k+1)) = 0 receives the partial S1 and S2 of rank r + 2^k and adds them), which
+!>   fixes the order of the additions as the slot order does; time on rank 0;
+!> * `reduce`: one MPI_Reduce (MPI_SUM) of the 2n doubles S1 and S2, the library's collective
+!>   (time on rank 0, after a barrier so that all ranks start together);
 !> * `allreduce`: MPI_Allreduce of 3 P doubles, the per-round exchange of the target-error
 !>   decision (three numbers per slot).
 !>
@@ -62,6 +65,7 @@ program kumo_collectives
   do k = 1, size(TALLY_N)
     if (TALLY_N(k) > max_doubles) exit
     call time_fold(TALLY_N(k), merge(20, reps, TALLY_N(k) <= 100000_i8))
+    call time_tree(TALLY_N(k), merge(20, reps, TALLY_N(k) <= 100000_i8))
     call time_reduce(TALLY_N(k), merge(20, reps, TALLY_N(k) <= 100000_i8))
   end do
   call time_allreduce(3*nranks, 200)
@@ -184,6 +188,45 @@ contains
     if (rank == 0 .and. any(s1 /= real(nranks, dp))) error stop 'kumo_collectives: fold sum wrong'
     call report('fold', 16_i8*n, median(t))
   end subroutine time_fold
+
+  !> The fold in a fixed binary tree: ((S_0 + S_1) + (S_2 + S_3)) + ..., whatever the timing.
+  subroutine time_tree(n, n_rep)
+    integer(i8), intent(in) :: n
+    integer, intent(in) :: n_rep
+    real(dp), allocatable :: s1(:), s2(:), x(:)
+    real(dp) :: t(n_rep), t0
+    integer :: i, step
+    allocate (s1(n), s2(n), x(n))
+    t = 0.0_dp
+    do i = 0, n_rep
+      s1 = 1.0_dp
+      s2 = 1.0_dp
+      x = 0.0_dp
+      call MPI_Barrier(MPI_COMM_WORLD)
+      t0 = MPI_Wtime()
+      step = 1
+      do while (step < nranks)
+        if (mod(rank, 2*step) == 0) then
+          if (rank + step < nranks) then
+            call MPI_Recv(x, int(n), MPI_DOUBLE_PRECISION, rank + step, 8, MPI_COMM_WORLD, &
+                          MPI_STATUS_IGNORE)
+            s1 = s1 + x
+            call MPI_Recv(x, int(n), MPI_DOUBLE_PRECISION, rank + step, 8, MPI_COMM_WORLD, &
+                          MPI_STATUS_IGNORE)
+            s2 = s2 + x
+          end if
+        else if (mod(rank, 2*step) == step) then
+          call MPI_Send(s1, int(n), MPI_DOUBLE_PRECISION, rank - step, 8, MPI_COMM_WORLD)
+          call MPI_Send(s2, int(n), MPI_DOUBLE_PRECISION, rank - step, 8, MPI_COMM_WORLD)
+          exit
+        end if
+        step = 2*step
+      end do
+      if (i > 0) t(i) = MPI_Wtime() - t0
+    end do
+    if (rank == 0 .and. any(s1 /= real(nranks, dp))) error stop 'kumo_collectives: tree sum wrong'
+    call report('tree', 16_i8*n, median(t))
+  end subroutine time_tree
 
   !> One MPI_Reduce of S1 and S2 together (2n doubles) to rank 0.
   subroutine time_reduce(n, n_rep)

@@ -195,7 +195,7 @@ def main():
     print('| operation | ranks | MB | measured ms | model ms |')
     print('|---|---|---|---|---|')
     for ranks in (2, 4, 8):
-        for op in ('bcast', 'fold', 'reduce'):
+        for op in ('bcast', 'fold', 'tree', 'reduce'):
             for m, t in sorted(collective(recs, op, ranks).items()):
                 if m < 1e6:
                     continue
@@ -203,7 +203,7 @@ def main():
                     mod = t_bcast(ranks, m, alpha, here)
                 elif op == 'fold':
                     mod = t_fold_today(ranks, m / 16.0, alpha, here, gamma)
-                else:
+                else:   # the tree, and MPI_Reduce modelled as a tree
                     mod = t_fold_tree(ranks, m / 16.0, alpha, here, gamma)
                 over = ' (oversubscribed)' if ranks > 2 else ''
                 print(f'| {op} | {ranks}{over} | {m / 1e6:.1f} | {t * 1e3:.2f} | {mod * 1e3:.2f} |')

@@ -64,8 +64,8 @@ def attrs(path, scene=None):
     """The run's global attributes (times, photons, ranks) of a kumo result file, the domain
     reflectance with its standard error and, with the scene file of an LES run, the median
     relative standard error of the voxel absorption over the cloudy voxels (extinction > 0)."""
-    from netCDF4 import Dataset
     import numpy as np
+    from netCDF4 import Dataset
     with Dataset(path) as d:
         r = {k: float(d.getncattr(k)) for k in
              ('wall_time_s', 'cpu_time_s', 'setup_time_s', 'n_photons', 'n_ranks')
@@ -135,9 +135,10 @@ class Runner:
         path = os.path.join(folder, name + '.nml')
         if case != 'hg_slab':
             # the scene's groups as written, with this run's control and output groups
-            keep = re.sub(r'&kumo_(control|output)\b.*?\n/\n', '', self.les_text(), flags=re.S)
+            keep = re.sub(r'&kumo_(control|output)\b.*?\n/\n', '', self.les_text(),
+                          flags=re.DOTALL)
             if case == 'les_flux':   # fluxes and voxel absorption only
-                keep = re.sub(r'&kumo_radiance\b.*?\n/\n', '', keep, flags=re.S)
+                keep = re.sub(r'&kumo_radiance\b.*?\n/\n', '', keep, flags=re.DOTALL)
             text = ''.join(f'&kumo_{g}\n' + ''.join(f'    {k} = {fortran(v)}\n' for k, v in
                                                     groups[g].items()) + '/\n\n'
                            for g in ('control', 'output')) + keep
@@ -222,8 +223,8 @@ class Runner:
     def large_scene(self, tiles):
         """The LES tiled `tiles` x `tiles` times horizontally (64 t x 64 t x 16 voxels), with
         the namelist of make_les_scene.py adapted to it; returns the namelist text."""
-        from netCDF4 import Dataset
         import numpy as np
+        from netCDF4 import Dataset
         d = os.path.join(self.work, 'les')
         self.les_text()
         name = f'les_tiled{tiles}.nc'
@@ -245,10 +246,11 @@ class Runner:
                     out[...] = a
         text = self.les_text()
         for key in ('nx', 'ny'):
-            text = re.sub(rf'\b{key} = (\d+)', lambda m: f'{key} = {int(m.group(1)) * tiles}', text)
+            text = re.sub(rf'\b{key} = (\d+)',
+                          lambda m, key=key: f'{key} = {int(m.group(1)) * tiles}', text)
         for key in ('lx', 'ly'):
             text = re.sub(rf'\b{key} = ([0-9.eE+-]+)',
-                          lambda m: f'{key} = {float(m.group(1)) * tiles}', text)
+                          lambda m, key=key: f'{key} = {float(m.group(1)) * tiles}', text)
         return text.replace("'les_stcu_w213.nc'", f"'{name}'")
 
     def part_large(self):
@@ -258,7 +260,7 @@ class Runner:
         and the end of the run (kumo's reduction of 2 x 1.3e7 doubles per slot) dominate."""
         tiles = 12
         text = self.large_scene(tiles)
-        keep = re.sub(r'&kumo_(control|output|radiance)\b.*?\n/\n', '', text, flags=re.S)
+        keep = re.sub(r'&kumo_(control|output|radiance)\b.*?\n/\n', '', text, flags=re.DOTALL)
         for rep in range(self.a.reps):
             for ranks in ((1, 2) if rep % 2 == 0 else (2, 1)):
                 name = f'large_np{ranks}_{rep}'

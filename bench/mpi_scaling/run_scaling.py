@@ -16,10 +16,14 @@ Parts (``--parts``, default efficiency,collectives):
   collectives  builds kumo_collectives.F90 (beside this script) with mpifort and runs it on 2
                ranks (and, with --oversubscribed, on 4 and 8 ranks with smaller sizes: two
                cores only, so those ranks share them).
+  work         serial runs of the LES without radiances (fluxes, flux maps, voxel absorption):
+               CPU time per photon and the standard errors from which model.py takes the
+               photons a run to 0.1 % (domain reflectance) or to 10 % (median cloudy voxel) needs.
+  large        the LES tiled 12 x 12 (9.4e6 voxels), 2 batches of 1000 photons on 1 and 2 ranks:
+               set-up, tally work per batch and the end-of-run fold in kumo itself.
 
-Every run records the wall time kumo reports (and the external one), the CPU time, the set-up
-time and the 1-minute load average before and after. Results go to RESULTS (JSON lines), read
-by model.py. Usage:
+Results go to WORK/results.jsonl unless --results is given. Every run records the wall time kumo reports (and the external one), the CPU time, the set-up
+time and the 1-minute load average before and after (JSON lines, read by model.py). Usage:
 
   python3 bench/mpi_scaling/run_scaling.py --kumo build/kumo --prp les_stcu_w213.prp
       --molec molec_abs_w213.dat --work scaling_runs [--reps 3] [--parts efficiency]

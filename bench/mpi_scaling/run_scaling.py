@@ -22,8 +22,9 @@ Parts (``--parts``, default efficiency,collectives):
   large        the LES tiled 12 x 12 (9.4e6 voxels), 2 batches of 1000 photons on 1 and 2 ranks:
                set-up, tally work per batch and the end-of-run fold in kumo itself.
 
-Results go to WORK/results.jsonl unless --results is given. Every run records the wall time kumo reports (and the external one), the CPU time, the set-up
-time and the 1-minute load average before and after (JSON lines, read by model.py). Usage:
+Every run records the wall time kumo reports (and the external one), the CPU time, the set-up
+time and the 1-minute load average before and after, as JSON lines in WORK/results.jsonl (or
+--results), which model.py reads. Usage:
 
   python3 bench/mpi_scaling/run_scaling.py --kumo build/kumo --prp les_stcu_w213.prp
       --molec molec_abs_w213.dat --work scaling_runs [--reps 3] [--parts efficiency]

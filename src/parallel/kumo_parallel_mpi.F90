@@ -10,6 +10,7 @@ module kumo_parallel
   use mpi_f08, only: MPI_REAL
   use mpi_f08, only: MPI_Ibarrier, MPI_Test, MPI_Request, MPI_STATUS_IGNORE
   use mpi_f08, only: MPI_Send, MPI_Recv, MPI_Gather, MPI_Gatherv, MPI_CHARACTER
+  use mpi_f08, only: MPI_Win_lock_all, MPI_Win_unlock_all, MPI_Win_sync, MPI_MODE_NOCHECK
   use mpi_f08, only: MPI_Comm, MPI_Win, MPI_Comm_split_type, MPI_Comm_split, MPI_Win_free, &
     MPI_Win_allocate_shared, MPI_Win_shared_query, MPI_COMM_TYPE_SHARED, MPI_INFO_NULL, &
     MPI_UNDEFINED, MPI_ADDRESS_KIND
@@ -79,6 +80,7 @@ contains
     if (flag) return
     if (allocated(windows)) then
       do i = 1, size(windows)
+        call MPI_Win_unlock_all(windows(i))
         call MPI_Win_free(windows(i))
       end do
       deallocate (windows)
@@ -131,16 +133,31 @@ contains
     if (writer) mine = max(nbytes, 8_i8)
     call MPI_Win_allocate_shared(mine, 1, MPI_INFO_NULL, node_comm, local, win)
     call MPI_Win_shared_query(win, 0, got, disp, base)
+    ! a passive-target epoch for the life of the window, so that par_node_sync may call
+    ! MPI_Win_sync (the memory barrier that the separate memory model needs)
+    call MPI_Win_lock_all(MPI_MODE_NOCHECK, win)
     if (.not. allocated(windows)) allocate (windows(0))
     windows = [windows, win]
   end subroutine par_node_storage
 
   !> Returns when every rank of the node has reached it: what the leader wrote into the node's
-  !> shared storage before is then seen by all (a barrier of the node: the window's memory is
-  !> unified, and the barrier orders the leader's stores before the others' loads).
+  !> shared storage before is then seen by all (MPI_Win_sync on every window before and after a
+  !> barrier of the node: the leader's stores are complete before the barrier, and the others'
+  !> loads come after it, in the unified and in the separate memory model).
   subroutine par_node_sync()
+    integer :: i
     call node_setup()
+    if (allocated(windows)) then
+      do i = 1, size(windows)
+        call MPI_Win_sync(windows(i))
+      end do
+    end if
     call MPI_Barrier(node_comm)
+    if (allocated(windows)) then
+      do i = 1, size(windows)
+        call MPI_Win_sync(windows(i))
+      end do
+    end if
   end subroutine par_node_sync
 
   !> Gather one integer per rank on rank 0 (`all`, size par_size(), in rank order; other ranks'

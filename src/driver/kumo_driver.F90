@@ -383,43 +383,52 @@ contains
     if (spec%longwave) scene%src%em = spec%em_sum
   end subroutine trace_spectral_batch
 
-  !> The sums of all slots on rank 0, added in slot order (((S_0 + S_1) + S_2) + ...). The
-  !> slots are taken apart (their arrays move into `st` or are freed).
+  !> The sums of all slots on rank 0, added in a fixed binary tree over the slots,
+  !> ((S_0 + S_1) + (S_2 + S_3)) + ..., so that the order depends on the slot count alone (the
+  !> rank count, or that of the run that wrote a checkpoint), never on timing. In each of the
+  !> log2(n_slots) steps the ranks exchange in disjoint pairs, instead of rank 0 receiving every
+  !> slot in turn (which grows with the rank count: docs/performance.md "Scaling to many ranks").
+  !> With up to three slots the order is that of the plain sum (((S_0 + S_1) + S_2). All ranks
+  !> walk the pairs in the same order, so the blocking moves always meet. The slots are taken
+  !> apart (their arrays move into `st` or are freed).
   subroutine fold_slots(slot, n_slots, st)
     integer, intent(in) :: n_slots
     type(stats_t), intent(inout) :: slot(0:n_slots - 1)
     type(stats_t), intent(out) :: st
     real(dp), allocatable :: x(:)
-    integer :: s, owner, rank, nranks
+    integer :: s, t, step, rank, nranks, os, ot
     rank = par_rank()
     nranks = par_size()
-    if (rank == 0) then   ! slot 0 is rank 0's
+    step = 1
+    do while (step < n_slots)
+      do s = 0, n_slots - 1 - step, 2*step
+        t = s + step          ! slot t is added to slot s, on the rank that owns s
+        os = mod(s, nranks)
+        ot = mod(t, nranks)
+        if (rank == ot .and. ot /= os) then
+          call par_move(slot(t)%s1, ot, os)
+          call par_move(slot(t)%s2, ot, os)
+          deallocate (slot(t)%s1, slot(t)%s2)
+        else if (rank == os) then
+          if (ot == os) then
+            slot(s)%s1 = slot(s)%s1 + slot(t)%s1
+            slot(s)%s2 = slot(s)%s2 + slot(t)%s2
+            deallocate (slot(t)%s1, slot(t)%s2)
+          else
+            if (.not. allocated(x)) allocate (x(size(slot(s)%s1)))
+            call par_move(x, ot, os)
+            slot(s)%s1 = slot(s)%s1 + x
+            call par_move(x, ot, os)
+            slot(s)%s2 = slot(s)%s2 + x
+          end if
+        end if
+      end do
+      step = 2*step
+    end do
+    if (rank == 0) then   ! slot 0 is rank 0's and now holds the sum
       call move_alloc(slot(0)%s1, st%s1)
       call move_alloc(slot(0)%s2, st%s2)
-      allocate (x(size(st%s1)))
     end if
-    do s = 1, n_slots - 1
-      owner = mod(s, nranks)
-      if (rank == owner .and. owner /= 0) then
-        call par_move(slot(s)%s1, owner, 0)
-        call par_move(slot(s)%s2, owner, 0)
-        deallocate (slot(s)%s1, slot(s)%s2)
-      else if (rank == 0) then
-        if (owner == 0) then
-          x = slot(s)%s1
-        else
-          call par_move(x, owner, 0)
-        end if
-        st%s1 = st%s1 + x
-        if (owner == 0) then
-          x = slot(s)%s2
-          deallocate (slot(s)%s1, slot(s)%s2)
-        else
-          call par_move(x, owner, 0)
-        end if
-        st%s2 = st%s2 + x
-      end if
-    end do
   end subroutine fold_slots
 
   !> A progress line on standard error when it is due: batches done (rank 0 has reached batch

@@ -36,7 +36,7 @@ module kumo_scene_setup
   use kumo_local_estimate, only: detectors_init
   use kumo_surface, only: surface_init, surface_init_brdf, surface_init_brdf_map
   use kumo_brdf, only: brdf_params_t, BRDF_NPAR
-  use kumo_source, only: solar_source, source_stratify, SOURCE_SOLAR
+  use kumo_source, only: solar_source, source_stratify
   use kumo_emission, only: emission_t, emission_init
   use kumo_planck, only: spectral_band_t, band_from_wavenumbers, band_monochromatic_wavelength, &
                          band_radiance, band_units
@@ -1317,7 +1317,7 @@ contains
     ! field: the delta part sends forward-scattered light straight back along the sun's own
     ! path, which overstates how well the way out repeats the way in (measured on the I3RC LES:
     ! +1.9 % at the hot spot, within 0.3 % from 5 degrees away; docs/radiances.md)
-    if (scene%atm%truncated .and. scene%atm%n3 > 0 .and. scene%src%kind == SOURCE_SOLAR .and. &
+    if (scene%atm%truncated .and. scene%atm%n3 > 0 .and. &
         .not. (scene%src%em%on .and. scene%src%em%solar_power <= 0.0_wp)) then
       do i = 1, size(scene%det%ux)
         if (-(scene%det%ux(i)*scene%src%ux + scene%det%uy(i)*scene%src%uy + &

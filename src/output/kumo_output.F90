@@ -92,7 +92,7 @@ contains
       call put('absorptance_surface', 'power absorbed by the surface'//NORM, [lay%i_sfc + 1])
       call put('absorptance_layer', 'power absorbed in each layer'//NORM, &
                [(lay%i_abs + k, k=1, nz)], dims=['layer'])
-      if (cfg%vr%absorption_estimator == 'collision') then
+      if (any(cfg%vr%absorption_estimator == ['collision   ', 'track_voxels'])) then
         call put('roulette_weight_balance', 'net weight created by Russian roulette and DDIS'// &
                  ' splitting'//NORM//' (zero in expectation)', [lay%i_rr + 1])
       else
@@ -290,7 +290,8 @@ contains
         bal = stats_mean(st, lay%i_rr + 1, lay%i_rr + 1)
         bal_err = stats_stderr(st, lay%i_rr + 1, lay%i_rr + 1)
         rr_warn = roulette_balance_warning(bal(1), bal_err(1), st%n_batches)
-        if (len(rr_warn) > 0 .and. cfg%vr%absorption_estimator /= 'collision') rr_warn = &
+        if (len(rr_warn) > 0 .and. all(cfg%vr%absorption_estimator /= ['collision   ', 'track_voxels'])) &
+          rr_warn = &
           rr_warn//' (with absorption_estimator = '//trim(cfg%vr%absorption_estimator)//' the '// &
           'balance also holds the expected-value absorption scores minus the weight lost at '// &
           'collisions)'

@@ -17,7 +17,8 @@
 !> (null-collision) tracking inside super-voxels (seed text section 4.1). Absorption is scored
 !> at real collisions, or (`vr_t%abs_estimator`, kumo_vr) as its expectation along the flights:
 !> w k_abs s for every piece of path, voxel by voxel (`absorb_path`), or w k_abs / k_majorant
-!> at every tentative collision of the 3-D walk; the random walk is the same. Photons carry the
+!> at every tentative collision of the 3-D walk, or along the flights for the voxels alone and
+!> at collisions for the layers (`track_voxels`); the random walk is the same. Photons carry the
 !> index of their layer and super-voxel; positions are set exactly onto faces when crossing them,
 !> and a position that round-off puts outside its cell is clamped back (and counted).
 !>
@@ -44,7 +45,7 @@ module kumo_transport
   use kumo_source, only: launch_plan_t, source_begin_batch, source_launch
   use kumo_emission, only: emission_b_point, emission_b_segment, emission_b_surface, &
                            EMIT_SOLAR, EMIT_TOP, EMIT_SURFACE, EMIT_LAYER, emission_t
-  use kumo_vr, only: roulette, ABS_COLLISION, ABS_TRACK, ABS_TENTATIVE
+  use kumo_vr, only: roulette, ABS_COLLISION, ABS_TRACK, ABS_TENTATIVE, ABS_TRACK_VOXELS
   use kumo_scene, only: scene_t
   implicit none
   private
@@ -66,8 +67,10 @@ module kumo_transport
     logical :: plain     !! no local estimates, forcing or truncation: the plain scattering
     real(wp) :: inv_cf   !! 1/(collision-forcing factor)
     logical :: thermal   !! thermal emission: net-exchange tallies (kumo_emission)
-    !> absorption scored along the flights (ABS_TRACK or ABS_TENTATIVE), not at collisions
+    !> absorption scored along the flights (ABS_TRACK, ABS_TENTATIVE, ABS_TRACK_VOXELS)
     logical :: track
+    !> ... for the layers and the domain too, not at collisions (ABS_TRACK, ABS_TENTATIVE)
+    logical :: track_layers
     integer :: est3      !! ABS_* estimator of the 3-D null-collision walk
   end type batch_t
 
@@ -109,7 +112,10 @@ contains
     ! runs need the Planck radiance where the weight is absorbed, so those stay at collisions.
     bat%est3 = scn%vr%abs_estimator
     if (bat%thermal) bat%est3 = ABS_COLLISION
+    ! voxels scored along the flights, but no voxel tallies: nothing to score on the way
+    if (bat%est3 == ABS_TRACK_VOXELS .and. .not. lay%do_voxel) bat%est3 = ABS_COLLISION
     bat%track = bat%est3 /= ABS_COLLISION
+    bat%track_layers = bat%est3 == ABS_TRACK .or. bat%est3 == ABS_TENTATIVE
     call source_begin_batch(scn%src, n_photons, rng, plan)
     do ip = 1, n_photons
       call source_launch(scn%src, plan, scn%atm, scn%sfc, rng, ip, p)
@@ -220,7 +226,7 @@ contains
     if (cls == LAYER_3D) then
       if (p%column) then
         call fly_column(scn%atm, lay, tal, p%x, p%y, p%z, p%uz, p%w, p%order, p%iz, tau, &
-                        p%n_steps, scn%max_steps, bat%track, ev, ix, iy, kr)
+                        p%n_steps, scn%max_steps, bat%track, bat%track_layers, ev, ix, iy, kr)
       else
         call fly_3d(scn%atm, lay, tal, rng, p%x, p%y, p%z, p%ux, p%uy, p%uz, p%w, p%order, p%iz, &
                     tau, p%n_steps, scn%max_steps, bat%inv_cf, bat%est3, ev, ix, iy, kr)
@@ -240,7 +246,7 @@ contains
       e = scn%atm%ext1(p%iz)
       if (tau < e*d) then
         d = tau/e
-        if (bat%track) call score_track(lay, tal, p%iz, p%w*(tau*(1.0_wp - scn%atm%omg1(p%iz))))
+        if (bat%track_layers) call score_track(lay, tal, p%iz, p%w*(tau*(1.0_wp - scn%atm%omg1(p%iz))))
         p%z = p%z + p%uz*d
         if (move_xy) then
           p%x = p%x + p%ux*d
@@ -251,7 +257,7 @@ contains
         ev = EV_COLLISION
         return
       end if
-      if (bat%track) call score_track(lay, tal, p%iz, p%w*((e*d)*(1.0_wp - scn%atm%omg1(p%iz))))
+      if (bat%track_layers) call score_track(lay, tal, p%iz, p%w*((e*d)*(1.0_wp - scn%atm%omg1(p%iz))))
       tau = tau - e*d
     case (LAYER_ABSORBING)
       wn = p%w*exp(-scn%atm%ext1(p%iz)*d)
@@ -374,12 +380,14 @@ contains
     else
       wn = p%w*omega
     end if
-    if (bat%track) then
+    if (bat%track_layers) then
       ! absorption was scored along the flight; what the weight loses here is booked against it
       call score_roulette(lay, tal, -(p%w - wn))
     else
       call score_layer_abs(lay, tal, p%iz, p%w - wn)
-      if (in3d) call score_voxel_abs(lay, tal, kr, ix + (iy - 1)*scn%atm%nx, p%w - wn)
+      ! ABS_TRACK_VOXELS: the voxels were scored along the flight
+      if (in3d .and. .not. bat%track) call score_voxel_abs(lay, tal, kr, ix + (iy - 1)*scn%atm%nx, &
+                                                           p%w - wn)
     end if
     if (bat%thermal) then
       ! 1-D layers come with ix = iy = kr = 0 (fly), for which emission_b_point takes the level
@@ -667,9 +675,11 @@ contains
     integer, intent(out) :: ev, ix, iy, kr
     integer :: s, jx, jy, bx, by, nbx, nby, off, ixlo, ixhi, iylo, iyhi, face
     real(wp) :: dxf, dyf, dzf, d, smax, bdx, bdy, xlo, ylo, rux, ruy, ruz, e
-    real(wp) :: xs, ys, sl  !! ABS_TRACK: start and length of the straight path in this layer
+    real(wp) :: xs, ys, sl  !! ABS_TRACK(_VOXELS): start and length of the straight path in this layer
+    logical :: along        !! ABS_TRACK(_VOXELS): the voxels are scored along the path
 
     ev = 0
+    along = est == ABS_TRACK .or. est == ABS_TRACK_VOXELS
     ix = 0
     iy = 0
     ! path length per unit of x, y and z travelled (unused along an axis the photon does not
@@ -758,7 +768,7 @@ contains
           ! tentative collisions come at the rate smax/inv_cf: w k_abs inv_cf/smax at each is
           ! the track-length score in expectation
           if (est == ABS_TENTATIVE) call score_voxel(atm, lay, tal, iz, ix, iy, kr, &
-            w*((e*(1.0_wp - atm%omg3(ix, iy, kr)))*(inv_cf/smax)))
+            w*((e*(1.0_wp - atm%omg3(ix, iy, kr)))*(inv_cf/smax)), .true.)
           ! real with probability e/smax; no random number is needed when the voxel is its
           ! block's majorant (always so for a block of one voxel)
           if (e < smax) then
@@ -769,7 +779,7 @@ contains
           end if
           call wrap(x, atm%lx)
           call wrap(y, atm%ly)
-          if (est == ABS_TRACK) call absorb_path(atm, lay, tal, iz, xs, ys, ux, uy, sl, w)
+          if (along) call absorb_path(atm, lay, tal, iz, xs, ys, ux, uy, sl, w, est == ABS_TRACK)
           ev = EV_COLLISION
           return
         end if
@@ -790,8 +800,8 @@ contains
           else
             z = atm%z(iz - 1)
           end if
-          if (est == ABS_TRACK) then
-            call absorb_path(atm, lay, tal, iz, xs, ys, ux, uy, sl, w)
+          if (along) then
+            call absorb_path(atm, lay, tal, iz, xs, ys, ux, uy, sl, w, est == ABS_TRACK)
             xs = x
             ys = y
             sl = 0.0_wp
@@ -869,7 +879,7 @@ contains
   !> layers, without null collisions. Ends like fly_3d: a collision in voxel (ix, iy, kr)
   !> (ev = EV_COLLISION), or the photon leaves the region (ev from cross_level).
   subroutine fly_column(atm, lay, tal, x, y, z, uz, w, order, iz, tau, n_steps, max_steps, track, &
-                        ev, ix, iy, kr)
+                        layers, ev, ix, iy, kr)
     type(atmosphere_t), intent(in) :: atm
     type(tally_layout_t), intent(in) :: lay
     type(tally_t), intent(inout) :: tal
@@ -879,7 +889,8 @@ contains
     integer, intent(inout) :: iz
     integer(i8), intent(inout) :: n_steps
     integer(i8), intent(in) :: max_steps
-    logical, intent(in) :: track  !! score absorption along the path (ABS_TRACK, ABS_TENTATIVE)
+    logical, intent(in) :: track  !! score the voxels' absorption along the path
+    logical, intent(in) :: layers !! ... and the layers' (ABS_TRACK, ABS_TENTATIVE)
     integer, intent(out) :: ev, ix, iy, kr
     real(wp) :: zb, d, e
     ev = 0
@@ -894,12 +905,12 @@ contains
       if (tau < e*d) then
         z = min(atm%z(iz), max(atm%z(iz - 1), z + uz*(tau/e)))
         if (track) call score_voxel(atm, lay, tal, iz, ix, iy, kr, &
-                                    w*(tau*(1.0_wp - atm%omg3(ix, iy, kr))))
+                                    w*(tau*(1.0_wp - atm%omg3(ix, iy, kr))), layers)
         ev = EV_COLLISION
         return
       end if
       if (track) call score_voxel(atm, lay, tal, iz, ix, iy, kr, &
-                                  w*((e*d)*(1.0_wp - atm%omg3(ix, iy, kr))))
+                                  w*((e*d)*(1.0_wp - atm%omg3(ix, iy, kr))), layers)
       tau = tau - e*d
       z = zb
       call cross_level(atm, lay, tal, x, y, uz, w, order, iz, ev)
@@ -911,13 +922,15 @@ contains
   !> the 3-D layer iz, from (x, y) along the horizontal direction (ux, uy): w k_abs l for each
   !> voxel the piece crosses, l the length inside it, found by the voxel walk that the lines of
   !> sight take too (kumo_voxel_walk). Given the path, this is the expectation of what the collision
-  !> score would deposit in each voxel before the photon collides or leaves.
-  subroutine absorb_path(atm, lay, tal, iz, x, y, ux, uy, s, w)
+  !> score would deposit in each voxel before the photon collides or leaves. With `layers` the
+  !> layer is scored too (ABS_TRACK); without, only the voxels (ABS_TRACK_VOXELS).
+  subroutine absorb_path(atm, lay, tal, iz, x, y, ux, uy, s, w, layers)
     type(atmosphere_t), intent(in) :: atm
     type(tally_layout_t), intent(in) :: lay
     type(tally_t), intent(inout) :: tal
     integer, intent(in) :: iz
     real(wp), intent(in) :: x, y, ux, uy, s, w
+    logical, intent(in) :: layers
     type(voxel_walk_t) :: wk
     real(wp) :: a, dep
     integer :: kr
@@ -938,18 +951,20 @@ contains
         call walk_next(wk, atm)
       end do
     end if
-    call score_track(lay, tal, iz, a)
+    if (layers) call score_track(lay, tal, iz, a)
   end subroutine absorb_path
 
-  !> An expected-value absorption score `a` in voxel (ix, iy, kr) of layer iz.
-  subroutine score_voxel(atm, lay, tal, iz, ix, iy, kr, a)
+  !> An expected-value absorption score `a` in voxel (ix, iy, kr) of layer iz, and with `layers`
+  !> in the layer too.
+  subroutine score_voxel(atm, lay, tal, iz, ix, iy, kr, a, layers)
     type(atmosphere_t), intent(in) :: atm
     type(tally_layout_t), intent(in) :: lay
     type(tally_t), intent(inout) :: tal
     integer, intent(in) :: iz, ix, iy, kr
     real(wp), intent(in) :: a
+    logical, intent(in) :: layers
     call score_voxel_abs(lay, tal, kr, ix + (iy - 1)*atm%nx, a)
-    call score_track(lay, tal, iz, a)
+    if (layers) call score_track(lay, tal, iz, a)
   end subroutine score_voxel
 
   !> An expected-value absorption score `a` in layer iz: absorbed there, and booked in the

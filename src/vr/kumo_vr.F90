@@ -10,7 +10,8 @@
 !> * The absorption estimator (seed text section 3.8, analytic absorption): `vr_t%abs_estimator`,
 !>   absorption scored at real collisions (ABS_COLLISION), as w k_abs s along every flight
 !>   (ABS_TRACK), or as w k_abs / k_majorant at every tentative collision of the null-collision
-!>   walk (ABS_TENTATIVE); `absorption_estimator_code` reads its name.
+!>   walk (ABS_TENTATIVE), or along every flight in the voxels only, the layers and the domain
+!>   keeping the collision score (ABS_TRACK_VOXELS); `absorption_estimator_code` reads its name.
 !> * Truncation of forward peaks (eq. 4.2.19): the ladder is built by kumo_truncation and held by
 !>   the atmosphere; the photon loop samples it at scatterings.
 !> * Local-estimate roulette, numerical diffusion and DDIS: held by the detectors
@@ -40,7 +41,8 @@ module kumo_vr
   public :: roulette_balance_warning, student_t_quantile, RR_BALANCE_MIN, RR_BALANCE_TAIL
   public :: runaway_cost_check, los_crossings, LOS_CROSSINGS_WARN, LOS_CROSSINGS_MAX, &
             FLIGHT_CROSSINGS_WARN
-  public :: ABS_COLLISION, ABS_TRACK, ABS_TENTATIVE, ABS_ESTIMATOR_NAMES, absorption_estimator_code
+  public :: ABS_COLLISION, ABS_TRACK, ABS_TENTATIVE, ABS_TRACK_VOXELS, ABS_ESTIMATOR_NAMES, &
+            absorption_estimator_code
 
   !> How absorption is scored (the photons' random walk is the same for all three; so are the
   !> fluxes and radiances, to the last bit):
@@ -49,11 +51,17 @@ module kumo_vr
   !>   of the collision score given the path (seed text section 3.8, analytic absorption);
   !> * ABS_TENTATIVE: w k_abs / k_majorant at every tentative (real or null) collision of the
   !>   3-D null-collision walk, and the track score in the 1-D layers and ICA columns.
-  !> The two expected-value scores are booked against the weight the photons lose at their
+  !> The expected-value scores of these two are booked against the weight the photons lose at their
   !> collisions in the roulette weight balance, so that the energy budget closes to round-off.
-  integer, parameter :: ABS_COLLISION = 0, ABS_TRACK = 1, ABS_TENTATIVE = 2
-  character(len=9), parameter :: ABS_ESTIMATOR_NAMES(0:2) = &
-                                 [character(len=9) :: 'collision', 'track', 'tentative']
+  !> * ABS_TRACK_VOXELS: the track score for the voxels of the 3-D region, the collision score
+  !>   for the layers and the domain. The voxels get the track score's smaller error bars, while
+  !>   the domain absorptance keeps the collision score's closure of the budget photon by photon
+  !>   (what a photon neither reflects nor transmits it has absorbed), which the track score
+  !>   loses in optically thick scenes. Each voxel is unbiased; the sum of the voxels of a layer
+  !>   equals the layer's absorption in expectation, not batch by batch.
+  integer, parameter :: ABS_COLLISION = 0, ABS_TRACK = 1, ABS_TENTATIVE = 2, ABS_TRACK_VOXELS = 3
+  character(len=12), parameter :: ABS_ESTIMATOR_NAMES(0:3) = &
+    [character(len=12) :: 'collision', 'track', 'tentative', 'track_voxels']
 
   !> The variance-reduction settings the photon loop reads.
   type :: vr_t

@@ -13,7 +13,9 @@
 !>   5 sigma of the difference per voxel, with the RMS of the normalised differences near 1 and
 !>   the track estimator's error bars smaller in the clear voxels;
 !> * with the same seed the photons follow the same paths: reflectance, transmittance and
-!>   surface absorption are bit-identical to the collision run's; the energy budget closes to
+!>   surface absorption are bit-identical to the collision run's ('track_voxels': its layer
+!>   absorption and weight balance are the collision run's, its voxels the track run's, to the
+!>   last bit); the energy budget closes to
 !>   round-off, and the weight balance (collision losses against the expected-value scores) is
 !>   zero within 4 sigma;
 !> * a thermal run refuses the expected-value estimators (regression bad input
@@ -33,7 +35,11 @@ module test_absorption_estimator_suite
   public :: collect_absorption_estimator
 
   real(dp), parameter :: K = 4.0_dp
-  character(len=9), parameter :: EXPECTED(2) = [character(len=9) :: 'track', 'tentative']
+  character(len=12), parameter :: EXPECTED(3) = [character(len=12) :: 'track', 'tentative', &
+                                                   'track_voxels']
+  !> The first N_LAYERS of EXPECTED score the layers along the flights ('track_voxels' scores
+  !> them at collisions, to the last bit as 'collision': test_same_paths)
+  integer, parameter :: N_LAYERS = 2
 
 contains
 
@@ -110,7 +116,7 @@ contains
     ssa = 0.9_wp
     call attach_scene(cfg, 'absest_layer.nc', 1, ext, ssa, 1, error)
     if (allocated(error)) return
-    do j = 1, size(EXPECTED)
+    do j = 1, N_LAYERS
       c = cfg
       c%vr%absorption_estimator = EXPECTED(j)
       c%control%seed = 100_i8 + j
@@ -155,7 +161,7 @@ contains
     ssa = 0.9999_wp
     call attach_scene(cfg, 'absest_two_layer.nc', 1, ext, ssa, 2, error)
     if (allocated(error)) return
-    do j = 1, size(EXPECTED)
+    do j = 1, N_LAYERS
       c = cfg
       c%vr%absorption_estimator = EXPECTED(j)
       c%control%seed = 200_i8 + j
@@ -249,7 +255,7 @@ contains
   subroutine test_same_paths(error)
     type(error_t), allocatable, intent(out) :: error
     type(config_t) :: cfg, c
-    type(result_set_t) :: ref, set
+    type(result_set_t) :: ref, set, track
     real(dp) :: m0, e0, m, e
     integer :: j, i, im
     character(len=24), parameter :: SAME(3) = [character(len=24) :: 'reflectance', &
@@ -276,6 +282,17 @@ contains
                      trim(SAME(i))//' differs from the collision run with the same seed')
           if (allocated(error)) return
         end do
+        if (EXPECTED(j) == 'track_voxels') then
+          ! the layers and the budget as the collision run's, the voxels as the track run's
+          call same_array(ref, set, 'absorptance_layer', MODES(im)//', track_voxels vs collision', &
+                          error)
+          call same_array(ref, set, 'roulette_weight_balance', MODES(im)// &
+                          ', track_voxels vs collision', error)
+          call same_array(track, set, 'absorptance_voxel', MODES(im)//', track_voxels vs track', &
+                          error)
+          if (allocated(error)) return
+        end if
+        if (EXPECTED(j) == 'track') track = set
         call get_scalar(set, 'energy_closure', m, e, error)
         if (allocated(error)) return
         call check_close(error, m, 1.0_dp, abs_tol=1.0e-12_dp, rel_tol=0.0_dp, &
@@ -289,6 +306,22 @@ contains
       end do
     end do
   end subroutine test_same_paths
+
+  !> Output `name` of `b` equal to that of `a` to the last bit (values and standard errors).
+  subroutine same_array(a, b, name, label, error)
+    type(result_set_t), intent(in) :: a, b
+    character(len=*), intent(in) :: name, label
+    type(error_t), allocatable, intent(inout) :: error
+    real(dp), allocatable :: ma(:), ea(:), mb(:), eb(:)
+    if (allocated(error)) return
+    call get_array(a, name, ma, ea, error)
+    if (allocated(error)) return
+    call get_array(b, name, mb, eb, error)
+    if (allocated(error)) return
+    call check(error, size(ma) == size(mb), label//': '//name//' has another size')
+    if (allocated(error)) return
+    call check(error, all(ma == mb) .and. all(ea == eb), label//': '//name//' differs')
+  end subroutine same_array
 end module test_absorption_estimator_suite
 
 program test_absorption_estimator

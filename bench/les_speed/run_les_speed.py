@@ -7,9 +7,10 @@ Workloads (each run is one kumo run; its CPU time is the tracing time cpu_time_s
 
   stcu_flux  the I3RC LES stratocumulus at 2.13 um from its SHDOM property file
              (les_stcu_w213.prp), SZA 60, black surface, default preset (unbiased): domain R
-             (upward flux at the top) and T (downward flux at the surface) to 0.1 %.
+             (upward flux at the top) and T (downward flux at the surface) to 0.1 %, and the
+             atmosphere's absorptance A to 0.1 %.
   les05_flux the MCARaTS LES05 scene (examples/mcarats_les05, namelists written by its script),
-             default preset: domain R and T to 0.1 %, and the absorption of the median cloudy
+             default preset: domain R, T and A to 0.1 %, and the absorption of the median cloudy
              voxel (extp3d > 1e-6 m-1) to 10 %: t (e_med / 0.1)^2, e_med the median over the
              cloudy voxels of stderr/mean of absorptance_voxel.
   stcu_rad_standard, stcu_rad_unbiased
@@ -134,6 +135,7 @@ def metrics(workload, path, cloudy):
         if workload.endswith("flux"):
             res["R"] = scalar(nc, "reflectance") + (1e-3,)
             res["T"] = scalar(nc, "transmittance") + (1e-3,)
+            res["A"] = scalar(nc, "absorptance_atmosphere") + (1e-3,)
         if workload == "les05_flux":
             m = np.array(nc["absorptance_voxel"][:], dtype=float)
             e = np.array(nc["absorptance_voxel_stderr"][:], dtype=float)

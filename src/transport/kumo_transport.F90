@@ -646,15 +646,10 @@ contains
   !> (ev from cross_level: 0, EV_ESCAPE or EV_SURFACE). `tau` is the optical path left to fly.
   !>
   !> The photon walks the majorant grid as a 3-D digital differential analyser: the distances
-  !> to the next x face, y face and super-layer boundary are kept and decreased as it moves, and
-  !> only the one that is crossed is recomputed, from the width of the block or super-layer it
-  !> enters. The levels inside a super-layer are no faces of the grid (its blocks span all its
-  !> layers), so the walk does not stop at them: the flight is straight, and the levels it has
-  !> passed are tallied when the layer matters, at the next tentative collision or at the
-  !> super-layer's boundary (`pass_levels`). Levels between two super-layers are tallied at the
-  !> boundary and the walk goes on in the next super-layer, keeping its x and y faces when the
-  !> blocks there have the same size. The caller sees the photon again only at a collision or
-  !> when it leaves the region.
+  !> to the next x face, y face and level are kept and decreased as it moves, and only the one
+  !> that is crossed is recomputed, from the width of the block or layer it enters. Levels
+  !> inside the region (within a super-layer or between two) are tallied here and the walk goes
+  !> on, so that the caller sees the photon again only at a collision or when it leaves.
   subroutine fly_3d(atm, lay, tal, rng, x, y, z, ux, uy, uz, w, order, iz, tau, n_steps, &
                     max_steps, inv_cf, est, ev, ix, iy, kr)
     type(atmosphere_t), intent(in) :: atm
@@ -670,9 +665,8 @@ contains
     real(wp), intent(in) :: inv_cf  !! 1/(collision-forcing factor)
     integer, intent(in) :: est      !! absorption estimator (ABS_*): what is scored on the way
     integer, intent(out) :: ev, ix, iy, kr
-    integer :: s, jx, jy, bx, by, nbx, nby, off, ixlo, ixhi, iylo, iyhi, face, klast
+    integer :: s, jx, jy, bx, by, nbx, nby, off, ixlo, ixhi, iylo, iyhi, face
     real(wp) :: dxf, dyf, dzf, d, smax, bdx, bdy, xlo, ylo, rux, ruy, ruz, e
-    real(wp) :: zl  !! height of the next level inside the super-layer (+-huge: none)
     real(wp) :: xs, ys, sl  !! ABS_TRACK: start and length of the straight path in this layer
 
     ev = 0
@@ -686,54 +680,42 @@ contains
     if (abs(uy) > 0.0_wp) ruy = 1.0_wp/abs(uy)
     ruz = 1.0_wp/abs(uz)
     kr = iz - atm%k3_lo + 1
+    if (uz > 0.0_wp) then
+      dzf = max(0.0_wp, (atm%z(iz) - z)*ruz)
+    else
+      dzf = max(0.0_wp, (z - atm%z(iz - 1))*ruz)
+    end if
     xs = x
     ys = y
     sl = 0.0_wp
-    bx = 0
-    by = 0
 
     superlayer: do
+      ! enter super-layer s: the block under the photon and the distances to its x and y faces
       s = atm%sv%sl_of_layer(kr)
-      if (atm%sv%bx(s) /= bx .or. atm%sv%by(s) /= by) then
-        ! blocks of another size: the block under the photon and the distances to its x and y
-        ! faces
-        bx = atm%sv%bx(s)
-        by = atm%sv%by(s)
-        nbx = atm%sv%nbx(s)
-        nby = atm%sv%nby(s)
-        bdx = bx*atm%dx
-        bdy = by*atm%dy
-        jx = min(nbx, int(x/bdx) + 1)
-        jy = min(nby, int(y/bdy) + 1)
-        xlo = (jx - 1)*bdx
-        ylo = (jy - 1)*bdy
-        if (ux > 0.0_wp) then
-          dxf = max(0.0_wp, (min(atm%lx, xlo + bdx) - x)*rux)
-        else if (ux < 0.0_wp) then
-          dxf = max(0.0_wp, (x - xlo)*rux)
-        else
-          dxf = huge(1.0_wp)
-        end if
-        if (uy > 0.0_wp) then
-          dyf = max(0.0_wp, (min(atm%ly, ylo + bdy) - y)*ruy)
-        else if (uy < 0.0_wp) then
-          dyf = max(0.0_wp, (y - ylo)*ruy)
-        else
-          dyf = huge(1.0_wp)
-        end if
-      end if
+      bx = atm%sv%bx(s)
+      by = atm%sv%by(s)
+      nbx = atm%sv%nbx(s)
+      nby = atm%sv%nby(s)
       off = atm%sv%off(s)
-      ! the z face is the boundary of the super-layer ahead; klast is its last layer that way
-      if (uz > 0.0_wp) then
-        klast = atm%sv%kt(s)
-        dzf = max(0.0_wp, (atm%z(klast + atm%k3_lo - 1) - z)*ruz)
-        zl = atm%z(iz)
-        if (kr == klast) zl = huge(1.0_wp)
+      bdx = bx*atm%dx
+      bdy = by*atm%dy
+      jx = min(nbx, int(x/bdx) + 1)
+      jy = min(nby, int(y/bdy) + 1)
+      xlo = (jx - 1)*bdx
+      ylo = (jy - 1)*bdy
+      if (ux > 0.0_wp) then
+        dxf = max(0.0_wp, (min(atm%lx, xlo + bdx) - x)*rux)
+      else if (ux < 0.0_wp) then
+        dxf = max(0.0_wp, (x - xlo)*rux)
       else
-        klast = atm%sv%kb(s)
-        dzf = max(0.0_wp, (z - atm%z(klast + atm%k3_lo - 2))*ruz)
-        zl = atm%z(iz - 1)
-        if (kr == klast) zl = -huge(1.0_wp)
+        dxf = huge(1.0_wp)
+      end if
+      if (uy > 0.0_wp) then
+        dyf = max(0.0_wp, (min(atm%ly, ylo + bdy) - y)*ruy)
+      else if (uy < 0.0_wp) then
+        dyf = max(0.0_wp, (y - ylo)*ruy)
+      else
+        dyf = huge(1.0_wp)
       end if
       smax = atm%sv%maj(off + jx + (jy - 1)*nbx)
 
@@ -752,7 +734,7 @@ contains
         end if
 
         if (smax*d > tau) then
-          ! tentative collision inside the block, in the layer where the straight piece ends
+          ! tentative collision inside the block
           d = tau/smax
           sl = sl + d
           x = x + ux*d
@@ -761,8 +743,6 @@ contains
           dxf = dxf - d
           dyf = dyf - d
           dzf = dzf - d
-          if ((z - zl)*uz > 0.0_wp) call pass_levels(atm, lay, tal, x, y, z, ux, uy, uz, w, &
-                                                     order, est, klast, iz, kr, zl, xs, ys, sl)
           ix = int(x*atm%inv_dx) + 1
           iy = int(y*atm%inv_dy) + 1
           ixlo = (jx - 1)*bx + 1
@@ -798,18 +778,18 @@ contains
         tau = tau - smax*d
         sl = sl + d
         if (face == 3) then
-          ! the boundary of the super-layer, after the levels inside it: tally it; leave the
-          ! region, or go on in the next super-layer
+          ! a level: tally it; leave the region, or go on in the next layer
           x = x + ux*d
           y = y + uy*d
           call wrap(x, atm%lx)
           call wrap(y, atm%ly)
           dxf = dxf - d
           dyf = dyf - d
-          z = atm%z(klast + atm%k3_lo - 1)
-          if (uz < 0.0_wp) z = atm%z(klast + atm%k3_lo - 2)
-          if (kr /= klast) call pass_levels(atm, lay, tal, x, y, z, ux, uy, uz, w, order, est, &
-                                            klast, iz, kr, zl, xs, ys, sl)
+          if (uz > 0.0_wp) then
+            z = atm%z(iz)
+          else
+            z = atm%z(iz - 1)
+          end if
           if (est == ABS_TRACK) then
             call absorb_path(atm, lay, tal, iz, xs, ys, ux, uy, sl, w)
             xs = x
@@ -818,8 +798,9 @@ contains
           end if
           call cross_level(atm, lay, tal, x, y, uz, w, order, iz, ev)
           if (ev /= 0 .or. iz < atm%k3_lo .or. iz > atm%k3_hi) return
+          dzf = (atm%z(iz) - atm%z(iz - 1))*ruz
           kr = iz - atm%k3_lo + 1
-          cycle superlayer
+          if (atm%sv%sl_of_layer(kr) /= s) cycle superlayer
         else if (face == 1) then
           ! an x face: the next block in x, across the periodic boundary if need be
           y = y + uy*d
@@ -870,53 +851,6 @@ contains
       end do step
     end do superlayer
   end subroutine fly_3d
-
-  !> The levels inside a super-layer that the straight flight of fly_3d has passed on its way to
-  !> its position (x, y, z), up to the last layer `klast` of the super-layer: each is tallied
-  !> where the photon crossed it (x, y there, for flux maps), and the photon's layer iz, kr
-  !> moves on; zl is the height of the next level inside the super-layer (+-huge if none). For
-  !> ABS_TRACK the piece in the layer left behind is scored: xs, ys is its start and sl the path
-  !> length from there to (x, y, z); on return they describe the piece in the photon's layer.
-  subroutine pass_levels(atm, lay, tal, x, y, z, ux, uy, uz, w, order, est, klast, iz, kr, zl, &
-                         xs, ys, sl)
-    type(atmosphere_t), intent(in) :: atm
-    type(tally_layout_t), intent(in) :: lay
-    type(tally_t), intent(inout) :: tal
-    real(wp), intent(in) :: x, y, z, ux, uy, uz, w
-    integer, intent(in) :: order, est, klast
-    integer, intent(inout) :: iz, kr
-    real(wp), intent(inout) :: zl, xs, ys, sl
-    real(wp) :: b, xl, yl
-    integer :: ev
-    do while ((z - zl)*uz > 0.0_wp)
-      ! b: the path length back from (x, y, z) to the level
-      b = (z - zl)/uz
-      xl = x
-      yl = y
-      if (lay%do_maps .or. est == ABS_TRACK) then
-        xl = x - ux*b
-        yl = y - uy*b
-        call wrap(xl, atm%lx)
-        call wrap(yl, atm%ly)
-      end if
-      if (est == ABS_TRACK) then
-        call absorb_path(atm, lay, tal, iz, xs, ys, ux, uy, sl - b, w)
-        xs = xl
-        ys = yl
-        sl = b
-      end if
-      ! a level inside the region: cross_level moves iz and reports no event
-      call cross_level(atm, lay, tal, xl, yl, uz, w, order, iz, ev)
-      kr = iz - atm%k3_lo + 1
-      if (kr == klast) then
-        zl = sign(huge(1.0_wp), uz)
-      else if (uz > 0.0_wp) then
-        zl = atm%z(iz)
-      else
-        zl = atm%z(iz - 1)
-      end if
-    end do
-  end subroutine pass_levels
 
   !> Height of the level a photon in layer iz meets next: the top for uz > 0, else the bottom.
   pure real(wp) function level_ahead(atm, iz, uz) result(zb)

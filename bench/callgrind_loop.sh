@@ -8,7 +8,10 @@
 #
 # Cases: the HG slab with fluxes only and with four radiances (2e4 photons), the I3RC Landsat
 # cloud on 20 layers (1e4 photons, fluxes), the I3RC LES stratocumulus at 2.13 um with nadir and
-# 60-degree radiances and the standard preset (4e3 photons). Inputs come from examples/data.
+# 60-degree radiances and the standard preset (4e3 photons), the same stratocumulus with fluxes
+# only (les_flux: SZA 60, black surface, default preset, 8192 photons) and the MCARaTS LES05
+# scene at SZA 0 with fluxes and voxel absorption (les05_flux, 7200 photons, namelist written by
+# examples/mcarats_les05/run_mcarats_les05.sh). Inputs come from examples/data.
 # Prints one line per build and case: the build, the case, the instruction count.
 set -euo pipefail
 repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -54,9 +57,24 @@ cat > les_rad.nml <<'NML'
 &kumo_vr vr_preset = 'standard' /
 NML
 
+cat > les_flux.nml <<'NML'
+&kumo_control n_photons_per_batch = 4096, n_batches = 2, seed = 7 /
+&kumo_cloud cloud_file = 'i3rc_les_stcu.lwc', cloud_format = 'lwc',
+  size_distribution = 'gamma', v_eff = 0.1, reff_min_um = 2.0, reff_max_um = 30.0, n_reff = 8,
+  mie_cache = 'mie_213.nc' /
+&kumo_source sza_deg = 60.0, wavelength_um = 2.13, solar_flux = 1.0 /
+&kumo_surface albedo = 0.0 /
+&kumo_output file = 'les_flux.nc', column_fluxes = .false., voxel_absorption = .false. /
+NML
+
+KUMO="$1" KUMO_RUN_DIR="$work" bash "$repo/examples/mcarats_les05/run_mcarats_les05.sh" 1000 \
+  > /dev/null 2>&1
+sed -e 's|&kumo_control[^/]*/|\&kumo_control n_photons_per_batch = 3600, n_batches = 2, seed = 5 /|' \
+  -e "s|\(&kumo_output *file = '\)[^']*'|\1les05_flux.nc'|" les05_sza0.nml > les05_flux.nml
+
 for kumo in "$@"; do
   "$kumo" les_rad.nml > /dev/null   # the Mie cache, so that no run below computes it
-  for c in slab_flux slab_rad landsat les_rad; do
+  for c in slab_flux slab_rad landsat les_rad les_flux les05_flux; do
     valgrind --tool=callgrind --callgrind-out-file="cg.$c" --toggle-collect='*trace_batch*' \
       "$kumo" "$c.nml" > /dev/null 2> "cg.$c.log"
     echo "$kumo $c $(sed -n 's/^\(summary\|totals\): *//p' "cg.$c" | head -n 1)"

@@ -37,7 +37,8 @@ module kumo_local_estimate
   use kumo_atmosphere, only: atmosphere_t, column_of, sigma_trunc_3d, LAYER_CLEAR, LAYER_3D
   use kumo_voxel_walk, only: voxel_walk_t, walk_begin, walk_segment, walk_next
   use kumo_camera, only: camera_t, camera_project
-  use kumo_tally, only: tally_layout_t, tally_t, score_radiance, score_radiance_map, score_camera
+  use kumo_tally, only: tally_layout_t, tally_t, score_radiance, score_radiance_map, score_camera, &
+                        score_radiance_map_run
   use kumo_surface, only: surface_t
   use kumo_brdf, only: brdf_albedo, brdf_table_eval_dir
   use kumo_emission, only: emission_surface_eps
@@ -447,19 +448,33 @@ contains
     integer, intent(in) :: d, slot
     real(wp), intent(in) :: x, y, a, v
     real(wp) :: r, share
-    integer :: nrx, nry, ix0, iy0, i, j, ix, iy
+    integer :: nrx, nry, ix0, iy0, j, row0, lo, hi, lo2, hi2
     r = det%diff_scale*sqrt(PI*a)
     nrx = min(det%diff_max, int(r*atm%inv_dx), (atm%nx - 1)/2)
     nry = min(det%diff_max, int(r*atm%inv_dy), (atm%ny - 1)/2)
     ix0 = min(atm%nx, max(1, int(x*atm%inv_dx) + 1))
     iy0 = min(atm%ny, max(1, int(y*atm%inv_dy) + 1))
     share = v/real((2*nrx + 1)*(2*nry + 1), wp)
+    ! The columns ix0 - nrx .. ix0 + nrx of a row (2 nrx + 1 <= nx, so no column twice), as at
+    ! most two runs of consecutive columns after the periodic wrap: [lo, hi] and [lo2, hi2]
+    ! (empty when lo2 > hi2). Each column gets the same share as one cell at a time would.
+    lo = ix0 - nrx
+    hi = ix0 + nrx
+    lo2 = 1
+    hi2 = 0
+    if (lo < 1) then
+      lo2 = lo + atm%nx
+      hi2 = atm%nx
+      lo = 1
+    else if (hi > atm%nx) then
+      lo2 = 1
+      hi2 = hi - atm%nx
+      hi = atm%nx
+    end if
     do j = -nry, nry
-      iy = modulo(iy0 - 1 + j, atm%ny) + 1
-      do i = -nrx, nrx
-        ix = modulo(ix0 - 1 + i, atm%nx) + 1
-        call score_radiance_map(lay, tal, d, slot, ix + (iy - 1)*atm%nx, share)
-      end do
+      row0 = modulo(iy0 - 1 + j, atm%ny)*atm%nx   ! columns before this row
+      call score_radiance_map_run(lay, tal, d, slot, row0 + lo, row0 + hi, share)
+      call score_radiance_map_run(lay, tal, d, slot, row0 + lo2, row0 + hi2, share)
     end do
   end subroutine spread_sample
 

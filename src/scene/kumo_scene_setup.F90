@@ -34,6 +34,7 @@ module kumo_scene_setup
   use kumo_camera, only: camera_t, camera_init, CAMERA_PINHOLE, CAMERA_ORTHOGRAPHIC, &
                          MAX_IMAGE_SHIFTS
   use kumo_local_estimate, only: detectors_init
+  use kumo_local_estimate, only: detectors_bounds
   use kumo_surface, only: surface_init, surface_init_brdf, surface_init_brdf_map
   use kumo_brdf, only: brdf_params_t, BRDF_NPAR
   use kumo_source, only: solar_source, source_stratify
@@ -1341,6 +1342,7 @@ contains
     deallocate (scene%det%ddis_phase)
     allocate (scene%det%ddis_phase(size(scene%atm%phases)))
     scene%det%ddis_phase = ddis_phases(scene%atm%phases)
+    call detectors_bounds(scene%det, scene%atm)   ! roulette of weak contributions before P
 
     ! local estimates with a forward peak and no variance reduction converge very slowly (one
     ! rare near-forward scattering dominates)

@@ -20,6 +20,7 @@ module kumo_tally
   public :: score_flux, score_flux_map, score_layer_abs, score_voxel_abs, score_surface_abs, &
             score_roulette, score_lost, score_source, score_net_layer, score_net_surface, &
             score_net_voxel, score_radiance, score_radiance_map, score_camera
+  public :: score_radiance_map_run
   public :: ANOM_UZ_NUDGED, ANOM_EVENT_CAP, ANOM_STEP_CAP, ANOM_POSITION_REPAIR, &
             ANOM_BRDF_ENVELOPE, N_ANOMALIES, ANOMALY_NAMES
 
@@ -499,6 +500,18 @@ contains
     i = lay%i_rad_map + ((d - 1)*lay%n_rad_lev + slot - 1)*lay%ncol + icol
     tal%buf(i) = tal%buf(i) + v
   end subroutine score_radiance_map
+
+  !> The same sample `v` in each of the radiance-map columns icol1 .. icol2 (consecutive
+  !> columns of one row; nothing when icol1 > icol2): numerical diffusion spreads one sample so.
+  pure subroutine score_radiance_map_run(lay, tal, d, slot, icol1, icol2, v)
+    type(tally_layout_t), intent(in) :: lay
+    type(tally_t), intent(inout) :: tal
+    integer, intent(in) :: d, slot, icol1, icol2
+    real(dp), intent(in) :: v
+    integer :: i
+    i = lay%i_rad_map + ((d - 1)*lay%n_rad_lev + slot - 1)*lay%ncol
+    tal%buf(i + icol1:i + icol2) = tal%buf(i + icol1:i + icol2) + v
+  end subroutine score_radiance_map_run
 
   !> Sample `v` of pixel ipix (1-based) of camera c.
   pure subroutine score_camera(lay, tal, c, ipix, v)

@@ -32,12 +32,13 @@ module kumo_local_estimate
   use kumo_constants, only: PI
   use kumo_rng, only: rng_t, rng_uniform
   use kumo_math, only: wrap, rotate_direction
-  use kumo_phase, only: phase_eval, phase_sample_mu
+  use kumo_phase, only: phase_t, phase_eval, phase_sample_mu, PHASE_TABLE
   use kumo_truncation, only: trunc_eval, trunc_sample_mu
   use kumo_atmosphere, only: atmosphere_t, column_of, sigma_trunc_3d, LAYER_CLEAR, LAYER_3D
   use kumo_voxel_walk, only: voxel_walk_t, walk_begin, walk_segment, walk_next
   use kumo_camera, only: camera_t, camera_project
-  use kumo_tally, only: tally_layout_t, tally_t, score_radiance, score_radiance_map, score_camera
+  use kumo_tally, only: tally_layout_t, tally_t, score_radiance, score_radiance_map, score_camera, &
+                        score_radiance_map_run
   use kumo_surface, only: surface_t
   use kumo_brdf, only: brdf_albedo, brdf_table_eval_dir
   use kumo_emission, only: emission_surface_eps
@@ -45,8 +46,13 @@ module kumo_local_estimate
   private
   public :: detectors_t, detectors_init, le_particle, le_surface, le_boundary_emission, &
             ddis_factor, ddis_direction
+  public :: detectors_bounds, density_bound
 
   real(wp), parameter :: INV_4PI = 0.25_wp/PI
+  !> Bins of the bound table of the angular densities (uniform in the scattering-angle cosine)
+  integer, parameter :: N_BOUND = 128
+  !> Safety factor on the bounds: covers rounding in the evaluation of the interpolant
+  real(wp), parameter :: BOUND_MARGIN = 1.001_wp
 
   !> What local estimates are tallied into.
   type :: detectors_t
@@ -65,6 +71,9 @@ module kumo_local_estimate
     real(wp) :: ddis_mu_cone = -2.0_wp     !! secondaries only within this cosine of Omega_d
     logical, allocatable :: ddis_phase(:)  !! (n_phases) DDIS for scatterings by this phase
                                            !! function (those with a strong forward peak)
+    !> (N_BOUND, truncation levels, n_phases): upper bounds of P^/(4 pi) (particle_density
+    !> per unit weight) over bins of the scattering-angle cosine; unallocated: not used
+    real(wp), allocatable :: p_bound(:, :, :)
   end type detectors_t
 
 contains
@@ -106,6 +115,70 @@ contains
     allocate (det%ddis_phase(0))
   end subroutine detectors_init
 
+  !> The bound table p_bound of the level detectors' roulette (see le_particle): for every
+  !> phase function and truncation level of `atm`, the largest angular density per unit weight,
+  !> P^(mu)/(4 pi) (P_trunc/(4 pi (1 - f)) when truncated), over each of N_BOUND equal bins of
+  !> mu in [-1, 1]. Every phase-function kind is monotone in angle between its table nodes
+  !> (tables: log-linear or linear in angle; Henyey-Greenstein: monotone; Rayleigh:
+  !> a + b mu^2, b >= 0; isotropic: constant), so the maximum over a bin is the largest of its
+  !> values at the bin's ends and at the table nodes inside it. Without roulette of
+  !> contributions (zeta_min = 0) nothing is built.
+  subroutine detectors_bounds(det, atm)
+    type(detectors_t), intent(inout) :: det
+    type(atmosphere_t), intent(in) :: atm
+    integer :: n_lev, iph, lev, k
+    real(wp) :: m1, m2, ut, pmax, scale
+    if (allocated(det%p_bound)) deallocate (det%p_bound)
+    if (det%n_dir == 0 .or. det%a_min <= 0.0_wp .or. size(atm%phases) == 0) return
+    n_lev = 1
+    if (atm%truncated) n_lev = atm%trunc%n_levels
+    allocate (det%p_bound(N_BOUND, n_lev, size(atm%phases)))
+    do iph = 1, size(atm%phases)
+      do lev = 1, n_lev
+        scale = BOUND_MARGIN*INV_4PI
+        ut = 1.0_wp
+        if (atm%truncated) then
+          scale = scale/(1.0_wp - atm%trunc%f(lev, iph))
+          ut = atm%trunc%u_t(lev, iph)
+        end if
+        do k = 1, N_BOUND
+          m1 = -1.0_wp + 2.0_wp*real(k - 1, wp)/N_BOUND
+          m2 = -1.0_wp + 2.0_wp*real(k, wp)/N_BOUND
+          if (k == N_BOUND) m2 = 1.0_wp
+          pmax = 0.0_wp
+          if (atm%truncated .and. m2 > ut) pmax = atm%trunc%p_flat(lev, iph)
+          if (m1 <= ut) pmax = max(pmax, phase_max(atm%phases(iph), m1, min(m2, ut)))
+          det%p_bound(k, lev, iph) = scale*pmax
+        end do
+      end do
+    end do
+  end subroutine detectors_bounds
+
+  !> Upper bound of the angular density per unit weight (P^/(4 pi), as in particle_density) of
+  !> phase function iph at truncation level lev for the scattering-angle cosine mu, from the
+  !> table of detectors_bounds (which must have been built and cover iph and lev).
+  pure real(wp) function density_bound(det, iph, lev, mu) result(b)
+    type(detectors_t), intent(in) :: det
+    integer, intent(in) :: iph, lev
+    real(wp), intent(in) :: mu
+    integer :: k
+    k = min(N_BOUND, max(1, int((mu + 1.0_wp)*(0.5_wp*N_BOUND)) + 1))
+    b = det%p_bound(k, lev, iph)
+  end function density_bound
+
+  !> Largest value of phase function ph over mu in [m1, m2] (see detectors_bounds).
+  real(wp) function phase_max(ph, m1, m2) result(pmax)
+    type(phase_t), intent(in) :: ph
+    real(wp), intent(in) :: m1, m2
+    integer :: i
+    pmax = max(phase_eval(ph, m1), phase_eval(ph, m2))
+    if (ph%kind == PHASE_TABLE) then
+      do i = 1, size(ph%mu_tab)
+        if (ph%mu_tab(i) > m1 .and. ph%mu_tab(i) < m2) pmax = max(pmax, phase_eval(ph, ph%mu_tab(i)))
+      end do
+    end if
+  end function phase_max
+
   !> Local estimates of a particle scattering at (x, y, z) in layer iz, for a photon arriving in
   !> direction (ux, uy, uz) with weight `w` (the expected scattered weight: after absorption,
   !> times the probability that the collision is a real, non-delta scattering), phase function
@@ -126,10 +199,31 @@ contains
     !> sight run vertically through that column, with their true slant path lengths
     logical, value :: column
     integer :: d, c, mx, my, ipix, lev_t
-    real(wp) :: mu, a, vx, vy, vz, dist, factor
-    logical :: hit
+    real(wp) :: mu, a, vx, vy, vz, dist, factor, a_up, a_thr, u
+    logical :: hit, bounded
+    bounded = allocated(det%p_bound) .and. det%a_min > 0.0_wp .and. size(det%levels) > 0
+    ! (phase functions added after the table was built, e.g. the isotropic one of thermal
+    ! emission, are evaluated as before)
+    if (bounded) bounded = iph <= size(det%p_bound, 3) .and. lev <= size(det%p_bound, 2)
     do d = 1, det%n_dir
       mu = ux*det%ux(d) + uy*det%uy(d) + uz*det%uz(d)
+      if (bounded) then
+        ! Roulette before the phase function is evaluated: when even the bound a_up >= a of
+        ! the contribution is below the roulette threshold, the uniform deviate of the
+        ! roulette is drawn now; u a_thr >= a_up drops the contribution as u a_thr >= a would,
+        ! otherwise a is evaluated and rouletted with the same u: the same decisions, the same
+        ! random numbers, one phase-function evaluation less for most weak contributions.
+        a_up = w*density_bound(det, iph, lev, mu)
+        a_thr = det%a_min*abs(det%uz(d))*ps
+        if (a_up < a_thr) then
+          if (a_up <= 0.0_wp) cycle
+          u = rng_uniform(rng)
+          if (u*a_thr >= a_up) cycle
+          call particle_density(atm, iph, lev, mu, w, a, lev_t)
+          call level_estimate(det, atm, lay, tal, rng, x, y, z, iz, iz, d, a, ps, lev_t, column, u)
+          cycle
+        end if
+      end if
       call particle_density(atm, iph, lev, mu, w, a, lev_t)
       call level_estimate(det, atm, lay, tal, rng, x, y, z, iz, iz, d, a, ps, lev_t, column)
     end do
@@ -352,17 +446,24 @@ contains
   !> Roulette of a contribution (see the module text) against the threshold a_min: returns false
   !> if it is dropped; otherwise `a` (possibly raised to a_min), tau_lim and the optical depth
   !> at which the trace may stop. Any a_min > 0 is unbiased; it sets only the efficiency.
-  logical function roulette_contribution(rng, a, a_min, tau_lim, tau_stop) result(keep)
+  logical function roulette_contribution(rng, a, a_min, tau_lim, tau_stop, u_pre) result(keep)
     type(rng_t), intent(inout) :: rng
     real(wp), intent(inout) :: a
     real(wp), intent(in) :: a_min
     real(wp), intent(out) :: tau_lim, tau_stop
+    real(wp), intent(in), optional :: u_pre   !! the roulette's uniform deviate, drawn already
+    real(wp) :: u
     keep = a > 0.0_wp
     tau_lim = huge(1.0_wp)
     tau_stop = huge(1.0_wp)
     if (.not. keep .or. a_min <= 0.0_wp) return
     if (a < a_min) then
-      if (rng_uniform(rng)*a_min >= a) then
+      if (present(u_pre)) then
+        u = u_pre
+      else
+        u = rng_uniform(rng)
+      end if
+      if (u*a_min >= a) then
         keep = .false.
         return
       end if
@@ -380,7 +481,7 @@ contains
   !> The roulette compares the contribution in reflectance units, pi a/|mu_d|, with zeta_min
   !> (times `ps` for forced collisions).
   subroutine level_estimate(det, atm, lay, tal, rng, x, y, z, iz, k_up, d, a_in, ps, lev_t, &
-                            column)
+                            column, u_pre)
     type(detectors_t), intent(in) :: det
     type(atmosphere_t), intent(in) :: atm
     type(tally_layout_t), intent(in) :: lay
@@ -389,11 +490,15 @@ contains
     real(wp), intent(in) :: x, y, z, a_in, ps
     integer, intent(in) :: iz, k_up, d, lev_t
     logical, intent(in) :: column   !! the line of sight stays in the column of the event
+    !> the roulette's uniform deviate, drawn already (le_particle; only when a_in is below the
+    !> roulette threshold)
+    real(wp), intent(in), optional :: u_pre
     real(wp) :: a, tau_lim, tau_stop, tau, psi0, xc, yc, zc, vx, vy, vz
     integer :: i, j, kd, izc, slot, n_lev
     if (size(det%levels) == 0) return
     a = a_in
-    if (.not. roulette_contribution(rng, a, det%a_min*abs(det%uz(d))*ps, tau_lim, tau_stop)) then
+    if (.not. roulette_contribution(rng, a, det%a_min*abs(det%uz(d))*ps, tau_lim, tau_stop, &
+                                    u_pre)) then
       return
     end if
     vx = det%ux(d)
@@ -447,19 +552,33 @@ contains
     integer, intent(in) :: d, slot
     real(wp), intent(in) :: x, y, a, v
     real(wp) :: r, share
-    integer :: nrx, nry, ix0, iy0, i, j, ix, iy
+    integer :: nrx, nry, ix0, iy0, j, row0, lo, hi, lo2, hi2
     r = det%diff_scale*sqrt(PI*a)
     nrx = min(det%diff_max, int(r*atm%inv_dx), (atm%nx - 1)/2)
     nry = min(det%diff_max, int(r*atm%inv_dy), (atm%ny - 1)/2)
     ix0 = min(atm%nx, max(1, int(x*atm%inv_dx) + 1))
     iy0 = min(atm%ny, max(1, int(y*atm%inv_dy) + 1))
     share = v/real((2*nrx + 1)*(2*nry + 1), wp)
+    ! The columns ix0 - nrx .. ix0 + nrx of a row (2 nrx + 1 <= nx, so no column twice), as at
+    ! most two runs of consecutive columns after the periodic wrap: [lo, hi] and [lo2, hi2]
+    ! (empty when lo2 > hi2). Each column gets the same share as one cell at a time would.
+    lo = ix0 - nrx
+    hi = ix0 + nrx
+    lo2 = 1
+    hi2 = 0
+    if (lo < 1) then
+      lo2 = lo + atm%nx
+      hi2 = atm%nx
+      lo = 1
+    else if (hi > atm%nx) then
+      lo2 = 1
+      hi2 = hi - atm%nx
+      hi = atm%nx
+    end if
     do j = -nry, nry
-      iy = modulo(iy0 - 1 + j, atm%ny) + 1
-      do i = -nrx, nrx
-        ix = modulo(ix0 - 1 + i, atm%nx) + 1
-        call score_radiance_map(lay, tal, d, slot, ix + (iy - 1)*atm%nx, share)
-      end do
+      row0 = modulo(iy0 - 1 + j, atm%ny)*atm%nx   ! columns before this row
+      call score_radiance_map_run(lay, tal, d, slot, row0 + lo, row0 + hi, share)
+      call score_radiance_map_run(lay, tal, d, slot, row0 + lo2, row0 + hi2, share)
     end do
   end subroutine spread_sample
 

@@ -61,6 +61,9 @@ module kumo_phase
 
   !> Input angles 0 and 180 deg may be off by this much [deg].
   real(wp), parameter :: ANGLE_TOL_DEG = 1.0e-6_wp
+  !> Bins of the scattering angle that `phase_eval` starts its search of a table from: two per
+  !> table angle, between 256 and 8192 (32 KiB) per table.
+  integer, parameter :: GUIDE_PER_NODE = 2, GUIDE_MIN = 256, GUIDE_MAX = 8192
   !> Largest quadrature piece of a linearly interpolated table interval [deg]. On a piece of
   !> width h the integrand (a + c Theta) sin(Theta) cos(Theta)^m has a 10th derivative of at
   !> most ~ 2^10 (|a + c Theta| + 10 |c|), so the 5-point Gauss-Legendre remainder,
@@ -118,6 +121,10 @@ module kumo_phase
     real(wp), allocatable :: p_tab(:)      !! normalised P at mu_tab
     real(wp), allocatable :: lp_tab(:)     !! log(p_tab) where p_tab > 0 (for interpolation)
     real(wp), allocatable :: inv_dth(:)    !! 1/(theta_tab(i+1) - theta_tab(i)) per interval
+    !> Where `phase_eval` starts looking for the interval of an angle: guide(b + 1) is the
+    !> interval holding the largest angle of bin b of theta (n_guide equal bins over [0, pi]).
+    integer, allocatable :: guide(:)
+    real(wp) :: guide_scale = 0.0_wp       !! n_guide/pi: bin of theta = int(theta guide_scale)
   end type phase_t
 
 contains
@@ -378,6 +385,7 @@ contains
     ph%p_tab = value(n:1:-1)
     ph%lp_tab = log(max(ph%p_tab, tiny(1.0_wp)))
     ph%inv_dth = 1.0_wp/(ph%theta_tab(2:n) - ph%theta_tab(1:n - 1))
+    call build_guide(ph)
 
     ! --- CDF from mu = -1 at the ends of the pieces -------------------------------------------
     ! Piece k runs from th_f(k-1) down to th_f(k) (mu ascending) inside the evaluation-table
@@ -555,8 +563,8 @@ contains
     type(phase_t), intent(in) :: ph  !! phase function
     real(wp), intent(in) :: mu       !! cosine of the scattering angle
     real(wp) :: p                    !! phase function value
-    real(wp) :: m
-    integer :: lo, hi, mid
+    real(wp) :: m, th
+    integer :: lo, n
 
     select case (ph%kind)
     case (PHASE_HG)
@@ -568,18 +576,22 @@ contains
         p = rayleigh_eval(mu)
       end if
     case (PHASE_TABLE)
+      ! the interval lo of m: the largest lo <= n - 1 with mu_tab(lo) <= m, found from the
+      ! guess of the angle's bin by steps in the direction the comparisons say (the same lo
+      ! whatever the guess)
       m = min(1.0_wp, max(-1.0_wp, mu))
-      lo = 1
-      hi = size(ph%mu_tab)
-      do while (hi - lo > 1)           ! invariant: mu_tab(lo) <= m <= mu_tab(hi)
-        mid = (lo + hi)/2
-        if (ph%mu_tab(mid) <= m) then
-          lo = mid
-        else
-          hi = mid
-        end if
+      th = acos(m)
+      n = size(ph%mu_tab)
+      lo = ph%guide(min(size(ph%guide) - 1, int(th*ph%guide_scale)) + 1)
+      do while (lo > 1)
+        if (ph%mu_tab(lo) <= m) exit
+        lo = lo - 1
       end do
-      p = table_interp(ph, lo, acos(m))
+      do while (lo < n - 1)
+        if (ph%mu_tab(lo + 1) > m) exit
+        lo = lo + 1
+      end do
+      p = table_interp(ph, lo, th)
     case default
       p = 1.0_wp
     end select
@@ -617,6 +629,28 @@ contains
   ! ------------------------------------------------------------------------------------------
   ! Private helpers
   ! ------------------------------------------------------------------------------------------
+
+  !> The bins of `phase_eval`'s search: GUIDE_PER_NODE bins of theta per table angle (at least
+  !> GUIDE_MIN, at most GUIDE_MAX), each pointing to the interval of its largest angle, so that
+  !> an evaluation walks from there over the few table angles inside its bin.
+  pure subroutine build_guide(ph)
+    type(phase_t), intent(inout) :: ph
+    integer :: nb, b, lo, n
+    real(wp) :: m
+    n = size(ph%mu_tab)
+    nb = min(GUIDE_MAX, max(GUIDE_MIN, GUIDE_PER_NODE*n))
+    allocate (ph%guide(nb))
+    ph%guide_scale = real(nb, wp)/PI
+    lo = 1
+    do b = nb - 1, 0, -1               ! from the backward end: ascending in mu
+      m = cos(real(b + 1, wp)*(PI/real(nb, wp)))
+      do while (lo < n - 1)
+        if (ph%mu_tab(lo + 1) > m) exit
+        lo = lo + 1
+      end do
+      ph%guide(b + 1) = lo
+    end do
+  end subroutine build_guide
 
   !> Interpolated table value at angle theta in evaluation-table interval i (between
   !> theta_tab(i) and theta_tab(i+1)): linear in angle of log P if both ends are positive,

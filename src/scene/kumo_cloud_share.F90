@@ -45,9 +45,11 @@ contains
   !> the same. With `grid_only` only the grid travels (format, sizes, widths, layer edges, the
   !> pressure and gas-state profiles when requested, and the reader's notes), whatever the
   !> reader returned besides. With `per_node` = .true. only the first rank of every node (its
-  !> leader, kumo_parallel par_node_leader) gets the fields; the other ranks get the grid alone
-  !> (as with `grid_only`) and never hold a copy of the fields: the node's leader builds the
-  !> voxels in memory the node shares (build_cloud_atmosphere's `storage`).
+  !> leader, kumo_parallel par_node_leader) gets the fields; the other ranks get the grid (as
+  !> with `grid_only`) and what their phase functions are made of (`small_put`: Legendre
+  !> series, Henyey-Greenstein g, MCARaTS tables), and never hold a copy of the fields: the
+  !> node's leader builds the voxels in memory the node shares (build_cloud_atmosphere's
+  !> `storage`).
   subroutine read_cloud_on_root(req, cloud, error, grid_only, part, alone, per_node)
     type(cloud_request_t), intent(in) :: req
     type(cloud_input_t), intent(out) :: cloud
@@ -72,7 +74,10 @@ contains
         type(cloud_input_t) :: c
         call read_cloud_input(req, c, error, grid_only, part)
         if (.not. allocated(error)) call cloud_input_put(b, c, grid)
-        if (.not. allocated(error) .and. node) call cloud_input_put(bg, c, .true.)
+        if (.not. allocated(error) .and. node) then
+          call cloud_input_put(bg, c, .true.)
+          call small_put(bg, c)
+        end if
       end block
     end if
     if (node) then
@@ -84,6 +89,7 @@ contains
         call cloud_input_get(b, cloud)
       else
         call cloud_input_get(bg, cloud)
+        call small_get(bg, cloud)
       end if
       return
     end if
@@ -174,6 +180,57 @@ contains
     call get_mcarats(b, c%mca_atm, c%mca_phase)
     call get_opt(b, c%missing)
   end subroutine cloud_input_get
+
+  !> Put what a rank without the fields of a cloud file needs besides its grid to build the same
+  !> phase functions as the node's leader (read_cloud_on_root per_node): the phase functions of
+  !> an optics file (Legendre series or Henyey-Greenstein g) and of an MCARaTS file (its
+  !> distinct Henyey-Greenstein g, its tables and sizes), which are small beside the fields.
+  subroutine small_put(b, c)
+    type(bundle_t), intent(inout) :: b
+    type(cloud_input_t), intent(in) :: c
+    call put_opt(b, c%chi)
+    call put_opt(b, c%hg_g)
+    call put_opt(b, c%missing)
+    call b%put(c%mca_atm%nx)
+    call b%put(c%mca_atm%ny)
+    call b%put(c%mca_atm%nz3)
+    call b%put(c%mca_atm%mtprof)
+    call b%put(c%mca_atm%nkd)
+    call b%put(c%mca_atm%np3d)
+    call b%put(c%mca_atm%idread)
+    call b%put(c%mca_atm%ndatasets)
+    call put_opt(b, c%mca_atm%missing)
+    call b%put(c%mca_phase%nang)
+    call b%put(c%mca_phase%npf)
+    call b%put(c%mca_phase%reversed)
+    call put_opt(b, c%mca_phase%angle_deg)
+    call put_opt(b, c%mca_phase%p_file)
+    call put_opt(b, c%mca_phase%p)
+  end subroutine small_put
+
+  !> Take the items of small_put out of a bundle, in the same order.
+  subroutine small_get(b, c)
+    type(bundle_t), intent(inout) :: b
+    type(cloud_input_t), intent(inout) :: c
+    call get_opt(b, c%chi)
+    call get_opt(b, c%hg_g)
+    call get_opt(b, c%missing)
+    call b%get(c%mca_atm%nx)
+    call b%get(c%mca_atm%ny)
+    call b%get(c%mca_atm%nz3)
+    call b%get(c%mca_atm%mtprof)
+    call b%get(c%mca_atm%nkd)
+    call b%get(c%mca_atm%np3d)
+    call b%get(c%mca_atm%idread)
+    call b%get(c%mca_atm%ndatasets)
+    call get_opt(b, c%mca_atm%missing)
+    call b%get(c%mca_phase%nang)
+    call b%get(c%mca_phase%npf)
+    call b%get(c%mca_phase%reversed)
+    call get_opt(b, c%mca_phase%angle_deg)
+    call get_opt(b, c%mca_phase%p_file)
+    call get_opt(b, c%mca_phase%p)
+  end subroutine small_get
 
   !> Put an optics table in the Mie-table layout (a cloud file's ice optics table) into a bundle.
   subroutine mie_table_put(b, t)

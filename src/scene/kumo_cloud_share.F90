@@ -47,7 +47,8 @@ contains
   !> reader returned besides. With `per_node` = .true. only the first rank of every node (its
   !> leader, kumo_parallel par_node_leader) gets the fields; the other ranks get the grid (as
   !> with `grid_only`) and what their phase functions are made of (`small_put`: Legendre
-  !> series, Henyey-Greenstein g, MCARaTS tables), and never hold a copy of the fields: the
+  !> series, Henyey-Greenstein g, MCARaTS tables; the temperatures when `req` asks for them),
+  !> and never hold a copy of the fields: the
   !> node's leader builds the voxels in memory the node shares (build_cloud_atmosphere's
   !> `storage`).
   subroutine read_cloud_on_root(req, cloud, error, grid_only, part, alone, per_node)
@@ -77,6 +78,7 @@ contains
         if (.not. allocated(error) .and. node) then
           call cloud_input_put(bg, c, .true.)
           call small_put(bg, c)
+          if (req%temperature) call temperature_put(bg, c)
         end if
       end block
     end if
@@ -90,6 +92,7 @@ contains
       else
         call cloud_input_get(bg, cloud)
         call small_get(bg, cloud)
+        if (req%temperature) call temperature_get(bg, cloud)
       end if
       return
     end if
@@ -231,6 +234,27 @@ contains
     call get_opt(b, c%mca_phase%p_file)
     call get_opt(b, c%mca_phase%p)
   end subroutine small_get
+
+  !> Put the temperatures of a cloud file (thermal runs), which every rank needs for the
+  !> Planck radiances of the voxels (read_cloud_on_root per_node).
+  subroutine temperature_put(b, c)
+    type(bundle_t), intent(inout) :: b
+    type(cloud_input_t), intent(in) :: c
+    call put_vox(b, c%temperature)
+    call b%put(c%t_planes)
+    call b%put(c%t_perturbation)
+    call put_opt(b, c%t_source)
+  end subroutine temperature_put
+
+  !> Take the items of temperature_put out of a bundle, in the same order.
+  subroutine temperature_get(b, c)
+    type(bundle_t), intent(inout) :: b
+    type(cloud_input_t), intent(inout) :: c
+    call get_vox(b, c%temperature)
+    call b%get(c%t_planes)
+    call b%get(c%t_perturbation)
+    call get_opt(b, c%t_source)
+  end subroutine temperature_get
 
   !> Put an optics table in the Mie-table layout (a cloud file's ice optics table) into a bundle.
   subroutine mie_table_put(b, t)

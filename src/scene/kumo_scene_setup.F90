@@ -1485,7 +1485,8 @@ contains
   !> the absorption perturbation and its check) rank 0 finds and shares. The ranks then build
   !> together (the window and its barrier are collective); they read the same inputs and
   !> values, so they meet the same errors. The run log says what each rank holds. Thermal runs
-  !> that take the file's temperatures keep a copy per rank.
+  !> that take the file's temperatures give them to every rank (each forms the voxels' Planck
+  !> radiances and its emission table).
   subroutine cloud_on_ranks(cfg, ext1d, ssa1d, phase1d, phases, aopts, atm, notes, warnings, &
                             error, cloud_t)
     type(config_t), intent(in) :: cfg
@@ -1509,7 +1510,7 @@ contains
     want_t = cfg%thermal%enabled .and. .not. allocated(cfg%thermal%planck_levels)
     ! one copy per node: several ranks, water content, no voxel temperatures wanted (every
     ! rank decides alike from the configuration and the grid read at its loading)
-    per_node = par_size() > 1 .and. .not. want_t
+    per_node = par_size() > 1
     req = cfg%cloud%req
     req%temperature = want_t
     call read_cloud_on_root(req, c, error, part='liquid', per_node=per_node)
@@ -1570,12 +1571,21 @@ contains
       liq_action = ''
     end if
     if (per_node) then
-      call build_cloud_atmosphere(cfg%cloud, c, c_ice, cfg%source%wavelength_um, &
-                                  cfg%phase%n_table, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, &
-                                  cfg%atm%k3d_bottom, ext1d, ssa1d, phase1d, phases, aopts, &
-                                  atm, notes, warnings, error, ice_tab=ice, liq_tab=liq, &
-                                  liq_action=liq_action, storage=par_node_storage, &
-                                  sync=par_node_sync, mca=scan)
+      if (want_t) then
+        call build_cloud_atmosphere(cfg%cloud, c, c_ice, cfg%source%wavelength_um, &
+                                    cfg%phase%n_table, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, &
+                                    cfg%atm%k3d_bottom, ext1d, ssa1d, phase1d, phases, aopts, &
+                                    atm, notes, warnings, error, cloud_t, ice_tab=ice, &
+                                    liq_tab=liq, liq_action=liq_action, &
+                                    storage=par_node_storage, sync=par_node_sync, mca=scan)
+      else
+        call build_cloud_atmosphere(cfg%cloud, c, c_ice, cfg%source%wavelength_um, &
+                                    cfg%phase%n_table, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, &
+                                    cfg%atm%k3d_bottom, ext1d, ssa1d, phase1d, phases, aopts, &
+                                    atm, notes, warnings, error, ice_tab=ice, liq_tab=liq, &
+                                    liq_action=liq_action, storage=par_node_storage, &
+                                    sync=par_node_sync, mca=scan)
+      end if
       call b%share(error)   ! rank 0's error, if any, on every rank
       if (allocated(error)) return
       call note_voxel_storage(atm, cfg%control%verbose)

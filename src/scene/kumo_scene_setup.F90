@@ -507,6 +507,7 @@ contains
     if (allocated(t3)) then
       cloud_t%found = .true.
       cloud_t%t = real(t3, vp)
+      deallocate (t3)
       cloud_t%source = 'variable temperature of the scene file'
     end if
     if (cloud_t%found .and. has_band) then
@@ -516,6 +517,8 @@ contains
         call add_context(error, '&kumo_thermal')
         return
       end if
+      ! b3 holds what the emission needs: the temperatures (one value per voxel) go first
+      deallocate (cloud_t%t)
       call emission_init(scene%src%em, scene%atm, scene%sfc, b_lev, b_sfc, b_top, solar_power, &
                          cfg%thermal%emission_floor, error, b3=b3, b_sfc_map=bsm)
     else
@@ -1414,7 +1417,7 @@ contains
     type(atmosphere_options_t), intent(in) :: aopts
     type(atmosphere_t), intent(inout) :: atm
     type(error_t), allocatable, intent(out) :: error
-    type(bundle_t) :: b, bg
+    type(bundle_t) :: bg
     real(wp), allocatable :: ext3(:, :, :, :), ssa3(:, :, :, :)
     integer, allocatable :: iph3(:, :, :, :), one(:, :), shp(:)
     type(phase_t), allocatable :: ph(:)
@@ -1426,12 +1429,6 @@ contains
       if (.not. allocated(error)) then
         shp = shape(ext3)
         call bg%put(shp)
-        call b%put(ext3)
-        call b%put(ssa3)
-        call b%put(has_iph)
-        if (has_iph) call b%put(iph3)
-        deallocate (ext3, ssa3)
-        if (allocated(iph3)) deallocate (iph3)
       end if
     end if
     ! every rank: the sizes and rank 0's error; the node leaders: the fields
@@ -1439,11 +1436,23 @@ contains
     if (allocated(error)) return
     call bg%get(shp)
     if (par_node_leader()) then
-      call b%share(error, leaders=.true.)
-      call b%get(ext3)
-      call b%get(ssa3)
-      call b%get(has_iph)
-      if (has_iph) call b%get(iph3)
+      block
+        ! freed at the end of the block, before the voxel arrays are allocated
+        type(bundle_t) :: b
+        if (par_is_root()) then
+          call b%put(ext3)
+          call b%put(ssa3)
+          call b%put(has_iph)
+          if (has_iph) call b%put(iph3)
+          deallocate (ext3, ssa3)
+          if (allocated(iph3)) deallocate (iph3)
+        end if
+        call b%share(error, leaders=.true.)
+        call b%get(ext3)
+        call b%get(ssa3)
+        call b%get(has_iph)
+        if (has_iph) call b%get(iph3)
+      end block
     end if
     ph = phases
     call atmosphere_begin(atm, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, ext1d, ssa1d, phase1d, ph, &

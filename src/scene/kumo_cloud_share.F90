@@ -17,7 +17,7 @@ module kumo_cloud_share
   use kumo_kinds, only: wp, vp
   use kumo_error, only: error_t
   use kumo_bundle, only: bundle_t
-  use kumo_parallel, only: par_is_root, par_node_leader
+  use kumo_parallel, only: par_is_root, par_node_leader, par_node_size, par_size
   use kumo_cloud_input, only: cloud_input_t, cloud_request_t, read_cloud_input
   use kumo_mcarats_files, only: mcarats_atm_t, mcarats_phase_t
   use kumo_mie, only: mie_table_t
@@ -50,7 +50,8 @@ contains
   !> series, Henyey-Greenstein g, MCARaTS tables; the temperatures when `req` asks for them),
   !> and never hold a copy of the fields: the
   !> node's leader builds the voxels in memory the node shares (build_cloud_atmosphere's
-  !> `storage`).
+  !> `storage`). On one node rank 0 is the only leader: it keeps what it read, and no copy of
+  !> the fields travels or waits in a bundle beside it.
   subroutine read_cloud_on_root(req, cloud, error, grid_only, part, alone, per_node)
     type(cloud_request_t), intent(in) :: req
     type(cloud_input_t), intent(out) :: cloud
@@ -69,6 +70,23 @@ contains
     if (present(per_node)) node = per_node .and. .not. here .and. .not. grid
     reader = here
     if (.not. here) reader = par_is_root()
+    if (node .and. par_node_size() == par_size()) then
+      ! one node: rank 0 is its only leader and keeps what it read; only the grid travels
+      if (reader) then
+        call read_cloud_input(req, cloud, error, grid_only, part)
+        if (.not. allocated(error)) then
+          call cloud_input_put(bg, cloud, .true.)
+          call small_put(bg, cloud)
+          if (req%temperature) call temperature_put(bg, cloud)
+        end if
+      end if
+      call bg%share(error)
+      if (allocated(error) .or. reader) return
+      call cloud_input_get(bg, cloud)
+      call small_get(bg, cloud)
+      if (req%temperature) call temperature_get(bg, cloud)
+      return
+    end if
     if (reader) then
       block
         ! rank 0's copy is freed before the bundle's is taken out: one copy besides the bundle

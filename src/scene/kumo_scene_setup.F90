@@ -1435,7 +1435,8 @@ contains
     call bg%share(error)
     if (allocated(error)) return
     call bg%get(shp)
-    if (par_node_leader()) then
+    ! one node: rank 0 is its only leader and keeps what it read
+    if (par_node_leader() .and. par_node_size() < par_size()) then
       block
         ! freed at the end of the block, before the voxel arrays are allocated
         type(bundle_t) :: b

@@ -164,12 +164,18 @@ contains
   end subroutine cloud_grid_here
 
   !> Build the scene (phase functions, atmosphere, surface, source) from a configuration.
-  subroutine setup_scene(cfg, scene, error, spec)
+  !> Every rank calls it (rank 0 reads the input files and broadcasts them). With `per_node` =
+  !> .true. (a run: kumo_driver's simulate) the ranks also build the scene together: on several
+  !> ranks the voxel arrays of a monochromatic run are one copy per node, in the node's
+  !> shared-memory window (cloud_on_ranks, scene_on_ranks); otherwise each process builds its
+  !> own, as a test that rebuilds the scene on rank 0 alone needs.
+  subroutine setup_scene(cfg, scene, error, spec, per_node)
     type(config_t), intent(in) :: cfg
     type(scene_t), intent(out) :: scene
     type(error_t), allocatable, intent(out) :: error
     !> broadband runs (&kumo_spectral): the g-point plan and optics (setup_spectral)
     type(spectral_scene_t), intent(out), optional :: spec
+    logical, intent(in), optional :: per_node   !! the ranks build one scene per node (.false.)
     type(phase_t), allocatable :: phases(:)
     type(atmosphere_options_t) :: aopts
     real(wp), allocatable :: ang(:), val(:), ext3(:, :, :, :), ssa3(:, :, :, :), alb(:, :)
@@ -183,8 +189,10 @@ contains
     character(len=:), allocatable :: cloud_notes, cloud_warnings
     character(len=:), allocatable :: sfc_notes
     type(cloud_temperature_t) :: cloud_t
-    logical :: on_node
+    logical :: on_node, shared
 
+    shared = .false.
+    if (present(per_node)) shared = per_node .and. par_size() > 1
     nml_path = ''
     if (allocated(cfg%path)) nml_path = cfg%path
     allocate (phases(cfg%phase%n_phase))
@@ -305,14 +313,13 @@ contains
         ' um) and were given the nearest table radius. '
     else if (cfg%cloud%enabled) then
       call cloud_on_ranks(cfg, ext1d, ssa1d, phase1d, phases, aopts, scene%atm, cloud_notes, &
-                          cloud_warnings, error, cloud_t)
+                          cloud_warnings, error, cloud_t, shared)
       if (allocated(error)) return
       scene%notes = scene%notes//cloud_notes
       scene%warnings = scene%warnings//cloud_warnings
     else
       ! several ranks, one wavelength: one copy of the scene file's voxels per node
-      on_node = len_trim(cfg%atm%scene_file) > 0 .and. par_size() > 1 .and. &
-                .not. cfg%spectral%enabled
+      on_node = len_trim(cfg%atm%scene_file) > 0 .and. shared .and. .not. cfg%spectral%enabled
       if (on_node) then
         call scene_on_ranks(cfg, resolve_path(cfg%atm%scene_file, nml_path), ext1d, ssa1d, &
                             phase1d, phases, aopts, scene%atm, error)
@@ -1498,7 +1505,7 @@ contains
   !> that take the file's temperatures give them to every rank (each forms the voxels' Planck
   !> radiances and its emission table).
   subroutine cloud_on_ranks(cfg, ext1d, ssa1d, phase1d, phases, aopts, atm, notes, warnings, &
-                            error, cloud_t)
+                            error, cloud_t, shared)
     type(config_t), intent(in) :: cfg
     real(wp), intent(in) :: ext1d(:, :), ssa1d(:, :)
     integer, intent(in) :: phase1d(:, :)
@@ -1509,6 +1516,8 @@ contains
     type(error_t), allocatable, intent(out) :: error
     !> thermal runs with a spectral interval: the cloud file's temperatures, if it has them
     type(cloud_temperature_t), intent(out) :: cloud_t
+    !> several ranks build the scene together (setup_scene per_node): one copy per node
+    logical, intent(in) :: shared
     type(bundle_t) :: b, bi, bl, bm
     type(cloud_input_t) :: c, c_ice
     type(mcarats_scan_t) :: scan
@@ -1518,9 +1527,8 @@ contains
     character(len=:), allocatable :: liq_action
     logical :: want_t, per_node
     want_t = cfg%thermal%enabled .and. .not. allocated(cfg%thermal%planck_levels)
-    ! one copy per node: several ranks, water content, no voxel temperatures wanted (every
-    ! rank decides alike from the configuration and the grid read at its loading)
-    per_node = par_size() > 1
+    ! one copy per node when the ranks build the scene together (every rank decides alike)
+    per_node = shared
     req = cfg%cloud%req
     req%temperature = want_t
     call read_cloud_on_root(req, c, error, part='liquid', per_node=per_node)

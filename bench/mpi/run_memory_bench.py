@@ -15,8 +15,19 @@ photons (it is memory that is measured, not speed) and samples every rank's memo
 * peak Pss (/proc/PID/smaps_rollup): the proportional set size, shared pages divided among the
   processes that map them; the peak of the sum over the ranks is what the node needs.
 
+`--path` chooses the input path the same field goes through (the voxel optics are alike, the
+reading and sharing differ):
+
+* `les` (default): the LES file itself (water content and effective radius, Mie optics);
+* `scene`: a scene file (`scene_file`) of extinction 3 LWC / r_e [m-1 for g m-3 and um: the
+  geometric-optics extinction efficiency 2] and albedo 0.9999, one Henyey-Greenstein g = 0.85;
+* `mcarats`: the same optics as an MCARaTS 3-D atmosphere (float32 binary, one component,
+  apf = 0.85, one k-term of absorption perturbation 0, temperature perturbations 0);
+* `thermal`: the LES file in a thermal run at 10.5 um that takes the file's temperatures.
+
 Usage:  python3 bench/mpi/run_memory_bench.py KUMO [KUMO ...] [--work DIR] [--nx 400]
-        [--voxel-absorption] [--column-fluxes] [--broadband] [--mpiexec "mpiexec --oversubscribe"]
+        [--voxel-absorption] [--column-fluxes] [--broadband] [--path les|scene|mcarats|thermal]
+        [--mpiexec "mpiexec --oversubscribe"]
 Prints one line per build, rank count and rank (MiB), then the node's peak.
 Needs numpy and netCDF4 (for the field), Linux /proc.
 """
@@ -57,6 +68,77 @@ def namelist(work, cloud, voxel_absorption, column_fluxes):
   column_fluxes = {flag[column_fluxes]} /
 """)
     return path
+
+
+def other_path_namelist(work, cloud, path, voxel_absorption, column_fluxes):
+    """The field through another input path (see the module's text): its files (made once)
+    and the namelist."""
+    import netCDF4
+    import numpy as np
+    with netCDF4.Dataset(cloud) as f:
+        lwc = np.array(f["lwc"][:], dtype=np.float64)          # (z, y, x)
+        reff = np.array(f["reff"][:], dtype=np.float64)
+        ze = np.array(f["z_edges"][:])
+        xs = np.array(f["x"][:])
+    nz, ny, nx = lwc.shape
+    dx = float(xs[1] - xs[0])
+    lx, ly = nx * dx, ny * dx
+    ext = np.where(lwc > 0, 3.0 * lwc / np.maximum(reff, 1.0), 0.0)
+    flag = {True: ".true.", False: ".false."}
+    zl = ", ".join(f"{z:.10g}" for z in ze)
+    head = f"""&kumo_control n_photons_per_batch = 2000, n_batches = 2, seed = 1 /
+&kumo_surface albedo = 0.05 /
+&kumo_output file = 'memory.nc', voxel_absorption = {flag[voxel_absorption]},
+  column_fluxes = {flag[column_fluxes]} /
+"""
+    out = os.path.join(work, f"memory_{path}.nml")
+    if path == "scene":
+        scene = os.path.join(work, f"scene_{nx}.nc")
+        if not os.path.exists(scene):
+            with netCDF4.Dataset(scene, "w") as g:
+                for name, n in (("x", nx), ("y", ny), ("z", nz), ("component", 1)):
+                    g.createDimension(name, n)
+                e = g.createVariable("extinction", "f8", ("component", "z", "y", "x"))
+                e.units = "m-1"
+                e[:] = ext[None]
+                w = g.createVariable("ssa", "f8", ("component", "z", "y", "x"))
+                w.units = "1"
+                w[:] = np.full((1, nz, ny, nx), 0.9999)
+        text = head + f"""&kumo_source sza_deg = 30.0, wavelength_um = 0.86 /
+&kumo_atmosphere nz = {nz}, z_levels = {zl}, lx = {lx}, ly = {ly},
+  scene_file = '{os.path.basename(scene)}', k3d_bottom = 1, nz3 = {nz}, nx = {nx}, ny = {ny} /
+&kumo_phase n_phase = 1, phase_kind = 'hg', phase_g = 0.85 /
+"""
+    elif path == "mcarats":
+        atm = os.path.join(work, f"mca_{nx}.atm")
+        if not os.path.exists(atm):
+            # Fortran order (x fastest): tmpa3d (nx, ny, nz), absg3d (nx, ny, nz, 1), then
+            # extp3d, omgp3d, apfp3d of the component
+            with open(atm, "wb") as g:
+                zero = np.zeros((nz, ny, nx), dtype="<f4")
+                for a in (zero, zero, ext.astype("<f4"),
+                          np.full((nz, ny, nx), 0.9999, dtype="<f4"),
+                          np.full((nz, ny, nx), 0.85, dtype="<f4")):
+                    g.write(a.tobytes())
+        text = head + f"""&kumo_source sza_deg = 30.0, wavelength_um = 0.86 /
+&kumo_atmosphere nz = {nz}, z_levels = {zl}, lx = {lx}, ly = {ly},
+  k3d_bottom = 1, nz3 = {nz}, nx = {nx}, ny = {ny} /
+&kumo_cloud cloud_file = '{os.path.basename(atm)}', cloud_format = 'mcarats', mcarats_np3d = 1,
+  mcarats_nkd = 1, mcarats_mtprof = 0, mcarats_ikd = 1 /
+"""
+    else:   # thermal: the LES file with its temperatures, levels of the BOMEX-like column
+        with netCDF4.Dataset(cloud) as f:
+            t = np.array(f["temperature"][:])
+        tl = [float(t[0].mean())] + [float(t[k].mean()) for k in range(nz)]
+        text = head + f"""&kumo_source sza_deg = 30.0, wavelength_um = 10.5, solar_flux = 0.0 /
+&kumo_cloud cloud_file = '{os.path.basename(cloud)}', cloud_format = 'les',
+  reff_min_um = 2.0, reff_max_um = 30.0, n_reff = 8, mie_cache = 'mie_table_10.nc' /
+&kumo_thermal t_levels = {", ".join(f"{x:.2f}" for x in tl)}, t_surface = {tl[0]:.2f},
+  wavelength_um = 10.5 /
+"""
+    with open(out, "w") as f:
+        f.write(text)
+    return out
 
 
 def broadband_namelist(work, cloud, voxel_absorption, column_fluxes):
@@ -173,17 +255,21 @@ def main():
     ap.add_argument("--mpiexec", default="mpiexec --oversubscribe")
     ap.add_argument("--broadband", action="store_true",
                     help="a shortwave broadband run (needs KUMO_DATA_DIR with the RRTMGP files)")
+    ap.add_argument("--path", default="les", choices=["les", "scene", "mcarats", "thermal"],
+                    help="the input path of the field (module text)")
     a = ap.parse_args()
     os.makedirs(a.work, exist_ok=True)
     cloud = field(a.work, a.nx)
     if a.broadband:
         nml = broadband_namelist(a.work, cloud, a.voxel_absorption, a.column_fluxes)
+    elif a.path != "les":
+        nml = other_path_namelist(a.work, cloud, a.path, a.voxel_absorption, a.column_fluxes)
     else:
         nml = namelist(a.work, cloud, a.voxel_absorption, a.column_fluxes)
     mib = 1.0 / 1024.0
     print(f"# field {os.path.basename(cloud)}: {a.nx} x {a.nx} x 64 voxels; "
           f"voxel_absorption = {a.voxel_absorption}, column_fluxes = {a.column_fluxes}, "
-          f"broadband = {a.broadband}")
+          f"broadband = {a.broadband}, path = {a.path}")
     print("# build  ranks  rank  VmHWM  peak_RssAnon  peak_Pss  [MiB]")
     for exe in a.kumo:
         for np in [int(n) for n in a.ranks.split(",")]:

@@ -135,7 +135,7 @@ contains
     t0 = par_wtime()
     rank = par_rank()
     nranks = par_size()
-    call setup_scene(cfg, scene, error, spec)
+    call setup_scene(cfg, scene, error, spec, per_node=.true.)
     if (allocated(error)) return
     ! work that grows without bound with the geometry is refused or warned about (kumo_vr)
     block

@@ -48,7 +48,18 @@ module kumo_cloud_scene
   implicit none
   private
   public :: build_cloud_atmosphere, rayleigh_layers, cloud_temperature_t, mie_layer, table_radii, &
-            ice_table, water_table
+            ice_table, water_table, mcarats_scan_t, mcarats_scan
+
+  !> What the voxel values of an MCARaTS file decide before its atmosphere is built
+  !> (mcarats_scan): the tables some voxel uses, whether a code blends two tables, whether the
+  !> gas-absorption perturbation is a component, and the run-log lines about it. On several
+  !> ranks the process holding the fields makes it for the ranks that have none.
+  type :: mcarats_scan_t
+    logical, allocatable :: used(:)       !! (npf) table ipf is used by some voxel
+    logical :: blend = .false.            !! some code has a fraction
+    logical :: has_abs = .false.          !! the absorption perturbation is not zero everywhere
+    character(len=:), allocatable :: abs_notes
+  end type mcarats_scan_t
 
   !> Temperatures of a cloud file for thermal emission, on the columns and layers of the 3-D
   !> region the file defines (voxel (ix, iy, k) is layer k3_lo + k - 1 of the atmosphere).
@@ -76,13 +87,15 @@ contains
   !> `wavelength_um` and build the atmosphere: levels `z`, domain lx x ly, the 1-D components
   !> `ext1d`, `ssa1d`, `iph1d` (nz, ncomp1) and the cloud in the 3-D region from layer `k3_lo`.
   !> `phases` (the namelist's and the molecules') gets the cloud's appended and moves into the
-  !> atmosphere. With `storage` and `sync` (water content only: CLOUD_WATER, CLOUD_EXT_REFF) the
-  !> voxels go into the caller's storage (atmosphere_begin): the process that is its writer
-  !> puts the fields, the others hold only the grid of the file (read_cloud_on_root per_node)
-  !> and take the values the writer formed.
+  !> atmosphere. With `storage` and `sync` the voxels go into the caller's storage
+  !> (atmosphere_begin): the process that is its writer puts the fields, the others hold only
+  !> the grid of the file and what its phase functions are made of (read_cloud_on_root
+  !> per_node), with an MCARaTS file also the writer's `mca`, and take the values the writer
+  !> formed.
   subroutine build_cloud_atmosphere(ccfg, c, c_ice, wavelength_um, n_table, z, lx, ly, k3_lo, &
                                     ext1d, ssa1d, iph1d, phases, aopts, atm, notes, warnings, &
-                                    error, temp, ice_tab, liq_tab, liq_action, storage, sync)
+                                    error, temp, ice_tab, liq_tab, liq_action, storage, sync, &
+                                    mca)
     type(cloud_cfg_t), intent(in) :: ccfg
     !> the file read with part = 'liquid' (with its temperatures when `temp` is wanted); its
     !> fields are freed as they are put into the atmosphere
@@ -110,6 +123,10 @@ contains
     character(len=*), intent(in), optional :: liq_action
     procedure(voxel_storage_i), optional :: storage   !! the caller's storage for the voxels
     procedure(voxel_sync_i), optional :: sync         !! with `storage`
+    !> MCARaTS files: mcarats_scan of the file's values when the caller made it (a process
+    !> without the fields must give it); else it is made here
+    type(mcarats_scan_t), intent(in), optional :: mca
+    type(mcarats_scan_t) :: scan
     type(mie_table_t) :: liq, ice
     type(phase_t), allocatable :: more(:)
     integer :: nplanes, nspecies, nneg, i, n_out_liq, n_out_ice, offset, offset_ice
@@ -203,19 +220,28 @@ contains
       end if
       phases = [phases, more]
       call atmosphere_begin(atm, z, lx, ly, ext1d, ssa1d, iph1d, phases, aopts, error, k3_lo, &
-                            c%nx, c%ny, c%nz, nplanes)
+                            c%nx, c%ny, c%nz, nplanes, storage=storage)
       if (allocated(error)) return
-      call optics_voxels(c, offset, atm)
+      if (atm%voxel_writer) call optics_voxels(c, offset, atm)
     case (CLOUD_MCARATS)
-      call mcarats_phases(c, ccfg%req%path, n_table, more, slot, blend, notes, error)
+      if (present(mca)) then
+        scan = mca
+      else
+        call mcarats_scan(c, ccfg%req%mcarats, ccfg%req%path, scan, error)
+        if (allocated(error)) return
+      end if
+      call mcarats_phases(c, ccfg%req%path, n_table, scan%used, more, slot, notes, error)
       if (allocated(error)) return
-      call mcarats_absorption(c, ccfg%req%mcarats, ccfg%req%path, has_abs, notes, error)
-      if (allocated(error)) return
+      blend = scan%blend
+      has_abs = scan%has_abs
+      notes = notes//scan%abs_notes
       phases = [phases, more]
       call atmosphere_begin(atm, z, lx, ly, ext1d, ssa1d, iph1d, phases, aopts, error, k3_lo, &
-                            c%nx, c%ny, c%nz, c%mca_atm%np3d + merge(1, 0, has_abs), blend=blend)
+                            c%nx, c%ny, c%nz, c%mca_atm%np3d + merge(1, 0, has_abs), blend=blend, &
+                            storage=storage)
       if (allocated(error)) return
-      call mcarats_voxels(c, ccfg%req%mcarats%ikd, offset, slot, has_abs, atm, notes)
+      if (atm%voxel_writer) call mcarats_voxels(c, ccfg%req%mcarats%ikd, offset, slot, has_abs, &
+                                                atm, notes)
     case default
       call set_error(error, ccfg%req%path//': unknown kind of cloud content '//str(c%content))
       return
@@ -445,41 +471,22 @@ contains
   !> position of table ipf (0: unused). A code apf >= 1 with a fraction, r = apf - int(apf) > 0,
   !> blends table int(apf) with table int(apf) + 1, so both are then used and stand next to
   !> each other: slot(ipf + 1) = slot(ipf) + 1, as the atmosphere's blend of iph and iph + 1
-  !> needs. `blend`: some code has a fraction.
-  subroutine mcarats_phases(c, path, n_table, more, slot, blend, notes, error)
+  !> needs (`used` of mcarats_scan marks both). Only the file's sizes, g and tables are read,
+  !> not its voxel fields.
+  subroutine mcarats_phases(c, path, n_table, used, more, slot, notes, error)
     type(cloud_input_t), intent(in) :: c       !! the file read (content CLOUD_MCARATS)
     character(len=*), intent(in) :: path       !! the atmosphere file, for messages
     integer, intent(in) :: n_table             !! inverse-CDF table size of the tables
+    logical, intent(in) :: used(:)             !! (npf) the tables some voxel uses (mcarats_scan)
     type(phase_t), allocatable, intent(out) :: more(:)
     integer, allocatable, intent(out) :: slot(:)
-    logical, intent(out) :: blend
     character(len=:), allocatable, intent(inout) :: notes
     type(error_t), allocatable, intent(out) :: error
-    logical, allocatable :: used(:)
-    integer :: npf, n_hg, nph, ip, k, ix, iy, ipf, j
-    real(wp) :: apf
+    integer :: npf, n_hg, nph, ipf, j
 
-    associate (a => c%mca_atm, pf => c%mca_phase)
+    associate (pf => c%mca_phase)
       npf = pf%npf
-      allocate (used(npf), slot(npf))
-      used = .false.
-      blend = .false.
-      do ip = 1, a%np3d
-        do k = 1, a%nz3
-          do iy = 1, a%ny
-            do ix = 1, a%nx
-              apf = a%apf(ix, iy, k, ip)
-              if (apf < 1.0_wp) cycle
-              ipf = int(apf)
-              used(ipf) = .true.
-              if (apf > ipf) then   ! then ipf < npf: the reader keeps apf <= npf
-                used(ipf + 1) = .true.
-                blend = .true.
-              end if
-            end do
-          end do
-        end do
-      end do
+      allocate (slot(npf))
       n_hg = size(c%hg_g)
       nph = 2 + n_hg
       slot = 0
@@ -511,6 +518,43 @@ contains
               ' Henyey-Greenstein, '//str(count(used))//' of the '//str(npf)//' tables'//NL
     end associate
   end subroutine mcarats_phases
+
+  !> What the voxel values of an MCARaTS file decide (mcarats_scan_t): the tables used (a code
+  !> apf >= 1 uses table int(apf), and table int(apf) + 1 too when it has a fraction, which is
+  !> then a blend) and the gas-absorption perturbation (mcarats_absorption, whose error this
+  !> returns).
+  subroutine mcarats_scan(c, m, path, scan, error)
+    type(cloud_input_t), intent(in) :: c           !! the file read, with its fields
+    type(mcarats_request_t), intent(in) :: m       !! the namelist's request (k-term, abs1d)
+    character(len=*), intent(in) :: path           !! the atmosphere file, for messages
+    type(mcarats_scan_t), intent(out) :: scan
+    type(error_t), allocatable, intent(out) :: error
+    integer :: ip, k, ix, iy, ipf
+    real(wp) :: apf
+    associate (a => c%mca_atm)
+      allocate (scan%used(c%mca_phase%npf))
+      scan%used = .false.
+      scan%blend = .false.
+      do ip = 1, a%np3d
+        do k = 1, a%nz3
+          do iy = 1, a%ny
+            do ix = 1, a%nx
+              apf = a%apf(ix, iy, k, ip)
+              if (apf < 1.0_wp) cycle
+              ipf = int(apf)
+              scan%used(ipf) = .true.
+              if (apf > ipf) then   ! then ipf < npf: the reader keeps apf <= npf
+                scan%used(ipf + 1) = .true.
+                scan%blend = .true.
+              end if
+            end do
+          end do
+        end do
+      end do
+    end associate
+    scan%abs_notes = ''
+    call mcarats_absorption(c, m, path, scan%has_abs, scan%abs_notes, error)
+  end subroutine mcarats_scan
 
   !> The gas-absorption perturbation of k-term `m%ikd` (absg3d): `has_abs` when it is not zero
   !> everywhere; it then becomes one more voxel component with albedo 0 (`mcarats_voxels`).

@@ -17,7 +17,7 @@ module kumo_cloud_share
   use kumo_kinds, only: wp, vp
   use kumo_error, only: error_t
   use kumo_bundle, only: bundle_t
-  use kumo_parallel, only: par_is_root, par_node_leader
+  use kumo_parallel, only: par_is_root, par_node_leader, par_node_size, par_size
   use kumo_cloud_input, only: cloud_input_t, cloud_request_t, read_cloud_input
   use kumo_mcarats_files, only: mcarats_atm_t, mcarats_phase_t
   use kumo_mie, only: mie_table_t
@@ -45,9 +45,13 @@ contains
   !> the same. With `grid_only` only the grid travels (format, sizes, widths, layer edges, the
   !> pressure and gas-state profiles when requested, and the reader's notes), whatever the
   !> reader returned besides. With `per_node` = .true. only the first rank of every node (its
-  !> leader, kumo_parallel par_node_leader) gets the fields; the other ranks get the grid alone
-  !> (as with `grid_only`) and never hold a copy of the fields: the node's leader builds the
-  !> voxels in memory the node shares (build_cloud_atmosphere's `storage`).
+  !> leader, kumo_parallel par_node_leader) gets the fields; the other ranks get the grid (as
+  !> with `grid_only`) and what their phase functions are made of (`small_put`: Legendre
+  !> series, Henyey-Greenstein g, MCARaTS tables; the temperatures when `req` asks for them),
+  !> and never hold a copy of the fields: the
+  !> node's leader builds the voxels in memory the node shares (build_cloud_atmosphere's
+  !> `storage`). On one node rank 0 is the only leader: it keeps what it read, and no copy of
+  !> the fields travels or waits in a bundle beside it.
   subroutine read_cloud_on_root(req, cloud, error, grid_only, part, alone, per_node)
     type(cloud_request_t), intent(in) :: req
     type(cloud_input_t), intent(out) :: cloud
@@ -66,13 +70,34 @@ contains
     if (present(per_node)) node = per_node .and. .not. here .and. .not. grid
     reader = here
     if (.not. here) reader = par_is_root()
+    if (node .and. par_node_size() == par_size()) then
+      ! one node: rank 0 is its only leader and keeps what it read; only the grid travels
+      if (reader) then
+        call read_cloud_input(req, cloud, error, grid_only, part)
+        if (.not. allocated(error)) then
+          call cloud_input_put(bg, cloud, .true.)
+          call small_put(bg, cloud)
+          if (req%temperature) call temperature_put(bg, cloud)
+        end if
+      end if
+      call bg%share(error)
+      if (allocated(error) .or. reader) return
+      call cloud_input_get(bg, cloud)
+      call small_get(bg, cloud)
+      if (req%temperature) call temperature_get(bg, cloud)
+      return
+    end if
     if (reader) then
       block
         ! rank 0's copy is freed before the bundle's is taken out: one copy besides the bundle
         type(cloud_input_t) :: c
         call read_cloud_input(req, c, error, grid_only, part)
         if (.not. allocated(error)) call cloud_input_put(b, c, grid)
-        if (.not. allocated(error) .and. node) call cloud_input_put(bg, c, .true.)
+        if (.not. allocated(error) .and. node) then
+          call cloud_input_put(bg, c, .true.)
+          call small_put(bg, c)
+          if (req%temperature) call temperature_put(bg, c)
+        end if
       end block
     end if
     if (node) then
@@ -84,6 +109,8 @@ contains
         call cloud_input_get(b, cloud)
       else
         call cloud_input_get(bg, cloud)
+        call small_get(bg, cloud)
+        if (req%temperature) call temperature_get(bg, cloud)
       end if
       return
     end if
@@ -174,6 +201,78 @@ contains
     call get_mcarats(b, c%mca_atm, c%mca_phase)
     call get_opt(b, c%missing)
   end subroutine cloud_input_get
+
+  !> Put what a rank without the fields of a cloud file needs besides its grid to build the same
+  !> phase functions as the node's leader (read_cloud_on_root per_node): the phase functions of
+  !> an optics file (Legendre series or Henyey-Greenstein g) and of an MCARaTS file (its
+  !> distinct Henyey-Greenstein g, its tables and sizes), which are small beside the fields.
+  subroutine small_put(b, c)
+    type(bundle_t), intent(inout) :: b
+    type(cloud_input_t), intent(in) :: c
+    call put_opt(b, c%chi)
+    call put_opt(b, c%hg_g)
+    call put_opt(b, c%missing)
+    call b%put(c%mca_atm%nx)
+    call b%put(c%mca_atm%ny)
+    call b%put(c%mca_atm%nz3)
+    call b%put(c%mca_atm%mtprof)
+    call b%put(c%mca_atm%nkd)
+    call b%put(c%mca_atm%np3d)
+    call b%put(c%mca_atm%idread)
+    call b%put(c%mca_atm%ndatasets)
+    call put_opt(b, c%mca_atm%missing)
+    call b%put(c%mca_phase%nang)
+    call b%put(c%mca_phase%npf)
+    call b%put(c%mca_phase%reversed)
+    call put_opt(b, c%mca_phase%angle_deg)
+    call put_opt(b, c%mca_phase%p_file)
+    call put_opt(b, c%mca_phase%p)
+  end subroutine small_put
+
+  !> Take the items of small_put out of a bundle, in the same order.
+  subroutine small_get(b, c)
+    type(bundle_t), intent(inout) :: b
+    type(cloud_input_t), intent(inout) :: c
+    call get_opt(b, c%chi)
+    call get_opt(b, c%hg_g)
+    call get_opt(b, c%missing)
+    call b%get(c%mca_atm%nx)
+    call b%get(c%mca_atm%ny)
+    call b%get(c%mca_atm%nz3)
+    call b%get(c%mca_atm%mtprof)
+    call b%get(c%mca_atm%nkd)
+    call b%get(c%mca_atm%np3d)
+    call b%get(c%mca_atm%idread)
+    call b%get(c%mca_atm%ndatasets)
+    call get_opt(b, c%mca_atm%missing)
+    call b%get(c%mca_phase%nang)
+    call b%get(c%mca_phase%npf)
+    call b%get(c%mca_phase%reversed)
+    call get_opt(b, c%mca_phase%angle_deg)
+    call get_opt(b, c%mca_phase%p_file)
+    call get_opt(b, c%mca_phase%p)
+  end subroutine small_get
+
+  !> Put the temperatures of a cloud file (thermal runs), which every rank needs for the
+  !> Planck radiances of the voxels (read_cloud_on_root per_node).
+  subroutine temperature_put(b, c)
+    type(bundle_t), intent(inout) :: b
+    type(cloud_input_t), intent(in) :: c
+    call put_vox(b, c%temperature)
+    call b%put(c%t_planes)
+    call b%put(c%t_perturbation)
+    call put_opt(b, c%t_source)
+  end subroutine temperature_put
+
+  !> Take the items of temperature_put out of a bundle, in the same order.
+  subroutine temperature_get(b, c)
+    type(bundle_t), intent(inout) :: b
+    type(cloud_input_t), intent(inout) :: c
+    call get_vox(b, c%temperature)
+    call b%get(c%t_planes)
+    call b%get(c%t_perturbation)
+    call get_opt(b, c%t_source)
+  end subroutine temperature_get
 
   !> Put an optics table in the Mie-table layout (a cloud file's ice optics table) into a bundle.
   subroutine mie_table_put(b, t)

@@ -20,8 +20,8 @@ module kumo_scene_setup
                         PHASE_RAYLEIGH, PHASE_HG, PHASE_TABLE
   use kumo_atmosphere, only: atmosphere_t, atmosphere_options_t, atmosphere_init, &
                              atmosphere_begin, atmosphere_end, atmosphere_swap_background, &
-                             atmosphere_set_truncation, LAYER_CLEAR, LAYER_ABSORBING, &
-                             LAYER_SCATTERING
+                             atmosphere_set_truncation, atmosphere_put_layer, LAYER_CLEAR, &
+                             LAYER_ABSORBING, LAYER_SCATTERING
   use kumo_std_atmosphere, only: std_atmosphere_profile
   use kumo_gas_optics, only: gas_kdist_t, gas_default_vmr, gas_index
   use kumo_rrtmgp_file, only: read_rrtmgp_kdist
@@ -45,12 +45,13 @@ module kumo_scene_setup
                     absorption_estimator_code
   use kumo_scene, only: scene_t
   use kumo_config, only: config_t, resolve_path, read_config
-  use kumo_cloud_input, only: cloud_input_t, cloud_request_t, CLOUD_WATER, CLOUD_EXT_REFF
+  use kumo_cloud_input, only: cloud_input_t, cloud_request_t, CLOUD_WATER, CLOUD_EXT_REFF, &
+                              CLOUD_MCARATS
   use kumo_cloud_share, only: read_cloud_on_root, mie_table_put, mie_table_get
   use kumo_mie, only: mie_table_t
   use kumo_bundle, only: bundle_t
   use kumo_cloud_scene, only: build_cloud_atmosphere, rayleigh_layers, cloud_temperature_t, ice_table, &
-                              water_table
+                              water_table, mcarats_scan_t, mcarats_scan
   use kumo_spectral_cloud, only: spectral_cloud_t, spectral_cloud_init, spectral_cloud_band, &
                                  spectral_cloud_put
   use kumo_supervoxel, only: supervoxel_grid_t
@@ -62,7 +63,7 @@ module kumo_scene_setup
   use kumo_mcarats_files, only: mcarats_surface_t, read_mcarats_surface, mcarats_surface_npsfc, &
                                 mcarats_surface_brdf
   use kumo_parallel, only: par_is_root, par_size, par_rank, par_node_size, par_node_storage, &
-                           par_node_sync, par_gather_i8
+                           par_node_sync, par_gather_i8, par_node_leader
   implicit none
   private
   public :: load_config, setup_scene, spectral_scene_t, spectral_set_gpoint
@@ -164,12 +165,18 @@ contains
   end subroutine cloud_grid_here
 
   !> Build the scene (phase functions, atmosphere, surface, source) from a configuration.
-  subroutine setup_scene(cfg, scene, error, spec)
+  !> Every rank calls it (rank 0 reads the input files and broadcasts them). With `per_node` =
+  !> .true. (a run: kumo_driver's simulate) the ranks also build the scene together: on several
+  !> ranks the voxel arrays of a monochromatic run are one copy per node, in the node's
+  !> shared-memory window (cloud_on_ranks, scene_on_ranks); otherwise each process builds its
+  !> own, as a test that rebuilds the scene on rank 0 alone needs.
+  subroutine setup_scene(cfg, scene, error, spec, per_node)
     type(config_t), intent(in) :: cfg
     type(scene_t), intent(out) :: scene
     type(error_t), allocatable, intent(out) :: error
     !> broadband runs (&kumo_spectral): the g-point plan and optics (setup_spectral)
     type(spectral_scene_t), intent(out), optional :: spec
+    logical, intent(in), optional :: per_node   !! the ranks build one scene per node (.false.)
     type(phase_t), allocatable :: phases(:)
     type(atmosphere_options_t) :: aopts
     real(wp), allocatable :: ang(:), val(:), ext3(:, :, :, :), ssa3(:, :, :, :), alb(:, :)
@@ -183,7 +190,10 @@ contains
     character(len=:), allocatable :: cloud_notes, cloud_warnings
     character(len=:), allocatable :: sfc_notes
     type(cloud_temperature_t) :: cloud_t
+    logical :: on_node, shared
 
+    shared = .false.
+    if (present(per_node)) shared = per_node .and. par_size() > 1
     nml_path = ''
     if (allocated(cfg%path)) nml_path = cfg%path
     allocate (phases(cfg%phase%n_phase))
@@ -304,12 +314,18 @@ contains
         ' um) and were given the nearest table radius. '
     else if (cfg%cloud%enabled) then
       call cloud_on_ranks(cfg, ext1d, ssa1d, phase1d, phases, aopts, scene%atm, cloud_notes, &
-                          cloud_warnings, error, cloud_t)
+                          cloud_warnings, error, cloud_t, shared)
       if (allocated(error)) return
       scene%notes = scene%notes//cloud_notes
       scene%warnings = scene%warnings//cloud_warnings
     else
-      if (len_trim(cfg%atm%scene_file) > 0) then
+      ! several ranks, one wavelength: one copy of the scene file's voxels per node
+      on_node = len_trim(cfg%atm%scene_file) > 0 .and. shared .and. .not. cfg%spectral%enabled
+      if (on_node) then
+        call scene_on_ranks(cfg, resolve_path(cfg%atm%scene_file, nml_path), ext1d, ssa1d, &
+                            phase1d, phases, aopts, scene%atm, error)
+        if (allocated(error)) return
+      else if (len_trim(cfg%atm%scene_file) > 0) then
         call read_scene_on_root(cfg, resolve_path(cfg%atm%scene_file, nml_path), ext3, ssa3, &
                                 iph3, error)
         if (allocated(error)) return
@@ -328,7 +344,7 @@ contains
         end if
         call atmosphere_init(scene%atm, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, ext1d, ssa1d, &
                              phase1d, phases, aopts, error, cfg%atm%k3d_bottom, ext3, ssa3, iph3)
-      else
+      else if (.not. on_node) then
         call atmosphere_init(scene%atm, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, ext1d, ssa1d, &
                              phase1d, phases, aopts, error)
       end if
@@ -499,6 +515,7 @@ contains
     if (allocated(t3)) then
       cloud_t%found = .true.
       cloud_t%t = real(t3, vp)
+      deallocate (t3)
       cloud_t%source = 'variable temperature of the scene file'
     end if
     if (cloud_t%found .and. has_band) then
@@ -508,6 +525,8 @@ contains
         call add_context(error, '&kumo_thermal')
         return
       end if
+      ! b3 holds what the emission needs: the temperatures (one value per voxel) go first
+      deallocate (cloud_t%t)
       call emission_init(scene%src%em, scene%atm, scene%sfc, b_lev, b_sfc, b_top, solar_power, &
                          cfg%thermal%emission_floor, error, b3=b3, b_sfc_map=bsm)
     else
@@ -1391,20 +1410,104 @@ contains
     end if
   end subroutine read_scene_on_root
 
+  !> The atmosphere of a scene file (`scene_file`) on several ranks, one copy per node: rank 0
+  !> reads the file (read_scene_3d) and every rank gets the sizes of its voxel fields, or rank
+  !> 0's error; the fields themselves go to the first rank of each node alone (the node's
+  !> leader), which puts them into voxel arrays in memory the node shares (kumo_parallel
+  !> par_node_storage). The atmosphere is built as atmosphere_init builds it (begin, one
+  !> put_layer per component and layer, end), so its values are those of one rank, bit for bit.
+  !> Every rank calls it (the window and its barrier are collective).
+  subroutine scene_on_ranks(cfg, path, ext1d, ssa1d, phase1d, phases, aopts, atm, error)
+    type(config_t), intent(in) :: cfg
+    character(len=*), intent(in) :: path
+    real(wp), intent(in) :: ext1d(:, :), ssa1d(:, :)
+    integer, intent(in) :: phase1d(:, :)
+    type(phase_t), intent(in) :: phases(:)
+    type(atmosphere_options_t), intent(in) :: aopts
+    type(atmosphere_t), intent(inout) :: atm
+    type(error_t), allocatable, intent(out) :: error
+    type(bundle_t) :: bg
+    real(wp), allocatable :: ext3(:, :, :, :), ssa3(:, :, :, :)
+    integer, allocatable :: iph3(:, :, :, :), one(:, :), shp(:)
+    type(phase_t), allocatable :: ph(:)
+    integer :: ic, kf
+    logical :: has_iph
+    if (par_is_root()) then
+      call read_scene_3d(path, cfg%atm%nx, cfg%atm%ny, cfg%atm%nz3, cfg%atm%n_components_3d, &
+                         ext3, ssa3, iph3, has_iph, error)
+      if (.not. allocated(error)) then
+        shp = shape(ext3)
+        call bg%put(shp)
+      end if
+    end if
+    ! every rank: the sizes and rank 0's error; the node leaders: the fields
+    call bg%share(error)
+    if (allocated(error)) return
+    call bg%get(shp)
+    ! one node: rank 0 is its only leader and keeps what it read
+    if (par_node_leader() .and. par_node_size() < par_size()) then
+      block
+        ! freed at the end of the block, before the voxel arrays are allocated
+        type(bundle_t) :: b
+        if (par_is_root()) then
+          call b%put(ext3)
+          call b%put(ssa3)
+          call b%put(has_iph)
+          if (has_iph) call b%put(iph3)
+          deallocate (ext3, ssa3)
+          if (allocated(iph3)) deallocate (iph3)
+        end if
+        call b%share(error, leaders=.true.)
+        call b%get(ext3)
+        call b%get(ssa3)
+        call b%get(has_iph)
+        if (has_iph) call b%get(iph3)
+      end block
+    end if
+    ph = phases
+    call atmosphere_begin(atm, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, ext1d, ssa1d, phase1d, ph, &
+                          aopts, error, cfg%atm%k3d_bottom, shp(1), shp(2), shp(3), shp(4), &
+                          storage=par_node_storage)
+    if (allocated(error)) return
+    if (atm%voxel_writer) then
+      if (.not. has_iph) allocate (one(shp(1), shp(2)))
+      do ic = 1, shp(4)
+        if (.not. has_iph) one = cfg%atm%phase3d(ic)
+        do kf = 1, shp(3)
+          if (has_iph) then
+            call atmosphere_put_layer(atm, ic, kf, ext3(:, :, kf, ic), ssa3(:, :, kf, ic), &
+                                      iph3(:, :, kf, ic))
+          else
+            call atmosphere_put_layer(atm, ic, kf, ext3(:, :, kf, ic), ssa3(:, :, kf, ic), one)
+          end if
+        end do
+      end do
+    end if
+    if (allocated(ext3)) deallocate (ext3, ssa3)
+    if (allocated(iph3)) deallocate (iph3)
+    call atmosphere_end(atm, aopts, error, sync=par_node_sync)
+    if (allocated(error)) return
+    call note_voxel_storage(atm, cfg%control%verbose)
+  end subroutine scene_on_ranks
+
   !> The cloud's atmosphere on every rank. Rank 0 reads the cloud file (liquid water, then ice
   !> water and the ice optics table when the file has ice) and every rank gets them
   !> (read_cloud_on_root, mie_table_put/get), and so does the water Mie table, which rank 0
   !> alone reads from the cache or computes; the atmosphere is then built from them without
   !> MPI, on rank 0 first so that its error, if any, is every rank's.
   !>
-  !> On several ranks a cloud of water content (liquid, and ice if any) is kept once per node:
-  !> only the first rank of each node gets the fields, and the ranks of a node build one
-  !> atmosphere whose voxel arrays lie in memory the node shares (kumo_parallel
-  !> par_node_storage: an MPI-3 shared-memory window), filled by that first rank. The ranks
-  !> then build together (the window and its barrier are collective); they read the same
-  !> inputs and values, so they meet the same errors. The run log says what each rank holds.
+  !> On several ranks the cloud (water content, liquid and ice if any; an optics file; an
+  !> MCARaTS file) is kept once per node: only the first rank of each node gets the fields, and
+  !> the ranks of a node build one atmosphere whose voxel arrays lie in memory the node shares
+  !> (kumo_parallel par_node_storage: an MPI-3 shared-memory window), filled by that first rank.
+  !> What an MCARaTS file's values decide before the build (mcarats_scan: tables used, blends,
+  !> the absorption perturbation and its check) rank 0 finds and shares. The ranks then build
+  !> together (the window and its barrier are collective); they read the same inputs and
+  !> values, so they meet the same errors. The run log says what each rank holds. Thermal runs
+  !> that take the file's temperatures give them to every rank (each forms the voxels' Planck
+  !> radiances and its emission table).
   subroutine cloud_on_ranks(cfg, ext1d, ssa1d, phase1d, phases, aopts, atm, notes, warnings, &
-                            error, cloud_t)
+                            error, cloud_t, shared)
     type(config_t), intent(in) :: cfg
     real(wp), intent(in) :: ext1d(:, :), ssa1d(:, :)
     integer, intent(in) :: phase1d(:, :)
@@ -1415,26 +1518,49 @@ contains
     type(error_t), allocatable, intent(out) :: error
     !> thermal runs with a spectral interval: the cloud file's temperatures, if it has them
     type(cloud_temperature_t), intent(out) :: cloud_t
-    type(bundle_t) :: b, bi, bl
+    !> several ranks build the scene together (setup_scene per_node): one copy per node
+    logical, intent(in) :: shared
+    type(bundle_t) :: b, bi, bl, bm
     type(cloud_input_t) :: c, c_ice
+    type(mcarats_scan_t) :: scan
+    integer, allocatable :: used(:)
     type(cloud_request_t) :: req
     type(mie_table_t) :: ice, liq
     character(len=:), allocatable :: liq_action
     logical :: want_t, per_node
     want_t = cfg%thermal%enabled .and. .not. allocated(cfg%thermal%planck_levels)
-    ! one copy per node: several ranks, water content, no voxel temperatures wanted (every
-    ! rank decides alike from the configuration and the grid read at its loading)
-    per_node = par_size() > 1 .and. .not. want_t .and. &
-               (cfg%cloud%grid%content == CLOUD_WATER .or. cfg%cloud%grid%content == CLOUD_EXT_REFF)
+    ! one copy per node when the ranks build the scene together (every rank decides alike)
+    per_node = shared
     req = cfg%cloud%req
     req%temperature = want_t
     call read_cloud_on_root(req, c, error, part='liquid', per_node=per_node)
     if (allocated(error)) return
-    if (per_node .and. .not. (c%content == CLOUD_WATER .or. c%content == CLOUD_EXT_REFF)) then
+    if (per_node .and. c%content /= cfg%cloud%grid%content) then
       ! every rank holds rank 0's content code: they all stop here alike
       call set_error(error, cfg%cloud%req%path//': the file''s content (code '//str(c%content)// &
-                     ') is not the water content its grid announced')
+                     ') is not the one its grid announced (code '// &
+                     str(cfg%cloud%grid%content)//')')
       return
+    end if
+    if (per_node .and. c%content == CLOUD_MCARATS) then
+      ! what the voxel values decide, from rank 0 (which has them) to every rank
+      if (par_is_root()) then
+        call mcarats_scan(c, cfg%cloud%req%mcarats, cfg%cloud%req%path, scan, error)
+        if (.not. allocated(error)) then
+          used = merge(1, 0, scan%used)
+          call bm%put(used)
+          call bm%put(scan%blend)
+          call bm%put(scan%has_abs)
+          call bm%put(scan%abs_notes)
+        end if
+      end if
+      call bm%share(error)
+      if (allocated(error)) return
+      call bm%get(used)
+      scan%used = used == 1
+      call bm%get(scan%blend)
+      call bm%get(scan%has_abs)
+      call bm%get(scan%abs_notes)
     end if
     if (c%has_ice) then
       call read_cloud_on_root(cfg%cloud%req, c_ice, error, part='ice', per_node=per_node)
@@ -1465,12 +1591,21 @@ contains
       liq_action = ''
     end if
     if (per_node) then
-      call build_cloud_atmosphere(cfg%cloud, c, c_ice, cfg%source%wavelength_um, &
-                                  cfg%phase%n_table, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, &
-                                  cfg%atm%k3d_bottom, ext1d, ssa1d, phase1d, phases, aopts, &
-                                  atm, notes, warnings, error, ice_tab=ice, liq_tab=liq, &
-                                  liq_action=liq_action, storage=par_node_storage, &
-                                  sync=par_node_sync)
+      if (want_t) then
+        call build_cloud_atmosphere(cfg%cloud, c, c_ice, cfg%source%wavelength_um, &
+                                    cfg%phase%n_table, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, &
+                                    cfg%atm%k3d_bottom, ext1d, ssa1d, phase1d, phases, aopts, &
+                                    atm, notes, warnings, error, cloud_t, ice_tab=ice, &
+                                    liq_tab=liq, liq_action=liq_action, &
+                                    storage=par_node_storage, sync=par_node_sync, mca=scan)
+      else
+        call build_cloud_atmosphere(cfg%cloud, c, c_ice, cfg%source%wavelength_um, &
+                                    cfg%phase%n_table, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, &
+                                    cfg%atm%k3d_bottom, ext1d, ssa1d, phase1d, phases, aopts, &
+                                    atm, notes, warnings, error, ice_tab=ice, liq_tab=liq, &
+                                    liq_action=liq_action, storage=par_node_storage, &
+                                    sync=par_node_sync, mca=scan)
+      end if
       call b%share(error)   ! rank 0's error, if any, on every rank
       if (allocated(error)) return
       call note_voxel_storage(atm, cfg%control%verbose)

@@ -15,6 +15,7 @@ module test_kumo_phase
   use kumo_test_text, only: read_table
   use kumo_kinds, only: wp
   use kumo_constants, only: PI, DEG2RAD
+  use kumo_error, only: str
   use kumo_phase, only: PHASE_ISOTROPIC, PHASE_RAYLEIGH, PHASE_HG, PHASE_TABLE, PHASE_NAMES, &
                         PHASE_N_INV_DEFAULT, phase_t, phase_kind_from_name, new_phase_isotropic, &
                         new_phase_rayleigh, new_phase_rayleigh_depol, new_phase_hg, &
@@ -71,7 +72,8 @@ contains
              new_unittest('samples_within_bounds', test_bounds), &
              new_unittest('table_brute_force_hg_peak', test_brute_hg_peak), &
              new_unittest('table_brute_force_zeros', test_brute_zeros), &
-             new_unittest('table_brute_force_prp_490_terms', test_brute_prp)]
+             new_unittest('table_brute_force_prp_490_terms', test_brute_prp), &
+             new_unittest('table_search_guide', test_search_guide)]
   end function collect_phase
 
   ! ------------------------------------------------------------------------------------------
@@ -1197,6 +1199,48 @@ contains
     call check_brute_force(error, 'prp 490 terms', t, v, ph, 8, 11, 1.0e-10_wp)
   end subroutine test_brute_prp
 
+  !> `phase_eval` finds a table's interval from a guide of angle bins: on a table with angles
+  !> 1e-3 deg apart near the forward direction and 7 deg apart elsewhere (many nodes per bin and
+  !> many bins per interval), at every node, just beside it and at 2e5 spread cosines, its value
+  !> is the interpolant of the interval found by a plain scan (the largest i <= n - 1 with
+  !> mu_tab(i) <= mu).
+  subroutine test_search_guide(error)
+    type(error_t), allocatable, intent(out) :: error
+    integer, parameter :: n_fine = 2001, n_coarse = 25
+    type(error_t), allocatable :: err
+    type(phase_t) :: ph
+    real(wp), allocatable :: angle(:), value(:), mus(:)
+    integer :: i, n, n_bad
+    angle = [(1.0e-3_wp*i, i=0, n_fine - 1), (2.0_wp + 7.0_wp*i, i=1, n_coarse)]
+    angle(size(angle)) = 180.0_wp
+    value = hg_eval(0.9_wp, cos(angle*DEG2RAD)) + 0.01_wp*angle
+    ph = phase_from_table(angle, value, error=err)
+    call check(error, .not. allocated(err), 'phase_from_table failed')
+    if (allocated(error)) return
+    n = size(ph%mu_tab)
+    mus = [ph%mu_tab, (nearest(ph%mu_tab(i), 1.0_wp), i=1, n - 1), &
+           (nearest(ph%mu_tab(i), -1.0_wp), i=2, n), (cos(PI*(i + 0.5_wp)/2.0e5_wp), i=0, 199999), &
+           (1.0_wp - 1.0e-10_wp*i, i=0, 999)]
+    n_bad = 0
+    do i = 1, size(mus)
+      if (abs(phase_eval(ph, mus(i)) - scanned(mus(i))) > 1.0e-13_wp*scanned(mus(i))) n_bad = n_bad + 1
+    end do
+    call check(error, n_bad == 0, str(n_bad)//' of '//str(size(mus))//' cosines differ from the '// &
+               'interpolant of the scanned interval')
+  contains
+    real(wp) function scanned(mu) result(p)
+      real(wp), intent(in) :: mu
+      real(wp) :: f
+      integer :: lo
+      lo = 1
+      do while (lo < n - 1)
+        if (ph%mu_tab(lo + 1) > mu) exit
+        lo = lo + 1
+      end do
+      f = min(1.0_wp, max(0.0_wp, (acos(mu) - ph%theta_tab(lo))*ph%inv_dth(lo)))
+      p = exp(ph%lp_tab(lo) + f*(ph%lp_tab(lo + 1) - ph%lp_tab(lo)))
+    end function scanned
+  end subroutine test_search_guide
 end module test_kumo_phase
 
 program test_phase

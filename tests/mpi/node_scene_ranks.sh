@@ -11,6 +11,7 @@
 # OUT is the output file the namelist writes; an INPUT ending in .cdl is made into the .nc of
 # the same name, any other is copied next to the namelist.
 set -euo pipefail
+source "$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)/one_copy_checks.sh"
 name=$1 kumo=$2 nml=$3 out=$4
 shift 4
 inputs=()
@@ -35,24 +36,4 @@ fail() { echo "$name: $1"; cat np2.log; exit 1; }
 mv "$out" np1.nc
 "$@" -n 2 "$kumo" run.nml > np2.log 2>&1 || fail "the run on 2 ranks failed"
 mv "$out" np2.nc
-if grep -q 'voxel arrays: one copy per node' np1.log; then
-  fail "a run on 1 rank must keep its voxel arrays as before (no shared window)"
-fi
-line=$(grep 'voxel arrays: one copy per node in shared memory' np2.log) ||
-  fail "the 2-rank run does not report a shared window"
-# "... bytes allocated per rank (own, shared window): rank 0 O0 W0; rank 1 O1 W1;"
-read -r o0 w0 o1 w1 < <(sed -E 's/.*rank 0 ([0-9]+) ([0-9]+); rank 1 ([0-9]+) ([0-9]+);.*/\1 \2 \3 \4/' <<< "$line")
-[[ "$o0" == 0 && "$o1" == 0 ]] || fail "a rank allocated voxel arrays of its own ($o0, $o1 bytes)"
-[[ "$w0" -gt 0 ]] || fail "rank 0 allocated no shared window"
-[[ "$w1" == 0 ]] || fail "rank 1 allocated $w1 bytes of window: the scene is not one copy"
-vars=batch_reflectance,batch_transmittance,batch_absorptance
-for f in np1 np2; do
-  ncdump -v "$vars" "$f.nc" | sed -n '/^data:/,$p' > "$f.txt"
-done
-if ! diff np1.txt np2.txt > /dev/null; then
-  echo "$name: the batches of 1 and 2 ranks differ"
-  diff np1.txt np2.txt | head -20
-  exit 1
-fi
-echo "$name: window of $w0 bytes on rank 0, none on rank 1; $(grep -c , np1.txt)" \
-  "lines of batch results identical on 1 and 2 ranks"
+check_one_copy "$name"

@@ -1,0 +1,34 @@
+# SPDX-License-Identifier: BSD-3-Clause
+# Checks shared by the one-copy-per-node tests (cloud_ice_ranks.sh, node_scene_ranks.sh), sourced
+# by them: in the current folder, np1.log/np1.nc come from a run on 1 rank and np2.log/np2.nc
+# from the same run on 2 ranks.
+#
+#   check_one_copy NAME
+# The run on 1 rank keeps its voxel arrays as before (no shared window); on 2 ranks rank 0
+# allocates the node's window and neither rank has voxel arrays of its own (the bytes of the
+# run log's "voxel arrays:" line); every batch equals those of 1 rank, bit for bit.
+check_one_copy() {
+  local name=$1 line o0 w0 o1 w1 f
+  fail() { echo "$name: $1"; cat np2.log; exit 1; }
+  if grep -q 'voxel arrays: one copy per node' np1.log; then
+    fail "a run on 1 rank must keep its voxel arrays as before (no shared window)"
+  fi
+  line=$(grep 'voxel arrays: one copy per node in shared memory' np2.log) ||
+    fail "the 2-rank run does not report a shared window"
+  # "... bytes allocated per rank (own, shared window): rank 0 O0 W0; rank 1 O1 W1;"
+  read -r o0 w0 o1 w1 < <(sed -E 's/.*rank 0 ([0-9]+) ([0-9]+); rank 1 ([0-9]+) ([0-9]+);.*/\1 \2 \3 \4/' <<< "$line")
+  [[ "$o0" == 0 && "$o1" == 0 ]] || fail "a rank allocated voxel arrays of its own ($o0, $o1 bytes)"
+  [[ "$w0" -gt 0 ]] || fail "rank 0 allocated no shared window"
+  [[ "$w1" == 0 ]] || fail "rank 1 allocated $w1 bytes of window: the scene is not one copy"
+  for f in np1 np2; do
+    ncdump -v batch_reflectance,batch_transmittance,batch_absorptance "$f.nc" |
+      sed -n '/^data:/,$p' > "$f.txt"
+  done
+  if ! diff np1.txt np2.txt > /dev/null; then
+    echo "$name: the batches of 1 and 2 ranks differ"
+    diff np1.txt np2.txt | head -20
+    exit 1
+  fi
+  echo "$name: window of $w0 bytes on rank 0, none on rank 1; $(grep -c , np1.txt)" \
+    "lines of batch results identical on 1 and 2 ranks"
+}

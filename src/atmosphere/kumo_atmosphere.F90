@@ -114,9 +114,11 @@ contains
   !> `ext1d`, `ssa1d`, `iph1d` are (nz, ncomp1) and describe every layer; inside the 3-D region
   !> they are added to the voxel components `ext3d`, `ssa3d`, `iph3d` (nx, ny, n3, ncomp3), as a
   !> background (e.g. molecules around a cloud). This is `atmosphere_begin`, one
-  !> `atmosphere_put_layer` per component and layer, and `atmosphere_end`.
+  !> `atmosphere_put_layer` per component and layer, and `atmosphere_end`. With `storage` and
+  !> `sync` the voxel arrays lie in the caller's storage, which only its writer fills: the
+  !> other processes pass the fields' shape `n3d` instead of the fields.
   subroutine atmosphere_init(atm, z, lx, ly, ext1d, ssa1d, iph1d, phases, opts, error, &
-                             k3_lo, ext3d, ssa3d, iph3d)
+                             k3_lo, ext3d, ssa3d, iph3d, iph3_const, n3d, storage, sync)
     type(atmosphere_t), intent(inout) :: atm   !! built anew (its old voxel arrays released)
     real(wp), intent(in) :: z(0:)              !! levels [m], strictly increasing
     real(wp), intent(in) :: lx, ly             !! domain size [m]
@@ -130,31 +132,46 @@ contains
     real(wp), intent(in), optional :: ext3d(:, :, :, :)  !! (nx, ny, n3, ncomp3) [m-1]
     real(wp), intent(in), optional :: ssa3d(:, :, :, :)
     integer, intent(in), optional :: iph3d(:, :, :, :)
+    !> (ncomp3) without iph3d: the phase index of every voxel of each component (default 1)
+    integer, intent(in), optional :: iph3_const(:)
+    !> the shape of the 3-D fields, for a process that does not hold them: with `storage`, one
+    !> that is not the storage's writer (it only takes part in building the scene)
+    integer, intent(in), optional :: n3d(4)
+    procedure(voxel_storage_i), optional :: storage  !! the caller's storage (atmosphere_begin)
+    procedure(voxel_sync_i), optional :: sync        !! with `storage` (atmosphere_end)
     type(phase_t), allocatable :: ph(:)
-    integer :: ic, kf
+    integer :: ic, kf, shp(4)
     integer, allocatable :: one(:, :)
 
     ph = phases
-    if (present(k3_lo) .and. present(ext3d) .and. present(ssa3d)) then
+    if (present(k3_lo) .and. (present(n3d) .or. (present(ext3d) .and. present(ssa3d)))) then
+      if (present(n3d)) then
+        shp = n3d
+      else
+        shp = shape(ext3d)
+      end if
       call atmosphere_begin(atm, z, lx, ly, ext1d, ssa1d, iph1d, ph, opts, error, k3_lo, &
-                            size(ext3d, 1), size(ext3d, 2), size(ext3d, 3), size(ext3d, 4))
+                            shp(1), shp(2), shp(3), shp(4), storage=storage)
       if (allocated(error)) return
-      if (.not. present(iph3d)) allocate (one(size(ext3d, 1), size(ext3d, 2)), source=1)
-      do ic = 1, size(ext3d, 4)
-        do kf = 1, size(ext3d, 3)
-          if (present(iph3d)) then
-            call atmosphere_put_layer(atm, ic, kf, ext3d(:, :, kf, ic), ssa3d(:, :, kf, ic), &
-                                      iph3d(:, :, kf, ic))
-          else
-            call atmosphere_put_layer(atm, ic, kf, ext3d(:, :, kf, ic), ssa3d(:, :, kf, ic), one)
-          end if
+      if (atm%voxel_writer) then
+        if (.not. present(iph3d)) allocate (one(shp(1), shp(2)), source=1)
+        do ic = 1, shp(4)
+          if (.not. present(iph3d) .and. present(iph3_const)) one = iph3_const(ic)
+          do kf = 1, shp(3)
+            if (present(iph3d)) then
+              call atmosphere_put_layer(atm, ic, kf, ext3d(:, :, kf, ic), ssa3d(:, :, kf, ic), &
+                                        iph3d(:, :, kf, ic))
+            else
+              call atmosphere_put_layer(atm, ic, kf, ext3d(:, :, kf, ic), ssa3d(:, :, kf, ic), one)
+            end if
+          end do
         end do
-      end do
+      end if
     else
       call atmosphere_begin(atm, z, lx, ly, ext1d, ssa1d, iph1d, ph, opts, error)
       if (allocated(error)) return
     end if
-    call atmosphere_end(atm, opts, error)
+    call atmosphere_end(atm, opts, error, sync=sync)
   end subroutine atmosphere_init
 
   !> First step of building an atmosphere whose voxels are given layer by layer: the levels, the

@@ -21,7 +21,7 @@ module kumo_scene_setup
   use kumo_atmosphere, only: atmosphere_t, atmosphere_options_t, atmosphere_init, &
                              atmosphere_begin, atmosphere_end, atmosphere_swap_background, &
                              atmosphere_set_truncation, atmosphere_put_layer, LAYER_CLEAR, &
-                             LAYER_ABSORBING, LAYER_SCATTERING
+                             LAYER_ABSORBING, LAYER_SCATTERING, voxel_storage_i, voxel_sync_i
   use kumo_std_atmosphere, only: std_atmosphere_profile
   use kumo_gas_optics, only: gas_kdist_t, gas_default_vmr, gas_index
   use kumo_rrtmgp_file, only: read_rrtmgp_kdist
@@ -1414,8 +1414,8 @@ contains
   !> reads the file (read_scene_3d) and every rank gets the sizes of its voxel fields, or rank
   !> 0's error; the fields themselves go to the first rank of each node alone (the node's
   !> leader), which puts them into voxel arrays in memory the node shares (kumo_parallel
-  !> par_node_storage). The atmosphere is built as atmosphere_init builds it (begin, one
-  !> put_layer per component and layer, end), so its values are those of one rank, bit for bit.
+  !> par_node_storage), through atmosphere_init as on one rank, so its values are those of one
+  !> rank, bit for bit.
   !> Every rank calls it (the window and its barrier are collective).
   subroutine scene_on_ranks(cfg, path, ext1d, ssa1d, phase1d, phases, aopts, atm, error)
     type(config_t), intent(in) :: cfg
@@ -1428,9 +1428,7 @@ contains
     type(error_t), allocatable, intent(out) :: error
     type(bundle_t) :: bg
     real(wp), allocatable :: ext3(:, :, :, :), ssa3(:, :, :, :)
-    integer, allocatable :: iph3(:, :, :, :), one(:, :), shp(:)
-    type(phase_t), allocatable :: ph(:)
-    integer :: ic, kf
+    integer, allocatable :: iph3(:, :, :, :), shp(:)
     logical :: has_iph
     if (par_is_root()) then
       call read_scene_3d(path, cfg%atm%nx, cfg%atm%ny, cfg%atm%nz3, cfg%atm%n_components_3d, &
@@ -1464,28 +1462,11 @@ contains
         if (has_iph) call b%get(iph3)
       end block
     end if
-    ph = phases
-    call atmosphere_begin(atm, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, ext1d, ssa1d, phase1d, ph, &
-                          aopts, error, cfg%atm%k3d_bottom, shp(1), shp(2), shp(3), shp(4), &
-                          storage=par_node_storage)
-    if (allocated(error)) return
-    if (atm%voxel_writer) then
-      if (.not. has_iph) allocate (one(shp(1), shp(2)))
-      do ic = 1, shp(4)
-        if (.not. has_iph) one = cfg%atm%phase3d(ic)
-        do kf = 1, shp(3)
-          if (has_iph) then
-            call atmosphere_put_layer(atm, ic, kf, ext3(:, :, kf, ic), ssa3(:, :, kf, ic), &
-                                      iph3(:, :, kf, ic))
-          else
-            call atmosphere_put_layer(atm, ic, kf, ext3(:, :, kf, ic), ssa3(:, :, kf, ic), one)
-          end if
-        end do
-      end do
-    end if
-    if (allocated(ext3)) deallocate (ext3, ssa3)
-    if (allocated(iph3)) deallocate (iph3)
-    call atmosphere_end(atm, aopts, error, sync=par_node_sync)
+    ! the node leaders put the fields into the window; the other ranks give only their shape
+    call atmosphere_init(atm, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, ext1d, ssa1d, phase1d, phases, &
+                         aopts, error, cfg%atm%k3d_bottom, ext3, ssa3, iph3, &
+                         iph3_const=cfg%atm%phase3d(1:shp(4)), n3d=shp(1:4), &
+                         storage=par_node_storage, sync=par_node_sync)
     if (allocated(error)) return
     call note_voxel_storage(atm, cfg%control%verbose)
   end subroutine scene_on_ranks
@@ -1527,22 +1508,20 @@ contains
     type(cloud_request_t) :: req
     type(mie_table_t) :: ice, liq
     character(len=:), allocatable :: liq_action
-    logical :: want_t, per_node
+    logical :: want_t
     want_t = cfg%thermal%enabled .and. .not. allocated(cfg%thermal%planck_levels)
-    ! one copy per node when the ranks build the scene together (every rank decides alike)
-    per_node = shared
     req = cfg%cloud%req
     req%temperature = want_t
-    call read_cloud_on_root(req, c, error, part='liquid', per_node=per_node)
+    call read_cloud_on_root(req, c, error, part='liquid', per_node=shared)
     if (allocated(error)) return
-    if (per_node .and. c%content /= cfg%cloud%grid%content) then
+    if (shared .and. c%content /= cfg%cloud%grid%content) then
       ! every rank holds rank 0's content code: they all stop here alike
       call set_error(error, cfg%cloud%req%path//': the file''s content (code '//str(c%content)// &
                      ') is not the one its grid announced (code '// &
                      str(cfg%cloud%grid%content)//')')
       return
     end if
-    if (per_node .and. c%content == CLOUD_MCARATS) then
+    if (shared .and. c%content == CLOUD_MCARATS) then
       ! what the voxel values decide, from rank 0 (which has them) to every rank
       if (par_is_root()) then
         call mcarats_scan(c, cfg%cloud%req%mcarats, cfg%cloud%req%path, scan, error)
@@ -1563,7 +1542,7 @@ contains
       call bm%get(scan%abs_notes)
     end if
     if (c%has_ice) then
-      call read_cloud_on_root(cfg%cloud%req, c_ice, error, part='ice', per_node=per_node)
+      call read_cloud_on_root(cfg%cloud%req, c_ice, error, part='ice', per_node=shared)
       if (allocated(error)) return
       ! the ice optics table, read on rank 0 and shared like the fields
       if (par_is_root()) then
@@ -1590,22 +1569,8 @@ contains
     else
       liq_action = ''
     end if
-    if (per_node) then
-      if (want_t) then
-        call build_cloud_atmosphere(cfg%cloud, c, c_ice, cfg%source%wavelength_um, &
-                                    cfg%phase%n_table, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, &
-                                    cfg%atm%k3d_bottom, ext1d, ssa1d, phase1d, phases, aopts, &
-                                    atm, notes, warnings, error, cloud_t, ice_tab=ice, &
-                                    liq_tab=liq, liq_action=liq_action, &
-                                    storage=par_node_storage, sync=par_node_sync, mca=scan)
-      else
-        call build_cloud_atmosphere(cfg%cloud, c, c_ice, cfg%source%wavelength_um, &
-                                    cfg%phase%n_table, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, &
-                                    cfg%atm%k3d_bottom, ext1d, ssa1d, phase1d, phases, aopts, &
-                                    atm, notes, warnings, error, ice_tab=ice, liq_tab=liq, &
-                                    liq_action=liq_action, storage=par_node_storage, &
-                                    sync=par_node_sync, mca=scan)
-      end if
+    if (shared) then
+      call build(error, par_node_storage, par_node_sync, scan)
       call b%share(error)   ! rank 0's error, if any, on every rank
       if (allocated(error)) return
       call note_voxel_storage(atm, cfg%control%verbose)
@@ -1616,20 +1581,26 @@ contains
     if (allocated(error) .or. par_is_root()) return
     call build(error)
   contains
-    subroutine build(err)
+    !> The atmosphere from the cloud, with the voxels in `storage` (one copy per node) and what
+    !> rank 0 found in an MCARaTS file's values (`mca`) when given.
+    subroutine build(err, storage, sync, mca)
       type(error_t), allocatable, intent(out) :: err
+      procedure(voxel_storage_i), optional :: storage
+      procedure(voxel_sync_i), optional :: sync
+      type(mcarats_scan_t), intent(in), optional :: mca
       if (want_t) then
         call build_cloud_atmosphere(cfg%cloud, c, c_ice, cfg%source%wavelength_um, &
                                     cfg%phase%n_table, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, &
                                     cfg%atm%k3d_bottom, ext1d, ssa1d, phase1d, phases, aopts, &
                                     atm, notes, warnings, err, cloud_t, ice_tab=ice, &
-                                    liq_tab=liq, liq_action=liq_action)
+                                    liq_tab=liq, liq_action=liq_action, storage=storage, &
+                                    sync=sync, mca=mca)
       else
         call build_cloud_atmosphere(cfg%cloud, c, c_ice, cfg%source%wavelength_um, &
                                     cfg%phase%n_table, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, &
                                     cfg%atm%k3d_bottom, ext1d, ssa1d, phase1d, phases, aopts, &
                                     atm, notes, warnings, err, ice_tab=ice, liq_tab=liq, &
-                                    liq_action=liq_action)
+                                    liq_action=liq_action, storage=storage, sync=sync, mca=mca)
       end if
     end subroutine build
   end subroutine cloud_on_ranks

@@ -199,7 +199,7 @@ contains
     integer, intent(in), optional :: n3f, nc3  !! layers and components given per voxel
     logical, intent(in), optional :: blend     !! some voxels blend two phase tables
     procedure(voxel_storage_i), optional :: storage  !! the caller's storage for the voxels
-    integer :: nz, k, ic, nc1, klo, khi, ncomp, na1, ix, iy, kr
+    integer :: nz, k, ic, nc1, klo, khi, ncomp, na1, kr
     real(wp) :: e, s
     real(vp), allocatable :: bg_sca(:)
     integer, allocatable :: bg_iph(:)
@@ -311,11 +311,12 @@ contains
       end do
       atm%ext3(:, :, kr) = real(e, vp)
       atm%omg3(:, :, kr) = real(s, vp)
-      do iy = 1, atm%ny
-        do ix = 1, atm%nx
-          atm%iph3(:, ix, iy, kr) = bg_iph
-          if (ncomp > 1) atm%csca3(:, ix, iy, kr) = bg_sca(1:ncomp - 1)
-        end do
+      ! by component (a loop over the few components inside would become a call of memcpy)
+      do ic = 1, ncomp
+        atm%iph3(ic, :, :, kr) = bg_iph(ic)
+      end do
+      do ic = 1, ncomp - 1
+        atm%csca3(ic, :, :, kr) = bg_sca(ic)
       end do
     end do
   end subroutine atmosphere_begin
@@ -358,8 +359,8 @@ contains
     type(error_t), allocatable, intent(out) :: error
     type(supervoxel_grid_t), intent(in), optional :: sv_layout
     procedure(voxel_sync_i), optional :: sync   !! needed with atmosphere_begin's `storage`
-    integer :: ic, ix, iy, kr, nc, np, klo, khi
-    real(wp) :: ext_tot, sca_tot, acc
+    integer :: ic, kr, nc, np, klo, khi
+    real(vp) :: no_csca(1, 1, 1)
     logical :: varies, bad_index, bad_weight, bad_blend, blended
 
     if (atm%n3 == 0) return
@@ -368,48 +369,23 @@ contains
     ! the values first (they read neither the phase indices nor the blend weights)
     if (atm%voxel_writer) then
       do kr = 1, atm%n3
-        do iy = 1, atm%ny
-          do ix = 1, atm%nx
-            ext_tot = atm%ext3(ix, iy, kr)
-            sca_tot = atm%omg3(ix, iy, kr)
-            if (ext_tot > 0.0_wp) then
-              atm%omg3(ix, iy, kr) = real(min(1.0_wp, sca_tot/ext_tot), vp)
-            else
-              atm%omg3(ix, iy, kr) = 1.0_vp
-            end if
-            acc = 0.0_wp
-            do ic = 1, nc - 1
-              acc = acc + atm%csca3(ic, ix, iy, kr)
-              if (sca_tot > 0.0_wp) then
-                atm%csca3(ic, ix, iy, kr) = real(min(1.0_wp, acc/sca_tot), vp)
-              else
-                atm%csca3(ic, ix, iy, kr) = real(real(ic, wp)/nc, vp)
-              end if
-            end do
-          end do
-        end do
+        if (nc > 1) then
+          call normalise_layer(atm%ext3(:, :, kr), atm%omg3(:, :, kr), atm%csca3(:, :, :, kr))
+        else
+          call normalise_layer(atm%ext3(:, :, kr), atm%omg3(:, :, kr), no_csca)
+        end if
       end do
     end if
     if (present(sync)) call sync()
-    ! the indices and blend weights (reductions the compiler vectorises; a blend's second table
-    ! is checked only when some index could be the last)
-    bad_index = minval(atm%iph3) < 1 .or. maxval(atm%iph3) > np
-    bad_weight = .false.
-    bad_blend = .false.
-    blended = .false.
-    if (associated(atm%wph3)) then
-      bad_weight = minval(atm%wph3) < 0.0_vp .or. maxval(atm%wph3) > 1.0_vp
-      blended = maxval(atm%wph3) > 0.0_vp
-      if (blended .and. maxval(atm%iph3) >= np) bad_blend = any(atm%wph3 > 0.0_vp .and. &
-                                                                atm%iph3 >= np)
-    end if
+    ! the indices and blend weights, in one pass
+    call index_checks(atm%iph3, atm%wph3, np, bad_index, bad_weight, bad_blend, blended)
     if (bad_index) then
       call set_error(error, 'atmosphere: a 3-D phase-function index is outside 1..'//str(np))
       return
     end if
     if (associated(atm%wph3)) then
       if (bad_weight) then
-        call set_error(error, 'atmosphere: a phase-function blend weight is outside 0..1')
+        call set_error(error, 'atmosphere: a phase-function blend weight is outside 0..1 or NaN')
         return
       end if
       if (bad_blend) then
@@ -450,6 +426,39 @@ contains
       if (associated(atm%wph3)) atm%uniform3(kr) = atm%uniform3(kr) .and. &
                                                   uniform_layer(atm%wph3(:, :, :, kr))
     end do
+
+  contains
+
+    !> The albedo and cumulative scattering fractions of the voxels of layer kr from their
+    !> summed extinction, scattering and per-component scattering (the layer's arrays as
+    !> dummies, so that the compiler keeps their addresses in registers).
+    subroutine normalise_layer(ext_l, omg_l, csca_l)
+      real(vp), intent(in) :: ext_l(:, :)
+      real(vp), intent(inout) :: omg_l(:, :)
+      real(vp), intent(inout) :: csca_l(:, :, :)   !! (nc - 1, nx, ny); not touched if nc = 1
+      integer :: ix, iy, ic
+      real(wp) :: ext_tot, sca_tot, acc
+      do iy = 1, size(ext_l, 2)
+        do ix = 1, size(ext_l, 1)
+          ext_tot = ext_l(ix, iy)
+          sca_tot = omg_l(ix, iy)
+          if (ext_tot > 0.0_wp) then
+            omg_l(ix, iy) = real(min(1.0_wp, sca_tot/ext_tot), vp)
+          else
+            omg_l(ix, iy) = 1.0_vp
+          end if
+          acc = 0.0_wp
+          do ic = 1, nc - 1
+            acc = acc + csca_l(ic, ix, iy)
+            if (sca_tot > 0.0_wp) then
+              csca_l(ic, ix, iy) = real(min(1.0_wp, acc/sca_tot), vp)
+            else
+              csca_l(ic, ix, iy) = real(real(ic, wp)/nc, vp)
+            end if
+          end do
+        end do
+      end do
+    end subroutine normalise_layer
   end subroutine atmosphere_end
 
   !> Give an atmosphere built by atmosphere_begin, atmosphere_put_layer and atmosphere_end a new
@@ -468,10 +477,10 @@ contains
     type(atmosphere_options_t), intent(in) :: opts
     type(supervoxel_grid_t), intent(in) :: sv_layout
     logical, intent(out) :: done
-    integer :: k, ic, j, ix, iy, kr, kf, na1, nc, nc1, icc, nf
-    real(wp) :: e, s, sca, ext_tot, sca_tot, acc
-    real(vp) :: et, st
-    real(vp), allocatable :: bg_sca(:)
+    integer :: k, ic, kr, kf, na1, nc, nc1, nf
+    real(wp) :: e, s
+    real(vp) :: clr_e, clr_w, no_csca(1, 1, 1)
+    real(vp), allocatable :: bg_sca(:), clr_c(:)
     real(wp), allocatable :: acc_bg(:)
     done = .false.
     nc1 = atm%ncomp1
@@ -491,7 +500,7 @@ contains
     if (atm%n3 == 0) return
     na1 = size(atm%act1)
     nc = atm%ncomp
-    allocate (bg_sca(max(nc - 1, 1)), acc_bg(0:na1))
+    allocate (bg_sca(max(nc - 1, 1)), acc_bg(0:na1), clr_c(max(nc - 1, 1)))
     nf = atm%kf_hi - atm%kf_lo + 1
     do kr = 1, atm%n3
       k = atm%k3_lo + kr - 1
@@ -510,48 +519,112 @@ contains
         acc_bg(ic) = acc_bg(ic - 1)
         if (ic < nc) acc_bg(ic) = acc_bg(ic) + bg_sca(ic)
       end do
-      do iy = 1, atm%ny
-        do ix = 1, atm%nx
-          et = real(e, vp)
-          st = real(s, vp)
-          if (kf >= 1 .and. kf <= nf) then
-            do j = 1, atm%nc3
-              sca = cext(ix, iy, kf, j)*cssa(ix, iy, kf, j)
-              et = real(et + cext(ix, iy, kf, j), vp)
-              st = real(st + sca, vp)
-            end do
-          end if
-          atm%ext3(ix, iy, kr) = et
-          ext_tot = et
-          sca_tot = st
-          if (ext_tot > 0.0_wp) then
-            atm%omg3(ix, iy, kr) = real(min(1.0_wp, sca_tot/ext_tot), vp)
-          else
-            atm%omg3(ix, iy, kr) = 1.0_vp
-          end if
-          do ic = 1, min(na1, nc - 1)
-            if (sca_tot > 0.0_wp) then
-              atm%csca3(ic, ix, iy, kr) = real(min(1.0_wp, acc_bg(ic)/sca_tot), vp)
-            else
-              atm%csca3(ic, ix, iy, kr) = real(real(ic, wp)/nc, vp)
-            end if
-          end do
-          acc = acc_bg(na1)
-          do icc = na1 + 1, nc - 1
-            sca = 0.0_wp
-            if (kf >= 1 .and. kf <= nf) sca = real(real(cext(ix, iy, kf, icc - na1)* &
-                                                        cssa(ix, iy, kf, icc - na1), vp), wp)
-            acc = acc + sca
-            if (sca_tot > 0.0_wp) then
-              atm%csca3(icc, ix, iy, kr) = real(min(1.0_wp, acc/sca_tot), vp)
-            else
-              atm%csca3(icc, ix, iy, kr) = real(real(icc, wp)/nc, vp)
-            end if
-          end do
-        end do
-      end do
+      ! A voxel without voxel components takes the layer's own values (as formed below with no
+      ! components, identical to the last bit), which most voxels of a cloud field do: they are
+      ! formed once per layer and stored, and only the voxels with components are formed one by
+      ! one. A component counts as absent when its extinction is 0 and its albedo finite (then
+      ! it adds exactly nothing).
+      call form_voxel(1, 1, .false., clr_e, clr_w, clr_c)
+      if (nc > 1) then
+        call form_layer(atm%ext3(:, :, kr), atm%omg3(:, :, kr), atm%csca3(:, :, :, kr))
+      else
+        call form_layer(atm%ext3(:, :, kr), atm%omg3(:, :, kr), no_csca)
+      end if
     end do
     call supervoxel_majorants(atm%ext3, sv_layout, atm%sv)
+
+  contains
+
+    !> The voxels of layer kr (its arrays, and the voxel components' layer, as dummies, so that
+    !> the compiler keeps their addresses in registers instead of reloading them after every
+    !> store): the layer's own values everywhere, then the voxels with components formed anew.
+    subroutine form_layer(ext_l, omg_l, csca_l)
+      real(vp), intent(inout) :: ext_l(:, :), omg_l(:, :)
+      real(vp), intent(inout) :: csca_l(:, :, :)   !! (nc - 1, nx, ny); not touched if nc = 1
+      integer :: ic
+      ext_l = clr_e
+      omg_l = clr_w
+      ! by component (a loop over the few components inside would become a call of memcpy)
+      do ic = 1, nc - 1
+        csca_l(ic, :, :) = clr_c(ic)
+      end do
+      if (kf < 1 .or. kf > nf) return
+      call form_components(ext_l, omg_l, csca_l, cext(:, :, kf, :), cssa(:, :, kf, :))
+    end subroutine form_layer
+
+    subroutine form_components(ext_l, omg_l, csca_l, cx, cs)
+      real(vp), intent(inout) :: ext_l(:, :), omg_l(:, :)
+      real(vp), intent(inout) :: csca_l(:, :, :)
+      real(wp), intent(in) :: cx(:, :, :), cs(:, :, :)   !! (nx, ny, nc3)
+      integer :: ix, iy, j
+      real(wp) :: t(size(ext_l, 1))
+      do iy = 1, size(ext_l, 2)
+        ! which voxels of the row have a component: t is 0 exactly when every extinction is 0
+        ! and every albedo finite (0 times an infinite or NaN albedo is NaN); a sum, so that the
+        ! compiler vectorises it
+        t = 0.0_wp
+        do j = 1, size(cx, 3)
+          do ix = 1, size(ext_l, 1)
+            t(ix) = t(ix) + (abs(cx(ix, iy, j)) + 0.0_wp*cs(ix, iy, j))
+          end do
+        end do
+        do ix = 1, size(ext_l, 1)
+          if (t(ix) == 0.0_wp) cycle
+          if (nc > 1) then
+            call form_voxel(ix, iy, .true., ext_l(ix, iy), omg_l(ix, iy), csca_l(:, ix, iy))
+          else
+            call form_voxel(ix, iy, .true., ext_l(ix, iy), omg_l(ix, iy), clr_c)
+          end if
+        end do
+      end do
+    end subroutine form_components
+
+    !> The totals, albedo and cumulative scattering fractions of voxel (ix, iy) of layer kr
+    !> (host's k, kf, e, s, acc_bg), with its voxel components if `cloud`, else with none.
+    subroutine form_voxel(ix, iy, cloud, ext_v, omg_v, csca_v)
+      integer, intent(in) :: ix, iy
+      logical, intent(in) :: cloud
+      real(vp), intent(out) :: ext_v, omg_v
+      real(vp), intent(out) :: csca_v(:)
+      real(wp) :: sca, ext_tot, sca_tot, acc
+      real(vp) :: et, st
+      integer :: j, ic, icc
+      et = real(e, vp)
+      st = real(s, vp)
+      if (cloud) then
+        do j = 1, atm%nc3
+          sca = cext(ix, iy, kf, j)*cssa(ix, iy, kf, j)
+          et = real(et + cext(ix, iy, kf, j), vp)
+          st = real(st + sca, vp)
+        end do
+      end if
+      ext_v = et
+      ext_tot = et
+      sca_tot = st
+      if (ext_tot > 0.0_wp) then
+        omg_v = real(min(1.0_wp, sca_tot/ext_tot), vp)
+      else
+        omg_v = 1.0_vp
+      end if
+      do ic = 1, min(na1, nc - 1)
+        if (sca_tot > 0.0_wp) then
+          csca_v(ic) = real(min(1.0_wp, acc_bg(ic)/sca_tot), vp)
+        else
+          csca_v(ic) = real(real(ic, wp)/nc, vp)
+        end if
+      end do
+      acc = acc_bg(na1)
+      do icc = na1 + 1, nc - 1
+        sca = 0.0_wp
+        if (cloud) sca = real(real(cext(ix, iy, kf, icc - na1)*cssa(ix, iy, kf, icc - na1), vp), wp)
+        acc = acc + sca
+        if (sca_tot > 0.0_wp) then
+          csca_v(icc) = real(min(1.0_wp, acc/sca_tot), vp)
+        else
+          csca_v(icc) = real(real(icc, wp)/nc, vp)
+        end if
+      end do
+    end subroutine form_voxel
   end subroutine atmosphere_swap_background
 
   !> The voxel arrays of the 3-D region (nx, ny, n3 and ncomp set): allocated here and owned,
@@ -754,6 +827,60 @@ contains
   end subroutine column_xy
 
   !> Total extinction, mixture albedo and cumulative scattering fractions of one cell.
+  !> In one pass over the voxels: is a phase index outside 1..np (`bad_index`), a blend weight
+  !> outside 0..1 or NaN (`bad_weight`), a weight > 0 on an index without a next table
+  !> (`bad_blend`), any weight > 0 (`blended`)? Without blend weights (`wph` not associated)
+  !> only the indices are checked.
+  subroutine index_checks(iph, wph, np, bad_index, bad_weight, bad_blend, blended)
+    integer, pointer, contiguous, intent(in) :: iph(:, :, :, :)
+    real(vp), pointer, contiguous, intent(in) :: wph(:, :, :, :)
+    integer, intent(in) :: np
+    logical, intent(out) :: bad_index, bad_weight, bad_blend, blended
+    integer :: imin, imax
+    bad_blend = .false.
+    if (associated(wph)) then
+      call scan_blend(iph, wph, imin, imax, bad_weight, blended, bad_blend)
+    else
+      imin = minval(iph)
+      imax = maxval(iph)
+      bad_weight = .false.
+      blended = .false.
+    end if
+    bad_index = imin < 1 .or. imax > np
+  contains
+    subroutine scan_blend(ip, w, imin, imax, bad_w, any_w, late)
+      integer, intent(in) :: ip(:, :, :, :)
+      real(vp), intent(in) :: w(:, :, :, :)
+      integer, intent(out) :: imin, imax
+      logical, intent(out) :: bad_w   !! a weight outside 0..1 (or NaN)
+      logical, intent(out) :: any_w   !! a weight > 0
+      logical, intent(out) :: late    !! a weight > 0 on index np (or above)
+      integer :: i, j, k, l, n_bad, n_pos, n_late
+      ! counts rather than logical chains, so that the compiler vectorises the loop
+      imin = huge(1)
+      imax = -huge(1)
+      n_bad = 0
+      n_pos = 0
+      n_late = 0
+      do l = 1, size(ip, 4)
+        do k = 1, size(ip, 3)
+          do j = 1, size(ip, 2)
+            do i = 1, size(ip, 1)
+              imin = min(imin, ip(i, j, k, l))
+              imax = max(imax, ip(i, j, k, l))
+              n_bad = n_bad + merge(0, 1, w(i, j, k, l) >= 0.0_vp .and. w(i, j, k, l) <= 1.0_vp)
+              n_pos = n_pos + merge(1, 0, w(i, j, k, l) > 0.0_vp)
+              n_late = n_late + merge(1, 0, w(i, j, k, l) > 0.0_vp .and. ip(i, j, k, l) >= np)
+            end do
+          end do
+        end do
+      end do
+      bad_w = n_bad > 0
+      any_w = n_pos > 0
+      late = n_late > 0
+    end subroutine scan_blend
+  end subroutine index_checks
+
   pure subroutine mix(ext, ssa, ext_tot, omega, csca)
     real(wp), intent(in) :: ext(:), ssa(:)
     real(wp), intent(out) :: ext_tot, omega, csca(:)

@@ -203,15 +203,27 @@ contains
     real(vp), intent(in) :: ext(:, :, :)
     integer, intent(in) :: bx, by
     real(wp), intent(out) :: maj(:)
-    integer :: nbx, jx, jy, i0, j0
+    integer :: nbx, nby, ix, iy, k, jx, row
+    integer, allocatable :: jx_of(:)
+    real(vp), allocatable :: m(:)
+    ! one sweep in storage order (the maximum does not depend on the order of its operands, so
+    ! this is the maximum of every block's section to the last bit, as maxval would give it)
     nbx = (size(ext, 1) + bx - 1)/bx
-    do jy = 1, (size(ext, 2) + by - 1)/by
-      j0 = (jy - 1)*by + 1
-      do jx = 1, nbx
-        i0 = (jx - 1)*bx + 1
-        maj(jx + (jy - 1)*nbx) = maxval(ext(i0:min(size(ext, 1), i0 + bx - 1), &
-                                            j0:min(size(ext, 2), j0 + by - 1), :))
+    nby = (size(ext, 2) + by - 1)/by
+    allocate (jx_of(size(ext, 1)), m(nbx*nby))
+    do ix = 1, size(ext, 1)
+      jx_of(ix) = (ix - 1)/bx + 1
+    end do
+    m = -huge(1.0_vp)
+    do k = 1, size(ext, 3)
+      do iy = 1, size(ext, 2)
+        row = ((iy - 1)/by)*nbx
+        do ix = 1, size(ext, 1)
+          jx = row + jx_of(ix)
+          m(jx) = max(m(jx), ext(ix, iy, k))
+        end do
       end do
     end do
+    maj = real(m, wp)
   end subroutine block_majorants
 end module kumo_supervoxel

@@ -9,7 +9,7 @@ module test_supervoxel_suite
                              supervoxel_majorants
   use kumo_atmosphere, only: atmosphere_t, atmosphere_options_t, atmosphere_init, &
                              atmosphere_begin, atmosphere_put_layer, atmosphere_end, &
-                             LAYER_CLEAR, LAYER_ABSORBING, LAYER_SCATTERING, LAYER_3D
+                             atmosphere_swap_background, LAYER_CLEAR, LAYER_ABSORBING, LAYER_SCATTERING, LAYER_3D
   use kumo_phase, only: phase_t, new_phase_isotropic
   implicit none
   private
@@ -27,7 +27,8 @@ contains
              new_unittest('layer_classes', test_classes), &
              new_unittest('component_mixing', test_mixing), &
              new_unittest('voxels_put_by_layer_with_blends', test_put_layers), &
-             new_unittest('kept_blocks_new_majorants', test_kept_layout)]
+             new_unittest('kept_blocks_new_majorants', test_kept_layout), &
+             new_unittest('swapped_background_equals_a_new_build', test_swap_background)]
   end function collect_supervoxel
 
   function field(nx, ny, nz) result(ext)
@@ -307,6 +308,94 @@ contains
       call atmosphere_end(atm, opts, error)
     end subroutine one_layer
   end subroutine test_put_layers
+
+  !> A broadband run switches the gas of a g-point by atmosphere_swap_background: the voxels,
+  !> layers and majorants must equal, to the last bit, those of a new build with the new
+  !> background. The field has voxels without components (most of a cloud field), voxels with
+  !> only the second component, a zero extinction with a non-zero albedo (no component), and a
+  !> layer whose background loses its scattering.
+  subroutine test_swap_background(error)
+    type(error_t), allocatable, intent(out) :: error
+    integer, parameter :: NX = 7, NY = 5, NF = 3, NC3 = 2, NZ = 5
+    type(atmosphere_t) :: swapped, built
+    type(atmosphere_options_t) :: opts
+    type(supervoxel_grid_t) :: layout
+    type(phase_t), allocatable :: ph(:)
+    real(wp) :: cext(NX, NY, NF, NC3), cssa(NX, NY, NF, NC3), wph(NX, NY, NF, NC3)
+    real(wp) :: ext_a(NZ, 2), ext_b(NZ, 2), ssa1(NZ, 2), z(0:NZ)
+    integer :: iph(NX, NY, NF, NC3), iph1(NZ, 2), i, j, k, c
+    logical :: done
+    z = [(200.0_wp*k, k=0, NZ)]
+    ssa1(:, 1) = 1.0_wp     ! molecules
+    ssa1(:, 2) = 0.0_wp     ! gas absorption
+    iph1(:, 1) = 1
+    iph1(:, 2) = 1
+    ext_a(:, 1) = [4.0e-6_wp, 3.0e-6_wp, 2.0e-6_wp, 1.5e-6_wp, 1.0e-6_wp]
+    ext_a(:, 2) = [1.0e-4_wp, 7.0e-5_wp, 3.0e-5_wp, 1.0e-5_wp, 0.0_wp]
+    ext_b(:, 1) = 0.3_wp*ext_a(:, 1)
+    ext_b(3, 1) = 0.0_wp    ! no molecular scattering in one layer of the region
+    ext_b(:, 2) = [2.0e-3_wp, 9.0e-4_wp, 0.0_wp, 4.0e-4_wp, 1.0e-7_wp]
+    do c = 1, NC3
+      do k = 1, NF
+        do j = 1, NY
+          do i = 1, NX
+            cext(i, j, k, c) = max(0.0_wp, 1.0e-2_wp*(sin(1.3_wp*i*c) + cos(0.7_wp*j + k)) - 5.0e-3_wp)
+            cssa(i, j, k, c) = 0.999_wp - 0.01_wp*c - 1.0e-4_wp*i
+            iph(i, j, k, c) = 1 + c
+            wph(i, j, k, c) = merge(0.25_wp*(mod(i + j, 3)), 0.0_wp, c == 1)
+          end do
+        end do
+      end do
+    end do
+    cext(2, 3, 2, 1) = 0.0_wp   ! only the second component
+    cext(2, 3, 2, 2) = 3.0e-3_wp
+    cext(4, 1, 1, :) = 0.0_wp   ! no extinction, albedo still 0.5: no component
+    cssa(4, 1, 1, :) = 0.5_wp
+    call check(error, count(all(cext == 0.0_wp, dim=4)) > NX*NY, 'the field has clear voxels')
+    if (allocated(error)) return
+    call build(swapped, ext_a)
+    if (allocated(error)) return
+    layout = swapped%sv
+    call atmosphere_swap_background(swapped, ext_b, ssa1, cext, cssa, opts, layout, done)
+    call check(error, done, 'the background was swapped')
+    if (allocated(error)) return
+    call build(built, ext_b, layout)
+    if (allocated(error)) return
+    call check(error, all(swapped%ext1 == built%ext1) .and. all(swapped%omg1 == built%omg1) .and. &
+               all(swapped%csca1 == built%csca1) .and. all(swapped%layer_class == built%layer_class), &
+               'the layers equal a new build')
+    call check(error, all(swapped%ext3 == built%ext3), 'the voxel extinction equals a new build')
+    call check(error, all(swapped%omg3 == built%omg3), 'the voxel albedo equals a new build')
+    call check(error, all(swapped%csca3 == built%csca3), &
+               'the cumulative scattering fractions equal a new build')
+    call check(error, all(swapped%sv%maj == built%sv%maj), 'the majorants equal a new build')
+  contains
+    subroutine build(atm, ext1, sv_layout)
+      type(atmosphere_t), intent(inout) :: atm
+      real(wp), intent(in) :: ext1(:, :)
+      type(supervoxel_grid_t), intent(in), optional :: sv_layout
+      ph = [(new_phase_isotropic(), i=1, 4)]
+      call atmosphere_begin(atm, z, 700.0_wp, 500.0_wp, ext1, ssa1, iph1, ph, opts, error, &
+                            k3_lo=2, nx=NX, ny=NY, n3f=NF, nc3=NC3, blend=.true.)
+      if (allocated(error)) return
+      do c = 1, NC3
+        do k = 1, NF
+          if (c == 1) then
+            call atmosphere_put_layer(atm, c, k, cext(:, :, k, c), cssa(:, :, k, c), &
+                                      iph(:, :, k, c), wph(:, :, k, c))
+          else
+            call atmosphere_put_layer(atm, c, k, cext(:, :, k, c), cssa(:, :, k, c), &
+                                      iph(:, :, k, c))
+          end if
+        end do
+      end do
+      if (present(sv_layout)) then
+        call atmosphere_end(atm, opts, error, sv_layout=sv_layout)
+      else
+        call atmosphere_end(atm, opts, error)
+      end if
+    end subroutine build
+  end subroutine test_swap_background
 end module test_supervoxel_suite
 
 program test_supervoxel

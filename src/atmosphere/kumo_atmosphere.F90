@@ -839,7 +839,7 @@ contains
     integer :: imin, imax
     bad_blend = .false.
     if (associated(wph)) then
-      call scan_blend(iph, wph, imin, imax, bad_weight, blended, bad_blend)
+      call scan_blend(size(iph), iph, wph, imin, imax, bad_weight, blended, bad_blend)
     else
       imin = minval(iph)
       imax = maxval(iph)
@@ -848,32 +848,28 @@ contains
     end if
     bad_index = imin < 1 .or. imax > np
   contains
-    subroutine scan_blend(ip, w, imin, imax, bad_w, any_w, late)
-      integer, intent(in) :: ip(:, :, :, :)
-      real(vp), intent(in) :: w(:, :, :, :)
+    subroutine scan_blend(n, ip, w, imin, imax, bad_w, any_w, late)
+      integer, intent(in) :: n
+      integer, intent(in) :: ip(n)    !! the indices, as one sequence
+      real(vp), intent(in) :: w(n)    !! the weights, as one sequence
       integer, intent(out) :: imin, imax
       logical, intent(out) :: bad_w   !! a weight outside 0..1 (or NaN)
       logical, intent(out) :: any_w   !! a weight > 0
       logical, intent(out) :: late    !! a weight > 0 on index np (or above)
-      integer :: i, j, k, l, n_bad, n_pos, n_late
-      ! counts rather than logical chains, so that the compiler vectorises the loop
+      integer :: i, n_bad, n_pos, n_late
+      ! one loop over all values, with counts rather than logical chains, so that the compiler
+      ! vectorises it
       imin = huge(1)
       imax = -huge(1)
       n_bad = 0
       n_pos = 0
       n_late = 0
-      do l = 1, size(ip, 4)
-        do k = 1, size(ip, 3)
-          do j = 1, size(ip, 2)
-            do i = 1, size(ip, 1)
-              imin = min(imin, ip(i, j, k, l))
-              imax = max(imax, ip(i, j, k, l))
-              n_bad = n_bad + merge(0, 1, w(i, j, k, l) >= 0.0_vp .and. w(i, j, k, l) <= 1.0_vp)
-              n_pos = n_pos + merge(1, 0, w(i, j, k, l) > 0.0_vp)
-              n_late = n_late + merge(1, 0, w(i, j, k, l) > 0.0_vp .and. ip(i, j, k, l) >= np)
-            end do
-          end do
-        end do
+      do i = 1, n
+        imin = min(imin, ip(i))
+        imax = max(imax, ip(i))
+        n_bad = n_bad + merge(0, 1, w(i) >= 0.0_vp .and. w(i) <= 1.0_vp)
+        n_pos = n_pos + merge(1, 0, w(i) > 0.0_vp)
+        n_late = n_late + merge(1, 0, w(i) > 0.0_vp .and. ip(i) >= np)
       end do
       bad_w = n_bad > 0
       any_w = n_pos > 0

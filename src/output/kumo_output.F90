@@ -8,6 +8,7 @@ module kumo_output
   use kumo_constants, only: KUMO_VERSION, SECONDS_PER_DAY, PI
   use kumo_error, only: error_t, str, join
   use kumo_planck, only: band_brightness_temperature, band_dradiance_dt
+  use kumo_emission, only: emission_voxel_power
   use kumo_atmosphere, only: LAYER_CLASS_NAMES
   use kumo_tally, only: tally_layout_t, stats_t, stats_mean, stats_stderr, N_ANOMALIES, &
                         ANOMALY_NAMES
@@ -175,7 +176,7 @@ contains
             ! heating from the net power (net exchange), not from what is absorbed
             call add_var(set, 'emitted_power_density_voxel', 'emitted power per volume '// &
                          '(exact)', 'W m-3'//fu(6:), ['x  ', 'y  ', 'z3d'], &
-                         scene%src%em%emit_vox*fac)
+                         emission_voxel_power(scene%src%em)*fac)
             m = stats_mean(st, lay%i_vnet + 1, lay%i_vnet + atm%n3*ncol)*fac
             e = stats_stderr(st, lay%i_vnet + 1, lay%i_vnet + atm%n3*ncol)*fac
             call add_var(set, 'net_power_density_voxel', 'absorbed minus emitted power per '// &

@@ -38,7 +38,7 @@ module kumo_scene_setup
   use kumo_surface, only: surface_init, surface_init_brdf, surface_init_brdf_map
   use kumo_brdf, only: brdf_params_t, BRDF_NPAR
   use kumo_source, only: solar_source, source_stratify
-  use kumo_emission, only: emission_t, emission_init
+  use kumo_emission, only: emission_t, emission_init, emission_bind
   use kumo_planck, only: spectral_band_t, band_from_wavenumbers, band_monochromatic_wavelength, &
                          band_radiance, band_units
   use kumo_vr, only: collision_forcing, ddis_phases, spiky_without_vr, SPIKY_PEAK, DDIS_CONE_DEG, &
@@ -527,8 +527,7 @@ contains
       end if
       ! b3 holds what the emission needs: the temperatures (one value per voxel) go first
       deallocate (cloud_t%t)
-      call emission_init(scene%src%em, scene%atm, scene%sfc, b_lev, b_sfc, b_top, solar_power, &
-                         cfg%thermal%emission_floor, error, b3=b3, b_sfc_map=bsm)
+      call init_table(b3)
     else
       if (cfg%cloud%enabled .and. scene%atm%n3 > 0) then
         if (.not. has_band) then
@@ -539,8 +538,7 @@ contains
                  'voxels take t_levels'
         end if
       end if
-      call emission_init(scene%src%em, scene%atm, scene%sfc, b_lev, b_sfc, b_top, solar_power, &
-                         cfg%thermal%emission_floor, error, b_sfc_map=bsm)
+      call init_table()
     end if
     if (allocated(error)) then
       call add_context(error, '&kumo_thermal')
@@ -564,6 +562,23 @@ contains
         str(sum(em%emit_layer))//', surface '//str(em%emit_sfc)//', top '//str(em%emit_top)// &
         ', sun '//str(em%solar_power)//'); surface emissivity '//str(em%eps_mean)//new_line('a')
     end associate
+
+  contains
+
+    !> The emission table, with its per-voxel arrays in the node's shared window when the
+    !> voxels are there (one scene per node: the node's first rank forms them).
+    subroutine init_table(b3v)
+      real(wp), intent(in), optional :: b3v(:, :, :)
+      if (scene%atm%voxels_borrowed) then
+        call emission_init(scene%src%em, scene%atm, scene%sfc, b_lev, b_sfc, b_top, solar_power, &
+                           cfg%thermal%emission_floor, error, b3=b3v, b_sfc_map=bsm, &
+                           storage=par_node_storage, sync=par_node_sync)
+        if (.not. allocated(error)) call note_table_storage(scene%src%em, cfg%control%verbose)
+      else
+        call emission_init(scene%src%em, scene%atm, scene%sfc, b_lev, b_sfc, b_top, solar_power, &
+                           cfg%thermal%emission_floor, error, b3=b3v, b_sfc_map=bsm)
+      end if
+    end subroutine init_table
   end subroutine setup_thermal
 
   !> Planck radiances b3 of the voxels of the 3-D region from file temperatures `ft` whose
@@ -1059,7 +1074,10 @@ contains
         em_sum%emit_vox = em_sum%emit_vox + em%emit_vox
       end if
       ! a 1-D column keeps every g-point's table; a 3-D scene rebuilds it per g-point
-      if (.not. spec%three_d) spec%em(g) = em
+      if (.not. spec%three_d) then
+        spec%em(g) = em
+        call emission_bind(spec%em(g))
+      end if
       ! the same column without scattering, exactly
       tau = scene%atm%ext1*(1.0_wp - scene%atm%omg1)*(scene%atm%z(1:nz) - scene%atm%z(0:nz - 1))
       eps = em%eps_mean
@@ -1096,7 +1114,9 @@ contains
     spec%em_sum%radiance_units = 'W m-2 sr-1'
     spec%em_sum%flux_units = 'W m-2'
     spec%em_sum%to_band_units = 1.0_wp
+    call emission_bind(spec%em_sum)
     scene%src%em = spec%em_sum
+    call emission_bind(scene%src%em)
     ! exact per g-point (decided in setup_scene once the detectors exist), or traced: never
     ! the summary's own exact column
     scene%exact_thermal = .false.
@@ -1122,6 +1142,7 @@ contains
     if (.not. spec%longwave) return
     if (allocated(spec%em)) then
       scene%src%em = spec%em(g)
+      call emission_bind(scene%src%em)
     else
       call gpoint_emission(spec, g, scene, scene%src%em, error)
     end if
@@ -1631,6 +1652,30 @@ contains
     write (output_unit, '(a)') notes
     flush (output_unit)
   end subroutine note_voxel_storage
+
+  !> A line for the run log (rank 0, verbose >= 1), as note_voxel_storage: where each rank's
+  !> emission table (its per-voxel arrays and cumulative table) lives. Every rank calls it.
+  subroutine note_table_storage(em, verbose)
+    type(emission_t), intent(in) :: em
+    integer, intent(in) :: verbose
+    integer(i8), allocatable :: own(:), win(:)
+    integer(i8) :: mine
+    integer :: r
+    character(len=:), allocatable :: notes
+    allocate (own(par_size()), win(par_size()))
+    call par_gather_i8(em%table_bytes_own, own)
+    mine = 0_i8
+    if (em%on_node .and. em%table_writer) mine = em%table_bytes_borrowed
+    call par_gather_i8(mine, win)
+    if (par_rank() /= 0 .or. verbose < 1) return
+    notes = 'emission table: one copy per node in shared memory ('// &
+            str(em%table_bytes_borrowed)//' bytes); bytes allocated per rank (own, shared window):'
+    do r = 1, size(own)
+      notes = notes//' rank '//str(r - 1)//' '//str(own(r))//' '//str(win(r))//';'
+    end do
+    write (output_unit, '(a)') notes
+    flush (output_unit)
+  end subroutine note_table_storage
 
   !> Rank 0 reads a phase-function table (angle [deg], value) and broadcasts it.
   subroutine phase_table_on_root(path, ang, val, error)

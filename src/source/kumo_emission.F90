@@ -52,12 +52,13 @@
 !> exchange of a thick layer with itself sums to zero and is not scored. Without escape
 !> sampling every emitting cell uses net exchange, as above.
 module kumo_emission
+  use, intrinsic :: iso_c_binding, only: c_ptr, c_f_pointer
   use kumo_kinds, only: wp, i8
   use kumo_constants, only: PI, FOUR_PI
   use kumo_error, only: error_t, set_error, str
   use kumo_rng, only: rng_t, rng_uniform, sample_azimuth
   use kumo_math, only: UZ_MIN, gauss_legendre01
-  use kumo_atmosphere, only: atmosphere_t, LAYER_3D
+  use kumo_atmosphere, only: atmosphere_t, LAYER_3D, voxel_storage_i, voxel_sync_i
   use kumo_surface, only: surface_t
   use kumo_brdf, only: brdf_albedo
   use kumo_photon, only: photon_t
@@ -67,7 +68,7 @@ module kumo_emission
   private
   public :: emission_t, emission_init, emission_entry, emission_launch, emission_weight, &
             emission_b_point, emission_b_surface, &
-            emission_b_segment, emission_surface_eps
+            emission_b_segment, emission_surface_eps, emission_voxel_power, emission_bind
   public :: EMIT_SOLAR, EMIT_TOP, EMIT_SURFACE, EMIT_LAYER, EMIT_VOXEL
 
   !> Kinds of table entries (and of a photon's source).
@@ -83,7 +84,8 @@ module kumo_emission
     !> (nz) Planck radiance at the bottom and top of each 1-D layer: the level values, or the
     !> layer's own (RRTMGP g-points: a level's value carries the Planck fraction of the layer)
     real(wp), allocatable :: b_bot(:), b_top_lay(:)
-    real(wp), allocatable :: b3(:, :, :)   !! (nx, ny, n3) per voxel, if given
+    !> (nx, ny, n3) per voxel, if given (has_b3); see below for the table's storage
+    real(wp), pointer, contiguous :: b3(:, :, :) => null()
     real(wp) :: b_sfc = 0.0_wp             !! Planck radiance of the surface temperature
     real(wp) :: b_top = 0.0_wp             !! isotropic downward radiance at the top
     real(wp) :: eps_mean = 1.0_wp          !! surface emissivity, mean over the domain
@@ -98,8 +100,8 @@ module kumo_emission
     integer :: e_lay = 3                   !! entry of layer k: e_lay + k
     integer :: e_vox = 0                   !! entry of voxel v (1 .. ncol*n3): e_vox + v
     integer :: n_ent = 0
-    real(wp), allocatable :: cdf(:)        !! (0:n_ent) cumulative probabilities q
-    real(wp), allocatable :: ratio(:)      !! (n_ent) launch weight (P_i/P)/q_i
+    real(wp), pointer, contiguous :: cdf(:) => null()    !! (0:n_ent) cumulative probabilities q
+    real(wp), pointer, contiguous :: ratio(:) => null()  !! (n_ent) launch weight (P_i/P)/q_i
     real(wp), allocatable :: emit_layer(:) !! (nz) emitted power per unit area [W m-2]
     real(wp), allocatable :: emit_vox(:)   !! (ncol*n3) per unit column area [W m-2]
     real(wp) :: emit_sfc = 0.0_wp          !! emitted by the surface [W m-2]
@@ -120,6 +122,20 @@ module kumo_emission
     !> by net exchange (with escape sampling: the optically thin ones, tau < 1)
     logical, allocatable :: by_abs(:)
     logical :: any_abs = .false.
+    logical :: has_b3 = .false.            !! Planck radiances per voxel are given (b3)
+    real(wp) :: cdf_sun = 0.0_wp           !! cdf(1): the sun's share of the photons
+    ! Where the table lives. The photon loop reads b3, cdf and ratio through pointers, to
+    ! the arrays below that this table owns (emission_init points them there; after a copy of
+    ! the table they still point to the original's, until emission_bind), or, with
+    ! emission_init's `storage` (e.g. one copy shared by the processes of a node), into the
+    ! caller's storage (`on_node`), which also holds emit_vox_node instead of emit_vox and
+    ! whose writer alone formed the values.
+    real(wp), allocatable :: b3_own(:, :, :), cdf_own(:), ratio_own(:)
+    logical :: on_node = .false.           !! the table lives in the caller's storage
+    logical :: table_writer = .true.       !! this process formed the table's values
+    real(wp), pointer, contiguous :: emit_vox_node(:) => null()
+    integer(i8) :: table_bytes_own = 0_i8       !! bytes of table and voxel arrays allocated here
+    integer(i8) :: table_bytes_borrowed = 0_i8  !! bytes of them in the caller's storage
   end type emission_t
 
 contains
@@ -128,9 +144,14 @@ contains
   !> surface, `b_top` the isotropic radiance entering at the top, optional `b3` per voxel of
   !> the 3-D region, `solar_power` = mu0 F0 of the sun in the same run (0: thermal alone),
   !> `floor` the share of photons spread over the emitting cells by capacity.
+  !> With `storage` and `sync` the per-voxel arrays and the table lie in the caller's storage
+  !> (kumo_atmosphere voxel_storage_i): its writer alone forms them, with its work arrays; every
+  !> process then calls `sync` and takes the totals from the same storage. Every process sharing
+  !> it calls this with the same arguments.
   subroutine emission_init(em, atm, sfc, b_lev, b_sfc, b_top, solar_power, floor, error, b3, &
-                           b_sfc_map, b_layer_bottom, b_layer_top, escape_sampling)
-    type(emission_t), intent(out) :: em
+                           b_sfc_map, b_layer_bottom, b_layer_top, escape_sampling, storage, &
+                           sync)
+    type(emission_t), intent(out), target :: em
     type(atmosphere_t), intent(in) :: atm
     type(surface_t), intent(in) :: sfc
     real(wp), intent(in) :: b_lev(0:), b_sfc, b_top, solar_power, floor
@@ -144,10 +165,14 @@ contains
     real(wp), intent(in), optional :: b_layer_bottom(:), b_layer_top(:)
     !> draw the 1-D layers by the power that leaves them, photons near the faces (above)
     logical, intent(in), optional :: escape_sampling
-    real(wp), allocatable :: pw(:), cap(:), ps(:)
-    real(wp) :: stot
-    real(wp) :: dz, ka, bb, ptot, ctot, q
-    integer :: k, kr, ix, iy, v, i, nz, ncol
+    procedure(voxel_storage_i), optional :: storage  !! the caller's storage for the table
+    procedure(voxel_sync_i), optional :: sync        !! with `storage`
+    real(wp), allocatable :: pw_lay(:), cap_lay(:)
+    real(wp), pointer, contiguous :: words(:)
+    real(wp) :: dz, ka, ptot
+    integer(i8) :: nv, nw
+    integer :: k, nz, ncol
+    type(c_ptr) :: base
 
     nz = atm%nz
     ncol = atm%nx*atm%ny
@@ -195,6 +220,7 @@ contains
     em%b_top = b_top
     em%floor = floor
     em%solar_power = solar_power
+    em%has_b3 = present(b3)
     if (present(b3)) then
       if (any(shape(b3) /= [atm%nx, atm%ny, atm%n3])) then
         call set_error(error, 'thermal emission: voxel Planck values have shape ('// &
@@ -206,7 +232,6 @@ contains
         call set_error(error, 'thermal emission: voxel Planck radiances must be finite and >= 0')
         return
       end if
-      em%b3 = b3
     end if
     call surface_emissivity(em, sfc)
     em%eps_b_mean = em%eps_mean*b_sfc
@@ -224,93 +249,154 @@ contains
     em%e_lay = 3
     em%e_vox = em%e_lay + nz
     em%n_ent = em%e_vox + ncol*atm%n3
-    allocate (pw(em%n_ent), cap(em%n_ent))
-    pw = 0.0_wp
-    cap = 0.0_wp
-    pw(1) = solar_power
-    pw(2) = PI*b_top
-    pw(3) = PI*em%eps_b_mean
-    allocate (em%emit_layer(nz), em%emit_vox(ncol*atm%n3), em%tau_lay(nz), em%by_abs(nz))
+    ! the 1-D layers (small: every process forms them)
+    allocate (em%emit_layer(nz), em%tau_lay(nz), em%by_abs(nz), pw_lay(nz), cap_lay(nz))
     em%tau_lay = 0.0_wp
     em%by_abs = .false.
     if (present(escape_sampling)) em%escape = escape_sampling
-    em%emit_layer = 0.0_wp
-    em%emit_vox = 0.0_wp
+    pw_lay = 0.0_wp
+    cap_lay = 0.0_wp
     do k = 1, nz
       if (atm%layer_class(k) == LAYER_3D) cycle
       dz = atm%z(k) - atm%z(k - 1)
       ka = atm%ext1(k)*(1.0_wp - atm%omg1(k))
-      cap(em%e_lay + k) = FOUR_PI*ka*dz
-      pw(em%e_lay + k) = cap(em%e_lay + k)*0.5_wp*(em%b_bot(k) + em%b_top_lay(k))
+      cap_lay(k) = FOUR_PI*ka*dz
+      pw_lay(k) = cap_lay(k)*0.5_wp*(em%b_bot(k) + em%b_top_lay(k))
       em%tau_lay(k) = ka*dz
-      em%emit_layer(k) = pw(em%e_lay + k)
     end do
-    do kr = 1, atm%n3
-      k = atm%k3_lo + kr - 1
-      dz = atm%z(k) - atm%z(k - 1)
-      do iy = 1, atm%ny
-        do ix = 1, atm%nx
-          v = ix + (iy - 1)*atm%nx + (kr - 1)*ncol
-          ka = real(atm%ext3(ix, iy, kr), wp)*(1.0_wp - real(atm%omg3(ix, iy, kr), wp))
-          if (allocated(em%b3)) then
-            bb = em%b3(ix, iy, kr)
-          else
-            bb = 0.5_wp*(em%b_bot(k) + em%b_top_lay(k))
-          end if
-          cap(em%e_vox + v) = FOUR_PI*ka*dz/ncol
-          pw(em%e_vox + v) = cap(em%e_vox + v)*bb
-          em%emit_vox(v) = pw(em%e_vox + v)*ncol
-          em%emit_layer(k) = em%emit_layer(k) + pw(em%e_vox + v)
-        end do
+    em%emit_layer = pw_lay
+    em%emit_sfc = PI*em%eps_b_mean
+    em%emit_top = PI*b_top
+    if (em%escape) then
+      do k = 1, nz
+        em%by_abs(k) = atm%layer_class(k) /= LAYER_3D .and. em%tau_lay(k) < 1.0_wp .and. &
+                       pw_lay(k) > 0.0_wp
       end do
-    end do
-    em%emit_sfc = pw(3)
-    em%emit_top = pw(2)
-    ptot = sum(pw)
+      em%any_abs = any(em%by_abs)
+    end if
+
+    ! the table and the per-voxel arrays: here, or in the caller's storage (a header of the
+    ! total power and the layers' emission first, which the other processes read)
+    nv = int(ncol, i8)*atm%n3
+    if (.not. present(storage)) then
+      allocate (em%cdf_own(0:em%n_ent), em%ratio_own(em%n_ent), em%emit_vox(nv))
+      if (em%has_b3) em%b3_own = b3
+      em%table_bytes_own = (2*int(em%n_ent, i8) + 1 + merge(2, 1, em%has_b3)*nv)* &
+                           (storage_size(1.0_wp)/8)
+      call emission_bind(em)
+      call fill_table(em%cdf, em%ratio, em%emit_vox, ptot)
+    else
+      nw = 1 + nz + 2*int(em%n_ent, i8) + 1 + merge(2, 1, em%has_b3)*nv
+      call storage(nw*(storage_size(1.0_wp)/8), base, em%table_writer)
+      em%on_node = .true.
+      em%table_bytes_borrowed = nw*(storage_size(1.0_wp)/8)
+      call c_f_pointer(base, words, [nw])
+      em%cdf(0:em%n_ent) => words(nz + 2:nz + 2 + em%n_ent)
+      em%ratio(1:em%n_ent) => words(nz + 3 + em%n_ent:nz + 2 + 2*em%n_ent)
+      em%emit_vox_node(1:nv) => words(nz + 3 + 2*em%n_ent:nz + 2 + 2*em%n_ent + nv)
+      if (em%has_b3) em%b3(1:atm%nx, 1:atm%ny, 1:atm%n3) => words(nw - nv + 1:nw)
+      if (em%table_writer) then
+        if (em%has_b3) em%b3 = b3
+        call fill_table(em%cdf, em%ratio, em%emit_vox_node, ptot)
+        words(1) = ptot
+        words(2:nz + 1) = em%emit_layer
+      end if
+      if (present(sync)) call sync()
+      ptot = words(1)
+      em%emit_layer = words(2:nz + 1)
+    end if
     if (.not. (ptot > 0.0_wp)) then
       call set_error(error, 'thermal emission: nothing emits (every Planck radiance, absorption '// &
                      'coefficient and surface emissivity is zero) and there is no sun')
       return
     end if
     em%power = ptot
-    ! escape sampling: the floor is spread evenly over the emitting 1-D layers (thin, cold
-    ! layers high up, whose heating rates in K/day matter as much as any, still get photons)
-    if (em%escape) cap(em%e_lay + 1:em%e_lay + nz) = 1.0_wp
-    ! capacity only of the cells that emit: a cell with B = 0 is scored by what it absorbs
-    where (pw <= 0.0_wp) cap = 0.0_wp
-    cap(1:3) = 0.0_wp
-    ctot = sum(cap)
-    ! the powers the table draws by: the emitted ones, or for the 1-D layers what leaves them
-    ps = pw
-    if (em%escape) then
-      do k = 1, nz
-        if (em%tau_lay(k) > 0.0_wp) ps(em%e_lay + k) = pw(em%e_lay + k)* &
-          escape_fraction(em%tau_lay(k))
+    em%cdf_sun = em%cdf(1)
+
+  contains
+
+    !> The writer's part: the powers of every entry (work arrays), the voxels' emission, the
+    !> cumulative table and launch weights, the total power `ptot` (the table is left unset
+    !> when nothing emits). `b3` is read from the input.
+    subroutine fill_table(cdf, ratio, emit_vox, ptot)
+      real(wp), intent(out) :: cdf(0:), ratio(:), emit_vox(:)
+      real(wp), intent(out) :: ptot
+      real(wp), allocatable :: pw(:), cap(:), ps(:)
+      real(wp) :: stot, ctot, q, bb
+      integer :: kr, ix, iy, v, i
+      allocate (pw(em%n_ent), cap(em%n_ent))
+      pw = 0.0_wp
+      cap = 0.0_wp
+      pw(1) = solar_power
+      pw(2) = PI*b_top
+      pw(3) = PI*em%eps_b_mean
+      pw(em%e_lay + 1:em%e_lay + nz) = pw_lay
+      cap(em%e_lay + 1:em%e_lay + nz) = cap_lay
+      emit_vox = 0.0_wp
+      do kr = 1, atm%n3
+        k = atm%k3_lo + kr - 1
+        dz = atm%z(k) - atm%z(k - 1)
+        do iy = 1, atm%ny
+          do ix = 1, atm%nx
+            v = ix + (iy - 1)*atm%nx + (kr - 1)*ncol
+            ka = real(atm%ext3(ix, iy, kr), wp)*(1.0_wp - real(atm%omg3(ix, iy, kr), wp))
+            if (em%has_b3) then
+              bb = b3(ix, iy, kr)
+            else
+              bb = 0.5_wp*(em%b_bot(k) + em%b_top_lay(k))
+            end if
+            cap(em%e_vox + v) = FOUR_PI*ka*dz/ncol
+            pw(em%e_vox + v) = cap(em%e_vox + v)*bb
+            emit_vox(v) = pw(em%e_vox + v)*ncol
+            em%emit_layer(k) = em%emit_layer(k) + pw(em%e_vox + v)
+          end do
+        end do
       end do
-    end if
-    stot = sum(ps)
-    if (em%escape) then
-      do k = 1, nz
-        em%by_abs(k) = atm%layer_class(k) /= LAYER_3D .and. em%tau_lay(k) < 1.0_wp .and. &
-                       pw(em%e_lay + k) > 0.0_wp
-      end do
-      em%any_abs = any(em%by_abs)
-    end if
-    allocate (em%cdf(0:em%n_ent), em%ratio(em%n_ent))
-    em%cdf(0) = 0.0_wp
-    do i = 1, em%n_ent
-      q = ps(i)/stot
-      if (ctot > 0.0_wp) q = (1.0_wp - floor)*q + floor*cap(i)/ctot
-      em%cdf(i) = em%cdf(i - 1) + q
-      if (q > 0.0_wp) then
-        em%ratio(i) = (pw(i)/ptot)/q
-      else
-        em%ratio(i) = 0.0_wp
+      ptot = sum(pw)
+      if (.not. (ptot > 0.0_wp)) return
+      ! escape sampling: the floor is spread evenly over the emitting 1-D layers (thin, cold
+      ! layers high up, whose heating rates in K/day matter as much as any, still get photons)
+      if (em%escape) cap(em%e_lay + 1:em%e_lay + nz) = 1.0_wp
+      ! capacity only of the cells that emit: a cell with B = 0 is scored by what it absorbs
+      where (pw <= 0.0_wp) cap = 0.0_wp
+      cap(1:3) = 0.0_wp
+      ctot = sum(cap)
+      ! the powers the table draws by: the emitted ones, or for the 1-D layers what leaves them
+      ps = pw
+      if (em%escape) then
+        do k = 1, nz
+          if (em%tau_lay(k) > 0.0_wp) ps(em%e_lay + k) = pw(em%e_lay + k)* &
+            escape_fraction(em%tau_lay(k))
+        end do
       end if
-    end do
-    em%cdf = em%cdf/em%cdf(em%n_ent)
-    em%cdf(em%n_ent) = 1.0_wp
+      stot = sum(ps)
+      cdf(0) = 0.0_wp
+      do i = 1, em%n_ent
+        q = ps(i)/stot
+        if (ctot > 0.0_wp) q = (1.0_wp - floor)*q + floor*cap(i)/ctot
+        cdf(i) = cdf(i - 1) + q
+        if (q > 0.0_wp) then
+          ratio(i) = (pw(i)/ptot)/q
+        else
+          ratio(i) = 0.0_wp
+        end if
+      end do
+      cdf = cdf/cdf(em%n_ent)
+      cdf(em%n_ent) = 1.0_wp
+    end subroutine fill_table
   end subroutine emission_init
+
+  !> Point a table that owns its arrays (not `on_node`) to them: needed after a copy of an
+  !> emission_t (intrinsic assignment copies the arrays but leaves the copy reading the
+  !> original's), before the original goes away or changes.
+  subroutine emission_bind(em)
+    type(emission_t), intent(inout), target :: em
+    if (em%on_node) return
+    nullify (em%b3, em%cdf, em%ratio)
+    if (allocated(em%b3_own)) em%b3 => em%b3_own
+    if (allocated(em%cdf_own)) em%cdf(0:) => em%cdf_own
+    if (allocated(em%ratio_own)) em%ratio => em%ratio_own
+  end subroutine emission_bind
 
   !> Fraction of the emission of a layer of absorption optical depth tau that leaves it,
   !> (1/2 - E_3(tau))/tau; 1 below tau = 1e-4, where it differs from 1 by less than 1e-3 (only
@@ -443,19 +529,27 @@ contains
   pure integer function emission_entry(em, u) result(i)
     type(emission_t), intent(in) :: em
     real(wp), intent(in) :: u
+    i = table_entry(em%cdf, em%n_ent, u)
+  end function emission_entry
+
+  !> The smallest i with cdf(i) > u, for u in [0, 1) and cdf(n) = 1 (the table as a plain
+  !> array: its indexing does not go through the pointer's descriptor).
+  pure integer function table_entry(cdf, n, u) result(i)
+    integer, intent(in) :: n
+    real(wp), intent(in) :: cdf(0:n), u
     integer :: lo, hi, mid
     lo = 0             ! cdf(lo) <= u
-    hi = em%n_ent      ! cdf(hi) > u (cdf(n_ent) = 1 > u)
+    hi = n             ! cdf(hi) > u (cdf(n) = 1 > u)
     do while (hi - lo > 1)
       mid = (lo + hi)/2
-      if (em%cdf(mid) > u) then
+      if (cdf(mid) > u) then
         hi = mid
       else
         lo = mid
       end if
     end do
     i = hi
-  end function emission_entry
+  end function table_entry
 
   !> Launch weight of a photon from entry `ie` in a batch of `n` photons with the table shift
   !> `u`: (P_i/P) n/n_i, with n_i the photons the entry gets in this batch, when every batch
@@ -466,17 +560,26 @@ contains
     integer, intent(in) :: ie
     integer(i8), intent(in) :: n
     real(wp), intent(in) :: u
+    w = table_weight(em%cdf, em%ratio, em%n_ent, ie, n, u)
+  end function emission_weight
+
+  !> emission_weight from the table as plain arrays.
+  pure real(wp) function table_weight(cdf, ratio, n_ent, ie, n, u) result(w)
+    integer, intent(in) :: n_ent, ie
+    real(wp), intent(in) :: cdf(0:n_ent), ratio(n_ent)
+    integer(i8), intent(in) :: n
+    real(wp), intent(in) :: u
     real(wp) :: q, rn
     integer(i8) :: ni
-    q = em%cdf(ie) - em%cdf(ie - 1)
+    q = cdf(ie) - cdf(ie - 1)
     rn = real(n, wp)
     if (rn*q >= 1.0_wp) then
-      ni = int(ceiling(rn*em%cdf(ie) - u), i8) - int(ceiling(rn*em%cdf(ie - 1) - u), i8)
-      w = em%ratio(ie)*q*rn/real(max(1_i8, ni), wp)
+      ni = int(ceiling(rn*cdf(ie) - u), i8) - int(ceiling(rn*cdf(ie - 1) - u), i8)
+      w = ratio(ie)*q*rn/real(max(1_i8, ni), wp)
     else
-      w = em%ratio(ie)
+      w = ratio(ie)
     end if
-  end function emission_weight
+  end function table_weight
 
   !> Launch a thermal photon from table entry `ie` (not the sun) of a batch of `n` photons with
   !> table shift `u`: position, direction, weight and its emitter. Levels crossed at the launch
@@ -565,7 +668,7 @@ contains
       p%y = (iy - 1 + rng_uniform(rng))*atm%dy
       p%x = min(p%x, nearest(ix*atm%dx, -1.0_wp))
       p%y = min(p%y, nearest(iy*atm%dy, -1.0_wp))
-      if (allocated(em%b3)) then
+      if (em%has_b3) then
         p%z = atm%z(k - 1) + rng_uniform(rng)*(atm%z(k) - atm%z(k - 1))
         b = em%b3(ix, iy, kr)
       else
@@ -620,7 +723,7 @@ contains
     integer, intent(in) :: k, ix, iy, kr
     real(wp), intent(in) :: z
     real(wp) :: t
-    if (kr > 0 .and. allocated(em%b3)) then
+    if (kr > 0 .and. em%has_b3) then
       b = em%b3(ix, iy, kr)
       return
     end if
@@ -628,6 +731,18 @@ contains
     t = min(1.0_wp, max(0.0_wp, t))
     b = em%b_bot(k) + (em%b_top_lay(k) - em%b_bot(k))*t
   end function emission_b_point
+
+  !> Emitted power of each voxel of the 3-D region per unit column area [W m-2], (nx*ny*n3) in
+  !> the order of the voxel entries (a copy, wherever the table lives).
+  function emission_voxel_power(em) result(p)
+    type(emission_t), intent(in) :: em
+    real(wp), allocatable :: p(:)
+    if (em%on_node) then
+      p = em%emit_vox_node
+    else
+      p = em%emit_vox
+    end if
+  end function emission_voxel_power
 
   !> Mean Planck radiance of what is absorbed along a straight path through a homogeneous 1-D
   !> layer k from height z0 to z1 with absorption optical path tau: the absorption density

@@ -115,7 +115,7 @@ contains
       plan%u_em = rng_uniform(rng)
       plan%n_sol = 0
       if (src%em%solar_power > 0.0_wp) plan%n_sol = max(0_i8, min(n_photons, &
-        int(ceiling(real(n_photons, wp)*src%em%cdf(1) - plan%u_em), i8)))
+        int(ceiling(real(n_photons, wp)*src%em%cdf_sun - plan%u_em), i8)))
       n_beam = plan%n_sol
     end if
     plan%ns = src%nsx*src%nsy

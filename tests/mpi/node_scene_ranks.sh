@@ -5,7 +5,8 @@
 # on 1 and on 2 ranks. On 2 ranks the voxel arrays must live in the node's shared window, which
 # rank 0 (the node's first rank) allocates and fills, the second rank holding no voxel array
 # of its own (the bytes of the run log's "voxel arrays:" line), and every batch must equal
-# those of 1 rank, bit for bit. The run on 1 rank must keep its voxel arrays as before.
+# those of 1 rank, bit for bit. The run on 1 rank must keep its voxel arrays as before. In a
+# thermal run (a &kumo_thermal group) the same holds for the emission table.
 #
 #   node_scene_ranks.sh NAME KUMO NML OUT [INPUT...] -- MPIEXEC [MPIEXEC FLAGS...]
 # OUT is the output file the namelist writes; an INPUT ending in .cdl is made into the .nc of
@@ -36,4 +37,7 @@ fail() { echo "$name: $1"; cat np2.log; exit 1; }
 mv "$out" np1.nc
 "$@" -n 2 "$kumo" run.nml > np2.log 2>&1 || fail "the run on 2 ranks failed"
 mv "$out" np2.nc
-check_one_copy "$name"
+# a thermal run: its emission table must be one copy per node too
+thermal=''
+grep -qi '^ *&kumo_thermal' run.nml && thermal=thermal
+check_one_copy "$name" $thermal

@@ -3,23 +3,29 @@
 # by them: in the current folder, np1.log/np1.nc come from a run on 1 rank and np2.log/np2.nc
 # from the same run on 2 ranks.
 #
-#   check_one_copy NAME
+#   check_one_copy NAME [thermal]
 # The run on 1 rank keeps its voxel arrays as before (no shared window); on 2 ranks rank 0
 # allocates the node's window and neither rank has voxel arrays of its own (the bytes of the
-# run log's "voxel arrays:" line); every batch equals those of 1 rank, bit for bit.
+# run log's "voxel arrays:" line); every batch equals those of 1 rank, bit for bit. With
+# `thermal` the emission table (its per-voxel arrays and cumulative table) must be one copy per
+# node the same way (the run log's "emission table:" line).
 check_one_copy() {
-  local name=$1 line o0 w0 o1 w1 f
+  local name=$1 line o0 w0 o1 w1 f what windows=''
   fail() { echo "$name: $1"; cat np2.log; exit 1; }
-  if grep -q 'voxel arrays: one copy per node' np1.log; then
-    fail "a run on 1 rank must keep its voxel arrays as before (no shared window)"
-  fi
-  line=$(grep 'voxel arrays: one copy per node in shared memory' np2.log) ||
-    fail "the 2-rank run does not report a shared window"
-  # "... bytes allocated per rank (own, shared window): rank 0 O0 W0; rank 1 O1 W1;"
-  read -r o0 w0 o1 w1 < <(sed -E 's/.*rank 0 ([0-9]+) ([0-9]+); rank 1 ([0-9]+) ([0-9]+);.*/\1 \2 \3 \4/' <<< "$line")
-  [[ "$o0" == 0 && "$o1" == 0 ]] || fail "a rank allocated voxel arrays of its own ($o0, $o1 bytes)"
-  [[ "$w0" -gt 0 ]] || fail "rank 0 allocated no shared window"
-  [[ "$w1" == 0 ]] || fail "rank 1 allocated $w1 bytes of window: the scene is not one copy"
+  for what in 'voxel arrays' 'emission table'; do
+    [[ "$what" == 'emission table' && "${2:-}" != thermal ]] && continue
+    if grep -q "$what: one copy per node" np1.log; then
+      fail "a run on 1 rank must keep its $what as before (no shared window)"
+    fi
+    line=$(grep "$what: one copy per node in shared memory" np2.log) ||
+      fail "the 2-rank run does not report a shared window for its $what"
+    # "... bytes allocated per rank (own, shared window): rank 0 O0 W0; rank 1 O1 W1;"
+    read -r o0 w0 o1 w1 < <(sed -E 's/.*rank 0 ([0-9]+) ([0-9]+); rank 1 ([0-9]+) ([0-9]+);.*/\1 \2 \3 \4/' <<< "$line")
+    [[ "$o0" == 0 && "$o1" == 0 ]] || fail "a rank allocated $what of its own ($o0, $o1 bytes)"
+    [[ "$w0" -gt 0 ]] || fail "rank 0 allocated no shared window for its $what"
+    [[ "$w1" == 0 ]] || fail "rank 1 allocated $w1 bytes of window: the $what are not one copy"
+    windows="$windows${windows:+, }$what $w0 bytes"
+  done
   for f in np1 np2; do
     ncdump -v batch_reflectance,batch_transmittance,batch_absorptance "$f.nc" |
       sed -n '/^data:/,$p' > "$f.txt"
@@ -29,6 +35,6 @@ check_one_copy() {
     diff np1.txt np2.txt | head -20
     exit 1
   fi
-  echo "$name: window of $w0 bytes on rank 0, none on rank 1; $(grep -c , np1.txt)" \
+  echo "$name: windows on rank 0 ($windows), none on rank 1; $(grep -c , np1.txt)" \
     "lines of batch results identical on 1 and 2 ranks"
 }

@@ -62,9 +62,10 @@ def beta_of(small, large=None):
     return lambda m: small if m <= CACHE_BYTES else large
 P_LIST = [1, 2, 4, 10, 32, 100, 316, 1000]
 #: Parallel file system for checkpoints at scale (assumptions): aggregate write bandwidth [B/s]
-#: of a mid-size cluster's scratch file system (a large one is faster: NERSC quotes more than
-#: 5 TB/s for Perlmutter's all-flash Lustre scratch), one node's write bandwidth [B/s], file
-#: creations, renames or removals per second on the metadata server, ranks per node.
+#: of a mid-size cluster's scratch file system (the Lustre Operations Manual, 1.1.1 "Lustre
+#: Features", lists production systems at 10 TB/s aggregate and one client at 15 GB/s on HDR
+#: InfiniBand), one node's write bandwidth [B/s], file creations, renames or removals per second
+#: on the metadata server, ranks per node.
 FS_ASSUMED = {'FS 100 GB/s': (100e9, 5e9, 20000.0, 64), 'FS 10 GB/s': (10e9, 2e9, 5000.0, 64)}
 #: Bytes per slot beyond S1 and S2: its counts (batches, photons, work, anomalies).
 SLOT_EXTRA = 88

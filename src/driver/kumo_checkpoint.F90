@@ -663,6 +663,7 @@ contains
     integer(i8) :: g_old, stamp_old
     integer :: rank, nranks, n_old, info(5), n_counts
     character(len=:), allocatable :: name
+    character(len=24) :: seconds
     t0 = par_wtime()
     n_started = n_started + 1
     rank = par_rank()
@@ -733,10 +734,11 @@ contains
     end if
     call remove_generation(plan%path, g_old, n_old)
     call remove_file(plan%path//PENDING_SUFFIX)
+    write (seconds, '(f12.3)') par_wtime() - t0
     if (cfg%control%verbose >= 1) write (error_unit, '(a)') 'kumo: checkpoint after batch '// &
       str(n_done)//': '//plan%path//' (generation '//str(head%generation)//', '// &
-      str(count(lt%part_bytes > 0))//' part files, '//str(sum(lt%part_bytes))//' bytes, '// &
-      str(par_wtime() - t0)//' s)'
+      str(count(lt%part_bytes > 0))//' part file(s), '//str(sum(lt%part_bytes))//' bytes, '// &
+      trim(adjustl(seconds))//' s)'
     flush (error_unit)
   contains
     subroutine warn(why)

@@ -33,6 +33,14 @@
   gamma (adding doubles at rank 0, memory bound) is measured here in every case.
 * Launching the job (mpirun, process start, MPI_Init) is not part of T: kumo's wall time starts
   after MPI_Init.
+* A checkpoint (not part of T: one every checkpoint_interval) holds every slot: 16 S + 88 bytes
+  each. Written by rank 0 alone (format 1, kumo before per-rank parts): the P - 1 other slots
+  travel to rank 0 one after the other and rank 0 writes all P from one client:
+  (P - 1) (3 alpha + m beta) + P m / min(client, FS). Written per rank (format 2): every rank
+  writes its own part at once, limited by the nodes' clients and by the file system's aggregate
+  bandwidth: max(P m / FS, r m / client) with r ranks per node, plus 3 P metadata operations
+  (create, rename, remove of the previous generation) at the metadata server's rate, and a
+  few small collectives. The file-system figures are assumptions, not measured here (FS_ASSUMED).
 
 Usage: python3 bench/mpi_scaling/model.py RESULTS.jsonl [RESULTS.jsonl ...] [--markdown]
 """
@@ -53,6 +61,14 @@ def beta_of(small, large=None):
     large = small if large is None else large
     return lambda m: small if m <= CACHE_BYTES else large
 P_LIST = [1, 2, 4, 10, 32, 100, 316, 1000]
+#: Parallel file system for checkpoints at scale (assumptions): aggregate write bandwidth [B/s]
+#: of a mid-size cluster's scratch file system (the Lustre Operations Manual, 1.1.1 "Lustre
+#: Features", lists production systems at 10 TB/s aggregate and one client at 15 GB/s on HDR
+#: InfiniBand), one node's write bandwidth [B/s], file creations, renames or removals per second
+#: on the metadata server, ranks per node.
+FS_ASSUMED = {'FS 100 GB/s': (100e9, 5e9, 20000.0, 64), 'FS 10 GB/s': (10e9, 2e9, 5000.0, 64)}
+#: Bytes per slot beyond S1 and S2: its counts (batches, photons, work, anomalies).
+SLOT_EXTRA = 88
 SEGMENT = 64 * 1024
 BCAST_SEGMENT = 128 * 1024
 
@@ -107,6 +123,22 @@ def t_allreduce(p, m, a, b, g):
 
 def t_reduce_small(p, m, a, b, g):
     return lg(p) * (a + m * (b(m) + g))
+
+
+def t_ckpt_rank0(p, s, a, b, fs):
+    """A checkpoint written by rank 0 alone: every other slot moved to it, then written."""
+    fs_bw, client, meta, _ = fs
+    m = 16.0 * s + SLOT_EXTRA
+    return (p - 1) * (3.0 * a + m * b(m)) + p * m / min(client, fs_bw) + 2.0 / meta
+
+
+def t_ckpt_parts(p, s, a, b, fs):
+    """A checkpoint written per rank: all parts at once, then rank 0's small manifest."""
+    fs_bw, client, meta, per_node = fs
+    m = 16.0 * s + SLOT_EXTRA
+    write = max(p * m / fs_bw, min(p, per_node) * m / client)
+    small = 4.0 * lg(p) * a   # records to rank 0, the generation, two agreements
+    return write + (3.0 * p + 4.0) / meta + small
 
 
 # ---- measurements -------------------------------------------------------------------------
@@ -212,11 +244,56 @@ def efficiency_table(recs, alpha, here, gamma, c_tally):
 
 
 
+def checkpoint_table(recs):
+    """The time of one checkpoint measured here (part checkpoint of run_scaling.py): the wall
+    time with checkpoints minus that without, over the 3 checkpoints of a run, per kumo."""
+    ck = [r for r in recs if r['part'] == 'checkpoint']
+    if not ck:
+        return
+    print('\n## One checkpoint measured here (median over pairs of runs; oversubscribed, one disk)')
+    print('| kumo | ranks | slot MB | s per checkpoint (wall difference / 3) | reported by kumo s | '
+          'bytes through rank 0 (after: at most) | pairs |')
+    print('|---|---|---|---|---|---|---|')
+    for kumo in sorted({r['kumo'] for r in ck}):
+        for p in sorted({r['ranks'] for r in ck}):
+            on = [r for r in ck if r['kumo'] == kumo and r['ranks'] == p and r['interval'] > 0]
+            off = [r for r in ck if r['kumo'] == kumo and r['ranks'] == p and r['interval'] == 0]
+            pairs = list(zip(sorted(on, key=lambda r: r['time']), sorted(off, key=lambda r: r['time'])))
+            if not pairs:
+                continue
+            d = [(x['wall_time_s'] - y['wall_time_s']) / 3.0 for x, y in pairs]
+            reported = [t for r in on for t in r['reported_checkpoint_s']]
+            m = 16.0 * on[0]['tally_doubles'] + SLOT_EXTRA
+            n_done = 4 * p   # at most: the per-batch records (24 B each) and the CPU time
+            through = (p - 1) * m if not reported else 24.0 * n_done + 8.0
+            rep = f'{st.median(reported):.3f}' if reported else '-'
+            print(f'| {kumo} | {p} | {m / 1e6:.1f} | {st.median(d):.3f} '
+                  f'({min(d):.3f} .. {max(d):.3f}) | {rep} | {through:.3g} | {len(d)} |')
+
+
+def checkpoint_model(alpha_beta):
+    """One checkpoint of the tiled LES (9.4e6 voxels) and of the LES at P ranks."""
+    na, nb = alpha_beta
+    for fs_name, fs in FS_ASSUMED.items():
+        print(f'\nOne checkpoint [s], {fs_name} (node {fs[1] / 1e9:.0f} GB/s, {fs[2]:.0f} '
+              f'metadata operations/s, {fs[3]} ranks per node): rank 0 alone / per-rank parts')
+        print('| tally | ' + ' | '.join(f'P={p}' for p in P_LIST) + ' |')
+        print('|---|' + '---|' * len(P_LIST))
+        for name, s in (('LES (S 3.0e5)', TALLY['les_flux']), ('tiled LES (S 1.3e7)', LARGE_TALLY)):
+            row = [f'{t_ckpt_rank0(p, s, na, nb, fs):.3g} / {t_ckpt_parts(p, s, na, nb, fs):.3g}'
+                   for p in P_LIST]
+            print(f'| {name} | ' + ' | '.join(row) + ' |')
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     ap.add_argument('results', nargs='+')
     a = ap.parse_args()
     recs = load(a.results)
+    checkpoint_table(recs)
+    if not collective(recs, 'pingpong', 2) and not any(r['part'] == 'efficiency' for r in recs):
+        checkpoint_model((NETWORKS['HDR'][0], beta_of(NETWORKS['HDR'][1])))
+        return
 
     if not collective(recs, 'pingpong', 2):
         # efficiency runs alone: the 1 -> 2 rank table, with the collectives taken as free
@@ -326,6 +403,7 @@ def main():
                       f'{t["bcast"]:.3g}, batches {t["compute"]:.3g}, rounds {t["rounds"]:.3g}, '
                       f'final {t["final"]:.3g} / {u["final"]:.3g} (today with gamma / 10: '
                       f'{v["final"]:.3g}); total {t["total"]:.3g} / {u["total"]:.3g}')
+            checkpoint_model((na, nb))
 
 
 #: Tally doubles per sum: 64 x 64 columns, flux maps at the 19 levels (3 per level), 16 voxel

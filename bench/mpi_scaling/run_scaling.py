@@ -21,6 +21,10 @@ Parts (``--parts``, default efficiency,collectives):
                photons a run to 0.1 % (domain reflectance) or to 10 % (median cloudy voxel) needs.
   large        the LES tiled 12 x 12 (9.4e6 voxels), 2 batches of 1000 photons on 1 and 2 ranks:
                set-up, tally work per batch and the end-of-run fold in kumo itself.
+  checkpoint   the LES tiled --ckpt-tiles x --ckpt-tiles (default 4: 256 x 256 x 16 voxels, 23 MB
+               per slot) on 2 and 4 ranks, 4 batches of 1000 photons per rank, without
+               checkpoints and with one after every round of batches (3 per run): the time of
+               one checkpoint is the difference of the wall times over 3, alternating the two.
 
 Every run records the wall time kumo reports (and the external one), the CPU time, the set-up
 time and the 1-minute load average before and after, as JSON lines in WORK/results.jsonl (or
@@ -292,6 +296,48 @@ class Runner:
                       f'{r["wall_time_s"] - r["setup_time_s"]:.2f} s, cpu {r["cpu_time_s"]:.2f} s, '
                       f'external {wall:.2f} s, load {la0:.2f}/{rec["load_after"]:.2f}', flush=True)
 
+    # -- checkpoints ------------------------------------------------------------------------
+    def part_checkpoint(self):
+        """The time of one checkpoint of a large tally (absorption per voxel and flux maps at
+        two levels on the tiled LES), on 2 and 4 ranks (oversubscribed on two cores): runs of
+        4 P batches without checkpoints and with checkpoint_interval 1e-9 s (a checkpoint after
+        batches P, 2P and 3P), alternating."""
+        tiles = self.a.ckpt_tiles
+        text = self.large_scene(tiles)
+        keep = re.sub(r'&kumo_(control|output|radiance)\b.*?\n/\n', '', text, flags=re.DOTALL)
+        s_tally = (64 * tiles) ** 2 * (6 + 16)
+        for rep in range(self.a.reps):
+            for ranks in (2, 4):
+                for interval in ((0.0, 1e-9) if rep % 2 == 0 else (1e-9, 0.0)):
+                    name = f'ckpt_np{ranks}_{"on" if interval else "off"}_{rep}'
+                    nml = os.path.join(self.work, 'les', name + '.nml')
+                    with open(nml, 'w') as f:
+                        f.write(f'&kumo_control\n    n_photons_per_batch = 1000\n'
+                                f'    n_batches = {4 * ranks}\n    seed = 3\n    verbose = 1\n'
+                                f'    checkpoint_interval = {interval}\n/\n\n&kumo_output\n'
+                                f"    file = '{name}.nc'\n    voxel_absorption = .true.\n"
+                                f'    column_fluxes = .true.\n    flux_levels = 1, 17\n/\n\n' + keep)
+                    la0 = loadavg()
+                    t0 = time.perf_counter()
+                    p = subprocess.run(self.mpirun + ['-np', str(ranks), self.kumo,
+                                                      os.path.basename(nml)],
+                                       cwd=os.path.dirname(nml), check=True, capture_output=True,
+                                       text=True)
+                    wall = time.perf_counter() - t0
+                    out = os.path.join(os.path.dirname(nml), name + '.nc')
+                    r = attrs(out)
+                    os.remove(out)
+                    # the time kumo reports per checkpoint, where it does (per-rank parts)
+                    own = [float(m.group(1)) for m in
+                           re.finditer(r'checkpoint after batch .* ([0-9.eE+-]+) s\)', p.stderr)]
+                    rec = dict(part='checkpoint', case=f'les_tiled{tiles}', rep=rep, ranks=ranks,
+                               interval=interval, kumo=self.kumo, tally_doubles=s_tally,
+                               reported_checkpoint_s=own, external_wall_s=wall, load_before=la0,
+                               load_after=loadavg(), **r)
+                    self.record(rec)
+                    print(f'  checkpoint np{ranks} interval {interval}: wall {r["wall_time_s"]:.2f} s, '
+                          f'external {wall:.2f} s, reported {own}', flush=True)
+
     # -- collectives ------------------------------------------------------------------------
     def part_collectives(self):
         exe = os.path.join(self.work, 'kumo_collectives')
@@ -327,10 +373,12 @@ def main():
     p.add_argument('--mpirun', default='mpirun --oversubscribe')
     p.add_argument('--oversubscribed', action='store_true',
                    help='also time the collectives on 4 and 8 ranks (more ranks than cores)')
+    p.add_argument('--ckpt-tiles', type=int, default=4,
+                   help='tiles per side of the LES for the checkpoint part')
     a = p.parse_args()
     r = Runner(a)
     parts = a.parts.split(',')
-    if set(parts) & {'efficiency', 'work', 'large'} and not a.prp:
+    if set(parts) & {'efficiency', 'work', 'large', 'checkpoint'} and not a.prp:
         p.error('--prp is needed for the LES workload')
     if 'collectives' in parts:
         r.part_collectives()
@@ -340,6 +388,8 @@ def main():
         r.part_work()
     if 'large' in parts:
         r.part_large()
+    if 'checkpoint' in parts:
+        r.part_checkpoint()
 
 
 if __name__ == '__main__':

@@ -16,7 +16,7 @@ module kumo_tally
   implicit none
   private
   public :: tally_layout_t, tally_t, stats_t, layout_init, tally_reset, stats_init, &
-            stats_add_batch, stats_mean, stats_stderr, batch_budget
+            stats_add_batch, stats_mean, stats_stderr, batch_budget, tally_flush
   public :: score_flux, score_flux_map, score_layer_abs, score_voxel_abs, score_surface_abs, &
             score_roulette, score_lost, score_source, score_net_layer, score_net_surface, &
             score_net_voxel, score_radiance, score_radiance_map, score_camera
@@ -87,9 +87,23 @@ module kumo_tally
     integer :: n = 0           !! buffer length
   end type tally_layout_t
 
+  !> Entries of the scatter-add log (see tally_t).
+  integer, parameter :: LOG_LEN = 4096
+
   !> The accumulators of one batch.
+  !>
+  !> The per-column flux maps and the voxel absorption are not added to `buf` when scored but
+  !> appended to a short log, which `tally_flush` adds to `buf` in the order of scoring (so
+  !> every entry receives the same additions in the same order, and the sums are the same to the
+  !> last bit). On fine grids these entries lie far apart in memory and most scores would wait
+  !> for a cache line from memory in the middle of the photon's path; in the flush loop the
+  !> reads do not depend on each other and overlap. `buf` is complete only after `tally_flush`:
+  !> trace_batch flushes before it returns.
   type :: tally_t
     real(dp), allocatable :: buf(:)
+    integer :: n_log = 0                 !! entries in the log
+    integer, allocatable :: log_at(:)    !! (LOG_LEN) position in buf of each logged score
+    real(dp), allocatable :: log_w(:)    !! (LOG_LEN) the score
     integer(i8) :: anomalies(N_ANOMALIES) = 0_i8
     integer(i8) :: work(2) = 0_i8   !! flight steps (incl. null collisions, face crossings), events
   end type tally_t
@@ -222,10 +236,33 @@ contains
     type(tally_t), intent(inout) :: tal
     type(tally_layout_t), intent(in) :: lay
     if (.not. allocated(tal%buf)) allocate (tal%buf(lay%n))
+    if (.not. allocated(tal%log_at)) allocate (tal%log_at(LOG_LEN), tal%log_w(LOG_LEN))
     tal%buf = 0.0_dp
+    tal%n_log = 0
     tal%anomalies = 0_i8
     tal%work = 0_i8
   end subroutine tally_reset
+
+  !> Add the logged scores to the buffer, in the order they were scored, and empty the log.
+  pure subroutine tally_flush(tal)
+    type(tally_t), intent(inout) :: tal
+    integer :: j
+    do j = 1, tal%n_log
+      tal%buf(tal%log_at(j)) = tal%buf(tal%log_at(j)) + tal%log_w(j)
+    end do
+    tal%n_log = 0
+  end subroutine tally_flush
+
+  !> Log score `w` for buf(i), flushing the log when it is full.
+  pure subroutine log_score(tal, i, w)
+    type(tally_t), intent(inout) :: tal
+    integer, intent(in) :: i
+    real(dp), intent(in) :: w
+    if (tal%n_log == LOG_LEN) call tally_flush(tal)
+    tal%n_log = tal%n_log + 1
+    tal%log_at(tal%n_log) = i
+    tal%log_w(tal%n_log) = w
+  end subroutine log_score
 
   subroutine stats_init(st, lay)
     type(stats_t), intent(out) :: st
@@ -377,7 +414,7 @@ contains
   end subroutine score_flux
 
   !> The same crossing in the flux map of column icol; `slot` = lay%map_slot(k) > 0 (levels
-  !> with maps only).
+  !> with maps only). Logged: in `buf` after tally_flush.
   pure subroutine score_flux_map(lay, tal, slot, up, order, icol, w)
     type(tally_layout_t), intent(in) :: lay
     type(tally_t), intent(inout) :: tal
@@ -393,7 +430,7 @@ contains
       i = lay%i_map_dif
     end if
     i = i + (slot - 1)*lay%ncol + icol
-    tal%buf(i) = tal%buf(i) + w
+    call log_score(tal, i, w)
   end subroutine score_flux_map
 
   !> Weight `a` absorbed in layer k (1..nz).
@@ -406,6 +443,7 @@ contains
   end subroutine score_layer_abs
 
   !> Weight `a` absorbed in voxel (kr, icol) of the 3-D region; nothing without voxel tallies.
+  !> Logged: in `buf` after tally_flush.
   pure subroutine score_voxel_abs(lay, tal, kr, icol, a)
     type(tally_layout_t), intent(in) :: lay
     type(tally_t), intent(inout) :: tal
@@ -414,7 +452,7 @@ contains
     integer :: i
     if (.not. lay%do_voxel) return
     i = lay%i_vox + (kr - 1)*lay%ncol + icol
-    tal%buf(i) = tal%buf(i) + a
+    call log_score(tal, i, a)
   end subroutine score_voxel_abs
 
   !> Weight `a` absorbed by the surface.

@@ -20,7 +20,7 @@ module kumo_tally
   public :: score_flux, score_flux_map, score_layer_abs, score_voxel_abs, score_surface_abs, &
             score_roulette, score_lost, score_source, score_net_layer, score_net_surface, &
             score_net_voxel, score_radiance, score_radiance_map, score_camera
-  public :: score_radiance_map_run
+  public :: score_radiance_map_run, score_voxel_collision
   public :: ANOM_UZ_NUDGED, ANOM_EVENT_CAP, ANOM_STEP_CAP, ANOM_POSITION_REPAIR, &
             ANOM_BRDF_ENVELOPE, N_ANOMALIES, ANOMALY_NAMES
 
@@ -45,6 +45,7 @@ module kumo_tally
     integer :: n_map = 0       !! number of levels with per-column flux maps
     logical :: do_maps = .false.
     logical :: do_voxel = .false.
+    logical :: log_voxel = .false.  !! collision scores of the voxels go through the log (tally_t)
     integer, allocatable :: map_slot(:)  !! (0:nz) slot of each level in the maps, 0 = none
     integer :: i_up = 0        !! up flux at level k: buf(i_up + k + 1), k = 0..nz
     integer :: i_dir = 0       !! direct down flux at level k
@@ -89,16 +90,21 @@ module kumo_tally
 
   !> Entries of the scatter-add log (see tally_t).
   integer, parameter :: LOG_LEN = 4096
+  !> Voxels from which on the collision scores go through the log: 4 MiB of voxel tallies, half
+  !> the last-level cache a process gets on the machine where it was measured
+  !> (docs/performance.md, cost of doubling the horizontal resolution). Below, the voxels
+  !> stay in the cache and the log would only add instructions.
+  integer(i8), parameter :: LOG_MIN_VOXELS = 524288_i8
 
   !> The accumulators of one batch.
   !>
-  !> The per-column flux maps and the voxel absorption are not added to `buf` when scored but
-  !> appended to a short log, which `tally_flush` adds to `buf` in the order of scoring (so
-  !> every entry receives the same additions in the same order, and the sums are the same to the
-  !> last bit). On fine grids these entries lie far apart in memory and most scores would wait
-  !> for a cache line from memory in the middle of the photon's path; in the flush loop the
-  !> reads do not depend on each other and overlap. `buf` is complete only after `tally_flush`:
-  !> trace_batch flushes before it returns.
+  !> The voxel absorption scored at collisions in a large 3-D region (lay%log_voxel) is not
+  !> added to `buf` at once but appended to a short log, which `tally_flush` adds to `buf` in the order of scoring (so every entry
+  !> receives the same additions in the same order, and the sums are the same to the last bit).
+  !> On fine grids the voxels where photons collide lie far apart in memory and most scores
+  !> would wait for a cache line from memory in the middle of the photon's path; in the flush
+  !> loop the reads do not depend on each other and overlap. `buf` is complete only after
+  !> `tally_flush`: trace_batch flushes before it returns.
   type :: tally_t
     real(dp), allocatable :: buf(:)
     integer :: n_log = 0                 !! entries in the log
@@ -148,6 +154,7 @@ contains
     lay%n_map = size(map_levels)
     lay%do_maps = lay%n_map > 0
     lay%do_voxel = do_voxel .and. n3 > 0
+    lay%log_voxel = lay%do_voxel .and. int(n3, i8)*ncol >= LOG_MIN_VOXELS
     pos = 0
     lay%i_up = pos
     pos = pos + nz + 1
@@ -414,7 +421,7 @@ contains
   end subroutine score_flux
 
   !> The same crossing in the flux map of column icol; `slot` = lay%map_slot(k) > 0 (levels
-  !> with maps only). Logged: in `buf` after tally_flush.
+  !> with maps only).
   pure subroutine score_flux_map(lay, tal, slot, up, order, icol, w)
     type(tally_layout_t), intent(in) :: lay
     type(tally_t), intent(inout) :: tal
@@ -430,7 +437,7 @@ contains
       i = lay%i_map_dif
     end if
     i = i + (slot - 1)*lay%ncol + icol
-    call log_score(tal, i, w)
+    tal%buf(i) = tal%buf(i) + w
   end subroutine score_flux_map
 
   !> Weight `a` absorbed in layer k (1..nz).
@@ -443,7 +450,6 @@ contains
   end subroutine score_layer_abs
 
   !> Weight `a` absorbed in voxel (kr, icol) of the 3-D region; nothing without voxel tallies.
-  !> Logged: in `buf` after tally_flush.
   pure subroutine score_voxel_abs(lay, tal, kr, icol, a)
     type(tally_layout_t), intent(in) :: lay
     type(tally_t), intent(inout) :: tal
@@ -452,8 +458,27 @@ contains
     integer :: i
     if (.not. lay%do_voxel) return
     i = lay%i_vox + (kr - 1)*lay%ncol + icol
-    call log_score(tal, i, a)
+    tal%buf(i) = tal%buf(i) + a
   end subroutine score_voxel_abs
+
+  !> The same score for the absorption at a collision, logged in a large region: in `buf` after
+  !> tally_flush. The scores along paths (score_voxel_abs) go to neighbouring voxels one after
+  !> the other and find them in the cache; collisions are spread over the cloud. A run scores
+  !> its voxels either way, never both (the order of the additions to a voxel would change).
+  pure subroutine score_voxel_collision(lay, tal, kr, icol, a)
+    type(tally_layout_t), intent(in) :: lay
+    type(tally_t), intent(inout) :: tal
+    integer, intent(in) :: kr, icol
+    real(dp), intent(in) :: a
+    integer :: i
+    if (.not. lay%do_voxel) return
+    i = lay%i_vox + (kr - 1)*lay%ncol + icol
+    if (lay%log_voxel) then
+      call log_score(tal, i, a)
+    else
+      tal%buf(i) = tal%buf(i) + a
+    end if
+  end subroutine score_voxel_collision
 
   !> Weight `a` absorbed by the surface.
   pure subroutine score_surface_abs(lay, tal, a)

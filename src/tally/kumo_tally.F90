@@ -16,11 +16,11 @@ module kumo_tally
   implicit none
   private
   public :: tally_layout_t, tally_t, stats_t, layout_init, tally_reset, stats_init, &
-            stats_add_batch, stats_mean, stats_stderr, batch_budget
+            stats_add_batch, stats_mean, stats_stderr, batch_budget, tally_flush
   public :: score_flux, score_flux_map, score_layer_abs, score_voxel_abs, score_surface_abs, &
             score_roulette, score_lost, score_source, score_net_layer, score_net_surface, &
             score_net_voxel, score_radiance, score_radiance_map, score_camera
-  public :: score_radiance_map_run
+  public :: score_radiance_map_run, score_voxel_collision
   public :: ANOM_UZ_NUDGED, ANOM_EVENT_CAP, ANOM_STEP_CAP, ANOM_POSITION_REPAIR, &
             ANOM_BRDF_ENVELOPE, N_ANOMALIES, ANOMALY_NAMES
 
@@ -45,6 +45,7 @@ module kumo_tally
     integer :: n_map = 0       !! number of levels with per-column flux maps
     logical :: do_maps = .false.
     logical :: do_voxel = .false.
+    logical :: log_voxel = .false.  !! collision scores of the voxels go through the log (tally_t)
     integer, allocatable :: map_slot(:)  !! (0:nz) slot of each level in the maps, 0 = none
     integer :: i_up = 0        !! up flux at level k: buf(i_up + k + 1), k = 0..nz
     integer :: i_dir = 0       !! direct down flux at level k
@@ -87,9 +88,28 @@ module kumo_tally
     integer :: n = 0           !! buffer length
   end type tally_layout_t
 
+  !> Entries of the scatter-add log (see tally_t).
+  integer, parameter :: LOG_LEN = 4096
+  !> Voxels from which on the collision scores go through the log: 4 MiB of voxel tallies, half
+  !> the last-level cache a process gets on the machine where it was measured
+  !> (docs/performance.md, cost of doubling the horizontal resolution). Below, the voxels
+  !> stay in the cache and the log would only add instructions.
+  integer(i8), parameter :: LOG_MIN_VOXELS = 524288_i8
+
   !> The accumulators of one batch.
+  !>
+  !> The voxel absorption scored at collisions in a large 3-D region (lay%log_voxel) is not
+  !> added to `buf` at once but appended to a short log, which `tally_flush` adds to `buf` in the order of scoring (so every entry
+  !> receives the same additions in the same order, and the sums are the same to the last bit).
+  !> On fine grids the voxels where photons collide lie far apart in memory and most scores
+  !> would wait for a cache line from memory in the middle of the photon's path; in the flush
+  !> loop the reads do not depend on each other and overlap. `buf` is complete only after
+  !> `tally_flush`: trace_batch flushes before it returns.
   type :: tally_t
     real(dp), allocatable :: buf(:)
+    integer :: n_log = 0                 !! entries in the log
+    integer, allocatable :: log_at(:)    !! (LOG_LEN) position in buf of each logged score
+    real(dp), allocatable :: log_w(:)    !! (LOG_LEN) the score
     integer(i8) :: anomalies(N_ANOMALIES) = 0_i8
     integer(i8) :: work(2) = 0_i8   !! flight steps (incl. null collisions, face crossings), events
   end type tally_t
@@ -134,6 +154,7 @@ contains
     lay%n_map = size(map_levels)
     lay%do_maps = lay%n_map > 0
     lay%do_voxel = do_voxel .and. n3 > 0
+    lay%log_voxel = lay%do_voxel .and. int(n3, i8)*ncol >= LOG_MIN_VOXELS
     pos = 0
     lay%i_up = pos
     pos = pos + nz + 1
@@ -222,10 +243,33 @@ contains
     type(tally_t), intent(inout) :: tal
     type(tally_layout_t), intent(in) :: lay
     if (.not. allocated(tal%buf)) allocate (tal%buf(lay%n))
+    if (.not. allocated(tal%log_at)) allocate (tal%log_at(LOG_LEN), tal%log_w(LOG_LEN))
     tal%buf = 0.0_dp
+    tal%n_log = 0
     tal%anomalies = 0_i8
     tal%work = 0_i8
   end subroutine tally_reset
+
+  !> Add the logged scores to the buffer, in the order they were scored, and empty the log.
+  pure subroutine tally_flush(tal)
+    type(tally_t), intent(inout) :: tal
+    integer :: j
+    do j = 1, tal%n_log
+      tal%buf(tal%log_at(j)) = tal%buf(tal%log_at(j)) + tal%log_w(j)
+    end do
+    tal%n_log = 0
+  end subroutine tally_flush
+
+  !> Log score `w` for buf(i), flushing the log when it is full.
+  pure subroutine log_score(tal, i, w)
+    type(tally_t), intent(inout) :: tal
+    integer, intent(in) :: i
+    real(dp), intent(in) :: w
+    if (tal%n_log == LOG_LEN) call tally_flush(tal)
+    tal%n_log = tal%n_log + 1
+    tal%log_at(tal%n_log) = i
+    tal%log_w(tal%n_log) = w
+  end subroutine log_score
 
   subroutine stats_init(st, lay)
     type(stats_t), intent(out) :: st
@@ -416,6 +460,25 @@ contains
     i = lay%i_vox + (kr - 1)*lay%ncol + icol
     tal%buf(i) = tal%buf(i) + a
   end subroutine score_voxel_abs
+
+  !> The same score for the absorption at a collision, logged in a large region: in `buf` after
+  !> tally_flush. The scores along paths (score_voxel_abs) go to neighbouring voxels one after
+  !> the other and find them in the cache; collisions are spread over the cloud. A run scores
+  !> its voxels either way, never both (the order of the additions to a voxel would change).
+  pure subroutine score_voxel_collision(lay, tal, kr, icol, a)
+    type(tally_layout_t), intent(in) :: lay
+    type(tally_t), intent(inout) :: tal
+    integer, intent(in) :: kr, icol
+    real(dp), intent(in) :: a
+    integer :: i
+    if (.not. lay%do_voxel) return
+    i = lay%i_vox + (kr - 1)*lay%ncol + icol
+    if (lay%log_voxel) then
+      call log_score(tal, i, a)
+    else
+      tal%buf(i) = tal%buf(i) + a
+    end if
+  end subroutine score_voxel_collision
 
   !> Weight `a` absorbed by the surface.
   pure subroutine score_surface_abs(lay, tal, a)

@@ -10,7 +10,8 @@ module test_math_tally_suite
                         stats_add_batch, stats_mean, stats_stderr, score_flux, score_flux_map, &
                         score_layer_abs, score_voxel_abs, score_surface_abs, score_roulette, &
                         score_lost, score_source, score_net_layer, score_net_surface, &
-                        score_net_voxel, score_radiance, score_radiance_map, score_camera
+                        score_net_voxel, score_radiance, score_radiance_map, score_camera, &
+                        tally_flush, score_voxel_collision
   implicit none
   private
   public :: collect_math_tally
@@ -24,6 +25,7 @@ contains
              new_unittest('batch_mean_and_standard_error', test_stats), &
              new_unittest('layout_is_contiguous', test_layout), &
              new_unittest('each_score_has_its_own_place', test_scores), &
+             new_unittest('logged_scores_add_in_scoring_order', test_score_log), &
              new_unittest('polar_azimuth_is_uniform', test_azimuth), &
              new_unittest('gauss_legendre_is_exact_for_polynomials', test_gauss)]
   end function collect_math_tally
@@ -177,6 +179,7 @@ contains
       real(dp), intent(in) :: v
       character(len=*), intent(in) :: label
       if (allocated(error)) return
+      call tally_flush(tal)
       n_scores = n_scores + 1
       call check(error, i >= 1 .and. i <= lay%n, label//': entry inside the buffer')
       if (allocated(error)) return
@@ -187,6 +190,45 @@ contains
                  label//': value not found at its entry alone')
     end subroutine expect
   end subroutine test_scores
+
+  !> Voxel absorption at collisions is logged and added at tally_flush (also when the log fills
+  !> during a batch): every entry must get the same additions in the same order as if they had
+  !> been added at once, so the sums agree to the last bit. Values of very different size make
+  !> the sum depend on the order of the additions.
+  subroutine test_score_log(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(tally_layout_t) :: lay
+    type(tally_t) :: tal
+    integer, parameter :: ncol = 4, n3 = 3, n = 20000
+    real(dp) :: direct(ncol*n3), v
+    integer :: j, kr, icol
+    ! the log is used from 2**19 voxels on
+    call layout_init(lay, 3, 1024, 511, [0, 3], .true.)
+    call check(error, .not. lay%log_voxel, '511 x 1024 voxels must not use the log')
+    if (allocated(error)) return
+    call layout_init(lay, 3, 1024, 512, [0, 3], .true.)
+    call check(error, lay%log_voxel, '512 x 1024 voxels must use the log')
+    if (allocated(error)) return
+    call layout_init(lay, 3, ncol, n3, [0, 3], .true.)
+    lay%log_voxel = .true.
+    call tally_reset(tal, lay)
+    direct = 0.0_dp
+    do j = 1, n
+      v = 1.0_dp/real(j, dp) + merge(1.0e8_dp, 0.0_dp, mod(j, 97) == 0)
+      kr = 1 + mod(j, n3)
+      icol = 1 + mod(j/3, ncol)
+      call score_voxel_collision(lay, tal, kr, icol, v)
+      direct((kr - 1)*ncol + icol) = direct((kr - 1)*ncol + icol) + v
+    end do
+    call tally_flush(tal)
+    call check(error, all(tal%buf(lay%i_vox + 1:lay%i_vox + ncol*n3) == direct(1:ncol*n3)), &
+               'voxel sums after the log differ from the sums added at once')
+    if (allocated(error)) return
+    ! a second flush adds nothing
+    call tally_flush(tal)
+    call check(error, all(tal%buf(lay%i_vox + 1:lay%i_vox + ncol*n3) == direct(1:ncol*n3)), &
+               'a second flush changed the sums')
+  end subroutine test_score_log
   !> n-point Gauss-Legendre on [0, 1] integrates x^k exactly for k <= 2n - 1 (to 1/(k + 1)),
   !> and underestimates x^(2n) by the remainder term (positive for a positive 2n-th derivative).
   subroutine test_gauss(error)

@@ -240,13 +240,8 @@ contains
     type(error_t), allocatable, intent(out) :: error
     integer :: unit, ios
     character(len=512) :: msg
-    call remove_file(path//TMP_SUFFIX)
-    open (newunit=unit, file=path//TMP_SUFFIX, status='new', action='write', access='stream', &
-          form='unformatted', iostat=ios, iomsg=msg)
-    if (ios /= 0) then
-      call set_error(error, 'cannot create the checkpoint '//path//TMP_SUFFIX//': '//trim(msg))
-      return
-    end if
+    call open_tmp(path, 'the checkpoint', unit, error)
+    if (allocated(error)) return
     write (unit, iostat=ios, iomsg=msg) MAGIC, FORMAT_VERSION, head%generation, head%stamp, &
       int(head%n_parts, int32), int(len(fp%labels), int32), fp%labels, int(size(fp%hash), int32), &
       fp%hash, int(head%n_slots, int32), int(head%ib_round, int32), int(head%n_done, int32), &
@@ -438,13 +433,8 @@ contains
     character(len=512) :: msg
     integer :: unit, ios, s
     name = part_name(path, g, rank)
-    call remove_file(name//TMP_SUFFIX)
-    open (newunit=unit, file=name//TMP_SUFFIX, status='new', action='write', access='stream', &
-          form='unformatted', iostat=ios, iomsg=msg)
-    if (ios /= 0) then
-      call set_error(error, 'cannot create the checkpoint part '//name//TMP_SUFFIX//': '//trim(msg))
-      return
-    end if
+    call open_tmp(name, 'the checkpoint part', unit, error)
+    if (allocated(error)) return
     write (unit, iostat=ios, iomsg=msg) PART_MAGIC, FORMAT_VERSION, int(rank, int32), g, stamp, &
       int(lay%n, int32), int(n_counts, int32), int(size(slot) - rank + nranks - 1, int32)/nranks
     do s = rank, ubound(slot, 1), nranks
@@ -920,5 +910,19 @@ contains
     end do
     call fingerprint_add_build(fp)
   end subroutine checkpoint_fingerprint
+
+  !> Open `name` plus the temporary suffix for writing, as a new stream (a stale one from an
+  !> earlier attempt is removed first); `what` names the file in the error.
+  subroutine open_tmp(name, what, unit, error)
+    character(len=*), intent(in) :: name, what
+    integer, intent(out) :: unit
+    type(error_t), allocatable, intent(out) :: error
+    integer :: ios
+    character(len=512) :: msg
+    call remove_file(name//TMP_SUFFIX)
+    open (newunit=unit, file=name//TMP_SUFFIX, status='new', action='write', access='stream', &
+          form='unformatted', iostat=ios, iomsg=msg)
+    if (ios /= 0) call set_error(error, 'cannot create '//what//' '//name//TMP_SUFFIX//': '//trim(msg))
+  end subroutine open_tmp
 
 end module kumo_checkpoint

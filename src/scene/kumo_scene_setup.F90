@@ -1633,24 +1633,12 @@ contains
   subroutine note_voxel_storage(atm, verbose)
     type(atmosphere_t), intent(in) :: atm
     integer, intent(in) :: verbose
-    integer(i8), allocatable :: own(:), win(:)
     integer(i8) :: mine
-    integer :: r
-    character(len=:), allocatable :: notes
-    allocate (own(par_size()), win(par_size()))
-    call par_gather_i8(atm%voxel_bytes_own, own)
     mine = 0_i8
     if (atm%voxels_borrowed .and. atm%voxel_writer) mine = atm%voxel_bytes_borrowed
-    call par_gather_i8(mine, win)
-    if (par_rank() /= 0 .or. verbose < 1) return
-    notes = 'voxel arrays: one copy per node in shared memory ('// &
-            str(atm%voxel_bytes_borrowed)//' bytes, '//str(par_node_size())// &
-            ' ranks on the node of rank 0); bytes allocated per rank (own, shared window):'
-    do r = 1, size(own)
-      notes = notes//' rank '//str(r - 1)//' '//str(own(r))//' '//str(win(r))//';'
-    end do
-    write (output_unit, '(a)') notes
-    flush (output_unit)
+    call note_rank_bytes('voxel arrays: one copy per node in shared memory ('// &
+                         str(atm%voxel_bytes_borrowed)//' bytes, '//str(par_node_size())// &
+                         ' ranks on the node of rank 0)', atm%voxel_bytes_own, mine, verbose)
   end subroutine note_voxel_storage
 
   !> A line for the run log (rank 0, verbose >= 1), as note_voxel_storage: where each rank's
@@ -1658,24 +1646,33 @@ contains
   subroutine note_table_storage(em, verbose)
     type(emission_t), intent(in) :: em
     integer, intent(in) :: verbose
-    integer(i8), allocatable :: own(:), win(:)
     integer(i8) :: mine
-    integer :: r
-    character(len=:), allocatable :: notes
-    allocate (own(par_size()), win(par_size()))
-    call par_gather_i8(em%table_bytes_own, own)
     mine = 0_i8
     if (em%on_node .and. em%table_writer) mine = em%table_bytes_borrowed
-    call par_gather_i8(mine, win)
+    call note_rank_bytes('emission table: one copy per node in shared memory ('// &
+                         str(em%table_bytes_borrowed)//' bytes)', em%table_bytes_own, mine, verbose)
+  end subroutine note_table_storage
+
+  !> Rank 0 prints `head` and the bytes every rank allocated itself (`own`) and in the node's
+  !> shared window (`win`). Every rank calls it.
+  subroutine note_rank_bytes(head, own, win, verbose)
+    character(len=*), intent(in) :: head
+    integer(i8), intent(in) :: own, win
+    integer, intent(in) :: verbose
+    integer(i8), allocatable :: owns(:), wins(:)
+    integer :: r
+    character(len=:), allocatable :: notes
+    allocate (owns(par_size()), wins(par_size()))
+    call par_gather_i8(own, owns)
+    call par_gather_i8(win, wins)
     if (par_rank() /= 0 .or. verbose < 1) return
-    notes = 'emission table: one copy per node in shared memory ('// &
-            str(em%table_bytes_borrowed)//' bytes); bytes allocated per rank (own, shared window):'
-    do r = 1, size(own)
-      notes = notes//' rank '//str(r - 1)//' '//str(own(r))//' '//str(win(r))//';'
+    notes = head//'; bytes allocated per rank (own, shared window):'
+    do r = 1, size(owns)
+      notes = notes//' rank '//str(r - 1)//' '//str(owns(r))//' '//str(wins(r))//';'
     end do
     write (output_unit, '(a)') notes
     flush (output_unit)
-  end subroutine note_table_storage
+  end subroutine note_rank_bytes
 
   !> Rank 0 reads a phase-function table (angle [deg], value) and broadcasts it.
   subroutine phase_table_on_root(path, ang, val, error)

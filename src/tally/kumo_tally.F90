@@ -470,13 +470,10 @@ contains
     type(tally_t), intent(inout) :: tal
     integer, intent(in) :: kr, icol
     real(dp), intent(in) :: a
-    integer :: i
-    if (.not. lay%do_voxel) return
-    i = lay%i_vox + (kr - 1)*lay%ncol + icol
-    if (lay%log_voxel) then
-      call log_score(tal, i, a)
+    if (lay%log_voxel .and. lay%do_voxel) then
+      call log_score(tal, lay%i_vox + (kr - 1)*lay%ncol + icol, a)
     else
-      tal%buf(i) = tal%buf(i) + a
+      call score_voxel_abs(lay, tal, kr, icol, a)
     end if
   end subroutine score_voxel_collision
 

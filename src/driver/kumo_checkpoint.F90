@@ -446,8 +446,7 @@ contains
     if (ios == 0) close (unit, iostat=ios, iomsg=msg)
     if (ios /= 0) then
       call set_error(error, 'cannot write the checkpoint part '//name//TMP_SUFFIX//': '//trim(msg))
-      close (unit, status='delete', iostat=ios)
-      call remove_file(name//TMP_SUFFIX)
+      call fail(error, name, msg, unit)
     end if
   end subroutine part_write
 

@@ -243,7 +243,7 @@ contains
     type(tally_t), intent(inout) :: tal
     type(tally_layout_t), intent(in) :: lay
     if (.not. allocated(tal%buf)) allocate (tal%buf(lay%n))
-    if (.not. allocated(tal%log_at)) allocate (tal%log_at(LOG_LEN), tal%log_w(LOG_LEN))
+    if (lay%log_voxel .and. .not. allocated(tal%log_at)) allocate (tal%log_at(LOG_LEN), tal%log_w(LOG_LEN))
     tal%buf = 0.0_dp
     tal%n_log = 0
     tal%anomalies = 0_i8
@@ -470,7 +470,7 @@ contains
     type(tally_t), intent(inout) :: tal
     integer, intent(in) :: kr, icol
     real(dp), intent(in) :: a
-    if (lay%log_voxel .and. lay%do_voxel) then
+    if (lay%log_voxel) then
       call log_score(tal, lay%i_vox + (kr - 1)*lay%ncol + icol, a)
     else
       call score_voxel_abs(lay, tal, kr, icol, a)

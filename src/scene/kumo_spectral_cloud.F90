@@ -74,7 +74,8 @@ contains
   !> and append the tables' phase functions to `phases`. `optics_path`: the RRTMGP cloud-optics
   !> file (read when liquid_optics = 'rrtmgp' or the file has ice).
   subroutine spectral_cloud_init(ccfg, scfg, optics_path, default_cache, band_wavenumber, &
-                                 longwave, n_table, phases, sc, notes, warnings, error)
+                                 longwave, n_table, phases, sc, notes, warnings, error, &
+                                 per_node)
     type(cloud_cfg_t), intent(in) :: ccfg
     type(spectral_cfg_t), intent(in) :: scfg
     character(len=*), intent(in) :: optics_path
@@ -87,6 +88,9 @@ contains
     type(spectral_cloud_t), intent(out) :: sc
     character(len=:), allocatable, intent(out) :: notes, warnings
     type(error_t), allocatable, intent(out) :: error
+    !> only the first rank of every node gets the fields (read_cloud_on_root per_node): it
+    !> alone forms the voxels, in storage the node shares; the others hold the grid and tables
+    logical, intent(in), optional :: per_node
     type(bundle_t) :: bt
     type(phase_t), allocatable :: more(:)
     integer :: nb, ib, i, nr
@@ -205,7 +209,7 @@ contains
       type(cloud_request_t) :: req
       req = ccfg%req
       req%temperature = .false.
-      call read_cloud_on_root(req, sc%liq, err, part='liquid')
+      call read_cloud_on_root(req, sc%liq, err, part='liquid', per_node=per_node)
       if (allocated(err)) return
       if (sc%liq%content /= CLOUD_WATER) then
         call set_error(err, ccfg%req%path//': broadband runs compute the cloud''s optics '// &
@@ -217,7 +221,7 @@ contains
       end if
       sc%has_ice = sc%liq%has_ice
       if (sc%has_ice) then
-        call read_cloud_on_root(req, sc%ice, err, part='ice')
+        call read_cloud_on_root(req, sc%ice, err, part='ice', per_node=per_node)
         if (allocated(err)) return
       end if
     end subroutine read_fields

@@ -473,9 +473,11 @@ contains
   !> Voxels in the caller's storage (atmosphere_begin's `storage`) need `sync`: every process
   !> sharing them calls this with the same arguments once none of them reads the old values,
   !> their writer alone forms the voxels (and alone needs `cext`, `cssa`; the others may pass
-  !> empty arrays), and every process takes its 1-D layers and majorants after `sync`.
+  !> empty arrays), and every process takes its 1-D layers and majorants after `sync`. With
+  !> `part` and `nparts` the `nparts` processes sharing them (all holding `cext`, `cssa`) form
+  !> them together instead, process `part` (0 .. nparts - 1) the layers kr = part + 1 + j nparts.
   subroutine atmosphere_swap_background(atm, ext1d, ssa1d, cext, cssa, opts, sv_layout, done, &
-                                        sync)
+                                        sync, part, nparts)
     type(atmosphere_t), intent(inout) :: atm
     real(wp), intent(in) :: ext1d(:, :), ssa1d(:, :)
     real(wp), intent(in) :: cext(:, :, :, :), cssa(:, :, :, :)
@@ -483,6 +485,7 @@ contains
     type(supervoxel_grid_t), intent(in) :: sv_layout
     logical, intent(out) :: done
     procedure(voxel_sync_i), optional :: sync
+    integer, intent(in), optional :: part, nparts
     integer :: k, ic, kr, kf, na1, nc, nc1, nf
     real(wp) :: e, s
     real(vp) :: clr_e, clr_w, no_csca(1, 1, 1)
@@ -505,19 +508,24 @@ contains
       atm%layer_class(k) = class_of_layer(atm, k, opts)
     end do
     if (atm%n3 == 0) return
-    if (atm%voxel_writer) call form_voxels()
+    if (present(part) .and. present(nparts)) then
+      call form_voxels(part, nparts)
+    else if (atm%voxel_writer) then
+      call form_voxels(0, 1)
+    end if
     if (present(sync)) call sync()
     call supervoxel_majorants(atm%ext3, sv_layout, atm%sv)
 
   contains
 
-    !> The writer's part: every voxel of the region.
-    subroutine form_voxels()
+    !> The voxels of layers kr = p + 1, p + 1 + np, ... of the region.
+    subroutine form_voxels(p, np)
+      integer, intent(in) :: p, np
       na1 = size(atm%act1)
       nc = atm%ncomp
       allocate (bg_sca(max(nc - 1, 1)), acc_bg(0:na1), clr_c(max(nc - 1, 1)))
       nf = atm%kf_hi - atm%kf_lo + 1
-      do kr = 1, atm%n3
+      do kr = p + 1, atm%n3, np
         k = atm%k3_lo + kr - 1
         kf = k - atm%kf_lo + 1          ! the layer of the voxel components, if any
         e = 0.0_wp

@@ -24,7 +24,7 @@ module kumo_parallel
             par_allreduce_sum, par_abort, par_barrier, par_wtime, par_bcast_int, par_bcast_real, PAR_IS_MPI
   public :: par_stop, par_fail, par_bcast_text, par_move, par_bcast_single
   public :: par_node_size, par_node_leader, par_node_storage, par_node_sync, par_gather_i8
-  public :: par_node_window, par_node_max
+  public :: par_node_window, par_node_max, par_node_rank
   public :: PAR_ALL, PAR_LEADERS
 
   logical, parameter :: PAR_IS_MPI = .true.  !! this build distributes batches over MPI ranks
@@ -128,6 +128,12 @@ contains
     call node_setup()
     leader = node_rank == 0
   end function par_node_leader
+
+  !> This rank's place among the ranks of its node (0 for the node's first).
+  integer function par_node_rank() result(r)
+    call node_setup()
+    r = node_rank
+  end function par_node_rank
 
   !> Storage shared by the ranks of this node (kumo_atmosphere voxel_storage_i): an MPI-3
   !> shared-memory window of `nbytes` bytes allocated by the node's leader alone, mapped by every

@@ -10,7 +10,7 @@ module kumo_parallel
             par_allreduce_sum, par_abort, par_barrier, par_wtime, par_bcast_int, par_bcast_real, PAR_IS_MPI
   public :: par_stop, par_fail, par_bcast_text, par_move, par_bcast_single
   public :: par_node_size, par_node_leader, par_node_storage, par_node_sync, par_gather_i8
-  public :: par_node_window, par_node_max
+  public :: par_node_window, par_node_max, par_node_rank
   public :: PAR_ALL, PAR_LEADERS
 
   logical, parameter :: PAR_IS_MPI = .false.  !! this build runs on one process
@@ -102,6 +102,11 @@ contains
   logical function par_node_leader() result(leader)
     leader = .true.
   end function par_node_leader
+
+  !> This rank's place among the ranks of its node (the only one).
+  integer function par_node_rank() result(r)
+    r = 0
+  end function par_node_rank
 
   !> Storage of the node for one process: an ordinary allocation of `nbytes`, kept until the
   !> process ends (as the MPI build keeps its windows until par_finalize); this process writes.

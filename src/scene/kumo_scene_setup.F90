@@ -55,7 +55,7 @@ module kumo_scene_setup
   use kumo_cloud_scene, only: build_cloud_atmosphere, rayleigh_layers, cloud_temperature_t, ice_table, &
                               water_table, mcarats_scan_t, mcarats_scan
   use kumo_spectral_cloud, only: spectral_cloud_t, spectral_cloud_init, spectral_cloud_band, &
-                                 spectral_cloud_put
+                                 spectral_cloud_put, spectral_cloud_place
   use kumo_supervoxel, only: supervoxel_grid_t
   use kumo_gas_state, only: gas_state_merge
   use kumo_rayleigh, only: depol_from_king, king_factor_air
@@ -65,7 +65,8 @@ module kumo_scene_setup
   use kumo_mcarats_files, only: mcarats_surface_t, read_mcarats_surface, mcarats_surface_npsfc, &
                                 mcarats_surface_brdf
   use kumo_parallel, only: par_is_root, par_size, par_rank, par_node_size, par_node_storage, &
-                           par_node_sync, par_gather_i8, par_node_leader, par_node_window
+                           par_node_sync, par_gather_i8, par_node_leader, par_node_window, &
+                           par_node_rank
   implicit none
   private
   public :: load_config, setup_scene, spectral_scene_t, spectral_set_gpoint
@@ -300,6 +301,9 @@ contains
         'the Planck sources of their layers (temperatures of the &kumo_spectral profile; the '// &
         'cloud file''s temperatures are not used)'//new_line('a')
       if (spec%node) then
+        ! the band's cloud optics where every rank of the node reads them (the g-points of a
+        ! band are swapped by all together)
+        call spectral_cloud_place(spec%cloud, node_cloud)
         call atmosphere_begin(scene%atm, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, ext1d, ssa1d, &
                               phase1d, phases, aopts, error, cfg%atm%k3d_bottom, spec%cloud%nx, &
                               spec%cloud%ny, spec%cloud%nz, spec%cloud%nc3, blend=.true., &
@@ -315,9 +319,6 @@ contains
       if (scene%atm%voxel_writer) then
         call spectral_cloud_band(spec%cloud, spec%gpt_band(spec%g_setup), n_out_liq, n_out_ice)
         call spectral_cloud_put(spec%cloud, scene%atm)
-      else
-        ! a rank that only reads the node's voxels holds no cloud optics of its own
-        allocate (spec%cloud%cext(0, 0, 0, 0), spec%cloud%cssa(0, 0, 0, 0))
       end if
       spec%atm_band = spec%gpt_band(spec%g_setup)
       if (spec%node) then
@@ -1222,8 +1223,10 @@ contains
       if (spec%node) call par_node_sync()
       if (spec%gpt_band(g) == spec%atm_band) then
         if (spec%node) then
+          ! the ranks of the node form a share of the layers each
           call atmosphere_swap_background(atm, e, w, spec%cloud%cext, spec%cloud%cssa, &
-                                          spec%aopts, spec%sv_layout, done, sync=par_node_sync)
+                                          spec%aopts, spec%sv_layout, done, sync=par_node_sync, &
+                                          part=par_node_rank(), nparts=par_node_size())
         else
           call atmosphere_swap_background(atm, e, w, spec%cloud%cext, spec%cloud%cssa, &
                                           spec%aopts, spec%sv_layout, done)
@@ -1296,6 +1299,14 @@ contains
     logical, intent(out) :: writer
     call par_node_window(1, nbytes, base, writer)
   end subroutine node_voxels
+
+  !> The same for the cloud's optics of the current band (spectral_cloud_place).
+  subroutine node_cloud(nbytes, base, writer)
+    integer(i8), intent(in) :: nbytes
+    type(c_ptr), intent(out) :: base
+    logical, intent(out) :: writer
+    call par_node_window(3, nbytes, base, writer)
+  end subroutine node_cloud
 
   !> The same for each g-point's emission table in the longwave.
   subroutine node_table(nbytes, base, writer)

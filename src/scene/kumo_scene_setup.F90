@@ -1094,18 +1094,22 @@ contains
       if (allocated(error)) return
       energy(g) = em%power
       ! (copies independent of the node's storage, which the next g-point's table reuses)
+      ! the voxels' emitted powers are an output, which rank 0 writes: with the voxels on the
+      ! node, the other ranks keep no per-voxel array at all
       if (g == spec%gpoint) then
         em_g = em
         call emission_detach(em_g)
+        if (spec%node .and. .not. par_is_root()) deallocate (em_g%emit_vox)
       end if
       ! totals for the outputs
       if (g == 1) then
         em_sum = em
         call emission_detach(em_sum)
+        if (spec%node .and. .not. par_is_root()) deallocate (em_sum%emit_vox)
       else
         em_sum%emit_sfc = em_sum%emit_sfc + em%emit_sfc
         em_sum%emit_layer = em_sum%emit_layer + em%emit_layer
-        em_sum%emit_vox = em_sum%emit_vox + emission_voxel_power(em)
+        if (allocated(em_sum%emit_vox)) em_sum%emit_vox = em_sum%emit_vox + emission_voxel_power(em)
       end if
       ! a 1-D column keeps every g-point's table; a 3-D scene rebuilds it per g-point
       if (.not. spec%three_d) then

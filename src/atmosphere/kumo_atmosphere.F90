@@ -470,13 +470,22 @@ contains
   !> without allocating or checking anything again: broadband runs switch the gas of a
   !> g-point this way. `done` is .false. (and nothing changed) when a 1-D component that the
   !> build left out of the 3-D region, being empty there, is not empty now: build it anew.
-  subroutine atmosphere_swap_background(atm, ext1d, ssa1d, cext, cssa, opts, sv_layout, done)
+  !> Voxels in the caller's storage (atmosphere_begin's `storage`) need `sync`: every process
+  !> sharing them calls this with the same arguments once none of them reads the old values,
+  !> their writer alone forms the voxels (and alone needs `cext`, `cssa`; the others may pass
+  !> empty arrays), and every process takes its 1-D layers and majorants after `sync`. With
+  !> `part` and `nparts` the `nparts` processes sharing them (all holding `cext`, `cssa`) form
+  !> them together instead, process `part` (0 .. nparts - 1) the layers kr = part + 1 + j nparts.
+  subroutine atmosphere_swap_background(atm, ext1d, ssa1d, cext, cssa, opts, sv_layout, done, &
+                                        sync, part, nparts)
     type(atmosphere_t), intent(inout) :: atm
     real(wp), intent(in) :: ext1d(:, :), ssa1d(:, :)
     real(wp), intent(in) :: cext(:, :, :, :), cssa(:, :, :, :)
     type(atmosphere_options_t), intent(in) :: opts
     type(supervoxel_grid_t), intent(in) :: sv_layout
     logical, intent(out) :: done
+    procedure(voxel_sync_i), optional :: sync
+    integer, intent(in), optional :: part, nparts
     integer :: k, ic, kr, kf, na1, nc, nc1, nf
     real(wp) :: e, s
     real(vp) :: clr_e, clr_w, no_csca(1, 1, 1)
@@ -484,7 +493,8 @@ contains
     real(wp), allocatable :: acc_bg(:)
     done = .false.
     nc1 = atm%ncomp1
-    if (atm%voxels_borrowed) return   ! voxels in shared storage: rebuilt by their writer
+    ! voxels in shared storage: formed by their writer, seen by all after sync
+    if (atm%voxels_borrowed .and. .not. present(sync)) return
     if (size(ext1d, 1) /= atm%nz .or. size(ext1d, 2) /= nc1) return
     if (atm%n3 > 0) then
       do ic = 1, nc1
@@ -498,42 +508,53 @@ contains
       atm%layer_class(k) = class_of_layer(atm, k, opts)
     end do
     if (atm%n3 == 0) return
-    na1 = size(atm%act1)
-    nc = atm%ncomp
-    allocate (bg_sca(max(nc - 1, 1)), acc_bg(0:na1), clr_c(max(nc - 1, 1)))
-    nf = atm%kf_hi - atm%kf_lo + 1
-    do kr = 1, atm%n3
-      k = atm%k3_lo + kr - 1
-      kf = k - atm%kf_lo + 1          ! the layer of the voxel components, if any
-      e = 0.0_wp
-      s = 0.0_wp
-      bg_sca = 0.0_vp
-      do ic = 1, na1
-        e = e + ext1d(k, atm%act1(ic))
-        s = s + ext1d(k, atm%act1(ic))*ssa1d(k, atm%act1(ic))
-        if (ic < nc) bg_sca(ic) = real(ext1d(k, atm%act1(ic))*ssa1d(k, atm%act1(ic)), vp)
-      end do
-      ! the running sums of the background's scattering, the same in every voxel of the layer
-      acc_bg(0) = 0.0_wp
-      do ic = 1, na1
-        acc_bg(ic) = acc_bg(ic - 1)
-        if (ic < nc) acc_bg(ic) = acc_bg(ic) + bg_sca(ic)
-      end do
-      ! A voxel without voxel components takes the layer's own values (as formed below with no
-      ! components, identical to the last bit), which most voxels of a cloud field do: they are
-      ! formed once per layer and stored, and only the voxels with components are formed one by
-      ! one. A component counts as absent when its extinction is 0 and its albedo finite (then
-      ! it adds exactly nothing).
-      call form_voxel(1, 1, .false., clr_e, clr_w, clr_c)
-      if (nc > 1) then
-        call form_layer(atm%ext3(:, :, kr), atm%omg3(:, :, kr), atm%csca3(:, :, :, kr))
-      else
-        call form_layer(atm%ext3(:, :, kr), atm%omg3(:, :, kr), no_csca)
-      end if
-    end do
+    if (present(part) .and. present(nparts)) then
+      call form_voxels(part, nparts)
+    else if (atm%voxel_writer) then
+      call form_voxels(0, 1)
+    end if
+    if (present(sync)) call sync()
     call supervoxel_majorants(atm%ext3, sv_layout, atm%sv)
 
   contains
+
+    !> The voxels of layers kr = p + 1, p + 1 + np, ... of the region.
+    subroutine form_voxels(p, np)
+      integer, intent(in) :: p, np
+      na1 = size(atm%act1)
+      nc = atm%ncomp
+      allocate (bg_sca(max(nc - 1, 1)), acc_bg(0:na1), clr_c(max(nc - 1, 1)))
+      nf = atm%kf_hi - atm%kf_lo + 1
+      do kr = p + 1, atm%n3, np
+        k = atm%k3_lo + kr - 1
+        kf = k - atm%kf_lo + 1          ! the layer of the voxel components, if any
+        e = 0.0_wp
+        s = 0.0_wp
+        bg_sca = 0.0_vp
+        do ic = 1, na1
+          e = e + ext1d(k, atm%act1(ic))
+          s = s + ext1d(k, atm%act1(ic))*ssa1d(k, atm%act1(ic))
+          if (ic < nc) bg_sca(ic) = real(ext1d(k, atm%act1(ic))*ssa1d(k, atm%act1(ic)), vp)
+        end do
+        ! the running sums of the background's scattering, the same in every voxel of the layer
+        acc_bg(0) = 0.0_wp
+        do ic = 1, na1
+          acc_bg(ic) = acc_bg(ic - 1)
+          if (ic < nc) acc_bg(ic) = acc_bg(ic) + bg_sca(ic)
+        end do
+        ! A voxel without voxel components takes the layer's own values (as formed below with no
+        ! components, identical to the last bit), which most voxels of a cloud field do: they are
+        ! formed once per layer and stored, and only the voxels with components are formed one by
+        ! one. A component counts as absent when its extinction is 0 and its albedo finite (then
+        ! it adds exactly nothing).
+        call form_voxel(1, 1, .false., clr_e, clr_w, clr_c)
+        if (nc > 1) then
+          call form_layer(atm%ext3(:, :, kr), atm%omg3(:, :, kr), atm%csca3(:, :, :, kr))
+        else
+          call form_layer(atm%ext3(:, :, kr), atm%omg3(:, :, kr), no_csca)
+        end if
+      end do
+    end subroutine form_voxels
 
     !> The voxels of layer kr (its arrays, and the voxel components' layer, as dummies, so that
     !> the compiler keeps their addresses in registers instead of reloading them after every

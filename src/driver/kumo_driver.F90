@@ -22,7 +22,7 @@ module kumo_driver
   use kumo_config, only: config_t, config_echo
   use kumo_netcdf, only: write_results, check_writable
   use kumo_parallel, only: par_rank, par_size, par_is_root, par_sum_to_root, par_allreduce_sum, &
-                           par_wtime, par_bcast_text, par_move
+                           par_wtime, par_bcast_text, par_move, par_node_max
   use kumo_checkpoint, only: checkpoint_plan_t, checkpoint_due, write_checkpoint, resume_run, &
                              early_checkpoint_check, checkpoint_fingerprint, ckpt_remove, &
                              CKPT_SUFFIX
@@ -127,7 +127,8 @@ contains
     real(dp) :: t0, t1, c0, c1, cpu, cpu_before, buf2(3), rel, t_ckpt
     integer(i8) :: nphot, counts(4 + N_ANOMALIES)
     integer :: ib, ib_next, nb_round, rank, nranks, itarget, nb_done, n_slots, s, n_done, &
-               ib_last, n_ckpt, kill_after
+               ib_last, n_ckpt, kill_after, ib_first, iw, j
+    logical :: mine
     integer, allocatable :: map_levels(:), cam_npix(:)
     logical :: maps, voxel, rad_maps, checkpoints, exact
     type(progress_t) :: pg
@@ -223,7 +224,45 @@ contains
       call move_alloc(tmp, rec)
       call cpu_time(c0)
       ib_last = ib_next + nb_round - 1
-      do ib = max(ib_next, n_done + 1), ib_last
+      ib_first = max(ib_next, n_done + 1)
+      if (spec%node) then
+        ! A broadband run whose ranks share a node's voxels: the ranks of a node switch
+        ! g-points together. The batches go in windows of n_slots (slot 0 first); in step j of
+        ! a window every rank traces the batch of its j-th slot, or none, and joins the node's
+        ! switches all the same. The same batches go to the same slots as below, so the
+        ! results are those of any other run; checkpoints come after whole windows.
+        do iw = (ib_first - 1)/n_slots, (ib_last - 1)/n_slots
+          do j = 0, (n_slots - 1)/nranks
+            s = rank + j*nranks
+            ib = iw*n_slots + s + 1
+            mine = s < n_slots .and. ib >= ib_first .and. ib <= ib_last
+            if (mine) then
+              call rng_init(rng, cfg%control%seed, int(ib, i8))
+              call tally_reset(tal, lay)
+            end if
+            call trace_spectral_batch(spec, scene, lay, rng, nphot, tal, tal_g, error, active=mine)
+            if (allocated(error)) return
+            if (mine) then
+              call stats_add_batch(slot(s), lay, tal, nphot)
+              rec(:, ib) = batch_budget(lay, tal)/real(nphot, dp)
+              if (pg%on) call report_progress(pg, cfg, ib, ib_last)
+            end if
+          end do
+          ib = min((iw + 1)*n_slots, ib_last)
+          if (checkpoints .and. .not. (ib == ib_last .and. cfg%control%target_rel_error <= 0.0_dp)) then
+            if (checkpoint_due(plan, t_ckpt)) then
+              call cpu_time(c1)
+              call write_checkpoint(plan, cfg, lay, slot, n_slots, ib_next, ib, rec, &
+                                    cpu_before + cpu + (c1 - c0))
+              t_ckpt = par_wtime()
+              n_ckpt = n_ckpt + 1
+              if (n_ckpt == kill_after .and. rank == 0) call kill_self()
+            end if
+          end if
+        end do
+        ib_first = ib_last + 1     ! the loop below has nothing left to do
+      end if
+      do ib = ib_first, ib_last
         s = mod(ib - 1, n_slots)
         if (mod(s, nranks) == rank) then
           call rng_init(rng, cfg%control%seed, int(ib, i8))
@@ -331,7 +370,10 @@ contains
   !> the batch estimate is sum_g w_g x (g-point g's tallies), which is unbiased for the sum over
   !> g-points (docs/broadband.md). A longwave column that scatters nowhere is summed exactly
   !> over all g-points instead, each from the exact solution with weight P_g / S.
-  subroutine trace_spectral_batch(spec, scene, lay, rng, nphot, tal, tal_g, error)
+  !> When the ranks of a node share the voxels (spec%node), every rank of the node calls this
+  !> together, `active` = .false. on a rank without a batch: each g-point that any of them
+  !> traces is switched to by all.
+  subroutine trace_spectral_batch(spec, scene, lay, rng, nphot, tal, tal_g, error, active)
     type(spectral_scene_t), intent(inout) :: spec
     type(scene_t), intent(inout) :: scene
     type(tally_layout_t), intent(in) :: lay
@@ -339,9 +381,12 @@ contains
     integer(i8), intent(in) :: nphot
     type(tally_t), intent(inout) :: tal, tal_g
     type(error_t), allocatable, intent(out) :: error
+    logical, intent(in), optional :: active
     type(error_t), allocatable :: err
     real(dp) :: f, rr_threshold, rr_weight
     integer :: g
+    integer, allocatable :: want(:)
+    logical :: tracing
     if (spec%exact) then
       ! every batch is the same: computed once (for this batch size), then copied
       if (.not. allocated(spec%exact_buf) .or. spec%exact_n /= nphot) then
@@ -363,13 +408,23 @@ contains
     end if
     ! the plan and nphot >= 1 are checked at set-up: no error can occur here (the g-point
     ! switch of a 3-D scene repeats the set-up's atmosphere with other numbers)
-    call spectral_begin_batch(spec%plan, nphot, rng, spec%batch, err)
+    tracing = .true.
+    if (present(active)) tracing = active
+    allocate (want(spec%n_gpt))
+    want = 0
+    if (tracing) then
+      call spectral_begin_batch(spec%plan, nphot, rng, spec%batch, err)
+      where (spec%batch%count > 0) want = 1
+    end if
+    if (spec%node) call par_node_max(want)
     rr_threshold = scene%vr%rr_threshold
     rr_weight = scene%vr%rr_weight
     do g = 1, spec%n_gpt
-      if (spec%batch%count(g) == 0) cycle
+      if (want(g) == 0) cycle
       call spectral_set_gpoint(spec, g, scene, error)
       if (allocated(error)) exit
+      if (.not. tracing) cycle
+      if (spec%batch%count(g) == 0) cycle
       ! the g-point's photons start with weight f and play roulette on the same scale
       f = spec%batch%weight(g)*real(nphot, dp)/spec%norm
       scene%src%w_unit = f

@@ -7,6 +7,7 @@ module kumo_parallel
   use mpi_f08, only: MPI_Init, MPI_Initialized, MPI_Finalize, MPI_Finalized, MPI_Comm_rank, &
     MPI_Comm_size, MPI_Reduce, MPI_Allreduce, MPI_Bcast, MPI_Barrier, MPI_Wtime, MPI_Abort, &
     MPI_COMM_WORLD, MPI_IN_PLACE, MPI_DOUBLE_PRECISION, MPI_INTEGER, MPI_INTEGER8, MPI_SUM
+  use mpi_f08, only: MPI_MAX
   use mpi_f08, only: MPI_REAL
   use mpi_f08, only: MPI_Ibarrier, MPI_Test, MPI_Request, MPI_STATUS_IGNORE
   use mpi_f08, only: MPI_Send, MPI_Recv, MPI_Gather, MPI_Gatherv, MPI_CHARACTER
@@ -23,6 +24,7 @@ module kumo_parallel
             par_allreduce_sum, par_abort, par_barrier, par_wtime, par_bcast_int, par_bcast_real, PAR_IS_MPI
   public :: par_stop, par_fail, par_bcast_text, par_move, par_bcast_single
   public :: par_node_size, par_node_leader, par_node_storage, par_node_sync, par_gather_i8
+  public :: par_node_window, par_node_max, par_node_rank
   public :: PAR_ALL, PAR_LEADERS
 
   logical, parameter :: PAR_IS_MPI = .true.  !! this build distributes batches over MPI ranks
@@ -46,6 +48,12 @@ module kumo_parallel
   type(MPI_Comm), save :: node_comm, leader_comm
   integer, save :: node_rank = 0, node_n = 1
   type(MPI_Win), allocatable, save :: windows(:)
+  !> Reusable windows (par_node_window): one per identifier, kept and handed out again while
+  !> big enough.
+  integer, parameter :: N_REUSE = 4
+  type(MPI_Win), save :: reuse_win(N_REUSE)
+  integer(i8), save :: reuse_bytes(N_REUSE) = -1_i8
+  type(c_ptr), save :: reuse_base(N_REUSE)
 
   !> How long [s] the ranks that failed wait for the others before ending the job with
   !> MPI_Abort: an error every rank found reaches them all well within it.
@@ -85,6 +93,12 @@ contains
       end do
       deallocate (windows)
     end if
+    do i = 1, N_REUSE
+      if (reuse_bytes(i) < 0) cycle
+      call MPI_Win_unlock_all(reuse_win(i))
+      call MPI_Win_free(reuse_win(i))
+      reuse_bytes(i) = -1_i8
+    end do
     call MPI_Finalize()
   end subroutine par_finalize
 
@@ -115,6 +129,12 @@ contains
     leader = node_rank == 0
   end function par_node_leader
 
+  !> This rank's place among the ranks of its node (0 for the node's first).
+  integer function par_node_rank() result(r)
+    call node_setup()
+    r = node_rank
+  end function par_node_rank
+
   !> Storage shared by the ranks of this node (kumo_atmosphere voxel_storage_i): an MPI-3
   !> shared-memory window of `nbytes` bytes allocated by the node's leader alone, mapped by every
   !> rank of the node at `base`; the leader is the `writer`. Every rank of the node calls it with
@@ -140,6 +160,47 @@ contains
     windows = [windows, win]
   end subroutine par_node_storage
 
+  !> Storage shared by the ranks of this node that is used again and again, for what is rebuilt
+  !> many times in a run (the voxels of each g-point of a broadband run): like par_node_storage,
+  !> but the window of identifier `id` (1..4) is kept and handed out again while it holds
+  !> `nbytes`; a larger request replaces it (collectively on the node). Every rank of the node
+  !> calls it with the same `id` and `nbytes`, and only once none of them reads the old values.
+  subroutine par_node_window(id, nbytes, base, writer)
+    integer, intent(in) :: id
+    integer(i8), intent(in) :: nbytes
+    type(c_ptr), intent(out) :: base
+    logical, intent(out) :: writer
+    integer(kind=MPI_ADDRESS_KIND) :: mine, got
+    integer :: disp
+    type(c_ptr) :: local
+    call node_setup()
+    writer = node_rank == 0
+    if (id < 1 .or. id > N_REUSE) error stop 'par_node_window: window identifier outside 1..4'
+    if (reuse_bytes(id) >= nbytes) then
+      base = reuse_base(id)
+      return
+    end if
+    if (reuse_bytes(id) >= 0) then
+      call MPI_Win_unlock_all(reuse_win(id))
+      call MPI_Win_free(reuse_win(id))
+    end if
+    mine = 0
+    if (writer) mine = max(nbytes, 8_i8)
+    call MPI_Win_allocate_shared(mine, 1, MPI_INFO_NULL, node_comm, local, reuse_win(id))
+    call MPI_Win_shared_query(reuse_win(id), 0, got, disp, base)
+    call MPI_Win_lock_all(MPI_MODE_NOCHECK, reuse_win(id))
+    reuse_bytes(id) = max(nbytes, 8_i8)
+    reuse_base(id) = base
+  end subroutine par_node_window
+
+  !> The largest value of each element over the ranks of this node, on every rank of the node.
+  subroutine par_node_max(x)
+    integer, intent(inout) :: x(:)
+    call node_setup()
+    if (size(x) == 0) return
+    call MPI_Allreduce(MPI_IN_PLACE, x, size(x), MPI_INTEGER, MPI_MAX, node_comm)
+  end subroutine par_node_max
+
   !> Returns when every rank of the node has reached it: what the leader wrote into the node's
   !> shared storage before is then seen by all (MPI_Win_sync on every window before and after a
   !> barrier of the node: the leader's stores are complete before the barrier, and the others'
@@ -152,12 +213,18 @@ contains
         call MPI_Win_sync(windows(i))
       end do
     end if
+    do i = 1, N_REUSE
+      if (reuse_bytes(i) >= 0) call MPI_Win_sync(reuse_win(i))
+    end do
     call MPI_Barrier(node_comm)
     if (allocated(windows)) then
       do i = 1, size(windows)
         call MPI_Win_sync(windows(i))
       end do
     end if
+    do i = 1, N_REUSE
+      if (reuse_bytes(i) >= 0) call MPI_Win_sync(reuse_win(i))
+    end do
   end subroutine par_node_sync
 
   !> Gather one integer per rank on rank 0 (`all`, size par_size(), in rank order; other ranks'

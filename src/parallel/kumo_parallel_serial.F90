@@ -10,6 +10,7 @@ module kumo_parallel
             par_allreduce_sum, par_abort, par_barrier, par_wtime, par_bcast_int, par_bcast_real, PAR_IS_MPI
   public :: par_stop, par_fail, par_bcast_text, par_move, par_bcast_single
   public :: par_node_size, par_node_leader, par_node_storage, par_node_sync, par_gather_i8
+  public :: par_node_window, par_node_max, par_node_rank
   public :: PAR_ALL, PAR_LEADERS
 
   logical, parameter :: PAR_IS_MPI = .false.  !! this build runs on one process
@@ -102,6 +103,11 @@ contains
     leader = .true.
   end function par_node_leader
 
+  !> This rank's place among the ranks of its node (the only one).
+  integer function par_node_rank() result(r)
+    r = 0
+  end function par_node_rank
+
   !> Storage of the node for one process: an ordinary allocation of `nbytes`, kept until the
   !> process ends (as the MPI build keeps its windows until par_finalize); this process writes.
   subroutine par_node_storage(nbytes, base, writer)
@@ -113,6 +119,32 @@ contains
     base = c_loc(words)
     writer = .true.
   end subroutine par_node_storage
+
+  !> Reusable storage of one process (par_node_window of the MPI build): the allocation of
+  !> identifier `id` (1..4) is handed out again while it holds `nbytes`, else replaced.
+  subroutine par_node_window(id, nbytes, base, writer)
+    integer, intent(in) :: id
+    integer(i8), intent(in) :: nbytes
+    type(c_ptr), intent(out) :: base
+    logical, intent(out) :: writer
+    type :: words_t
+      integer(i8), pointer, contiguous :: w(:) => null()
+    end type words_t
+    type(words_t), save :: kept(4)
+    if (id < 1 .or. id > 4) error stop 'par_node_window: window identifier outside 1..4'
+    if (associated(kept(id)%w)) then
+      if (8_i8*size(kept(id)%w, kind=i8) < nbytes) deallocate (kept(id)%w)
+    end if
+    if (.not. associated(kept(id)%w)) allocate (kept(id)%w(max(1_i8, (nbytes + 7_i8)/8_i8)))
+    base = c_loc(kept(id)%w)
+    writer = .true.
+  end subroutine par_node_window
+
+  !> One rank per node: the values are the node's largest.
+  subroutine par_node_max(x)
+    integer, intent(inout) :: x(:)
+    if (size(x) < 0) x = 0
+  end subroutine par_node_max
 
   subroutine par_node_sync()
   end subroutine par_node_sync

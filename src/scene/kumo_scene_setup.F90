@@ -12,6 +12,7 @@
 !> opens an input file.
 module kumo_scene_setup
   use, intrinsic :: iso_fortran_env, only: output_unit
+  use, intrinsic :: iso_c_binding, only: c_ptr
   use kumo_kinds, only: wp, dp, vp, i8
   use kumo_constants, only: DEG2RAD, PI
   use kumo_error, only: error_t, set_error, add_context, str, join
@@ -38,7 +39,8 @@ module kumo_scene_setup
   use kumo_surface, only: surface_init, surface_init_brdf, surface_init_brdf_map
   use kumo_brdf, only: brdf_params_t, BRDF_NPAR
   use kumo_source, only: solar_source, source_stratify
-  use kumo_emission, only: emission_t, emission_init, emission_bind
+  use kumo_emission, only: emission_t, emission_init, emission_bind, emission_detach, &
+                           emission_voxel_power
   use kumo_planck, only: spectral_band_t, band_from_wavenumbers, band_monochromatic_wavelength, &
                          band_radiance, band_units
   use kumo_vr, only: collision_forcing, ddis_phases, spiky_without_vr, SPIKY_PEAK, DDIS_CONE_DEG, &
@@ -53,7 +55,7 @@ module kumo_scene_setup
   use kumo_cloud_scene, only: build_cloud_atmosphere, rayleigh_layers, cloud_temperature_t, ice_table, &
                               water_table, mcarats_scan_t, mcarats_scan
   use kumo_spectral_cloud, only: spectral_cloud_t, spectral_cloud_init, spectral_cloud_band, &
-                                 spectral_cloud_put
+                                 spectral_cloud_put, spectral_cloud_place
   use kumo_supervoxel, only: supervoxel_grid_t
   use kumo_gas_state, only: gas_state_merge
   use kumo_rayleigh, only: depol_from_king, king_factor_air
@@ -63,7 +65,8 @@ module kumo_scene_setup
   use kumo_mcarats_files, only: mcarats_surface_t, read_mcarats_surface, mcarats_surface_npsfc, &
                                 mcarats_surface_brdf
   use kumo_parallel, only: par_is_root, par_size, par_rank, par_node_size, par_node_storage, &
-                           par_node_sync, par_gather_i8, par_node_leader
+                           par_node_sync, par_gather_i8, par_node_leader, par_node_window, &
+                           par_node_rank
   implicit none
   private
   public :: load_config, setup_scene, spectral_scene_t, spectral_set_gpoint
@@ -122,6 +125,11 @@ module kumo_scene_setup
     logical :: cloud_on = .false.
     type(spectral_cloud_t) :: cloud
     type(supervoxel_grid_t) :: sv_layout          !! super-voxel blocks of the set-up's g-point
+    integer :: atm_band = 0                       !! band of the atmosphere's cloud voxels
+    !> several ranks: the cloud's voxels (and, in the longwave, each g-point's emission table)
+    !> lie in storage the ranks of a node share, which its first rank alone forms at every
+    !> g-point switch (node_voxels, node_table); the ranks of a node then switch together
+    logical :: node = .false.
   end type spectral_scene_t
 
 contains
@@ -279,10 +287,11 @@ contains
     aopts%sv%max_layers = cfg%vr%sv_max_layers
     if (cfg%cloud%enabled .and. cfg%spectral%enabled) then
       ! a broadband run: the cloud's optics per band, its atmosphere rebuilt per g-point
+      spec%node = shared
       call spectral_cloud_init(cfg%cloud, cfg%spectral, cloud_optics_location(cfg, spec%longwave), &
                                band_mie_default_cache(cfg, spec%longwave), spec%band_wn, &
                                spec%longwave, cfg%phase%n_table, phases, spec%cloud, cloud_notes, &
-                               cloud_warnings, error)
+                               cloud_warnings, error, per_node=shared)
       if (allocated(error)) return
       spec%three_d = .true.
       spec%cloud_on = .true.
@@ -291,13 +300,33 @@ contains
       if (spec%longwave) scene%notes = scene%notes//'  longwave emission of the cloud voxels: '// &
         'the Planck sources of their layers (temperatures of the &kumo_spectral profile; the '// &
         'cloud file''s temperatures are not used)'//new_line('a')
-      call atmosphere_begin(scene%atm, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, ext1d, ssa1d, &
-                            phase1d, phases, aopts, error, cfg%atm%k3d_bottom, spec%cloud%nx, &
-                            spec%cloud%ny, spec%cloud%nz, spec%cloud%nc3, blend=.true.)
+      if (spec%node) then
+        ! the band's cloud optics where every rank of the node reads them (the g-points of a
+        ! band are swapped by all together)
+        call spectral_cloud_place(spec%cloud, node_cloud)
+        call atmosphere_begin(scene%atm, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, ext1d, ssa1d, &
+                              phase1d, phases, aopts, error, cfg%atm%k3d_bottom, spec%cloud%nx, &
+                              spec%cloud%ny, spec%cloud%nz, spec%cloud%nc3, blend=.true., &
+                              storage=node_voxels)
+      else
+        call atmosphere_begin(scene%atm, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, ext1d, ssa1d, &
+                              phase1d, phases, aopts, error, cfg%atm%k3d_bottom, spec%cloud%nx, &
+                              spec%cloud%ny, spec%cloud%nz, spec%cloud%nc3, blend=.true.)
+      end if
       if (allocated(error)) return
-      call spectral_cloud_band(spec%cloud, spec%gpt_band(spec%g_setup), n_out_liq, n_out_ice)
-      call spectral_cloud_put(spec%cloud, scene%atm)
-      call atmosphere_end(scene%atm, aopts, error)
+      n_out_liq = 0
+      n_out_ice = 0
+      if (scene%atm%voxel_writer) then
+        call spectral_cloud_band(spec%cloud, spec%gpt_band(spec%g_setup), n_out_liq, n_out_ice)
+        call spectral_cloud_put(spec%cloud, scene%atm)
+      end if
+      spec%atm_band = spec%gpt_band(spec%g_setup)
+      if (spec%node) then
+        call atmosphere_end(scene%atm, aopts, error, sync=par_node_sync)
+        if (.not. allocated(error)) call note_voxel_storage(scene%atm, cfg%control%verbose)
+      else
+        call atmosphere_end(scene%atm, aopts, error)
+      end if
       if (allocated(error)) return
       ! the other g-points keep these super-voxel blocks, with their own majorants
       spec%sv_layout = scene%atm%sv
@@ -1064,14 +1093,23 @@ contains
       call gpoint_emission(spec, g, scene, em, error)
       if (allocated(error)) return
       energy(g) = em%power
-      if (g == spec%gpoint) em_g = em
+      ! (copies independent of the node's storage, which the next g-point's table reuses)
+      ! the voxels' emitted powers are an output, which rank 0 writes: with the voxels on the
+      ! node, the other ranks keep no per-voxel array at all
+      if (g == spec%gpoint) then
+        em_g = em
+        call emission_detach(em_g)
+        if (spec%node .and. .not. par_is_root()) deallocate (em_g%emit_vox)
+      end if
       ! totals for the outputs
       if (g == 1) then
         em_sum = em
+        call emission_detach(em_sum)
+        if (spec%node .and. .not. par_is_root()) deallocate (em_sum%emit_vox)
       else
         em_sum%emit_sfc = em_sum%emit_sfc + em%emit_sfc
         em_sum%emit_layer = em_sum%emit_layer + em%emit_layer
-        em_sum%emit_vox = em_sum%emit_vox + em%emit_vox
+        if (allocated(em_sum%emit_vox)) em_sum%emit_vox = em_sum%emit_vox + emission_voxel_power(em)
       end if
       ! a 1-D column keeps every g-point's table; a 3-D scene rebuilds it per g-point
       if (.not. spec%three_d) then
@@ -1091,6 +1129,7 @@ contains
       xflux(g) = fu(nz) + fd(0) + sum(abs(net)) + abs(eps*fd(0) - em%emit_sfc)
       xheat(g) = sum(abs(net)/mass)
     end do
+    if (spec%node) call note_table_storage(em, cfg%control%verbose)
     ! half by the fluxes and net powers (W m-2), half by the heating rates (per unit mass), never
     ! below a tiny share of the g-point's emission (a g-point with energy is drawn)
     importance = 0.5_wp*xflux/max(tiny(1.0_wp), sum(xflux)) + 0.5_wp*xheat/max(tiny(1.0_wp), sum(xheat))
@@ -1183,21 +1222,43 @@ contains
     if (spec%cloud_on) then
       ! the cloud's voxels at the g-point's band over its gas layers. Within a band only the
       ! gas changes: the background is swapped. A new band builds the atmosphere anew; its
-      ! phase functions (every band's) move out of it and back in, uncopied.
-      if (spec%gpt_band(g) == spec%cloud%band) then
-        call atmosphere_swap_background(atm, e, w, spec%cloud%cext, spec%cloud%cssa, &
-                                        spec%aopts, spec%sv_layout, done)
+      ! phase functions (every band's) move out of it and back in, uncopied. Voxels the node
+      ! shares are rewritten once no rank of the node traces the last g-point any more.
+      if (spec%node) call par_node_sync()
+      if (spec%gpt_band(g) == spec%atm_band) then
+        if (spec%node) then
+          ! the ranks of the node form a share of the layers each
+          call atmosphere_swap_background(atm, e, w, spec%cloud%cext, spec%cloud%cssa, &
+                                          spec%aopts, spec%sv_layout, done, sync=par_node_sync, &
+                                          part=par_node_rank(), nparts=par_node_size())
+        else
+          call atmosphere_swap_background(atm, e, w, spec%cloud%cext, spec%cloud%cssa, &
+                                          spec%aopts, spec%sv_layout, done)
+        end if
         if (done) return
-      else
-        call spectral_cloud_band(spec%cloud, spec%gpt_band(g), n_out_liq, n_out_ice)
       end if
       call move_alloc(atm%phases, ph)
-      call atmosphere_begin(atm, spec%z, spec%lx, spec%ly, e, w, ip, ph, spec%aopts, error, &
-                            spec%k3d_bottom, spec%cloud%nx, spec%cloud%ny, spec%cloud%nz, &
-                            spec%cloud%nc3, blend=.true.)
+      if (spec%node) then
+        call atmosphere_begin(atm, spec%z, spec%lx, spec%ly, e, w, ip, ph, spec%aopts, error, &
+                              spec%k3d_bottom, spec%cloud%nx, spec%cloud%ny, spec%cloud%nz, &
+                              spec%cloud%nc3, blend=.true., storage=node_voxels)
+      else
+        call atmosphere_begin(atm, spec%z, spec%lx, spec%ly, e, w, ip, ph, spec%aopts, error, &
+                              spec%k3d_bottom, spec%cloud%nx, spec%cloud%ny, spec%cloud%nz, &
+                              spec%cloud%nc3, blend=.true.)
+      end if
       if (allocated(error)) return
-      call spectral_cloud_put(spec%cloud, atm)
-      call atmosphere_end(atm, spec%aopts, error, sv_layout=spec%sv_layout)
+      if (atm%voxel_writer) then
+        if (spec%cloud%band /= spec%gpt_band(g)) &
+          call spectral_cloud_band(spec%cloud, spec%gpt_band(g), n_out_liq, n_out_ice)
+        call spectral_cloud_put(spec%cloud, atm)
+      end if
+      spec%atm_band = spec%gpt_band(g)
+      if (spec%node) then
+        call atmosphere_end(atm, spec%aopts, error, sv_layout=spec%sv_layout, sync=par_node_sync)
+      else
+        call atmosphere_end(atm, spec%aopts, error, sv_layout=spec%sv_layout)
+      end if
     else if (allocated(spec%iph3)) then
       call atmosphere_init(atm, spec%z, spec%lx, spec%ly, e, w, ip, spec%phases, spec%aopts, &
                            error, spec%k3d_bottom, spec%ext3, spec%ssa3, spec%iph3)
@@ -1220,11 +1281,44 @@ contains
     ! level values: only what voxels would read, and voxels take the layers' own mean
     b_lev(0) = spec%src_bot(1, g)
     b_lev(1:spec%nz) = spec%src_top(:, g)
-    call emission_init(em, scene%atm, scene%sfc, b_lev, spec%src_sfc(g), 0.0_wp, 0.0_wp, &
-                       spec%floor, error, b_layer_bottom=spec%src_bot(:, g), &
-                       b_layer_top=spec%src_top(:, g), escape_sampling=.true.)
+    if (spec%node) then
+      ! in the node's storage (the last g-point's table is no longer read: spectral_set_optics)
+      call emission_init(em, scene%atm, scene%sfc, b_lev, spec%src_sfc(g), 0.0_wp, 0.0_wp, &
+                         spec%floor, error, b_layer_bottom=spec%src_bot(:, g), &
+                         b_layer_top=spec%src_top(:, g), escape_sampling=.true., &
+                         storage=node_table, sync=par_node_sync)
+    else
+      call emission_init(em, scene%atm, scene%sfc, b_lev, spec%src_sfc(g), 0.0_wp, 0.0_wp, &
+                         spec%floor, error, b_layer_bottom=spec%src_bot(:, g), &
+                         b_layer_top=spec%src_top(:, g), escape_sampling=.true.)
+    end if
     if (allocated(error)) call add_context(error, '&kumo_spectral: g-point '//str(g))
   end subroutine gpoint_emission
+
+  !> Storage for the voxels of a broadband run with several ranks (spectral_scene_t node): one
+  !> window of the node, used again by every g-point (kumo_parallel par_node_window).
+  subroutine node_voxels(nbytes, base, writer)
+    integer(i8), intent(in) :: nbytes
+    type(c_ptr), intent(out) :: base
+    logical, intent(out) :: writer
+    call par_node_window(1, nbytes, base, writer)
+  end subroutine node_voxels
+
+  !> The same for the cloud's optics of the current band (spectral_cloud_place).
+  subroutine node_cloud(nbytes, base, writer)
+    integer(i8), intent(in) :: nbytes
+    type(c_ptr), intent(out) :: base
+    logical, intent(out) :: writer
+    call par_node_window(3, nbytes, base, writer)
+  end subroutine node_cloud
+
+  !> The same for each g-point's emission table in the longwave.
+  subroutine node_table(nbytes, base, writer)
+    integer(i8), intent(in) :: nbytes
+    type(c_ptr), intent(out) :: base
+    logical, intent(out) :: writer
+    call par_node_window(2, nbytes, base, writer)
+  end subroutine node_table
 
   !> Where the k-distribution is: `path` (kdist_file resolved against the namelist's folder)
   !> if it exists; otherwise, for a bare file name, the folder scripts/fetch-rrtmgp.sh fills

@@ -23,7 +23,7 @@
 !> monochromatic runs (kumo_cloud_scene); radii outside a table are clamped to its ends and
 !> counted in a warning. Only the table radii's phase functions exist: n_band x n_radii of them.
 module kumo_spectral_cloud
-  use kumo_kinds, only: wp
+  use kumo_kinds, only: wp, i8
   use kumo_error, only: error_t, set_error, str
   use kumo_phase, only: phase_t, phase_from_table, new_phase_hg
   use kumo_mie, only: mie_table_t, dist_kind_from_name
@@ -36,13 +36,15 @@ module kumo_spectral_cloud
   use kumo_cloud_share, only: read_cloud_on_root
   use kumo_kinds, only: vp
   use kumo_cloud_scene, only: mie_layer, table_radii
-  use kumo_atmosphere, only: atmosphere_t, atmosphere_put_layer
+  use kumo_atmosphere, only: atmosphere_t, atmosphere_put_layer, voxel_storage_i
+  use, intrinsic :: iso_c_binding, only: c_ptr, c_f_pointer
   use kumo_bundle, only: bundle_t
   use kumo_parallel, only: par_is_root
   use kumo_config, only: cloud_cfg_t, spectral_cfg_t
   implicit none
   private
-  public :: spectral_cloud_t, spectral_cloud_init, spectral_cloud_band, spectral_cloud_put
+  public :: spectral_cloud_t, spectral_cloud_init, spectral_cloud_band, spectral_cloud_put, &
+            spectral_cloud_place
 
   !> Nodes per band of the band-averaged Mie tables (kumo_band_mie: wide bands get more).
   integer, parameter :: MIE_NODES = 8
@@ -62,7 +64,7 @@ module kumo_spectral_cloud
     !> the voxel components of band `band` as they are put into an atmosphere (nx, ny, nz,
     !> nc3): extinction [m-1], albedo, phase index, blend weight (spectral_cloud_band)
     integer :: band = 0
-    real(wp), allocatable :: cext(:, :, :, :), cssa(:, :, :, :)
+    real(wp), pointer, contiguous :: cext(:, :, :, :) => null(), cssa(:, :, :, :) => null()
     integer, allocatable :: ciph(:, :, :, :)
     real(vp), allocatable :: cwph(:, :, :, :)
   end type spectral_cloud_t
@@ -74,7 +76,8 @@ contains
   !> and append the tables' phase functions to `phases`. `optics_path`: the RRTMGP cloud-optics
   !> file (read when liquid_optics = 'rrtmgp' or the file has ice).
   subroutine spectral_cloud_init(ccfg, scfg, optics_path, default_cache, band_wavenumber, &
-                                 longwave, n_table, phases, sc, notes, warnings, error)
+                                 longwave, n_table, phases, sc, notes, warnings, error, &
+                                 per_node)
     type(cloud_cfg_t), intent(in) :: ccfg
     type(spectral_cfg_t), intent(in) :: scfg
     character(len=*), intent(in) :: optics_path
@@ -87,6 +90,9 @@ contains
     type(spectral_cloud_t), intent(out) :: sc
     character(len=:), allocatable, intent(out) :: notes, warnings
     type(error_t), allocatable, intent(out) :: error
+    !> only the first rank of every node gets the fields (read_cloud_on_root per_node): it
+    !> alone forms the voxels, in storage the node shares; the others hold the grid and tables
+    logical, intent(in), optional :: per_node
     type(bundle_t) :: bt
     type(phase_t), allocatable :: more(:)
     integer :: nb, ib, i, nr
@@ -205,7 +211,7 @@ contains
       type(cloud_request_t) :: req
       req = ccfg%req
       req%temperature = .false.
-      call read_cloud_on_root(req, sc%liq, err, part='liquid')
+      call read_cloud_on_root(req, sc%liq, err, part='liquid', per_node=per_node)
       if (allocated(err)) return
       if (sc%liq%content /= CLOUD_WATER) then
         call set_error(err, ccfg%req%path//': broadband runs compute the cloud''s optics '// &
@@ -217,7 +223,7 @@ contains
       end if
       sc%has_ice = sc%liq%has_ice
       if (sc%has_ice) then
-        call read_cloud_on_root(req, sc%ice, err, part='ice')
+        call read_cloud_on_root(req, sc%ice, err, part='ice', per_node=per_node)
         if (allocated(err)) return
       end if
     end subroutine read_fields
@@ -318,9 +324,9 @@ contains
     np = merge(2, 1, sc%liq%points)
     n_out_liq = 0
     n_out_ice = 0
-    if (.not. allocated(sc%cext)) allocate (sc%cext(sc%nx, sc%ny, sc%nz, sc%nc3), &
-                                            sc%cssa(sc%nx, sc%ny, sc%nz, sc%nc3), &
-                                            sc%ciph(sc%nx, sc%ny, sc%nz, sc%nc3), &
+    if (.not. associated(sc%cext)) allocate (sc%cext(sc%nx, sc%ny, sc%nz, sc%nc3), &
+                                             sc%cssa(sc%nx, sc%ny, sc%nz, sc%nc3))
+    if (.not. allocated(sc%ciph)) allocate (sc%ciph(sc%nx, sc%ny, sc%nz, sc%nc3), &
                                             sc%cwph(sc%nx, sc%ny, sc%nz, sc%nc3))
     do ip = 1, np
       do k = 1, sc%nz
@@ -344,6 +350,25 @@ contains
       sc%cwph(:, :, k, ic) = real(wph, vp)
     end subroutine layer
   end subroutine spectral_cloud_band
+
+  !> Place the extinction and albedo of the voxel components (cext, cssa) in the caller's
+  !> storage (kumo_atmosphere voxel_storage_i, e.g. one copy shared by the processes of a node),
+  !> where the storage's writer forms them (spectral_cloud_band) and every process sharing it
+  !> reads them (to swap the gas of the g-points of a band together). Every process sharing it
+  !> calls this once, before the first band.
+  subroutine spectral_cloud_place(sc, storage)
+    type(spectral_cloud_t), intent(inout) :: sc
+    procedure(voxel_storage_i) :: storage
+    integer(i8) :: nv
+    real(wp), pointer, contiguous :: words(:)
+    type(c_ptr) :: base
+    logical :: writer
+    nv = int(sc%nx, i8)*sc%ny*sc%nz*sc%nc3
+    call storage(2*nv*(storage_size(1.0_wp)/8), base, writer)
+    call c_f_pointer(base, words, [2*nv])
+    sc%cext(1:sc%nx, 1:sc%ny, 1:sc%nz, 1:sc%nc3) => words(1:nv)
+    sc%cssa(1:sc%nx, 1:sc%ny, 1:sc%nz, 1:sc%nc3) => words(nv + 1:2*nv)
+  end subroutine spectral_cloud_place
 
   !> Put the voxel components of the current band (spectral_cloud_band) into an atmosphere
   !> begun with the cloud file's grid, sc%nc3 voxel components and phase blends.

@@ -68,7 +68,8 @@ module kumo_emission
   private
   public :: emission_t, emission_init, emission_entry, emission_launch, emission_weight, &
             emission_b_point, emission_b_surface, &
-            emission_b_segment, emission_surface_eps, emission_voxel_power, emission_bind
+            emission_b_segment, emission_surface_eps, emission_voxel_power, emission_bind, &
+            emission_detach
   public :: EMIT_SOLAR, EMIT_TOP, EMIT_SURFACE, EMIT_LAYER, EMIT_VOXEL
 
   !> Kinds of table entries (and of a photon's source).
@@ -397,6 +398,20 @@ contains
     if (allocated(em%cdf_own)) em%cdf(0:) => em%cdf_own
     if (allocated(em%ratio_own)) em%ratio => em%ratio_own
   end subroutine emission_bind
+
+  !> Make a table that lives in the caller's storage (`on_node`) independent of it, for what it
+  !> reports (the powers of the layers, voxels and surface): the voxels' powers are copied out
+  !> and the table itself (cdf, ratio, b3) is let go, so the result launches no photons. Used
+  !> for summaries of tables whose storage is used again (the g-points of a broadband run).
+  subroutine emission_detach(em)
+    type(emission_t), intent(inout) :: em
+    if (.not. em%on_node) return
+    em%emit_vox = em%emit_vox_node
+    nullify (em%cdf, em%ratio, em%b3, em%emit_vox_node)
+    em%on_node = .false.
+    em%table_bytes_own = storage_size(1.0_wp)/8*size(em%emit_vox, kind=i8)
+    em%table_bytes_borrowed = 0_i8
+  end subroutine emission_detach
 
   !> Fraction of the emission of a layer of absorption optical depth tau that leaves it,
   !> (1/2 - E_3(tau))/tau; 1 below tau = 1e-4, where it differs from 1 by less than 1e-3 (only

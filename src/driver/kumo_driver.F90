@@ -14,7 +14,7 @@ module kumo_driver
   use kumo_error, only: error_t, str
   use kumo_rng, only: rng_t, rng_init
   use kumo_tally, only: tally_layout_t, tally_t, stats_t, layout_init, tally_reset, stats_init, &
-                        stats_add_batch, batch_budget, N_ANOMALIES
+                        stats_add_batch, batch_budget, tally_free, N_ANOMALIES
   use kumo_scene, only: scene_t
   use kumo_transport, only: trace_batch
   use kumo_exact_column, only: exact_thermal_possible, exact_thermal_batch
@@ -39,6 +39,9 @@ module kumo_driver
   !> Progress on rank 0 (standard error), for runs longer than a few seconds: the first line
   !> after PROGRESS_FIRST seconds, then one every PROGRESS_EVERY seconds.
   real(dp), parameter :: PROGRESS_FIRST = 5.0_dp, PROGRESS_EVERY = 15.0_dp
+  !> Entries of the sums moved per message when the slots are folded (8 MiB): the receiving
+  !> rank adds each piece as it arrives.
+  integer, parameter :: FOLD_PIECE = 1048576
   type :: progress_t
     logical :: on = .false.
     real(dp) :: t0 = 0.0_dp          !! start of tracing [s]
@@ -283,6 +286,11 @@ contains
       if (int(ib_next - 1 + nb_round, i8)*nphot > cfg%control%max_photons) exit
     end do
     nb_done = ib_next - 1
+    ! the batches are done: what follows needs the sums alone, so the batch buffers (each as
+    ! large as the sums) are given back before the fold and the results
+    call tally_free(tal)
+    call tally_free(tal_g)
+    if (allocated(spec%exact_buf)) deallocate (spec%exact_buf)
 
     counts = 0
     do s = 0, n_slots - 1
@@ -406,8 +414,8 @@ contains
         os = mod(s, nranks)
         ot = mod(t, nranks)
         if (rank == ot .and. ot /= os) then
-          call par_move(slot(t)%s1, ot, os)
-          call par_move(slot(t)%s2, ot, os)
+          call send_sums(slot(t)%s1, ot, os)
+          call send_sums(slot(t)%s2, ot, os)
           deallocate (slot(t)%s1, slot(t)%s2)
         else if (rank == os) then
           if (ot == os) then
@@ -415,11 +423,8 @@ contains
             slot(s)%s2 = slot(s)%s2 + slot(t)%s2
             deallocate (slot(t)%s1, slot(t)%s2)
           else
-            if (.not. allocated(x)) allocate (x(size(slot(s)%s1)))
-            call par_move(x, ot, os)
-            slot(s)%s1 = slot(s)%s1 + x
-            call par_move(x, ot, os)
-            slot(s)%s2 = slot(s)%s2 + x
+            call add_sums(slot(s)%s1, x, ot, os)
+            call add_sums(slot(s)%s2, x, ot, os)
           end if
         end if
       end do
@@ -430,6 +435,33 @@ contains
       call move_alloc(slot(0)%s2, st%s2)
     end if
   end subroutine fold_slots
+
+  !> Send the sums `a` from rank `from` to rank `to` in pieces of FOLD_PIECE entries, as
+  !> add_sums receives them.
+  subroutine send_sums(a, from, to)
+    real(dp), intent(inout) :: a(:)
+    integer, intent(in) :: from, to
+    integer :: j, k
+    do j = 0, size(a) - 1, FOLD_PIECE
+      k = min(FOLD_PIECE, size(a) - j)
+      call par_move(a(j + 1:j + k), from, to)
+    end do
+  end subroutine send_sums
+
+  !> Add to the sums `a` those sent by send_sums, piece by piece through the buffer `x` (one
+  !> piece): the receiving rank never holds a second copy of the sums.
+  subroutine add_sums(a, x, from, to)
+    real(dp), intent(inout) :: a(:)
+    real(dp), allocatable, intent(inout) :: x(:)
+    integer, intent(in) :: from, to
+    integer :: j, k
+    if (.not. allocated(x)) allocate (x(min(FOLD_PIECE, size(a))))
+    do j = 0, size(a) - 1, FOLD_PIECE
+      k = min(FOLD_PIECE, size(a) - j)
+      call par_move(x(1:k), from, to)
+      a(j + 1:j + k) = a(j + 1:j + k) + x(1:k)
+    end do
+  end subroutine add_sums
 
   !> A progress line on standard error when it is due: batches done (rank 0 has reached batch
   !> `n_done`; the other ranks run alongside), photons per second, and the time left (fixed batch count) or the

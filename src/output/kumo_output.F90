@@ -13,14 +13,18 @@ module kumo_output
   use kumo_tally, only: tally_layout_t, stats_t, stats_mean, stats_stderr, N_ANOMALIES, &
                         ANOMALY_NAMES
   use kumo_scene, only: scene_t
-  use kumo_results, only: result_set_t, add_dim, add_var, add_attr, add_num_attr, find_var, &
-                          find_dim
+  use kumo_results, only: result_set_t, add_dim, add_var, take_var, add_attr, add_num_attr, &
+                          find_var, find_dim
   use kumo_config, only: config_t, config_echo
   use kumo_parallel, only: PAR_IS_MPI
   use kumo_vr, only: roulette_balance_warning
   implicit none
   private
   public :: run_summary_t, build_results, log_summary
+
+  !> Entries formed at a time from the sums (stats_mean, stats_stderr) when a large product is
+  !> built: no temporary array as large as the product.
+  integer, parameter :: FORM_PIECE = 65536
 
   !> Figures of a finished run, for the log and for tests.
   type :: run_summary_t
@@ -38,6 +42,10 @@ module kumo_output
 contains
 
   !> Lay out every product with its standard error, units and provenance.
+  !>
+  !> The per-column and per-voxel products are formed straight into their own arrays, which
+  !> move into the result set (take_var): while the set is built, rank 0 holds the sums and the
+  !> products once each, and no temporary larger than FORM_PIECE entries.
   subroutine build_results(cfg, scene, lay, st, rec, summary, set)
     type(config_t), intent(in) :: cfg
     type(scene_t), intent(in) :: scene
@@ -46,10 +54,10 @@ contains
     real(dp), intent(in) :: rec(:, :)
     type(run_summary_t), intent(in) :: summary
     type(result_set_t), intent(inout) :: set
-    integer :: nz, k, n_out, i, ncol, kr
+    integer :: nz, k, n_out, i, ncol, kr, nv
     integer, allocatable :: lev(:)
-    real(dp), allocatable :: z(:), zmid(:), dz(:), m(:), e(:), fac(:)
-    real(dp) :: f_hor
+    real(dp), allocatable :: z(:), zmid(:), dz(:), m(:), e(:), fac(:), mv(:), ev(:), ma(:), ea(:)
+    real(dp) :: f_hor, f1
     integer :: tv(8)
     character(len=:), allocatable :: NORM, fu, band_kind
     character(len=32) :: stamp
@@ -148,63 +156,69 @@ contains
                      long_name='y of the column centres')
       end if
       if (lay%do_maps) then
-        call put('flux_up_map', 'upward flux per column'//NORM, &
-                 [(lay%i_map_up + i, i=1, n_out*ncol)], dims=['x    ', 'y    ', 'level'])
-        call put('flux_down_direct_map', 'downward direct flux per column'//NORM, &
-                 [(lay%i_map_dir + i, i=1, n_out*ncol)], dims=['x    ', 'y    ', 'level'])
-        call put('flux_down_diffuse_map', 'downward diffuse flux per column'//NORM, &
-                 [(lay%i_map_dif + i, i=1, n_out*ncol)], dims=['x    ', 'y    ', 'level'])
-        call put('flux_down_map', 'total (direct + diffuse) downward flux per column'//NORM, &
-                 [(lay%i_map_dn + i, i=1, n_out*ncol)], dims=['x    ', 'y    ', 'level'])
+        call put_range('flux_up_map', 'upward flux per column'//NORM, lay%i_map_up, n_out*ncol, &
+                       ['x    ', 'y    ', 'level'])
+        call put_range('flux_down_direct_map', 'downward direct flux per column'//NORM, &
+                       lay%i_map_dir, n_out*ncol, ['x    ', 'y    ', 'level'])
+        call put_range('flux_down_diffuse_map', 'downward diffuse flux per column'//NORM, &
+                       lay%i_map_dif, n_out*ncol, ['x    ', 'y    ', 'level'])
+        call put_range('flux_down_map', 'total (direct + diffuse) downward flux per column'//NORM, &
+                       lay%i_map_dn, n_out*ncol, ['x    ', 'y    ', 'level'])
       end if
       if (lay%do_voxel) then
+        nv = atm%n3*ncol
         call add_dim(set, 'z3d', atm%n3, coord=zmid(atm%k3_lo:atm%k3_hi), units='m', &
                      long_name='height of the layer centres of the 3-D region')
-        call put('absorptance_voxel', 'power absorbed per voxel per unit column area'//NORM, &
-                 [(lay%i_vox + i, i=1, atm%n3*ncol)], dims=['x  ', 'y  ', 'z3d'])
-        if (allocated(fac)) deallocate (fac)
-        allocate (fac(atm%n3*ncol))
-        do kr = 1, atm%n3
-          fac((kr - 1)*ncol + 1:kr*ncol) = 1.0_dp/dz(atm%k3_lo + kr - 1)
-        end do
-        m = stats_mean(st, lay%i_vox + 1, lay%i_vox + atm%n3*ncol)*fac
-        e = stats_stderr(st, lay%i_vox + 1, lay%i_vox + atm%n3*ncol)*fac
+        call put_range('absorptance_voxel', 'power absorbed per voxel per unit column area'//NORM, &
+                       lay%i_vox, nv, ['x  ', 'y  ', 'z3d'])
+        ! per volume: times 1/dz of the voxel's layer
+        call form(lay%i_vox, nv, mv, ev)
+        call per_volume(mv)
+        call per_volume(ev)
         if (f_hor > 0.0_dp) then
-          call add_var(set, 'absorbed_power_density_voxel', 'absorbed power per volume', &
-                       'W m-3'//fu(6:), ['x  ', 'y  ', 'z3d'], m*f_hor, e*f_hor)
+          ma = mv*f_hor
+          ea = ev*f_hor
+          call take_var(set, 'absorbed_power_density_voxel', 'absorbed power per volume', &
+                        'W m-3'//fu(6:), ['x  ', 'y  ', 'z3d'], ma, ea)
           if (thermal) then
             ! heating from the net power (net exchange), not from what is absorbed
-            call add_var(set, 'emitted_power_density_voxel', 'emitted power per volume '// &
-                         '(exact)', 'W m-3'//fu(6:), ['x  ', 'y  ', 'z3d'], &
-                         emission_voxel_power(scene%src%em)*fac)
-            m = stats_mean(st, lay%i_vnet + 1, lay%i_vnet + atm%n3*ncol)*fac
-            e = stats_stderr(st, lay%i_vnet + 1, lay%i_vnet + atm%n3*ncol)*fac
-            call add_var(set, 'net_power_density_voxel', 'absorbed minus emitted power per '// &
-                         'volume (net exchange estimator)', 'W m-3'//fu(6:), &
-                         ['x  ', 'y  ', 'z3d'], m*f_hor, e*f_hor)
+            ma = emission_voxel_power(scene%src%em)
+            call per_volume(ma)
+            call take_var(set, 'emitted_power_density_voxel', 'emitted power per volume '// &
+                          '(exact)', 'W m-3'//fu(6:), ['x  ', 'y  ', 'z3d'], ma)
+            call form(lay%i_vnet, nv, mv, ev)
+            call per_volume(mv)
+            call per_volume(ev)
+            ma = mv*f_hor
+            ea = ev*f_hor
+            call take_var(set, 'net_power_density_voxel', 'absorbed minus emitted power per '// &
+                          'volume (net exchange estimator)', 'W m-3'//fu(6:), &
+                          ['x  ', 'y  ', 'z3d'], ma, ea)
           end if
           if (allocated(scene%air_density)) then
             do kr = 1, atm%n3
-              fac((kr - 1)*ncol + 1:kr*ncol) = f_hor*SECONDS_PER_DAY/ &
-                (scene%air_density(atm%k3_lo + kr - 1)*cfg%atm%cp_air)
+              f1 = f_hor*SECONDS_PER_DAY/(scene%air_density(atm%k3_lo + kr - 1)*cfg%atm%cp_air)
+              mv((kr - 1)*ncol + 1:kr*ncol) = mv((kr - 1)*ncol + 1:kr*ncol)*f1
+              ev((kr - 1)*ncol + 1:kr*ncol) = ev((kr - 1)*ncol + 1:kr*ncol)*f1
             end do
-            call add_var(set, 'heating_rate_voxel', 'heating rate', 'K day-1'//fu(6:), &
-                         ['x  ', 'y  ', 'z3d'], m*fac, e*fac)
+            call take_var(set, 'heating_rate_voxel', 'heating rate', 'K day-1'//fu(6:), &
+                          ['x  ', 'y  ', 'z3d'], mv, ev)
           end if
         else
-          call add_var(set, 'absorbed_power_density_voxel', 'absorbed power per volume per'// &
-                       ' unit incident solar flux on a horizontal plane', 'm-1', &
-                       ['x  ', 'y  ', 'z3d'], m, e)
+          call take_var(set, 'absorbed_power_density_voxel', 'absorbed power per volume per'// &
+                        ' unit incident solar flux on a horizontal plane', 'm-1', &
+                        ['x  ', 'y  ', 'z3d'], mv, ev)
         end if
+        if (allocated(mv)) deallocate (mv, ev)
       end if
 
       if (lay%do_budget) then
-        call put('absorptance_column', 'power absorbed in the 3-D region of each column per'// &
-                 ' unit column area'//NORM, [(lay%i_col_abs + i, i=1, ncol)], dims=['x', 'y'])
-        call put('horizontal_transport_map', 'net power leaving the 3-D region of each'// &
-                 ' column through its sides, per unit column area'//NORM// &
-                 ' (net flux in at the top - net flux out at the bottom - absorptance_column)', &
-                 [(lay%i_htr + i, i=1, ncol)], dims=['x', 'y'])
+        call put_range('absorptance_column', 'power absorbed in the 3-D region of each column per'// &
+                       ' unit column area'//NORM, lay%i_col_abs, ncol, ['x', 'y'])
+        call put_range('horizontal_transport_map', 'net power leaving the 3-D region of each'// &
+                       ' column through its sides, per unit column area'//NORM// &
+                       ' (net flux in at the top - net flux out at the bottom - absorptance_column)', &
+                       lay%i_htr, ncol, ['x', 'y'])
       end if
 
       call radiance_results()
@@ -369,11 +383,10 @@ contains
             call add_dim(set, 'y', scene%atm%ny, units='m', long_name='y of the column centres', &
                          coord=[((i - 0.5_dp)*scene%atm%dy, i=1, scene%atm%ny)])
           end if
-          mr = stats_mean1([(lay%i_rad_map + i, i=1, nn*ncol)])
+          call form(lay%i_rad_map, nn*ncol, mr, er)
           if (thermal) call add_top(mr, ncol)
-          call add_var(set, 'radiance_map', RNORM//', per column', '1', &
-                       ['x        ', 'y        ', 'rad_level', 'direction'], mr, &
-                       stats_err1([(lay%i_rad_map + i, i=1, nn*ncol)]))
+          call take_var(set, 'radiance_map', RNORM//', per column', '1', &
+                        ['x        ', 'y        ', 'rad_level', 'direction'], mr, er)
         end if
       end if
       do c = 1, size(lay%i_cam)
@@ -383,11 +396,12 @@ contains
                      units='1', long_name='pixel column of camera '//str(c)//' (1: left)')
         call add_dim(set, cn//'_y', cfg%cam%npy(c), coord=[(real(i, dp), i=1, cfg%cam%npy(c))], &
                      units='1', long_name='pixel row of camera '//str(c)//' (1: bottom)')
-        call put(cn//'_radiance', RNORM//', mean over each pixel of camera '//str(c), &
-                 [(lay%i_cam(c) + i, i=1, np)], dims=[cn//'_x', cn//'_y'])
+        call put_range(cn//'_radiance', RNORM//', mean over each pixel of camera '//str(c), &
+                       lay%i_cam(c), np, [cn//'_x', cn//'_y'])
         if (f_hor > 0.0_dp) then
-          mr = stats_mean1([(lay%i_cam(c) + i, i=1, np)])*f_hor/PI
-          er = stats_err1([(lay%i_cam(c) + i, i=1, np)])*f_hor/PI
+          call form(lay%i_cam(c), np, mr, er)
+          mr = mr*f_hor/PI
+          er = er*f_hor/PI
           call add_var(set, cn//'_radiance_wm2sr', 'radiance, mean over each pixel', &
                        ru, [cn//'_x', cn//'_y'], mr, er)
           if (thermal) call brightness(mr, er, cn//'_brightness_temperature', &
@@ -482,6 +496,43 @@ contains
         call add_var(set, name, long_name, '1', ['level'], stats_mean1(idx), stats_err1(idx))
       end if
     end subroutine put
+
+    !> A product of `n` entries from position lo + 1 of the buffer, moved into the set.
+    subroutine put_range(name, long_name, lo, n, dims)
+      character(len=*), intent(in) :: name, long_name, dims(:)
+      integer, intent(in) :: lo, n
+      real(dp), allocatable :: mf(:), ef(:)
+      call form(lo, n, mf, ef)
+      call take_var(set, name, long_name, '1', dims, mf, ef)
+    end subroutine put_range
+
+    !> Mean and standard error of the `n` entries from position lo + 1 of the buffer, formed
+    !> FORM_PIECE entries at a time.
+    subroutine form(lo, n, mf, ef)
+      integer, intent(in) :: lo, n
+      real(dp), allocatable, intent(inout) :: mf(:), ef(:)
+      integer :: j, nj
+      if (allocated(mf)) deallocate (mf)
+      if (allocated(ef)) deallocate (ef)
+      allocate (mf(n), ef(n))
+      do j = 0, n - 1, FORM_PIECE
+        nj = min(FORM_PIECE, n - j)
+        mf(j + 1:j + nj) = stats_mean(st, lo + j + 1, lo + j + nj)
+        ef(j + 1:j + nj) = stats_stderr(st, lo + j + 1, lo + j + nj)
+      end do
+    end subroutine form
+
+    !> Values of the voxels of the 3-D region divided by the thickness of their layer (times
+    !> 1/dz, as the layer products).
+    subroutine per_volume(v)
+      real(dp), intent(inout) :: v(:)
+      real(dp) :: f
+      integer :: kv
+      do kv = 1, scene%atm%n3
+        f = 1.0_dp/dz(scene%atm%k3_lo + kv - 1)
+        v((kv - 1)*ncol + 1:kv*ncol) = v((kv - 1)*ncol + 1:kv*ncol)*f
+      end do
+    end subroutine per_volume
 
     function stats_mean1(idx) result(v)
       integer, intent(in) :: idx(:)

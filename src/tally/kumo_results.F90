@@ -5,12 +5,12 @@
 !> knows about netCDF, so the layout of the output is decided in one place (kumo_output) and
 !> written generically.
 module kumo_results
-  use kumo_kinds, only: dp
+  use kumo_kinds, only: dp, i8
   use kumo_error, only: str
   implicit none
   private
   public :: result_dim_t, result_var_t, result_attr_t, result_set_t
-  public :: add_dim, add_var, add_attr, add_num_attr, find_var, find_dim
+  public :: add_dim, add_var, take_var, add_attr, add_num_attr, find_var, find_dim, result_values_bytes
 
   integer, parameter :: NAME_LEN = 64
 
@@ -75,7 +75,8 @@ contains
     set%dims = [set%dims, d]
   end subroutine add_dim
 
-  !> Add a variable; `stderr` may be omitted for exact (non-statistical) quantities.
+  !> Add a variable; `stderr` may be omitted for exact (non-statistical) quantities. The values
+  !> are copied (see take_var for large arrays).
   subroutine add_var(set, name, long_name, units, dim_names, mean, stderr)
     type(result_set_t), intent(inout) :: set
     character(len=*), intent(in) :: name, long_name, units
@@ -83,16 +84,91 @@ contains
     real(dp), intent(in) :: mean(:)
     real(dp), intent(in), optional :: stderr(:)
     type(result_var_t) :: v
+    call describe_var(v, name, long_name, units, dim_names)
+    v%mean = mean
+    if (present(stderr)) v%stderr = stderr
+    call push_var(set, v)
+  end subroutine add_var
+
+  !> Add a variable whose values are moved in, not copied: `mean` (and `stderr`) are
+  !> deallocated on return. For the large per-column and per-voxel products, so that a result
+  !> set never holds a second copy of them.
+  subroutine take_var(set, name, long_name, units, dim_names, mean, stderr)
+    type(result_set_t), intent(inout) :: set
+    character(len=*), intent(in) :: name, long_name, units
+    character(len=*), intent(in) :: dim_names(:)
+    real(dp), allocatable, intent(inout) :: mean(:)
+    real(dp), allocatable, intent(inout), optional :: stderr(:)
+    type(result_var_t) :: v
+    call describe_var(v, name, long_name, units, dim_names)
+    call move_alloc(mean, v%mean)
+    if (present(stderr)) call move_alloc(stderr, v%stderr)
+    call push_var(set, v)
+  end subroutine take_var
+
+  !> Bytes of the values a result set holds (means, standard errors, coordinates).
+  pure integer(i8) function result_values_bytes(set) result(nb)
+    type(result_set_t), intent(in) :: set
+    integer :: i
+    nb = 0_i8
+    if (allocated(set%vars)) then
+      do i = 1, size(set%vars)
+        if (allocated(set%vars(i)%mean)) nb = nb + &
+          storage_size(set%vars(i)%mean, i8)/8*size(set%vars(i)%mean, kind=i8)
+        if (allocated(set%vars(i)%stderr)) nb = nb + &
+          storage_size(set%vars(i)%stderr, i8)/8*size(set%vars(i)%stderr, kind=i8)
+      end do
+    end if
+    if (allocated(set%dims)) then
+      do i = 1, size(set%dims)
+        if (allocated(set%dims(i)%coord)) nb = nb + &
+          storage_size(set%dims(i)%coord, i8)/8*size(set%dims(i)%coord, kind=i8)
+      end do
+    end if
+  end function result_values_bytes
+
+  subroutine describe_var(v, name, long_name, units, dim_names)
+    type(result_var_t), intent(inout) :: v
+    character(len=*), intent(in) :: name, long_name, units
+    character(len=*), intent(in) :: dim_names(:)
     v%name = name
     v%long_name = long_name
     v%units = units
     v%ndims = size(dim_names)
     v%dim_names(1:v%ndims) = dim_names
-    v%mean = mean
-    if (present(stderr)) v%stderr = stderr
-    if (.not. allocated(set%vars)) allocate (set%vars(0))
-    set%vars = [set%vars, v]
-  end subroutine add_var
+  end subroutine describe_var
+
+  !> Append `v` to the set's variables, moving the values of every variable (never copying
+  !> them: an array constructor [set%vars, v] would hold the whole set twice, briefly three
+  !> times). `v` is taken apart.
+  subroutine push_var(set, v)
+    type(result_set_t), intent(inout) :: set
+    type(result_var_t), intent(inout) :: v
+    type(result_var_t), allocatable :: grown(:)
+    integer :: i, n
+    n = 0
+    if (allocated(set%vars)) n = size(set%vars)
+    allocate (grown(n + 1))
+    do i = 1, n
+      call move_var(set%vars(i), grown(i))
+    end do
+    call move_var(v, grown(n + 1))
+    call move_alloc(grown, set%vars)
+  end subroutine push_var
+
+  !> Move every component of `a` into `b` (the arrays by move_alloc).
+  subroutine move_var(a, b)
+    type(result_var_t), intent(inout) :: a, b
+    b%name = a%name
+    if (allocated(a%long_name)) call move_alloc(a%long_name, b%long_name)
+    if (allocated(a%units)) call move_alloc(a%units, b%units)
+    b%ndims = a%ndims
+    b%dim_names = a%dim_names
+    if (allocated(a%mean)) call move_alloc(a%mean, b%mean)
+    if (allocated(a%stderr)) call move_alloc(a%stderr, b%stderr)
+    if (allocated(a%standard_name)) call move_alloc(a%standard_name, b%standard_name)
+    if (allocated(a%coordinates)) call move_alloc(a%coordinates, b%coordinates)
+  end subroutine move_var
 
   !> Add a global text attribute.
   subroutine add_attr(set, name, value)

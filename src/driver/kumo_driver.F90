@@ -30,7 +30,7 @@ module kumo_driver
                            relative_error, test_failure_hook, env_int, kill_self
   use kumo_scene_setup, only: load_config, setup_scene, spectral_scene_t, spectral_set_gpoint
   use kumo_spectral, only: spectral_begin_batch
-  use kumo_output, only: run_summary_t, build_results, log_summary
+  use kumo_output, only: run_summary_t, build_results, log_summary, log_memory, peak_resident_bytes
   use kumo_vr, only: runaway_cost_check
   implicit none
   private
@@ -92,7 +92,8 @@ contains
       write (output_unit, '(a)') config_echo(cfg)
       flush (output_unit)   ! a batch job's log shows the configuration while it runs
     end if
-    call simulate(cfg, set, summary, error, nml_text, plan)
+    ! the large products are formed as they are written (kumo_output, build_results)
+    call simulate(cfg, set, summary, error, nml_text, plan, defer_output=.true.)
     if (allocated(error)) return
     if (par_is_root()) then
       call write_results(trim(cfg%output%file), set, error)
@@ -100,6 +101,7 @@ contains
       ! the output is written: the checkpoint of this run is of no further use
       if (plan%interval > 0.0_dp .or. plan%resume) call ckpt_remove(plan%path)
       if (cfg%control%verbose >= 1) call log_summary(set, summary, trim(cfg%output%file))
+      if (cfg%control%verbose >= 2) call log_memory(summary)
     end if
   end subroutine run_case
 
@@ -110,14 +112,16 @@ contains
   !> resumes from: each slot adds its batches in increasing order, and the slots' sums are added
   !> in slot order on rank 0, so a resumed run on any rank count repeats the floating-point
   !> operations of an uninterrupted run on the first run's rank count, bit for bit.
-  !> `ckpt` (run_case) asks for checkpoints and resumption; without it neither happens.
-  subroutine simulate(cfg, set, summary, error, nml_text, ckpt)
+  !> `ckpt` (run_case) asks for checkpoints and resumption; without it neither happens. With
+  !> `defer_output`, the large products of `set` are formed when it is written (build_results).
+  subroutine simulate(cfg, set, summary, error, nml_text, ckpt, defer_output)
     type(config_t), intent(in) :: cfg
     type(result_set_t), intent(out) :: set
     type(run_summary_t), intent(out) :: summary
     type(error_t), allocatable, intent(out) :: error
     character(len=*), intent(in), optional :: nml_text
     type(checkpoint_plan_t), intent(in), optional :: ckpt
+    logical, intent(in), optional :: defer_output
     type(scene_t) :: scene
     type(tally_layout_t) :: lay
     type(tally_t) :: tal, tal_g
@@ -286,6 +290,8 @@ contains
       if (int(ib_next - 1 + nb_round, i8)*nphot > cfg%control%max_photons) exit
     end do
     nb_done = ib_next - 1
+    summary%peak_rss_batches = peak_resident_bytes()
+    summary%sums_bytes = 16_i8*lay%n
     ! the batches are done: what follows needs the sums alone, so the batch buffers (each as
     ! large as the sums) are given back before the fold and the results
     call tally_free(tal)
@@ -325,7 +331,7 @@ contains
     summary%flight_steps = st%work(1)
     summary%events = st%work(2)
     if (.not. par_is_root()) return
-    call build_results(cfg, scene, lay, st, rec(:, 1:nb_done), summary, set)
+    call build_results(cfg, scene, lay, st, rec(:, 1:nb_done), summary, set, defer_output)
     if (present(nml_text)) call add_attr(set, 'namelist', nml_text)
   end subroutine simulate
 

@@ -46,8 +46,8 @@ contains
 
   !> Lay out every product with its standard error, units and provenance.
   !>
-  !> The per-column flux maps, the column budget and the per-voxel products are deferred
-  !> (kumo_results): the set takes the sums `st` (moved: `st` is empty on return) and these
+  !> The per-column flux maps, the column budget, the camera images and the per-voxel products
+  !> are deferred (kumo_results): the set takes the sums `st` (moved: `st` is empty on return) and these
   !> products are formed from them when they are written, piece by piece, so that rank 0 never
   !> holds them beside the sums. With `defer` false (the default) they are formed at the end,
   !> for callers that read the values. Other products are formed into their own arrays and

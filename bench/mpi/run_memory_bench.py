@@ -15,6 +15,11 @@ photons (it is memory that is measured, not speed) and samples every rank's memo
 * peak Pss (/proc/PID/smaps_rollup): the proportional set size, shared pages divided among the
   processes that map them; the peak of the sum over the ranks is what the node needs.
 
+The runs log at verbose = 2: a build that prints rank 0's memory line (`memory of rank 0: peak
+resident set ... after the batches, ... after the output; sums of the tallies ...`) has it
+repeated in MiB after its figures, which says whether the output stage (the fold, the products,
+the writing) or the batches set rank 0's peak.
+
 `--path` chooses the input path the same field goes through (the voxel optics are alike, the
 reading and sharing differ):
 
@@ -58,7 +63,7 @@ def namelist(work, cloud, voxel_absorption, column_fluxes):
     path = os.path.join(work, "memory.nml")
     flag = {True: ".true.", False: ".false."}
     with open(path, "w") as f:
-        f.write(f"""&kumo_control n_photons_per_batch = 2000, n_batches = 2, seed = 1 /
+        f.write(f"""&kumo_control n_photons_per_batch = 2000, n_batches = 2, seed = 1, verbose = 2 /
 &kumo_cloud cloud_file = '{os.path.basename(cloud)}', cloud_format = 'les',
   reff_min_um = 2.0, reff_max_um = 30.0, n_reff = 8, mie_cache = 'mie_table.nc' /
 &kumo_atmosphere rayleigh = .true. /
@@ -86,7 +91,7 @@ def other_path_namelist(work, cloud, path, voxel_absorption, column_fluxes):
     ext = np.where(lwc > 0, 3.0 * lwc / np.maximum(reff, 1.0), 0.0)
     flag = {True: ".true.", False: ".false."}
     zl = ", ".join(f"{z:.10g}" for z in ze)
-    head = f"""&kumo_control n_photons_per_batch = 2000, n_batches = 2, seed = 1 /
+    head = f"""&kumo_control n_photons_per_batch = 2000, n_batches = 2, seed = 1, verbose = 2 /
 &kumo_surface albedo = 0.05 /
 &kumo_output file = 'memory.nc', voxel_absorption = {flag[voxel_absorption]},
   column_fluxes = {flag[column_fluxes]} /
@@ -159,7 +164,7 @@ def broadband_namelist(work, cloud, voxel_absorption, column_fluxes):
     flag = {True: ".true.", False: ".false."}
     path = os.path.join(work, "memory_bb.nml")
     with open(path, "w") as f:
-        f.write(f"""&kumo_control n_photons_per_batch = 2000, n_batches = 2, seed = 1 /
+        f.write(f"""&kumo_control n_photons_per_batch = 2000, n_batches = 2, seed = 1, verbose = 2 /
 &kumo_atmosphere nz = {len(z) - 1}, z_levels = {nml_list(z, '{:.10g}')} /
 &kumo_cloud cloud_file = '{os.path.basename(cloud)}', reff_min_um = 2.0, reff_max_um = 30.0 /
 &kumo_surface albedo = 0.05 /
@@ -242,6 +247,19 @@ def measure(exe, np, nml, work, mpiexec):
     return sorted(peak.values(), key=lambda p: p["rank"]), node_pss, time.time() - t0
 
 
+def memory_line(work, np):
+    """Rank 0's memory line of the run log in MiB (after the batches, after the output, sums of
+    the tallies), or None for a build that does not print it."""
+    with open(os.path.join(work, f"run_np{np}.log")) as f:
+        for line in f:
+            if line.startswith("memory of rank 0: "):
+                nums = [int(w) for w in line.replace(";", " ").replace(",", " ").split()
+                        if w.isdigit()]
+                if len(nums) == 3:
+                    return [n / 1048576.0 for n in nums]
+    return None
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("kumo", nargs="+")
@@ -278,6 +296,10 @@ def main():
                 print(f"{exe}  {np}  {p['rank']}  {p.get('VmHWM', 0) * mib:.0f}  "
                       f"{p.get('RssAnon', 0) * mib:.0f}  {p.get('Pss', 0) * mib:.0f}")
             print(f"{exe}  {np}  node  peak sum of Pss {node * mib:.0f} MiB  ({secs:.0f} s)")
+            mem = memory_line(a.work, np)
+            if mem is not None:
+                print(f"#   rank 0 VmHWM {mem[0]:.0f} MiB after the batches, {mem[1]:.0f} MiB "
+                      f"after the output; sums of the tallies {mem[2]:.0f} MiB")
             sys.stdout.flush()
 
 

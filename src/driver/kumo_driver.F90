@@ -14,7 +14,7 @@ module kumo_driver
   use kumo_error, only: error_t, str
   use kumo_rng, only: rng_t, rng_init
   use kumo_tally, only: tally_layout_t, tally_t, stats_t, layout_init, tally_reset, stats_init, &
-                        stats_add_batch, batch_budget, N_ANOMALIES
+                        stats_add_batch, batch_budget, tally_free, N_ANOMALIES
   use kumo_scene, only: scene_t
   use kumo_transport, only: trace_batch
   use kumo_exact_column, only: exact_thermal_possible, exact_thermal_batch
@@ -30,7 +30,7 @@ module kumo_driver
                            relative_error, test_failure_hook, env_int, kill_self
   use kumo_scene_setup, only: load_config, setup_scene, spectral_scene_t, spectral_set_gpoint
   use kumo_spectral, only: spectral_begin_batch
-  use kumo_output, only: run_summary_t, build_results, log_summary
+  use kumo_output, only: run_summary_t, build_results, log_summary, log_memory, peak_resident_bytes
   use kumo_vr, only: runaway_cost_check
   implicit none
   private
@@ -39,6 +39,9 @@ module kumo_driver
   !> Progress on rank 0 (standard error), for runs longer than a few seconds: the first line
   !> after PROGRESS_FIRST seconds, then one every PROGRESS_EVERY seconds.
   real(dp), parameter :: PROGRESS_FIRST = 5.0_dp, PROGRESS_EVERY = 15.0_dp
+  !> Entries of the sums moved per message when the slots are folded (8 MiB): the receiving
+  !> rank adds each piece as it arrives.
+  integer, parameter :: FOLD_PIECE = 1048576
   type :: progress_t
     logical :: on = .false.
     real(dp) :: t0 = 0.0_dp          !! start of tracing [s]
@@ -89,7 +92,8 @@ contains
       write (output_unit, '(a)') config_echo(cfg)
       flush (output_unit)   ! a batch job's log shows the configuration while it runs
     end if
-    call simulate(cfg, set, summary, error, nml_text, plan)
+    ! the large products are formed as they are written (kumo_output, build_results)
+    call simulate(cfg, set, summary, error, nml_text, plan, defer_output=.true.)
     if (allocated(error)) return
     if (par_is_root()) then
       call write_results(trim(cfg%output%file), set, error)
@@ -97,6 +101,7 @@ contains
       ! the output is written: the checkpoint of this run is of no further use
       if (plan%interval > 0.0_dp .or. plan%resume) call ckpt_remove(plan%path)
       if (cfg%control%verbose >= 1) call log_summary(set, summary, trim(cfg%output%file))
+      if (cfg%control%verbose >= 2) call log_memory(summary)
     end if
   end subroutine run_case
 
@@ -107,14 +112,16 @@ contains
   !> resumes from: each slot adds its batches in increasing order, and the slots' sums are added
   !> in slot order on rank 0, so a resumed run on any rank count repeats the floating-point
   !> operations of an uninterrupted run on the first run's rank count, bit for bit.
-  !> `ckpt` (run_case) asks for checkpoints and resumption; without it neither happens.
-  subroutine simulate(cfg, set, summary, error, nml_text, ckpt)
+  !> `ckpt` (run_case) asks for checkpoints and resumption; without it neither happens. With
+  !> `defer_output`, the large products of `set` are formed when it is written (build_results).
+  subroutine simulate(cfg, set, summary, error, nml_text, ckpt, defer_output)
     type(config_t), intent(in) :: cfg
     type(result_set_t), intent(out) :: set
     type(run_summary_t), intent(out) :: summary
     type(error_t), allocatable, intent(out) :: error
     character(len=*), intent(in), optional :: nml_text
     type(checkpoint_plan_t), intent(in), optional :: ckpt
+    logical, intent(in), optional :: defer_output
     type(scene_t) :: scene
     type(tally_layout_t) :: lay
     type(tally_t) :: tal, tal_g
@@ -322,6 +329,13 @@ contains
       if (int(ib_next - 1 + nb_round, i8)*nphot > cfg%control%max_photons) exit
     end do
     nb_done = ib_next - 1
+    summary%peak_rss_batches = peak_resident_bytes()
+    summary%sums_bytes = 16_i8*lay%n
+    ! the batches are done: what follows needs the sums alone, so the batch buffers (each as
+    ! large as the sums) are given back before the fold and the results
+    call tally_free(tal)
+    call tally_free(tal_g)
+    if (allocated(spec%exact_buf)) deallocate (spec%exact_buf)
 
     counts = 0
     do s = 0, n_slots - 1
@@ -356,7 +370,7 @@ contains
     summary%flight_steps = st%work(1)
     summary%events = st%work(2)
     if (.not. par_is_root()) return
-    call build_results(cfg, scene, lay, st, rec(:, 1:nb_done), summary, set)
+    call build_results(cfg, scene, lay, st, rec(:, 1:nb_done), summary, set, defer_output)
     if (present(nml_text)) call add_attr(set, 'namelist', nml_text)
   end subroutine simulate
 
@@ -461,8 +475,8 @@ contains
         os = mod(s, nranks)
         ot = mod(t, nranks)
         if (rank == ot .and. ot /= os) then
-          call par_move(slot(t)%s1, ot, os)
-          call par_move(slot(t)%s2, ot, os)
+          call send_sums(slot(t)%s1, ot, os)
+          call send_sums(slot(t)%s2, ot, os)
           deallocate (slot(t)%s1, slot(t)%s2)
         else if (rank == os) then
           if (ot == os) then
@@ -470,11 +484,8 @@ contains
             slot(s)%s2 = slot(s)%s2 + slot(t)%s2
             deallocate (slot(t)%s1, slot(t)%s2)
           else
-            if (.not. allocated(x)) allocate (x(size(slot(s)%s1)))
-            call par_move(x, ot, os)
-            slot(s)%s1 = slot(s)%s1 + x
-            call par_move(x, ot, os)
-            slot(s)%s2 = slot(s)%s2 + x
+            call add_sums(slot(s)%s1, x, ot, os)
+            call add_sums(slot(s)%s2, x, ot, os)
           end if
         end if
       end do
@@ -485,6 +496,33 @@ contains
       call move_alloc(slot(0)%s2, st%s2)
     end if
   end subroutine fold_slots
+
+  !> Send the sums `a` from rank `from` to rank `to` in pieces of FOLD_PIECE entries, as
+  !> add_sums receives them.
+  subroutine send_sums(a, from, to)
+    real(dp), intent(inout) :: a(:)
+    integer, intent(in) :: from, to
+    integer :: j, k
+    do j = 0, size(a) - 1, FOLD_PIECE
+      k = min(FOLD_PIECE, size(a) - j)
+      call par_move(a(j + 1:j + k), from, to)
+    end do
+  end subroutine send_sums
+
+  !> Add to the sums `a` those sent by send_sums, piece by piece through the buffer `x` (one
+  !> piece): the receiving rank never holds a second copy of the sums.
+  subroutine add_sums(a, x, from, to)
+    real(dp), intent(inout) :: a(:)
+    real(dp), allocatable, intent(inout) :: x(:)
+    integer, intent(in) :: from, to
+    integer :: j, k
+    if (.not. allocated(x)) allocate (x(min(FOLD_PIECE, size(a))))
+    do j = 0, size(a) - 1, FOLD_PIECE
+      k = min(FOLD_PIECE, size(a) - j)
+      call par_move(x(1:k), from, to)
+      a(j + 1:j + k) = a(j + 1:j + k) + x(1:k)
+    end do
+  end subroutine add_sums
 
   !> A progress line on standard error when it is due: batches done (rank 0 has reached batch
   !> `n_done`; the other ranks run alongside), photons per second, and the time left (fixed batch count) or the

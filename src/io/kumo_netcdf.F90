@@ -34,7 +34,7 @@ module kumo_netcdf
   use kumo_kinds, only: wp, dp, i8
   use kumo_error, only: error_t, set_error, join, str, to_lower
   use kumo_file_check, only: check_netcdf_complete
-  use kumo_results, only: result_set_t
+  use kumo_results, only: result_set_t, var_size, var_has_stderr, var_values
   use kumo_brdf, only: BRDF_NPAR, BRDF_NAMES, BRDF_DSM, cox_munk_slope_variance
   implicit none
   private
@@ -681,7 +681,7 @@ contains
           call put_text_att_if_set(at, ncid, mean_ids(k), 'coordinates', v%coordinates, error)
           if (allocated(error)) return
         end if
-        if (allocated(v%stderr)) then
+        if (var_has_stderr(v)) then
           ! CF: the standard error is an ancillary variable of the value
           call put_text_att_if_set(at, ncid, mean_ids(k), 'ancillary_variables', name//'_stderr', &
                                    error)
@@ -723,6 +723,13 @@ contains
           counts(i) = set%dims(dim_position(set, v%dim_names(i)))%size
         end do
         at = where_text(routine, path, trim(v%name))
+        if (v%src_lo >= 0) then
+          ! deferred (kumo_results): formed and written slab by slab
+          call put_deferred(ncid, mean_ids(k), stderr_ids(k), set, k, nd, counts, &
+                            where_text(routine, path, trim(v%name)//'_stderr'), at, error)
+          if (allocated(error)) return
+          cycle
+        end if
         call put_flat(ncid, mean_ids(k), nd, counts, v%mean, at, error)
         if (allocated(error)) return
         if (stderr_ids(k) >= 0) then
@@ -1086,6 +1093,12 @@ contains
           counts(j) = set%dims(dim_position(set, v%dim_names(j)))%size
         end do
         expected_size = product(counts(1:n))
+        if (v%src_lo >= 0) then
+          call check_deferred(at, where_text(routine, path, trim(v%name)//'_stderr'), set, i, &
+                              counts(1:n), expected_size, error)
+          if (allocated(error)) return
+          cycle
+        end if
         if (.not. allocated(v%mean)) then
           call set_error(error, at//': mean values not allocated')
           return
@@ -1114,8 +1127,78 @@ contains
     end do
   end subroutine validate_result_set
 
-  !> Flattened values must be finite (and >= 0 if `nonnegative`); the message gives the index.
-  subroutine check_finite_flat(at, values, ndims, counts, index_names, nonnegative, error)
+  !> A deferred variable iv (kumo_results): `expected` values, finite (standard errors >= 0),
+  !> checked slab by slab as put_deferred writes them.
+  subroutine check_deferred(at, at_err, set, iv, counts, expected, error)
+    character(len=*), intent(in) :: at, at_err
+    type(result_set_t), intent(in) :: set
+    integer, intent(in) :: iv, expected
+    integer, intent(in) :: counts(:)
+    type(error_t), allocatable, intent(out) :: error
+    real(dp), allocatable :: m(:), e(:)
+    integer :: n, slab, j0, nd
+    character(len=:), allocatable :: names
+    n = var_size(set%vars(iv))
+    if (n /= expected) then
+      call set_error(error, at//': '//str(n)//' mean values, expected '//str(expected)// &
+                     ' from its dimensions')
+      return
+    end if
+    nd = size(counts)
+    names = join(set%vars(iv)%dim_names(1:nd), ',', '()')
+    slab = slab_size(counts, n)
+    allocate (m(slab), e(slab))
+    do j0 = 0, n - 1, slab
+      call var_values(set, iv, j0, m, e)
+      call check_finite_flat(at, m, nd, counts, names, .false., error, j0)
+      if (allocated(error)) return
+      call check_finite_flat(at_err, e, nd, counts, names, .true., error, j0)
+      if (allocated(error)) return
+    end do
+  end subroutine check_deferred
+
+  !> Entries of one slab of a variable: all but its last (slowest) dimension.
+  pure integer function slab_size(counts, n) result(slab)
+    integer, intent(in) :: counts(:), n
+    slab = n
+    if (size(counts) > 1) slab = product(counts(1:size(counts) - 1))
+  end function slab_size
+
+  !> Write a deferred variable iv (kumo_results) and its standard error one slab (index of its
+  !> last dimension) at a time, formed just before: no array of the whole variable is needed.
+  subroutine put_deferred(ncid, mean_id, stderr_id, set, iv, ndims, counts, at_err, at, error)
+    integer, intent(in) :: ncid, mean_id, stderr_id, iv, ndims
+    type(result_set_t), intent(in) :: set
+    integer, intent(in) :: counts(:)
+    character(len=*), intent(in) :: at_err, at
+    type(error_t), allocatable, intent(out) :: error
+    real(dp), allocatable :: x(:)
+    integer :: n, slab, j0, start(4), cnt(4)
+    n = var_size(set%vars(iv))
+    slab = slab_size(counts(1:ndims), n)
+    allocate (x(slab))
+    start = 1
+    cnt(1:ndims) = counts(1:ndims)
+    if (ndims > 1) cnt(ndims) = 1
+    do j0 = 0, n - 1, slab
+      if (ndims > 1) start(ndims) = j0/slab + 1
+      call var_values(set, iv, j0, mean=x)
+      call nc_check(nf90_put_var(ncid, mean_id, x, start=start(1:ndims), count=cnt(1:ndims)), &
+                    at, error)
+      if (allocated(error)) return
+    end do
+    do j0 = 0, n - 1, slab
+      if (ndims > 1) start(ndims) = j0/slab + 1
+      call var_values(set, iv, j0, stderr=x)
+      call nc_check(nf90_put_var(ncid, stderr_id, x, start=start(1:ndims), count=cnt(1:ndims)), &
+                    at_err, error)
+      if (allocated(error)) return
+    end do
+  end subroutine put_deferred
+
+  !> Flattened values must be finite (and >= 0 if `nonnegative`); the message gives the index
+  !> (of values(k) at position offset + k of the variable when `offset` is given).
+  subroutine check_finite_flat(at, values, ndims, counts, index_names, nonnegative, error, offset)
     character(len=*), intent(in) :: at
     real(dp), intent(in) :: values(:)
     integer, intent(in) :: ndims
@@ -1123,6 +1206,7 @@ contains
     character(len=*), intent(in) :: index_names
     logical, intent(in) :: nonnegative
     type(error_t), allocatable, intent(out) :: error
+    integer, intent(in), optional :: offset
     integer :: k, j, rest, idx(4)
     character(len=:), allocatable :: problem, place
 
@@ -1138,6 +1222,7 @@ contains
         place = ''
       else
         rest = k - 1
+        if (present(offset)) rest = rest + offset
         do j = 1, ndims
           idx(j) = mod(rest, counts(j)) + 1
           rest = rest/counts(j)
@@ -1574,10 +1659,8 @@ contains
     if (allocated(set%vars)) then
       do i = 1, size(set%vars)
         n_objects = n_objects + 2_i8
-        if (allocated(set%vars(i)%mean)) nbytes_min = nbytes_min + &
-                                                      8_i8*size(set%vars(i)%mean, kind=i8)
-        if (allocated(set%vars(i)%stderr)) nbytes_min = nbytes_min + &
-                                                        8_i8*size(set%vars(i)%stderr, kind=i8)
+        nbytes_min = nbytes_min + 8_i8*var_size(set%vars(i))
+        if (var_has_stderr(set%vars(i))) nbytes_min = nbytes_min + 8_i8*var_size(set%vars(i))
       end do
     end if
     if (allocated(set%attrs)) then

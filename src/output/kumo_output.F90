@@ -13,14 +13,19 @@ module kumo_output
   use kumo_tally, only: tally_layout_t, stats_t, stats_mean, stats_stderr, N_ANOMALIES, &
                         ANOMALY_NAMES
   use kumo_scene, only: scene_t
-  use kumo_results, only: result_set_t, add_dim, add_var, add_attr, add_num_attr, find_var, &
+  use kumo_results, only: result_set_t, add_dim, add_var, take_var, defer_var, keep_sums, &
+                          materialize_vars, var_has_stderr, add_attr, add_num_attr, find_var, &
                           find_dim
   use kumo_config, only: config_t, config_echo
   use kumo_parallel, only: PAR_IS_MPI
   use kumo_vr, only: roulette_balance_warning
   implicit none
   private
-  public :: run_summary_t, build_results, log_summary
+  public :: run_summary_t, build_results, log_summary, log_memory, peak_resident_bytes
+
+  !> Entries formed at a time from the sums (stats_mean, stats_stderr) when a large product is
+  !> built: no temporary array as large as the product.
+  integer, parameter :: FORM_PIECE = 65536
 
   !> Figures of a finished run, for the log and for tests.
   type :: run_summary_t
@@ -33,22 +38,32 @@ module kumo_output
     integer(i8) :: anomalies(N_ANOMALIES) = 0_i8
     integer(i8) :: flight_steps = 0_i8  !! flight steps of all photons (null collisions included)
     integer(i8) :: events = 0_i8        !! collisions and reflections of all photons
+    integer(i8) :: peak_rss_batches = -1_i8 !! rank 0's peak resident set after the batches [bytes]
+    integer(i8) :: sums_bytes = 0_i8    !! bytes of the batch sums of the tallies (S1 and S2)
   end type run_summary_t
 
 contains
 
   !> Lay out every product with its standard error, units and provenance.
-  subroutine build_results(cfg, scene, lay, st, rec, summary, set)
+  !>
+  !> The per-column flux maps, the column budget, the camera images and the per-voxel products
+  !> are deferred (kumo_results): the set takes the sums `st` (moved: `st` is empty on return) and these
+  !> products are formed from them when they are written, piece by piece, so that rank 0 never
+  !> holds them beside the sums. With `defer` false (the default) they are formed at the end,
+  !> for callers that read the values. Other products are formed into their own arrays and
+  !> moved into the set, with no temporary larger than FORM_PIECE entries.
+  subroutine build_results(cfg, scene, lay, st, rec, summary, set, defer)
     type(config_t), intent(in) :: cfg
     type(scene_t), intent(in) :: scene
     type(tally_layout_t), intent(in) :: lay
-    type(stats_t), intent(in) :: st
+    type(stats_t), intent(inout) :: st
     real(dp), intent(in) :: rec(:, :)
     type(run_summary_t), intent(in) :: summary
     type(result_set_t), intent(inout) :: set
-    integer :: nz, k, n_out, i, ncol, kr
+    logical, intent(in), optional :: defer
+    integer :: nz, k, n_out, i, ncol, kr, nv
     integer, allocatable :: lev(:)
-    real(dp), allocatable :: z(:), zmid(:), dz(:), m(:), e(:), fac(:)
+    real(dp), allocatable :: z(:), zmid(:), dz(:), m(:), e(:), fac(:), ma(:), fz(:), fh(:)
     real(dp) :: f_hor
     integer :: tv(8)
     character(len=:), allocatable :: NORM, fu, band_kind
@@ -148,63 +163,62 @@ contains
                      long_name='y of the column centres')
       end if
       if (lay%do_maps) then
-        call put('flux_up_map', 'upward flux per column'//NORM, &
-                 [(lay%i_map_up + i, i=1, n_out*ncol)], dims=['x    ', 'y    ', 'level'])
-        call put('flux_down_direct_map', 'downward direct flux per column'//NORM, &
-                 [(lay%i_map_dir + i, i=1, n_out*ncol)], dims=['x    ', 'y    ', 'level'])
-        call put('flux_down_diffuse_map', 'downward diffuse flux per column'//NORM, &
-                 [(lay%i_map_dif + i, i=1, n_out*ncol)], dims=['x    ', 'y    ', 'level'])
-        call put('flux_down_map', 'total (direct + diffuse) downward flux per column'//NORM, &
-                 [(lay%i_map_dn + i, i=1, n_out*ncol)], dims=['x    ', 'y    ', 'level'])
+        call put_range('flux_up_map', 'upward flux per column'//NORM, lay%i_map_up, n_out*ncol, &
+                       ['x    ', 'y    ', 'level'])
+        call put_range('flux_down_direct_map', 'downward direct flux per column'//NORM, &
+                       lay%i_map_dir, n_out*ncol, ['x    ', 'y    ', 'level'])
+        call put_range('flux_down_diffuse_map', 'downward diffuse flux per column'//NORM, &
+                       lay%i_map_dif, n_out*ncol, ['x    ', 'y    ', 'level'])
+        call put_range('flux_down_map', 'total (direct + diffuse) downward flux per column'//NORM, &
+                       lay%i_map_dn, n_out*ncol, ['x    ', 'y    ', 'level'])
       end if
       if (lay%do_voxel) then
+        nv = atm%n3*ncol
         call add_dim(set, 'z3d', atm%n3, coord=zmid(atm%k3_lo:atm%k3_hi), units='m', &
                      long_name='height of the layer centres of the 3-D region')
-        call put('absorptance_voxel', 'power absorbed per voxel per unit column area'//NORM, &
-                 [(lay%i_vox + i, i=1, atm%n3*ncol)], dims=['x  ', 'y  ', 'z3d'])
-        if (allocated(fac)) deallocate (fac)
-        allocate (fac(atm%n3*ncol))
-        do kr = 1, atm%n3
-          fac((kr - 1)*ncol + 1:kr*ncol) = 1.0_dp/dz(atm%k3_lo + kr - 1)
-        end do
-        m = stats_mean(st, lay%i_vox + 1, lay%i_vox + atm%n3*ncol)*fac
-        e = stats_stderr(st, lay%i_vox + 1, lay%i_vox + atm%n3*ncol)*fac
+        call put_range('absorptance_voxel', 'power absorbed per voxel per unit column area'//NORM, &
+                       lay%i_vox, nv, ['x  ', 'y  ', 'z3d'])
+        ! per volume: times 1/dz of the voxel's layer (fz), then the layer's factor
+        fz = 1.0_dp/dz(atm%k3_lo:atm%k3_hi)
         if (f_hor > 0.0_dp) then
-          call add_var(set, 'absorbed_power_density_voxel', 'absorbed power per volume', &
-                       'W m-3'//fu(6:), ['x  ', 'y  ', 'z3d'], m*f_hor, e*f_hor)
+          allocate (fh(atm%n3))
+          fh = f_hor
+          call defer_var(set, 'absorbed_power_density_voxel', 'absorbed power per volume', &
+                         'W m-3'//fu(6:), ['x  ', 'y  ', 'z3d'], lay%i_vox, nv, ncol, fz, fh)
           if (thermal) then
             ! heating from the net power (net exchange), not from what is absorbed
-            call add_var(set, 'emitted_power_density_voxel', 'emitted power per volume '// &
-                         '(exact)', 'W m-3'//fu(6:), ['x  ', 'y  ', 'z3d'], &
-                         emission_voxel_power(scene%src%em)*fac)
-            m = stats_mean(st, lay%i_vnet + 1, lay%i_vnet + atm%n3*ncol)*fac
-            e = stats_stderr(st, lay%i_vnet + 1, lay%i_vnet + atm%n3*ncol)*fac
-            call add_var(set, 'net_power_density_voxel', 'absorbed minus emitted power per '// &
-                         'volume (net exchange estimator)', 'W m-3'//fu(6:), &
-                         ['x  ', 'y  ', 'z3d'], m*f_hor, e*f_hor)
+            ma = emission_voxel_power(scene%src%em)
+            do kr = 1, atm%n3
+              ma((kr - 1)*ncol + 1:kr*ncol) = ma((kr - 1)*ncol + 1:kr*ncol)*fz(kr)
+            end do
+            call take_var(set, 'emitted_power_density_voxel', 'emitted power per volume '// &
+                          '(exact)', 'W m-3'//fu(6:), ['x  ', 'y  ', 'z3d'], ma)
+            call defer_var(set, 'net_power_density_voxel', 'absorbed minus emitted power per '// &
+                           'volume (net exchange estimator)', 'W m-3'//fu(6:), &
+                           ['x  ', 'y  ', 'z3d'], lay%i_vnet, nv, ncol, fz, fh)
           end if
           if (allocated(scene%air_density)) then
             do kr = 1, atm%n3
-              fac((kr - 1)*ncol + 1:kr*ncol) = f_hor*SECONDS_PER_DAY/ &
-                (scene%air_density(atm%k3_lo + kr - 1)*cfg%atm%cp_air)
+              fh(kr) = f_hor*SECONDS_PER_DAY/(scene%air_density(atm%k3_lo + kr - 1)*cfg%atm%cp_air)
             end do
-            call add_var(set, 'heating_rate_voxel', 'heating rate', 'K day-1'//fu(6:), &
-                         ['x  ', 'y  ', 'z3d'], m*fac, e*fac)
+            call defer_var(set, 'heating_rate_voxel', 'heating rate', 'K day-1'//fu(6:), &
+                           ['x  ', 'y  ', 'z3d'], merge(lay%i_vnet, lay%i_vox, thermal), nv, &
+                           ncol, fz, fh)
           end if
         else
-          call add_var(set, 'absorbed_power_density_voxel', 'absorbed power per volume per'// &
-                       ' unit incident solar flux on a horizontal plane', 'm-1', &
-                       ['x  ', 'y  ', 'z3d'], m, e)
+          call defer_var(set, 'absorbed_power_density_voxel', 'absorbed power per volume per'// &
+                         ' unit incident solar flux on a horizontal plane', 'm-1', &
+                         ['x  ', 'y  ', 'z3d'], lay%i_vox, nv, ncol, fz)
         end if
       end if
 
       if (lay%do_budget) then
-        call put('absorptance_column', 'power absorbed in the 3-D region of each column per'// &
-                 ' unit column area'//NORM, [(lay%i_col_abs + i, i=1, ncol)], dims=['x', 'y'])
-        call put('horizontal_transport_map', 'net power leaving the 3-D region of each'// &
-                 ' column through its sides, per unit column area'//NORM// &
-                 ' (net flux in at the top - net flux out at the bottom - absorptance_column)', &
-                 [(lay%i_htr + i, i=1, ncol)], dims=['x', 'y'])
+        call put_range('absorptance_column', 'power absorbed in the 3-D region of each column per'// &
+                       ' unit column area'//NORM, lay%i_col_abs, ncol, ['x', 'y'])
+        call put_range('horizontal_transport_map', 'net power leaving the 3-D region of each'// &
+                       ' column through its sides, per unit column area'//NORM// &
+                       ' (net flux in at the top - net flux out at the bottom - absorptance_column)', &
+                       lay%i_htr, ncol, ['x', 'y'])
       end if
 
       call radiance_results()
@@ -317,6 +331,11 @@ contains
     end if
     call cf_annotate(set, band_kind)
     set%deflate = cfg%output%deflate_level
+    call keep_sums(set, st)
+    if (present(defer)) then
+      if (defer) return
+    end if
+    call materialize_vars(set)
 
   contains
 
@@ -369,11 +388,10 @@ contains
             call add_dim(set, 'y', scene%atm%ny, units='m', long_name='y of the column centres', &
                          coord=[((i - 0.5_dp)*scene%atm%dy, i=1, scene%atm%ny)])
           end if
-          mr = stats_mean1([(lay%i_rad_map + i, i=1, nn*ncol)])
+          call form(lay%i_rad_map, nn*ncol, mr, er)
           if (thermal) call add_top(mr, ncol)
-          call add_var(set, 'radiance_map', RNORM//', per column', '1', &
-                       ['x        ', 'y        ', 'rad_level', 'direction'], mr, &
-                       stats_err1([(lay%i_rad_map + i, i=1, nn*ncol)]))
+          call take_var(set, 'radiance_map', RNORM//', per column', '1', &
+                        ['x        ', 'y        ', 'rad_level', 'direction'], mr, er)
         end if
       end if
       do c = 1, size(lay%i_cam)
@@ -383,11 +401,12 @@ contains
                      units='1', long_name='pixel column of camera '//str(c)//' (1: left)')
         call add_dim(set, cn//'_y', cfg%cam%npy(c), coord=[(real(i, dp), i=1, cfg%cam%npy(c))], &
                      units='1', long_name='pixel row of camera '//str(c)//' (1: bottom)')
-        call put(cn//'_radiance', RNORM//', mean over each pixel of camera '//str(c), &
-                 [(lay%i_cam(c) + i, i=1, np)], dims=[cn//'_x', cn//'_y'])
+        call put_range(cn//'_radiance', RNORM//', mean over each pixel of camera '//str(c), &
+                       lay%i_cam(c), np, [cn//'_x', cn//'_y'])
         if (f_hor > 0.0_dp) then
-          mr = stats_mean1([(lay%i_cam(c) + i, i=1, np)])*f_hor/PI
-          er = stats_err1([(lay%i_cam(c) + i, i=1, np)])*f_hor/PI
+          call form(lay%i_cam(c), np, mr, er)
+          mr = mr*f_hor/PI
+          er = er*f_hor/PI
           call add_var(set, cn//'_radiance_wm2sr', 'radiance, mean over each pixel', &
                        ru, [cn//'_x', cn//'_y'], mr, er)
           if (thermal) call brightness(mr, er, cn//'_brightness_temperature', &
@@ -483,6 +502,29 @@ contains
       end if
     end subroutine put
 
+    !> A product of `n` entries from position lo + 1 of the buffer, deferred.
+    subroutine put_range(name, long_name, lo, n, dims)
+      character(len=*), intent(in) :: name, long_name, dims(:)
+      integer, intent(in) :: lo, n
+      call defer_var(set, name, long_name, '1', dims, lo, n)
+    end subroutine put_range
+
+    !> Mean and standard error of the `n` entries from position lo + 1 of the buffer, formed
+    !> FORM_PIECE entries at a time.
+    subroutine form(lo, n, mf, ef)
+      integer, intent(in) :: lo, n
+      real(dp), allocatable, intent(inout) :: mf(:), ef(:)
+      integer :: j, nj
+      if (allocated(mf)) deallocate (mf)
+      if (allocated(ef)) deallocate (ef)
+      allocate (mf(n), ef(n))
+      do j = 0, n - 1, FORM_PIECE
+        nj = min(FORM_PIECE, n - j)
+        mf(j + 1:j + nj) = stats_mean(st, lo + j + 1, lo + j + nj)
+        ef(j + 1:j + nj) = stats_stderr(st, lo + j + 1, lo + j + nj)
+      end do
+    end subroutine form
+
     function stats_mean1(idx) result(v)
       integer, intent(in) :: idx(:)
       real(dp) :: v(size(idx))
@@ -549,6 +591,42 @@ contains
     flush (output_unit)
   end subroutine log_summary
 
+  !> The memory line of the run log (verbose >= 2, rank 0): rank 0's peak resident set after
+  !> the batches and now (the output written), and the bytes of the sums of the tallies. The
+  !> output stage should add little to the peak: rank 0 then holds the sums and the small
+  !> products, not a copy of the large ones. Nothing is printed where the peak is unknown.
+  subroutine log_memory(summary)
+    type(run_summary_t), intent(in) :: summary
+    integer(i8) :: now
+    now = peak_resident_bytes()
+    if (now < 0_i8 .or. summary%peak_rss_batches < 0_i8) return
+    write (output_unit, '(a)') 'memory of rank 0: peak resident set '//str(summary%peak_rss_batches)// &
+      ' bytes after the batches, '//str(now)//' bytes after the output; sums of the tallies '// &
+      str(summary%sums_bytes)//' bytes'
+    flush (output_unit)
+  end subroutine log_memory
+
+  !> This process's peak resident set [bytes] (VmHWM of /proc/self/status), -1 where it is not
+  !> available.
+  function peak_resident_bytes() result(nb)
+    integer(i8) :: nb
+    character(len=256) :: line
+    integer :: unit, ios
+    integer(i8) :: kib
+    nb = -1_i8
+    open (newunit=unit, file='/proc/self/status', action='read', status='old', iostat=ios)
+    if (ios /= 0) return
+    do
+      read (unit, '(a)', iostat=ios) line
+      if (ios /= 0) exit
+      if (line(1:6) /= 'VmHWM:') cycle
+      read (line(7:), *, iostat=ios) kib
+      if (ios == 0) nb = 1024_i8*kib
+      exit
+    end do
+    close (unit)
+  end function peak_resident_bytes
+
   !> CF metadata of a result set: standard names where CF has one (heights, fluxes in W m-2,
   !> heating rates), and the auxiliary and scalar coordinates of every result (the direction's
   !> mu and phi, the wavelength). The standard errors get their link (ancillary_variables) and
@@ -587,7 +665,7 @@ contains
               v%standard_name = 'tendency_of_air_temperature_due_to_'//band_kind//'_heating'
           end select
         end if
-        if (.not. allocated(v%stderr)) cycle
+        if (.not. var_has_stderr(v)) cycle
         coords = ''
         do j = 1, v%ndims
           if (trim(v%dim_names(j)) == 'direction') coords = 'direction_mu direction_phi'

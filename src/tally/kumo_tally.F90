@@ -16,7 +16,8 @@ module kumo_tally
   implicit none
   private
   public :: tally_layout_t, tally_t, stats_t, layout_init, tally_reset, stats_init, &
-            stats_add_batch, stats_mean, stats_stderr, batch_budget, tally_flush
+            stats_add_batch, stats_mean, stats_stderr, batch_budget, tally_flush, &
+            tally_free
   public :: score_flux, score_flux_map, score_layer_abs, score_voxel_abs, score_surface_abs, &
             score_roulette, score_lost, score_source, score_net_layer, score_net_surface, &
             score_net_voxel, score_radiance, score_radiance_map, score_camera
@@ -249,6 +250,15 @@ contains
     tal%anomalies = 0_i8
     tal%work = 0_i8
   end subroutine tally_reset
+
+  !> Give back the arrays of a tally (the next tally_reset allocates them again).
+  subroutine tally_free(tal)
+    type(tally_t), intent(inout) :: tal
+    if (allocated(tal%buf)) deallocate (tal%buf)
+    if (allocated(tal%log_at)) deallocate (tal%log_at)
+    if (allocated(tal%log_w)) deallocate (tal%log_w)
+    tal%n_log = 0
+  end subroutine tally_free
 
   !> Add the logged scores to the buffer, in the order they were scored, and empty the log.
   pure subroutine tally_flush(tal)

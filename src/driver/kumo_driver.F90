@@ -249,23 +249,11 @@ contains
             end if
             call trace_spectral_batch(spec, scene, lay, rng, nphot, tal, tal_g, error, active=mine)
             if (allocated(error)) return
-            if (mine) then
-              call stats_add_batch(slot(s), lay, tal, nphot)
-              rec(:, ib) = batch_budget(lay, tal)/real(nphot, dp)
-              if (pg%on) call report_progress(pg, cfg, ib, ib_last)
-            end if
+            if (mine) call batch_done()
           end do
           ib = min((iw + 1)*n_slots, ib_last)
-          if (checkpoints .and. .not. (ib == ib_last .and. cfg%control%target_rel_error <= 0.0_dp)) then
-            if (checkpoint_due(plan, t_ckpt)) then
-              call cpu_time(c1)
-              call write_checkpoint(plan, cfg, lay, slot, n_slots, ib_next, ib, rec, &
-                                    cpu_before + cpu + (c1 - c0))
-              t_ckpt = par_wtime()
-              n_ckpt = n_ckpt + 1
-              if (n_ckpt == kill_after .and. rank == 0) call kill_self()
-            end if
-          end if
+          if (checkpoints .and. .not. (ib == ib_last .and. cfg%control%target_rel_error <= 0.0_dp)) &
+            call checkpoint_if_due()
         end do
         ib_first = ib_last + 1     ! the loop below has nothing left to do
       end if
@@ -283,23 +271,13 @@ contains
           else
             call trace_batch(scene, lay, rng, nphot, tal)
           end if
-          call stats_add_batch(slot(s), lay, tal, nphot)
-          rec(:, ib) = batch_budget(lay, tal)/real(nphot, dp)
-          if (pg%on) call report_progress(pg, cfg, ib, ib_last)
+          call batch_done()
         end if
         ! checkpoints: rank 0 decides at the same batches on every rank (all batches up to ib
         ! are then done); none after the last batch of a fixed budget
         if (checkpoints .and. (mod(ib, nranks) == 0 .or. ib == ib_last) .and. &
-            .not. (ib == ib_last .and. cfg%control%target_rel_error <= 0.0_dp)) then
-          if (checkpoint_due(plan, t_ckpt)) then
-            call cpu_time(c1)
-            call write_checkpoint(plan, cfg, lay, slot, n_slots, ib_next, ib, rec, &
-                                  cpu_before + cpu + (c1 - c0))
-            t_ckpt = par_wtime()
-            n_ckpt = n_ckpt + 1
-            if (n_ckpt == kill_after .and. rank == 0) call kill_self()
-          end if
-        end if
+            .not. (ib == ib_last .and. cfg%control%target_rel_error <= 0.0_dp)) &
+          call checkpoint_if_due()
       end do
       call cpu_time(c1)
       cpu = cpu + (c1 - c0)
@@ -372,6 +350,26 @@ contains
     if (.not. par_is_root()) return
     call build_results(cfg, scene, lay, st, rec(:, 1:nb_done), summary, set, defer_output)
     if (present(nml_text)) call add_attr(set, 'namelist', nml_text)
+
+  contains
+
+    !> Batch ib, traced into `tal`, goes into its slot s, the per-batch records and the progress.
+    subroutine batch_done()
+      call stats_add_batch(slot(s), lay, tal, nphot)
+      rec(:, ib) = batch_budget(lay, tal)/real(nphot, dp)
+      if (pg%on) call report_progress(pg, cfg, ib, ib_last)
+    end subroutine batch_done
+
+    !> A checkpoint of the batches up to ib (all done on every rank) when rank 0 says one is due.
+    subroutine checkpoint_if_due()
+      if (.not. checkpoint_due(plan, t_ckpt)) return
+      call cpu_time(c1)
+      call write_checkpoint(plan, cfg, lay, slot, n_slots, ib_next, ib, rec, &
+                            cpu_before + cpu + (c1 - c0))
+      t_ckpt = par_wtime()
+      n_ckpt = n_ckpt + 1
+      if (n_ckpt == kill_after .and. rank == 0) call kill_self()
+    end subroutine checkpoint_if_due
   end subroutine simulate
 
   !> One batch of a broadband run: the plan spreads the batch's photons over the g-points

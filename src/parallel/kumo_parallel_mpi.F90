@@ -143,19 +143,8 @@ contains
     integer(i8), intent(in) :: nbytes
     type(c_ptr), intent(out) :: base
     logical, intent(out) :: writer
-    integer(kind=MPI_ADDRESS_KIND) :: mine, got
-    integer :: disp
     type(MPI_Win) :: win
-    type(c_ptr) :: local
-    call node_setup()
-    writer = node_rank == 0
-    mine = 0
-    if (writer) mine = max(nbytes, 8_i8)
-    call MPI_Win_allocate_shared(mine, 1, MPI_INFO_NULL, node_comm, local, win)
-    call MPI_Win_shared_query(win, 0, got, disp, base)
-    ! a passive-target epoch for the life of the window, so that par_node_sync may call
-    ! MPI_Win_sync (the memory barrier that the separate memory model needs)
-    call MPI_Win_lock_all(MPI_MODE_NOCHECK, win)
+    call new_window(nbytes, win, base, writer)
     if (.not. allocated(windows)) allocate (windows(0))
     windows = [windows, win]
   end subroutine par_node_storage
@@ -170,9 +159,6 @@ contains
     integer(i8), intent(in) :: nbytes
     type(c_ptr), intent(out) :: base
     logical, intent(out) :: writer
-    integer(kind=MPI_ADDRESS_KIND) :: mine, got
-    integer :: disp
-    type(c_ptr) :: local
     call node_setup()
     writer = node_rank == 0
     if (id < 1 .or. id > N_REUSE) error stop 'par_node_window: window identifier outside 1..4'
@@ -184,14 +170,30 @@ contains
       call MPI_Win_unlock_all(reuse_win(id))
       call MPI_Win_free(reuse_win(id))
     end if
-    mine = 0
-    if (writer) mine = max(nbytes, 8_i8)
-    call MPI_Win_allocate_shared(mine, 1, MPI_INFO_NULL, node_comm, local, reuse_win(id))
-    call MPI_Win_shared_query(reuse_win(id), 0, got, disp, base)
-    call MPI_Win_lock_all(MPI_MODE_NOCHECK, reuse_win(id))
+    call new_window(nbytes, reuse_win(id), base, writer)
     reuse_bytes(id) = max(nbytes, 8_i8)
     reuse_base(id) = base
   end subroutine par_node_window
+
+  !> A shared-memory window of the node: `nbytes` allocated by its leader (the `writer`), mapped
+  !> by every rank at `base`, with a passive-target epoch for its life, so that par_node_sync may
+  !> call MPI_Win_sync (the memory barrier that the separate memory model needs).
+  subroutine new_window(nbytes, win, base, writer)
+    integer(i8), intent(in) :: nbytes
+    type(MPI_Win), intent(out) :: win
+    type(c_ptr), intent(out) :: base
+    logical, intent(out) :: writer
+    integer(kind=MPI_ADDRESS_KIND) :: mine, got
+    integer :: disp
+    type(c_ptr) :: local
+    call node_setup()
+    writer = node_rank == 0
+    mine = 0
+    if (writer) mine = max(nbytes, 8_i8)
+    call MPI_Win_allocate_shared(mine, 1, MPI_INFO_NULL, node_comm, local, win)
+    call MPI_Win_shared_query(win, 0, got, disp, base)
+    call MPI_Win_lock_all(MPI_MODE_NOCHECK, win)
+  end subroutine new_window
 
   !> The largest value of each element over the ranks of this node, on every rank of the node.
   subroutine par_node_max(x)

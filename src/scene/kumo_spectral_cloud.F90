@@ -65,6 +65,8 @@ module kumo_spectral_cloud
     !> nc3): extinction [m-1], albedo, phase index, blend weight (spectral_cloud_band)
     integer :: band = 0
     real(wp), pointer, contiguous :: cext(:, :, :, :) => null(), cssa(:, :, :, :) => null()
+    !> where cext and cssa lie unless spectral_cloud_place put them in the caller's storage
+    real(wp), allocatable :: c_own(:)
     integer, allocatable :: ciph(:, :, :, :)
     real(vp), allocatable :: cwph(:, :, :, :)
   end type spectral_cloud_t
@@ -317,15 +319,20 @@ contains
   !> differ only in the gas). `n_out_liq`, `n_out_ice`: voxel values whose radius lies outside
   !> the table (clamped).
   subroutine spectral_cloud_band(sc, band, n_out_liq, n_out_ice)
-    type(spectral_cloud_t), intent(inout) :: sc
+    type(spectral_cloud_t), intent(inout), target :: sc
     integer, intent(in) :: band
     integer, intent(out) :: n_out_liq, n_out_ice
     integer :: np, ip, k
+    integer(i8) :: nv
     np = merge(2, 1, sc%liq%points)
     n_out_liq = 0
     n_out_ice = 0
-    if (.not. associated(sc%cext)) allocate (sc%cext(sc%nx, sc%ny, sc%nz, sc%nc3), &
-                                             sc%cssa(sc%nx, sc%ny, sc%nz, sc%nc3))
+    if (.not. associated(sc%cext)) then
+      nv = int(sc%nx, i8)*sc%ny*sc%nz*sc%nc3
+      allocate (sc%c_own(2*nv))
+      sc%cext(1:sc%nx, 1:sc%ny, 1:sc%nz, 1:sc%nc3) => sc%c_own(1:nv)
+      sc%cssa(1:sc%nx, 1:sc%ny, 1:sc%nz, 1:sc%nc3) => sc%c_own(nv + 1:2*nv)
+    end if
     if (.not. allocated(sc%ciph)) allocate (sc%ciph(sc%nx, sc%ny, sc%nz, sc%nc3), &
                                             sc%cwph(sc%nx, sc%ny, sc%nz, sc%nc3))
     do ip = 1, np

@@ -115,6 +115,7 @@ module kumo_scene_setup
     type(atmosphere_options_t) :: aopts
     real(wp), allocatable :: ext3(:, :, :, :), ssa3(:, :, :, :)  !! the scene file's voxels
     integer, allocatable :: iph3(:, :, :, :)
+    integer :: n3d(4) = 0                         !! their shape (every rank, also without them)
     real(wp) :: floor = 0.1_wp                    !! emission floor (longwave)
     real(dp), allocatable :: exact_buf(:)         !! the exact batch tallies, once computed
     integer(i8) :: exact_n = 0_i8                 !! for this batch size
@@ -354,6 +355,24 @@ contains
         call scene_on_ranks(cfg, resolve_path(cfg%atm%scene_file, nml_path), ext1d, ssa1d, &
                             phase1d, phases, aopts, scene%atm, error)
         if (allocated(error)) return
+      else if (len_trim(cfg%atm%scene_file) > 0 .and. shared .and. cfg%spectral%enabled) then
+        ! several ranks, broadband: the node's first rank keeps the fields and rebuilds the
+        ! node's voxels from them at every g-point (spectral_set_optics); the ranks of the node
+        ! switch together
+        on_node = .true.
+        spec%three_d = .true.
+        spec%node = .true.
+        spec%phases = phases
+        spec%aopts = aopts
+        call scene_fields_on_leaders(cfg, resolve_path(cfg%atm%scene_file, nml_path), spec%ext3, &
+                                     spec%ssa3, spec%iph3, spec%n3d, error)
+        if (allocated(error)) return
+        call atmosphere_init(scene%atm, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, ext1d, ssa1d, &
+                             phase1d, phases, aopts, error, cfg%atm%k3d_bottom, spec%ext3, &
+                             spec%ssa3, spec%iph3, n3d=spec%n3d, storage=node_voxels, &
+                             sync=par_node_sync)
+        if (allocated(error)) return
+        call note_voxel_storage(scene%atm, cfg%control%verbose)
       else if (len_trim(cfg%atm%scene_file) > 0) then
         call read_scene_on_root(cfg, resolve_path(cfg%atm%scene_file, nml_path), ext3, ssa3, &
                                 iph3, error)
@@ -1259,6 +1278,13 @@ contains
       else
         call atmosphere_end(atm, spec%aopts, error, sv_layout=spec%sv_layout)
       end if
+    else if (spec%node) then
+      ! a scene file's voxels in the node's window: its first rank (which alone holds the
+      ! fields) rebuilds them once no rank of the node traces the last g-point any more
+      call par_node_sync()
+      call atmosphere_init(atm, spec%z, spec%lx, spec%ly, e, w, ip, spec%phases, spec%aopts, &
+                           error, spec%k3d_bottom, spec%ext3, spec%ssa3, spec%iph3, &
+                           n3d=spec%n3d, storage=node_voxels, sync=par_node_sync)
     else if (allocated(spec%iph3)) then
       call atmosphere_init(atm, spec%z, spec%lx, spec%ly, e, w, ip, spec%phases, spec%aopts, &
                            error, spec%k3d_bottom, spec%ext3, spec%ssa3, spec%iph3)
@@ -1524,6 +1550,57 @@ contains
       end do
     end if
   end subroutine read_scene_on_root
+
+  !> The voxel fields of a scene file (`scene_file`) as read_scene_on_root gives them, but on
+  !> the first rank of every node alone (its leader); every rank gets their shape `shp`, or rank
+  !> 0's error. Every rank calls it.
+  subroutine scene_fields_on_leaders(cfg, path, ext3, ssa3, iph3, shp, error)
+    type(config_t), intent(in) :: cfg
+    character(len=*), intent(in) :: path
+    real(wp), allocatable, intent(out) :: ext3(:, :, :, :), ssa3(:, :, :, :)
+    integer, allocatable, intent(out) :: iph3(:, :, :, :)
+    integer, intent(out) :: shp(4)
+    type(error_t), allocatable, intent(out) :: error
+    type(bundle_t) :: bg, b
+    integer, allocatable :: shape_read(:)
+    integer :: i
+    logical :: has_iph
+    if (par_is_root()) then
+      call read_scene_3d(path, cfg%atm%nx, cfg%atm%ny, cfg%atm%nz3, cfg%atm%n_components_3d, &
+                         ext3, ssa3, iph3, has_iph, error)
+      if (.not. allocated(error)) then
+        shape_read = shape(ext3)
+        call bg%put(shape_read)
+      end if
+    end if
+    call bg%share(error)
+    if (allocated(error)) return
+    call bg%get(shape_read)
+    shp = shape_read
+    if (.not. par_node_leader()) return
+    if (par_node_size() < par_size()) then
+      ! several nodes: rank 0 gives the fields to the other leaders
+      if (par_is_root()) then
+        call b%put(ext3)
+        call b%put(ssa3)
+        call b%put(has_iph)
+        if (has_iph) call b%put(iph3)
+      end if
+      call b%share(error, leaders=.true.)
+      if (allocated(error)) return
+      call b%get(ext3)
+      call b%get(ssa3)
+      call b%get(has_iph)
+      if (has_iph) call b%get(iph3)
+    end if
+    if (.not. has_iph) then
+      if (allocated(iph3)) deallocate (iph3)
+      allocate (iph3(shp(1), shp(2), shp(3), shp(4)))
+      do i = 1, shp(4)
+        iph3(:, :, :, i) = cfg%atm%phase3d(i)
+      end do
+    end if
+  end subroutine scene_fields_on_leaders
 
   !> The atmosphere of a scene file (`scene_file`) on several ranks, one copy per node: rank 0
   !> reads the file (read_scene_3d) and every rank gets the sizes of its voxel fields, or rank

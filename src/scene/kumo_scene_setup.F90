@@ -199,7 +199,7 @@ contains
     character(len=:), allocatable :: cloud_notes, cloud_warnings
     character(len=:), allocatable :: sfc_notes
     type(cloud_temperature_t) :: cloud_t
-    logical :: on_node, shared
+    logical :: on_node, shared, has_iph
 
     shared = .false.
     if (present(per_node)) shared = per_node .and. par_size() > 1
@@ -365,8 +365,15 @@ contains
         spec%phases = phases
         spec%aopts = aopts
         call scene_fields_on_leaders(cfg, resolve_path(cfg%atm%scene_file, nml_path), spec%ext3, &
-                                     spec%ssa3, spec%iph3, spec%n3d, error)
+                                     spec%ssa3, spec%iph3, has_iph, spec%n3d, error)
         if (allocated(error)) return
+        if (allocated(spec%ext3) .and. .not. has_iph) then
+          ! the namelist's phase function of each component, as read_scene_on_root gives it
+          allocate (spec%iph3(spec%n3d(1), spec%n3d(2), spec%n3d(3), spec%n3d(4)))
+          do i = 1, spec%n3d(4)
+            spec%iph3(:, :, :, i) = cfg%atm%phase3d(i)
+          end do
+        end if
         call atmosphere_init(scene%atm, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, ext1d, ssa1d, &
                              phase1d, phases, aopts, error, cfg%atm%k3d_bottom, spec%ext3, &
                              spec%ssa3, spec%iph3, n3d=spec%n3d, storage=node_voxels, &
@@ -1551,20 +1558,21 @@ contains
     end if
   end subroutine read_scene_on_root
 
-  !> The voxel fields of a scene file (`scene_file`) as read_scene_on_root gives them, but on
-  !> the first rank of every node alone (its leader); every rank gets their shape `shp`, or rank
-  !> 0's error. Every rank calls it.
-  subroutine scene_fields_on_leaders(cfg, path, ext3, ssa3, iph3, shp, error)
+  !> The voxel fields of a scene file (`scene_file`), read on rank 0 (read_scene_3d), on the
+  !> first rank of every node alone (its leader): extinction, albedo and, when the file has
+  !> them (`has_iph`), the phase indices. Every rank gets their shape `shp`, or rank 0's error.
+  !> Every rank calls it.
+  subroutine scene_fields_on_leaders(cfg, path, ext3, ssa3, iph3, has_iph, shp, error)
     type(config_t), intent(in) :: cfg
     character(len=*), intent(in) :: path
     real(wp), allocatable, intent(out) :: ext3(:, :, :, :), ssa3(:, :, :, :)
     integer, allocatable, intent(out) :: iph3(:, :, :, :)
+    logical, intent(out) :: has_iph
     integer, intent(out) :: shp(4)
     type(error_t), allocatable, intent(out) :: error
-    type(bundle_t) :: bg, b
+    type(bundle_t) :: bg
     integer, allocatable :: shape_read(:)
-    integer :: i
-    logical :: has_iph
+    has_iph = .false.
     if (par_is_root()) then
       call read_scene_3d(path, cfg%atm%nx, cfg%atm%ny, cfg%atm%nz3, cfg%atm%n_components_3d, &
                          ext3, ssa3, iph3, has_iph, error)
@@ -1577,63 +1585,6 @@ contains
     if (allocated(error)) return
     call bg%get(shape_read)
     shp = shape_read
-    if (.not. par_node_leader()) return
-    if (par_node_size() < par_size()) then
-      ! several nodes: rank 0 gives the fields to the other leaders
-      if (par_is_root()) then
-        call b%put(ext3)
-        call b%put(ssa3)
-        call b%put(has_iph)
-        if (has_iph) call b%put(iph3)
-      end if
-      call b%share(error, leaders=.true.)
-      if (allocated(error)) return
-      call b%get(ext3)
-      call b%get(ssa3)
-      call b%get(has_iph)
-      if (has_iph) call b%get(iph3)
-    end if
-    if (.not. has_iph) then
-      if (allocated(iph3)) deallocate (iph3)
-      allocate (iph3(shp(1), shp(2), shp(3), shp(4)))
-      do i = 1, shp(4)
-        iph3(:, :, :, i) = cfg%atm%phase3d(i)
-      end do
-    end if
-  end subroutine scene_fields_on_leaders
-
-  !> The atmosphere of a scene file (`scene_file`) on several ranks, one copy per node: rank 0
-  !> reads the file (read_scene_3d) and every rank gets the sizes of its voxel fields, or rank
-  !> 0's error; the fields themselves go to the first rank of each node alone (the node's
-  !> leader), which puts them into voxel arrays in memory the node shares (kumo_parallel
-  !> par_node_storage), through atmosphere_init as on one rank, so its values are those of one
-  !> rank, bit for bit.
-  !> Every rank calls it (the window and its barrier are collective).
-  subroutine scene_on_ranks(cfg, path, ext1d, ssa1d, phase1d, phases, aopts, atm, error)
-    type(config_t), intent(in) :: cfg
-    character(len=*), intent(in) :: path
-    real(wp), intent(in) :: ext1d(:, :), ssa1d(:, :)
-    integer, intent(in) :: phase1d(:, :)
-    type(phase_t), intent(in) :: phases(:)
-    type(atmosphere_options_t), intent(in) :: aopts
-    type(atmosphere_t), intent(inout) :: atm
-    type(error_t), allocatable, intent(out) :: error
-    type(bundle_t) :: bg
-    real(wp), allocatable :: ext3(:, :, :, :), ssa3(:, :, :, :)
-    integer, allocatable :: iph3(:, :, :, :), shp(:)
-    logical :: has_iph
-    if (par_is_root()) then
-      call read_scene_3d(path, cfg%atm%nx, cfg%atm%ny, cfg%atm%nz3, cfg%atm%n_components_3d, &
-                         ext3, ssa3, iph3, has_iph, error)
-      if (.not. allocated(error)) then
-        shp = shape(ext3)
-        call bg%put(shp)
-      end if
-    end if
-    ! every rank: the sizes and rank 0's error; the node leaders: the fields
-    call bg%share(error)
-    if (allocated(error)) return
-    call bg%get(shp)
     ! one node: rank 0 is its only leader and keeps what it read
     if (par_node_leader() .and. par_node_size() < par_size()) then
       block
@@ -1654,6 +1605,31 @@ contains
         if (has_iph) call b%get(iph3)
       end block
     end if
+    if (.not. has_iph .and. allocated(iph3)) deallocate (iph3)
+  end subroutine scene_fields_on_leaders
+
+  !> The atmosphere of a scene file (`scene_file`) on several ranks, one copy per node: rank 0
+  !> reads the file (read_scene_3d) and every rank gets the sizes of its voxel fields, or rank
+  !> 0's error; the fields themselves go to the first rank of each node alone (the node's
+  !> leader), which puts them into voxel arrays in memory the node shares (kumo_parallel
+  !> par_node_storage), through atmosphere_init as on one rank, so its values are those of one
+  !> rank, bit for bit.
+  !> Every rank calls it (the window and its barrier are collective).
+  subroutine scene_on_ranks(cfg, path, ext1d, ssa1d, phase1d, phases, aopts, atm, error)
+    type(config_t), intent(in) :: cfg
+    character(len=*), intent(in) :: path
+    real(wp), intent(in) :: ext1d(:, :), ssa1d(:, :)
+    integer, intent(in) :: phase1d(:, :)
+    type(phase_t), intent(in) :: phases(:)
+    type(atmosphere_options_t), intent(in) :: aopts
+    type(atmosphere_t), intent(inout) :: atm
+    type(error_t), allocatable, intent(out) :: error
+    real(wp), allocatable :: ext3(:, :, :, :), ssa3(:, :, :, :)
+    integer, allocatable :: iph3(:, :, :, :)
+    integer :: shp(4)
+    logical :: has_iph
+    call scene_fields_on_leaders(cfg, path, ext3, ssa3, iph3, has_iph, shp, error)
+    if (allocated(error)) return
     ! the node leaders put the fields into the window; the other ranks give only their shape
     call atmosphere_init(atm, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, ext1d, ssa1d, phase1d, phases, &
                          aopts, error, cfg%atm%k3d_bottom, ext3, ssa3, iph3, &

@@ -2,9 +2,9 @@
 # SPDX-License-Identifier: BSD-3-Clause
 # A bad voxel temperature in a thermal run on 2 ranks (one scene per node: only the node's
 # first rank holds the temperatures and forms their Planck radiances) is every rank's error:
-# the job ends (well inside the time limit: a hang fails the test) with the exit status and the
-# `kumo error:` line of the run on 1 rank, and no rank reports a message of its own (`kumo error
-# on rank ...`: a different message, or a rank failing alone). Two inputs: a scene file with a
+# the job ends (well inside the time limit: a hang fails the test), every rank with the exit
+# status of the run on 1 rank, printing its `kumo error:` line, and no rank reports a message of
+# its own (`kumo error on rank ...`: a different message, or a rank failing alone). Two inputs: a scene file with a
 # voxel at 0 K, which its reader lets through (>= 0) and the node's first rank refuses as it
 # forms the Planck radiances (kumo_scene_setup voxel_planck, whose verdict rank 0 gives every
 # rank), and an LES water file with a voxel at 0 K, refused by the reader on rank 0.
@@ -80,14 +80,19 @@ cat > les.nml <<'NML'
 NML
 
 # case_ NAME NML REGEX LAUNCH...: the run on 1 rank and the run LAUNCH (2 ranks) fail alike,
-# with a message matching REGEX
+# with a message matching REGEX. On 2 ranks each rank runs kumo under a shell that records its
+# exit status (NAME.rankR.rc, R from the launcher's environment) and then exits 0: a rank that
+# did not end in kumo's own failure (ended by MPI_Abort, killed, or still waiting in a
+# collective operation when the others stopped) leaves no status, or another one.
 case_() {
-  local name=$1 nml=$2 regex=$3 rc1 rc2 line1 line2
+  local name=$1 nml=$2 regex=$3 rc1 rc2 line1 line2 r
   shift 3
   timeout -s KILL 30 "$kumo" "$nml" > "$name.np1.out" 2> "$name.np1.err"
   rc1=$?
   SECONDS=0
-  timeout -s KILL 30 "$@" "$kumo" "$nml" > "$name.np2.out" 2> "$name.np2.err"
+  # shellcheck disable=SC2016
+  timeout -s KILL 30 "$@" sh -c '"$0" "$1"; echo $? > "$2.rank${OMPI_COMM_WORLD_RANK:-${PMI_RANK:-${PMIX_RANK:-unknown}}}.rc"' \
+    "$kumo" "$nml" "$name" > "$name.np2.out" 2> "$name.np2.err"
   rc2=$?
   line1=$(grep '^kumo error: ' "$name.np1.err")
   line2=$(grep '^kumo error' "$name.np2.err")
@@ -106,18 +111,25 @@ case_() {
     echo "FAIL ($name): the run on 2 ranks hung (killed after 30 s)"
     cat "$name.np2.err"
     fail=1
-  elif [[ $rc2 != "$rc1" ]]; then
-    echo "FAIL ($name): exit status $rc2 on 2 ranks, $rc1 on 1 rank"
-    cat "$name.np2.err"
-    fail=1
   fi
+  for r in 0 1; do
+    if [[ ! -e "$name.rank$r.rc" ]]; then
+      echo "FAIL ($name): rank $r of 2 did not end in kumo's own failure (no exit status)"
+      cat "$name.np2.err"
+      fail=1
+    elif [[ $(< "$name.rank$r.rc") != "$rc1" ]]; then
+      echo "FAIL ($name): rank $r of 2 ended with status $(< "$name.rank$r.rc"), 1 rank with $rc1"
+      fail=1
+    fi
+  done
   if [[ "$line2" != "$line1" ]]; then
     echo "FAIL ($name): the 2-rank run's error lines differ from the 1-rank run's"
     echo "  1 rank:  $line1"
     echo "  2 ranks: $line2"
     fail=1
   fi
-  [[ $fail == 0 ]] && echo "$name: 1 and 2 ranks fail alike in ${SECONDS} s (status $rc2): $line2"
+  [[ $fail == 0 ]] && echo "$name: 1 and 2 ranks fail alike in ${SECONDS} s (status $rc1 on" \
+    "each rank): $line2"
 }
 case_ scene scene.nml 'voxel \(1,1,1\) has 0.* K; temperatures must be > 0' "$@" -n 2
 case_ les les.nml 'les_bad.nc:temperature\): value 0 at \(x,y,z\) = \(2,2,1\) must be > 0' "$@" -n 2

@@ -48,7 +48,7 @@ module kumo_cloud_scene
   implicit none
   private
   public :: build_cloud_atmosphere, rayleigh_layers, cloud_temperature_t, mie_layer, table_radii, &
-            ice_table, water_table, mcarats_scan_t, mcarats_scan
+            ice_table, water_table, mcarats_scan_t, mcarats_scan, take_temperature
 
   !> What the voxel values of an MCARaTS file decide before its atmosphere is built
   !> (mcarats_scan): the tables some voxel uses, whether a code blends two tables, whether the

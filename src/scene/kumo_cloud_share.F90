@@ -47,12 +47,15 @@ contains
   !> reader returned besides. With `per_node` = .true. only the first rank of every node (its
   !> leader, kumo_parallel par_node_leader) gets the fields; the other ranks get the grid (as
   !> with `grid_only`) and what their phase functions are made of (`small_put`: Legendre
-  !> series, Henyey-Greenstein g, MCARaTS tables; the temperatures when `req` asks for them),
-  !> and never hold a copy of the fields: the
+  !> series, Henyey-Greenstein g, MCARaTS tables), and never hold a copy of the fields: the
   !> node's leader builds the voxels in memory the node shares (build_cloud_atmosphere's
-  !> `storage`). On one node rank 0 is the only leader: it keeps what it read, and no copy of
-  !> the fields travels or waits in a bundle beside it.
-  subroutine read_cloud_on_root(req, cloud, error, grid_only, part, alone, per_node)
+  !> `storage`). The temperatures, when `req` asks for them, are fields too: the other ranks get
+  !> only what describes them (planes, perturbations, their source; `temperature_put`), and
+  !> `has_temperature` says on every rank whether the file gave them. On one node rank 0 is the
+  !> only leader: it keeps what it read, and no copy of the fields travels or waits in a bundle
+  !> beside it.
+  subroutine read_cloud_on_root(req, cloud, error, grid_only, part, alone, per_node, &
+                                has_temperature)
     type(cloud_request_t), intent(in) :: req
     type(cloud_input_t), intent(out) :: cloud
     type(error_t), allocatable, intent(out) :: error
@@ -60,8 +63,12 @@ contains
     character(len=*), intent(in), optional :: part
     logical, intent(in), optional :: alone
     logical, intent(in), optional :: per_node
+    !> the file gave temperatures (as rank 0 read it: also on ranks that do not receive them)
+    logical, intent(out), optional :: has_temperature
     type(bundle_t) :: b, bg
-    logical :: here, grid, reader, node
+    logical :: here, grid, reader, node, has_t
+    has_t = .false.
+    if (present(has_temperature)) has_temperature = .false.
     here = .false.
     if (present(alone)) here = alone
     grid = .false.
@@ -81,10 +88,12 @@ contains
         end if
       end if
       call bg%share(error)
+      if (present(has_temperature)) has_temperature = allocated(cloud%temperature)
       if (allocated(error) .or. reader) return
       call cloud_input_get(bg, cloud)
       call small_get(bg, cloud)
-      if (req%temperature) call temperature_get(bg, cloud)
+      if (req%temperature) call temperature_get(bg, cloud, has_t)
+      if (present(has_temperature)) has_temperature = has_t
       return
     end if
     if (reader) then
@@ -107,16 +116,19 @@ contains
       if (par_node_leader()) then
         call b%share(error, leaders=.true.)
         call cloud_input_get(b, cloud)
+        if (present(has_temperature)) has_temperature = allocated(cloud%temperature)
       else
         call cloud_input_get(bg, cloud)
         call small_get(bg, cloud)
-        if (req%temperature) call temperature_get(bg, cloud)
+        if (req%temperature) call temperature_get(bg, cloud, has_t)
+        if (present(has_temperature)) has_temperature = has_t
       end if
       return
     end if
     if (.not. here) call b%share(error)
     if (allocated(error)) return
     call cloud_input_get(b, cloud)
+    if (present(has_temperature)) has_temperature = allocated(cloud%temperature)
   end subroutine read_cloud_on_root
 
   !> Put a cloud input into a bundle: every component (the grid alone with `grid_only`).
@@ -253,22 +265,26 @@ contains
     call get_opt(b, c%mca_phase%p)
   end subroutine small_get
 
-  !> Put the temperatures of a cloud file (thermal runs), which every rank needs for the
-  !> Planck radiances of the voxels (read_cloud_on_root per_node).
+  !> Put what describes the temperatures of a cloud file (thermal runs) for the ranks that do
+  !> not receive them (read_cloud_on_root per_node): whether the file has them, on planes or
+  !> voxels, as perturbations or not, and their source. The values stay with the node's leader,
+  !> which alone forms the Planck radiances of the voxels (kumo_scene_setup setup_thermal).
   subroutine temperature_put(b, c)
     type(bundle_t), intent(inout) :: b
     type(cloud_input_t), intent(in) :: c
-    call put_vox(b, c%temperature)
+    call b%put(allocated(c%temperature))
     call b%put(c%t_planes)
     call b%put(c%t_perturbation)
     call put_opt(b, c%t_source)
   end subroutine temperature_put
 
-  !> Take the items of temperature_put out of a bundle, in the same order.
-  subroutine temperature_get(b, c)
+  !> Take the items of temperature_put out of a bundle, in the same order (`has_t`: the file has
+  !> temperatures; `c%temperature` stays unallocated).
+  subroutine temperature_get(b, c, has_t)
     type(bundle_t), intent(inout) :: b
     type(cloud_input_t), intent(inout) :: c
-    call get_vox(b, c%temperature)
+    logical, intent(out) :: has_t
+    call b%get(has_t)
     call b%get(c%t_planes)
     call b%get(c%t_perturbation)
     call get_opt(b, c%t_source)

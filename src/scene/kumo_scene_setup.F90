@@ -53,7 +53,7 @@ module kumo_scene_setup
   use kumo_mie, only: mie_table_t
   use kumo_bundle, only: bundle_t
   use kumo_cloud_scene, only: build_cloud_atmosphere, rayleigh_layers, cloud_temperature_t, ice_table, &
-                              water_table, mcarats_scan_t, mcarats_scan
+                              water_table, mcarats_scan_t, mcarats_scan, take_temperature
   use kumo_spectral_cloud, only: spectral_cloud_t, spectral_cloud_init, spectral_cloud_band, &
                                  spectral_cloud_put, spectral_cloud_place
   use kumo_supervoxel, only: supervoxel_grid_t
@@ -508,6 +508,11 @@ contains
     real(wp), allocatable :: t3(:, :, :), b3(:, :, :), tmap(:, :), bsm(:, :)
     character(len=:), allocatable :: nml_path
     character(len=:), allocatable :: what
+    logical :: on_node, found
+    integer(i8) :: t_bytes
+    ! one scene per node: the node's first rank (the voxels' writer) alone holds the voxel
+    ! temperatures and forms their Planck radiances
+    on_node = scene%atm%voxels_borrowed
     associate (th => cfg%thermal)
       has_band = .not. allocated(th%planck_levels)
       if (has_band) then
@@ -564,25 +569,37 @@ contains
     if (len_trim(cfg%atm%scene_file) > 0 .and. .not. cfg%cloud%enabled .and. has_band) then
       nml_path = ''
       if (allocated(cfg%path)) nml_path = cfg%path
-      call scene_temperature_on_root(resolve_path(cfg%atm%scene_file, nml_path), cfg, t3, error)
+      call scene_temperature_on_root(resolve_path(cfg%atm%scene_file, nml_path), cfg, t3, error, &
+                                     leaders=on_node, found=found)
       if (allocated(error)) return
+      if (found) then
+        cloud_t%found = .true.
+        cloud_t%source = 'variable temperature of the scene file'
+      end if
     end if
+    t_bytes = 0_i8
     if (allocated(t3)) then
-      cloud_t%found = .true.
+      t_bytes = int(size(t3), i8)*(storage_size(t3)/8)
       cloud_t%t = real(t3, vp)
       deallocate (t3)
-      cloud_t%source = 'variable temperature of the scene file'
     end if
     if (cloud_t%found .and. has_band) then
-      call voxel_planck(cloud_t, scene%atm, cfg%atm%k3d_bottom, cfg%thermal%t_levels, band, &
-                        scale, b_lev, b3, what, error)
+      if (allocated(cloud_t%t)) t_bytes = t_bytes + int(size(cloud_t%t), i8)*(storage_size(cloud_t%t)/8)
+      if (.not. on_node .or. scene%atm%voxel_writer) &
+        call voxel_planck(cloud_t, scene%atm, cfg%atm%k3d_bottom, cfg%thermal%t_levels, band, &
+                          scale, b_lev, b3, what, error)
+      if (on_node) call writer_verdict()
       if (allocated(error)) then
         call add_context(error, '&kumo_thermal')
         return
       end if
+      if (allocated(b3)) t_bytes = t_bytes + int(size(b3), i8)*(storage_size(b3)/8)
+      if (on_node) call note_rank_bytes('voxel temperatures: held and made into Planck '// &
+                                        'radiances by the node''s first rank alone', t_bytes, &
+                                        0_i8, cfg%control%verbose)
       ! b3 holds what the emission needs: the temperatures (one value per voxel) go first
-      deallocate (cloud_t%t)
-      call init_table(b3)
+      if (allocated(cloud_t%t)) deallocate (cloud_t%t)
+      call init_table(b3, on_node)
     else
       if (cfg%cloud%enabled .and. scene%atm%n3 > 0) then
         if (.not. has_band) then
@@ -620,14 +637,26 @@ contains
 
   contains
 
+    !> The voxels' writer has formed their Planck radiances (or failed): rank 0's error, or its
+    !> note on them (temperature range), on every rank. Every rank calls it; all node leaders
+    !> hold the same temperatures, so they agree with rank 0.
+    subroutine writer_verdict()
+      type(bundle_t) :: bv
+      if (par_is_root() .and. .not. allocated(error)) call bv%put(what)
+      call bv%share(error)
+      if (.not. allocated(error)) call bv%get(what)
+    end subroutine writer_verdict
+
     !> The emission table, with its per-voxel arrays in the node's shared window when the
-    !> voxels are there (one scene per node: the node's first rank forms them).
-    subroutine init_table(b3v)
+    !> voxels are there (one scene per node: the node's first rank forms them; with `by_writer`
+    !> it alone has the voxels' Planck radiances `b3v`).
+    subroutine init_table(b3v, by_writer)
       real(wp), intent(in), optional :: b3v(:, :, :)
+      logical, intent(in), optional :: by_writer
       if (scene%atm%voxels_borrowed) then
         call emission_init(scene%src%em, scene%atm, scene%sfc, b_lev, b_sfc, b_top, solar_power, &
                            cfg%thermal%emission_floor, error, b3=b3v, b_sfc_map=bsm, &
-                           storage=par_node_storage, sync=par_node_sync)
+                           storage=par_node_storage, sync=par_node_sync, b3_by_writer=by_writer)
         if (.not. allocated(error)) call note_table_storage(scene%src%em, cfg%control%verbose)
       else
         call emission_init(scene%src%em, scene%atm, scene%sfc, b_lev, b_sfc, b_top, solar_power, &
@@ -697,6 +726,12 @@ contains
           tmin = min(tmin, ta, tb)
           tmax = max(tmax, ta, tb)
           b3(ix, iy, kr) = 0.5_wp*scale*(band_radiance(band, ta) + band_radiance(band, tb))
+          if (.not. (b3(ix, iy, kr) <= huge(1.0_wp))) then
+            call set_error(error, 'voxel temperatures ('//ft%source//'): voxel ('//str(ix)// &
+                           ','//str(iy)//','//str(kf)//') has '//str(max(ta, tb))// &
+                           ' K, whose Planck radiance is not finite')
+            return
+          end if
         end do
       end do
     end do
@@ -1653,8 +1688,9 @@ contains
   !> the absorption perturbation and its check) rank 0 finds and shares. The ranks then build
   !> together (the window and its barrier are collective); they read the same inputs and
   !> values, so they meet the same errors. The run log says what each rank holds. Thermal runs
-  !> that take the file's temperatures give them to every rank (each forms the voxels' Planck
-  !> radiances and its emission table).
+  !> that take the file's temperatures keep them with the node's first rank too, which checks
+  !> them (rank 0's verdict is every rank's) and alone forms the voxels' Planck radiances
+  !> (setup_thermal); the other ranks get only what describes them (`cloud_t` without `t`).
   subroutine cloud_on_ranks(cfg, ext1d, ssa1d, phase1d, phases, aopts, atm, notes, warnings, &
                             error, cloud_t, shared)
     type(config_t), intent(in) :: cfg
@@ -1676,12 +1712,29 @@ contains
     type(cloud_request_t) :: req
     type(mie_table_t) :: ice, liq
     character(len=:), allocatable :: liq_action
-    logical :: want_t
+    logical :: want_t, has_t
     want_t = cfg%thermal%enabled .and. .not. allocated(cfg%thermal%planck_levels)
     req = cfg%cloud%req
     req%temperature = want_t
-    call read_cloud_on_root(req, c, error, part='liquid', per_node=shared)
+    call read_cloud_on_root(req, c, error, part='liquid', per_node=shared, has_temperature=has_t)
     if (allocated(error)) return
+    if (shared .and. want_t) then
+      ! the temperatures, on the node leaders alone, checked there before the collective build
+      ! (build_cloud_atmosphere would check them on the leaders only): rank 0's verdict and
+      ! what describes them on every rank
+      block
+        type(bundle_t) :: bt
+        if (par_node_leader()) call take_temperature(c, cfg%cloud%req%path, cloud_t, error)
+        call bt%share(error)
+        if (allocated(error)) return
+        if (has_t .and. .not. par_node_leader()) then
+          cloud_t%found = .true.
+          cloud_t%planes = c%t_planes
+          cloud_t%perturbation = c%t_perturbation
+          cloud_t%source = c%t_source
+        end if
+      end block
+    end if
     if (shared .and. c%content /= cfg%cloud%grid%content) then
       ! every rank holds rank 0's content code: they all stop here alike
       call set_error(error, cfg%cloud%req%path//': the file''s content (code '//str(c%content)// &
@@ -1756,7 +1809,7 @@ contains
       procedure(voxel_storage_i), optional :: storage
       procedure(voxel_sync_i), optional :: sync
       type(mcarats_scan_t), intent(in), optional :: mca
-      if (want_t) then
+      if (want_t .and. .not. shared) then
         call build_cloud_atmosphere(cfg%cloud, c, c_ice, cfg%source%wavelength_um, &
                                     cfg%phase%n_table, cfg%atm%z, cfg%atm%lx, cfg%atm%ly, &
                                     cfg%atm%k3d_bottom, ext1d, ssa1d, phase1d, phases, aopts, &
@@ -1934,28 +1987,45 @@ contains
   end subroutine mcarats_surface_on_root
 
   !> Rank 0 reads the voxel temperatures of the scene file, if it has them, and broadcasts them
-  !> (t3 not allocated when the file has none).
-  subroutine scene_temperature_on_root(path, cfg, t3, error)
+  !> (t3 not allocated when the file has none). With `leaders` = .true. only the first rank of
+  !> every node gets them (one scene per node: it alone forms the voxels' Planck radiances); every
+  !> rank gets `found`, whether the file has them, and rank 0's error.
+  subroutine scene_temperature_on_root(path, cfg, t3, error, leaders, found)
     character(len=*), intent(in) :: path
     type(config_t), intent(in) :: cfg
     real(wp), allocatable, intent(out) :: t3(:, :, :)
     type(error_t), allocatable, intent(out) :: error
-    type(bundle_t) :: b
-    logical :: found
+    logical, intent(in), optional :: leaders
+    logical, intent(out), optional :: found
+    type(bundle_t) :: b, bt
+    logical :: has, node
+    node = .false.
+    if (present(leaders)) node = leaders .and. par_size() > 1
+    has = .false.
     if (par_is_root()) then
-      call read_scene_temperature(path, cfg%atm%nx, cfg%atm%ny, cfg%atm%nz3, t3, found, error)
+      call read_scene_temperature(path, cfg%atm%nx, cfg%atm%ny, cfg%atm%nz3, t3, has, error)
       if (.not. allocated(error)) then
-        call b%put(found)
-        if (found) call b%put(t3)
+        call b%put(has)
+        if (has .and. .not. node) call b%put(t3)
       end if
     end if
     call b%share(error)
+    if (present(found)) found = .false.
     if (allocated(error)) return
-    call b%get(found)
-    if (found) then
+    call b%get(has)
+    if (present(found)) found = has
+    if (.not. has) then
+      if (allocated(t3)) deallocate (t3)
+    else if (.not. node) then
       call b%get(t3)
-    else if (allocated(t3)) then
-      deallocate (t3)
+    else if (par_node_leader() .and. par_node_size() < par_size()) then
+      ! the node leaders: rank 0's values (on one node rank 0 keeps what it read)
+      if (par_is_root()) then
+        call bt%put(t3)
+        deallocate (t3)
+      end if
+      call bt%share(error, leaders=.true.)
+      call bt%get(t3)
     end if
   end subroutine scene_temperature_on_root
 

@@ -148,10 +148,13 @@ contains
   !> With `storage` and `sync` the per-voxel arrays and the table lie in the caller's storage
   !> (kumo_atmosphere voxel_storage_i): its writer alone forms them, with its work arrays; every
   !> process then calls `sync` and takes the totals from the same storage. Every process sharing
-  !> it calls this with the same arguments.
+  !> it calls this with the same arguments, but for `b3` when `b3_by_writer` = .true.: the
+  !> voxels have Planck radiances, which the storage's writer alone passes (and checks: a bad
+  !> `b3` there is every process's error); the others pass none and read the writer's copy.
+  !> Without `storage` the flag is refused.
   subroutine emission_init(em, atm, sfc, b_lev, b_sfc, b_top, solar_power, floor, error, b3, &
                            b_sfc_map, b_layer_bottom, b_layer_top, escape_sampling, storage, &
-                           sync)
+                           sync, b3_by_writer)
     type(emission_t), intent(out), target :: em
     type(atmosphere_t), intent(in) :: atm
     type(surface_t), intent(in) :: sfc
@@ -168,12 +171,16 @@ contains
     logical, intent(in), optional :: escape_sampling
     procedure(voxel_storage_i), optional :: storage  !! the caller's storage for the table
     procedure(voxel_sync_i), optional :: sync        !! with `storage`
+    !> with `storage`: the voxel Planck radiances are the writer's alone (above; .false.)
+    logical, intent(in), optional :: b3_by_writer
     real(wp), allocatable :: pw_lay(:), cap_lay(:)
     real(wp), pointer, contiguous :: words(:)
     real(wp) :: dz, ka, ptot
     integer(i8) :: nv, nw
     integer :: k, nz, ncol
     type(c_ptr) :: base
+    logical :: by_writer
+    character(len=:), allocatable :: b3_fault
 
     nz = atm%nz
     ncol = atm%nx*atm%ny
@@ -221,18 +228,30 @@ contains
     em%b_top = b_top
     em%floor = floor
     em%solar_power = solar_power
-    em%has_b3 = present(b3)
+    by_writer = .false.
+    if (present(b3_by_writer)) by_writer = b3_by_writer
+    if (by_writer .and. .not. present(storage)) then
+      call set_error(error, 'thermal emission: b3_by_writer needs the caller''s storage')
+      return
+    end if
+    em%has_b3 = present(b3) .or. by_writer
+    ! a fault of b3: an error here, or, when the writer alone has b3, after the storage is
+    ! taken, so that every process learns it (below)
+    b3_fault = ''
     if (present(b3)) then
       if (any(shape(b3) /= [atm%nx, atm%ny, atm%n3])) then
-        call set_error(error, 'thermal emission: voxel Planck values have shape ('// &
-                       str(size(b3, 1))//','//str(size(b3, 2))//','//str(size(b3, 3))// &
-                       '), the 3-D region ('//str(atm%nx)//','//str(atm%ny)//','//str(atm%n3)//')')
-        return
+        b3_fault = 'thermal emission: voxel Planck values have shape ('// &
+                   str(size(b3, 1))//','//str(size(b3, 2))//','//str(size(b3, 3))// &
+                   '), the 3-D region ('//str(atm%nx)//','//str(atm%ny)//','//str(atm%n3)//')'
+      else if (any(.not. (b3 >= 0.0_wp))) then
+        b3_fault = 'thermal emission: voxel Planck radiances must be finite and >= 0'
       end if
-      if (any(.not. (b3 >= 0.0_wp))) then
-        call set_error(error, 'thermal emission: voxel Planck radiances must be finite and >= 0')
-        return
-      end if
+    else if (by_writer) then
+      b3_fault = 'thermal emission: the writer of the table has no voxel Planck radiances (b3)'
+    end if
+    if (len(b3_fault) > 0 .and. .not. by_writer) then
+      call set_error(error, b3_fault)
+      return
     end if
     call surface_emissivity(em, sfc)
     em%eps_b_mean = em%eps_mean*b_sfc
@@ -296,7 +315,10 @@ contains
       em%ratio(1:em%n_ent) => words(nz + 3 + em%n_ent:nz + 2 + 2*em%n_ent)
       em%emit_vox_node(1:nv) => words(nz + 3 + 2*em%n_ent:nz + 2 + 2*em%n_ent + nv)
       if (em%has_b3) em%b3(1:atm%nx, 1:atm%ny, 1:atm%n3) => words(nw - nv + 1:nw)
-      if (em%table_writer) then
+      if (em%table_writer .and. len(b3_fault) > 0) then
+        ! b3_by_writer and the writer's b3 is missing or bad: a total of -1 tells the others
+        words(1) = -1.0_wp
+      else if (em%table_writer) then
         if (em%has_b3) em%b3 = b3
         call fill_table(em%cdf, em%ratio, em%emit_vox_node, ptot)
         words(1) = ptot
@@ -304,6 +326,15 @@ contains
       end if
       if (present(sync)) call sync()
       ptot = words(1)
+      if (ptot < 0.0_wp) then
+        if (em%table_writer) then
+          call set_error(error, b3_fault)
+        else
+          call set_error(error, 'thermal emission: the voxel Planck radiances of the writer '// &
+                         'of the shared table are missing or not finite and >= 0')
+        end if
+        return
+      end if
       em%emit_layer = words(2:nz + 1)
     end if
     if (.not. (ptot > 0.0_wp)) then

@@ -1173,26 +1173,28 @@ contains
     character(len=*), intent(in) :: at_err, at
     type(error_t), allocatable, intent(out) :: error
     real(dp), allocatable :: x(:)
-    integer :: n, slab, j0, start(4), cnt(4)
+    integer :: n, slab, j0, start(4), cnt(4), part
     n = var_size(set%vars(iv))
     slab = slab_size(counts(1:ndims), n)
     allocate (x(slab))
     start = 1
     cnt(1:ndims) = counts(1:ndims)
     if (ndims > 1) cnt(ndims) = 1
-    do j0 = 0, n - 1, slab
-      if (ndims > 1) start(ndims) = j0/slab + 1
-      call var_values(set, iv, j0, mean=x)
-      call nc_check(nf90_put_var(ncid, mean_id, x, start=start(1:ndims), count=cnt(1:ndims)), &
-                    at, error)
-      if (allocated(error)) return
-    end do
-    do j0 = 0, n - 1, slab
-      if (ndims > 1) start(ndims) = j0/slab + 1
-      call var_values(set, iv, j0, stderr=x)
-      call nc_check(nf90_put_var(ncid, stderr_id, x, start=start(1:ndims), count=cnt(1:ndims)), &
-                    at_err, error)
-      if (allocated(error)) return
+    ! the means, then the standard errors
+    do part = 1, 2
+      do j0 = 0, n - 1, slab
+        if (ndims > 1) start(ndims) = j0/slab + 1
+        if (part == 1) then
+          call var_values(set, iv, j0, mean=x)
+          call nc_check(nf90_put_var(ncid, mean_id, x, start=start(1:ndims), &
+                                     count=cnt(1:ndims)), at, error)
+        else
+          call var_values(set, iv, j0, stderr=x)
+          call nc_check(nf90_put_var(ncid, stderr_id, x, start=start(1:ndims), &
+                                     count=cnt(1:ndims)), at_err, error)
+        end if
+        if (allocated(error)) return
+      end do
     end do
   end subroutine put_deferred
 

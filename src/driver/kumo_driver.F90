@@ -143,7 +143,7 @@ contains
     t0 = par_wtime()
     rank = par_rank()
     nranks = par_size()
-    call setup_scene(cfg, scene, error, spec, per_node=.true.)
+    call setup_scene(cfg, scene, error, spec, per_node=cfg%control%one_scene_per_node)
     if (allocated(error)) return
     ! work that grows without bound with the geometry is refused or warned about (kumo_vr)
     block

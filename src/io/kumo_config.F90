@@ -357,6 +357,8 @@ contains
            'kumo_control.p3d_orders = '//str(cfg%control%p3d_orders)//nl
     if (cfg%control%checkpoint_interval > 0.0_wp) text = text// &
       'kumo_control.checkpoint_interval = '//str(cfg%control%checkpoint_interval)//nl
+    if (.not. cfg%control%one_scene_per_node) text = text// &
+      'kumo_control.one_scene_per_node = F'//nl
     text = text//'kumo_atmosphere.nz = '//str(cfg%atm%nz)//nl// &
            'kumo_atmosphere.z_levels = '//join(cfg%atm%z)//nl// &
            'kumo_atmosphere.lx = '//str(cfg%atm%lx)//nl// &

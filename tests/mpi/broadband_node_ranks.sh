@@ -6,6 +6,7 @@
 # * 1, 2 and 3 ranks give the same batches, bit for bit;
 # * the run log shows that only rank 0 allocated the voxels and the tables (in the node's
 #   window), and no rank allocated any of its own;
+# * with one_scene_per_node = .false. every rank keeps its own copy, with the same batches;
 # * a run killed after its first checkpoint on 3 ranks and resumed on 2 (three slots on two
 #   ranks: one rank traces two batches per window while the other joins the switches without a
 #   batch) gives the output of the uninterrupted run on 3 ranks to the last bit.
@@ -68,6 +69,21 @@ for np in 2 3; do
     fi
   done
 done
+# with one_scene_per_node = .false. every rank keeps its own copy and switches g-points on its
+# own: the same batches, and no window
+sed -e 's/^&kumo_control /\&kumo_control one_scene_per_node = .false., /' case.nml > own.nml
+kumo_on 2 own.nml > own.log 2>&1 || { cat own.log; echo "FAIL: the run on 2 ranks with a copy each failed"; exit 1; }
+mv out.nc own.nc
+if diff <(batches np1.nc) <(batches own.nc) > /dev/null; then
+  echo "batches identical on 1 rank and on 2 ranks with a copy each"
+else
+  echo "FAIL: the batches of 2 ranks with a copy each differ from 1 rank's"
+  fail=1
+fi
+if grep -q 'one copy per node' own.log; then
+  echo "FAIL: one_scene_per_node = .false. still shared the scene"
+  fail=1
+fi
 # the uninterrupted run on 3 ranks wrote checkpoints and removed them
 ls out.nc.ckpt* > /dev/null 2>&1 && { echo "FAIL: the run on 3 ranks left checkpoint files"; fail=1; }
 KUMO_TEST_KILL_AFTER_CHECKPOINT=1 kumo_on 3 case.nml > killed.log 2>&1

@@ -80,6 +80,8 @@ module kumo_config_base
     character(len=8) :: mode_3d = 'f3d'            !! one of MODE_NAMES: f3d, ica, p3d
     integer :: p3d_orders = 1                      !! p3d: scatterings placed by 3-D transport
     real(wp) :: checkpoint_interval = 0.0_wp       !! [s] between checkpoints; 0 = none
+    !> several ranks: the ranks of a node share one copy of the scene (.false.: a copy each)
+    logical :: one_scene_per_node = .true.
   end type control_cfg_t
 
   !> &kumo_atmosphere: levels, 1-D layers and the 3-D region.

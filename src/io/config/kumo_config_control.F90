@@ -27,12 +27,14 @@ contains
     integer(i8) :: n_photons_per_batch, seed, max_photons, max_events
     integer :: n_batches, verbose, ios, p3d_orders
     real(wp) :: target_rel_error, checkpoint_interval
+    logical :: one_scene_per_node
     character(len=16) :: target_output
     character(len=8) :: mode_3d
     character(len=512) :: msg
     character(len=*), parameter :: CTX = '&kumo_control: '
     namelist /kumo_control/ n_photons_per_batch, n_batches, seed, target_rel_error, &
-      target_output, max_photons, max_events, verbose, mode_3d, p3d_orders, checkpoint_interval
+      target_output, max_photons, max_events, verbose, mode_3d, p3d_orders, checkpoint_interval, &
+      one_scene_per_node
     n_photons_per_batch = cfg%n_photons_per_batch
     n_batches = cfg%n_batches
     seed = cfg%seed
@@ -44,6 +46,7 @@ contains
     mode_3d = cfg%mode_3d
     p3d_orders = cfg%p3d_orders
     checkpoint_interval = cfg%checkpoint_interval
+    one_scene_per_node = cfg%one_scene_per_node
     rewind (unit)
     msg = ''
     read (unit, nml=kumo_control, iostat=ios, iomsg=msg)
@@ -60,6 +63,7 @@ contains
     cfg%mode_3d = to_lower(mode_3d)
     cfg%p3d_orders = p3d_orders
     cfg%checkpoint_interval = checkpoint_interval
+    cfg%one_scene_per_node = one_scene_per_node
     call require(n_photons_per_batch >= 1, CTX, 'n_photons_per_batch', n_photons_per_batch, &
                  'must be >= 1', error)
     call require(n_batches >= 2, CTX, 'n_batches', n_batches, &

@@ -470,12 +470,10 @@ contains
   !> without allocating or checking anything again: broadband runs switch the gas of a
   !> g-point this way. `done` is .false. (and nothing changed) when a 1-D component that the
   !> build left out of the 3-D region, being empty there, is not empty now: build it anew.
-  !> Voxels in the caller's storage (atmosphere_begin's `storage`) need `sync`: every process
-  !> sharing them calls this with the same arguments once none of them reads the old values,
-  !> their writer alone forms the voxels (and alone needs `cext`, `cssa`; the others may pass
-  !> empty arrays), and every process takes its 1-D layers and majorants after `sync`. With
-  !> `part` and `nparts` the `nparts` processes sharing them (all holding `cext`, `cssa`) form
-  !> them together instead, process `part` (0 .. nparts - 1) the layers kr = part + 1 + j nparts.
+  !> Voxels in the caller's storage (atmosphere_begin's `storage`) need `sync`, `part` and
+  !> `nparts`: the `nparts` processes sharing them call this with the same arguments once none
+  !> of them reads the old values, process `part` (0 .. nparts - 1) forms the layers
+  !> kr = part + 1 + j nparts, and every process takes its 1-D layers and majorants after `sync`.
   subroutine atmosphere_swap_background(atm, ext1d, ssa1d, cext, cssa, opts, sv_layout, done, &
                                         sync, part, nparts)
     type(atmosphere_t), intent(inout) :: atm
@@ -493,8 +491,9 @@ contains
     real(wp), allocatable :: acc_bg(:)
     done = .false.
     nc1 = atm%ncomp1
-    ! voxels in shared storage: formed by their writer, seen by all after sync
-    if (atm%voxels_borrowed .and. .not. present(sync)) return
+    ! voxels in shared storage: formed by all the processes sharing them, seen after sync
+    if (atm%voxels_borrowed .and. .not. (present(sync) .and. present(part) .and. &
+                                         present(nparts))) return
     if (size(ext1d, 1) /= atm%nz .or. size(ext1d, 2) /= nc1) return
     if (atm%n3 > 0) then
       do ic = 1, nc1
@@ -508,9 +507,9 @@ contains
       atm%layer_class(k) = class_of_layer(atm, k, opts)
     end do
     if (atm%n3 == 0) return
-    if (present(part) .and. present(nparts)) then
+    if (atm%voxels_borrowed) then
       call form_voxels(part, nparts)
-    else if (atm%voxel_writer) then
+    else
       call form_voxels(0, 1)
     end if
     if (present(sync)) call sync()

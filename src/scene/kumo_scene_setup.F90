@@ -1154,23 +1154,21 @@ contains
       call gpoint_emission(spec, g, scene, em, error)
       if (allocated(error)) return
       energy(g) = em%power
-      ! (copies independent of the node's storage, which the next g-point's table reuses)
-      ! the voxels' emitted powers are an output, which rank 0 writes: with the voxels on the
-      ! node, the other ranks keep no per-voxel array at all
+      ! copies independent of the node's storage, which the next g-point's table reuses; the
+      ! voxels' emitted powers are an output, which rank 0 writes: with the voxels on the node,
+      ! the other ranks keep no per-voxel array at all
       if (g == spec%gpoint) then
         em_g = em
-        call emission_detach(em_g)
-        if (spec%node .and. .not. par_is_root()) deallocate (em_g%emit_vox)
+        call emission_detach(em_g, keep_voxels=par_is_root())
       end if
       ! totals for the outputs
       if (g == 1) then
         em_sum = em
-        call emission_detach(em_sum)
-        if (spec%node .and. .not. par_is_root()) deallocate (em_sum%emit_vox)
+        call emission_detach(em_sum, keep_voxels=par_is_root())
       else
         em_sum%emit_sfc = em_sum%emit_sfc + em%emit_sfc
         em_sum%emit_layer = em_sum%emit_layer + em%emit_layer
-        if (allocated(em_sum%emit_vox)) em_sum%emit_vox = em_sum%emit_vox + emission_voxel_power(em)
+        if (size(em_sum%emit_vox) > 0) em_sum%emit_vox = em_sum%emit_vox + emission_voxel_power(em)
       end if
       ! a 1-D column keeps every g-point's table; a 3-D scene rebuilds it per g-point
       if (.not. spec%three_d) then

@@ -434,10 +434,16 @@ contains
   !> reports (the powers of the layers, voxels and surface): the voxels' powers are copied out
   !> and the table itself (cdf, ratio, b3) is let go, so the result launches no photons. Used
   !> for summaries of tables whose storage is used again (the g-points of a broadband run).
-  subroutine emission_detach(em)
+  !> With `keep_voxels` = .false. the voxels' powers are let go too (a process that does not
+  !> report them).
+  subroutine emission_detach(em, keep_voxels)
     type(emission_t), intent(inout) :: em
+    logical, intent(in), optional :: keep_voxels
     if (.not. em%on_node) return
-    em%emit_vox = em%emit_vox_node
+    if (present(keep_voxels)) then
+      if (.not. keep_voxels) allocate (em%emit_vox(0))
+    end if
+    if (.not. allocated(em%emit_vox)) em%emit_vox = em%emit_vox_node
     nullify (em%cdf, em%ratio, em%b3, em%emit_vox_node)
     em%on_node = .false.
     em%table_bytes_own = storage_size(1.0_wp)/8*size(em%emit_vox, kind=i8)

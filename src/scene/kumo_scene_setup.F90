@@ -40,7 +40,7 @@ module kumo_scene_setup
   use kumo_brdf, only: brdf_params_t, BRDF_NPAR
   use kumo_source, only: solar_source, source_stratify
   use kumo_emission, only: emission_t, emission_init, emission_bind, emission_detach, &
-                           emission_voxel_power
+                           emission_voxel_power, voxel_abs_t, voxel_abs_init
   use kumo_planck, only: spectral_band_t, band_from_wavenumbers, band_monochromatic_wavelength, &
                          band_radiance, band_units
   use kumo_vr, only: collision_forcing, ddis_phases, spiky_without_vr, SPIKY_PEAK, DDIS_CONE_DEG, &
@@ -127,9 +127,15 @@ module kumo_scene_setup
     type(spectral_cloud_t) :: cloud
     type(supervoxel_grid_t) :: sv_layout          !! super-voxel blocks of the set-up's g-point
     integer :: atm_band = 0                       !! band of the atmosphere's cloud voxels
-    !> several ranks: the cloud's voxels (and, in the longwave, each g-point's emission table)
-    !> lie in storage the ranks of a node share, which its first rank alone forms at every
-    !> g-point switch (node_voxels, node_table); the ranks of a node then switch together
+    !> longwave over a cloud file: the cloud's share of the voxels' absorption in band
+    !> `va_band` (row sums), from which each g-point's emission table draws the voxels layer by
+    !> layer without a sweep over them (gpoint_emission)
+    type(voxel_abs_t) :: va
+    integer :: va_band = 0
+    !> several ranks: the cloud's voxels (and, over a scene file in the longwave, each
+    !> g-point's emission table) lie in storage the ranks of a node share, which its first rank
+    !> alone forms at every g-point switch (node_voxels, node_table); the ranks of a node then
+    !> switch together
     logical :: node = .false.
   end type spectral_scene_t
 
@@ -1159,16 +1165,17 @@ contains
       ! the other ranks keep no per-voxel array at all
       if (g == spec%gpoint) then
         em_g = em
-        call emission_detach(em_g, keep_voxels=par_is_root())
+        call emission_detach(em_g, keep_voxels=par_is_root(), atm=scene%atm)
       end if
       ! totals for the outputs
       if (g == 1) then
         em_sum = em
-        call emission_detach(em_sum, keep_voxels=par_is_root())
+        call emission_detach(em_sum, keep_voxels=par_is_root(), atm=scene%atm)
       else
         em_sum%emit_sfc = em_sum%emit_sfc + em%emit_sfc
         em_sum%emit_layer = em_sum%emit_layer + em%emit_layer
-        if (size(em_sum%emit_vox) > 0) em_sum%emit_vox = em_sum%emit_vox + emission_voxel_power(em)
+        if (size(em_sum%emit_vox) > 0) em_sum%emit_vox = em_sum%emit_vox + &
+                                                         emission_voxel_power(em, scene%atm)
       end if
       ! a 1-D column keeps every g-point's table; a 3-D scene rebuilds it per g-point
       if (.not. spec%three_d) then
@@ -1336,18 +1343,41 @@ contains
 
   !> The emission table of g-point g for the atmosphere as it is (set to g): the layers' own
   !> bottom and top Planck sources, the surface's, escape sampling.
+  !> Over a cloud file the table draws the voxels layer by layer (kumo_emission, `voxel_abs`):
+  !> the cloud's part of their absorption is summed over rows once per band (`spec%va`), the
+  !> gas's part is the layer's, so a switch forms the table without a sweep over the voxels,
+  !> and every rank forms its own (it is small: one entry per layer).
   subroutine gpoint_emission(spec, g, scene, em, error)
-    type(spectral_scene_t), intent(in) :: spec
+    type(spectral_scene_t), intent(inout) :: spec
     integer, intent(in) :: g
     type(scene_t), intent(in) :: scene
     type(emission_t), intent(out) :: em
     type(error_t), allocatable, intent(out) :: error
-    real(wp), allocatable :: b_lev(:)
+    real(wp), allocatable :: b_lev(:), kb(:)
+    integer :: kr, k
     allocate (b_lev(0:spec%nz))
     ! level values: only what voxels would read, and voxels take the layers' own mean
     b_lev(0) = spec%src_bot(1, g)
     b_lev(1:spec%nz) = spec%src_top(:, g)
-    if (spec%node) then
+    if (spec%cloud_on .and. scene%atm%n3 > 0) then
+      if (spec%va_band /= spec%atm_band) then
+        call voxel_abs_init(spec%va, scene%atm, spec%cloud%cext, spec%cloud%cssa, &
+                            scene%atm%k3_lo - scene%atm%kf_lo)
+        spec%va_band = spec%atm_band
+      end if
+      ! what every voxel of a layer absorbs: the namelist's layers and the g-point's gas, as
+      ! the voxels' background (spectral_set_optics; no scattering by the gas here)
+      allocate (kb(scene%atm%n3))
+      do kr = 1, scene%atm%n3
+        k = scene%atm%k3_lo + kr - 1
+        kb(kr) = sum(spec%ext1d(k, :)*(1.0_wp - spec%ssa1d(k, :)), mask=spec%ext1d(k, :) > 0.0_wp) + &
+                 spec%tau_abs(k, g)/(spec%z(k + 1) - spec%z(k))
+      end do
+      call emission_init(em, scene%atm, scene%sfc, b_lev, spec%src_sfc(g), 0.0_wp, 0.0_wp, &
+                         spec%floor, error, b_layer_bottom=spec%src_bot(:, g), &
+                         b_layer_top=spec%src_top(:, g), escape_sampling=.true., &
+                         voxel_abs=spec%va, layer_abs=kb)
+    else if (spec%node) then
       ! in the node's storage (the last g-point's table is no longer read: spectral_set_optics)
       call emission_init(em, scene%atm, scene%sfc, b_lev, spec%src_sfc(g), 0.0_wp, 0.0_wp, &
                          spec%floor, error, b_layer_bottom=spec%src_bot(:, g), &
@@ -1845,6 +1875,12 @@ contains
     type(emission_t), intent(in) :: em
     integer, intent(in) :: verbose
     integer(i8) :: mine
+    if (em%layered) then
+      ! over a cloud file: each rank's own table of one entry per layer (gpoint_emission)
+      call note_rank_bytes('emission table: one per rank, voxels drawn layer by layer ('// &
+                           str(em%table_bytes_own)//' bytes)', em%table_bytes_own, 0_i8, verbose)
+      return
+    end if
     mine = 0_i8
     if (em%on_node .and. em%table_writer) mine = em%table_bytes_borrowed
     call note_rank_bytes('emission table: one copy per node in shared memory ('// &

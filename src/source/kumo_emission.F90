@@ -71,10 +71,23 @@ module kumo_emission
             emission_b_segment, emission_surface_eps, emission_voxel_power, emission_bind, &
             emission_detach
   public :: EMIT_SOLAR, EMIT_TOP, EMIT_SURFACE, EMIT_LAYER, EMIT_VOXEL
+  public :: voxel_abs_t, voxel_abs_init
 
   !> Kinds of table entries (and of a photon's source).
   integer, parameter :: EMIT_SOLAR = 0, EMIT_TOP = 1, EMIT_SURFACE = 2, EMIT_LAYER = 3, &
                         EMIT_VOXEL = 4
+
+  !> The absorption coefficients of the voxels of a 3-D region as two parts: one that every
+  !> voxel of a layer has (its gas and other background, given with each table) and that of
+  !> the voxel components, kc = sum over the components of ext (1 - ssa), read from their
+  !> arrays (a cloud's optics in one band of a broadband run: the same for every g-point of
+  !> the band). `kc_row` holds kc summed over each row of voxels, formed once.
+  type :: voxel_abs_t
+    !> (nx, ny, nf, nc) extinction [m-1] and albedo of the voxel components
+    real(wp), pointer, contiguous :: cext(:, :, :, :) => null(), cssa(:, :, :, :) => null()
+    integer :: koff = 0                    !! voxel layer kr has component layer kr + koff
+    real(wp), allocatable :: kc_row(:, :)  !! (ny, n3) kc summed over each row [m-1]
+  end type voxel_abs_t
 
   !> The emission table of a scene and the Planck values the photon loop reads.
   type :: emission_t
@@ -137,6 +150,15 @@ module kumo_emission
     real(wp), pointer, contiguous :: emit_vox_node(:) => null()
     integer(i8) :: table_bytes_own = 0_i8       !! bytes of table and voxel arrays allocated here
     integer(i8) :: table_bytes_borrowed = 0_i8  !! bytes of them in the caller's storage
+    !> Voxels drawn layer by layer (emission_init's `voxel_abs`): the table has one entry per
+    !> layer of the 3-D region instead of one per voxel, and a photon of a layer's entry takes a
+    !> row of it by `row_cum`, the cumulative sums over the rows of nx kb + kc, and a voxel of
+    !> the row in proportion to kb + kc (kumo_emission emission_launch).
+    logical :: layered = .false.
+    real(wp), allocatable :: kb3(:)        !! (n3) absorption every voxel of the layer has [m-1]
+    real(wp), allocatable :: row_cum(:, :) !! (0:ny, n3)
+    real(wp), pointer, contiguous :: cext(:, :, :, :) => null(), cssa(:, :, :, :) => null()
+    integer :: koff = 0
   end type emission_t
 
 contains
@@ -152,9 +174,14 @@ contains
   !> voxels have Planck radiances, which the storage's writer alone passes (and checks: a bad
   !> `b3` there is every process's error); the others pass none and read the writer's copy.
   !> Without `storage` the flag is refused.
+  !> With `voxel_abs` and `layer_abs` (both or neither; not with `b3` nor `storage`) the voxels'
+  !> absorption coefficients are layer_abs(kr) + kc of `voxel_abs` (to the rounding of the
+  !> voxel arrays, which set the photons' weights: emission_launch), and the table draws the
+  !> voxels layer by layer (emission_t layered): forming it costs no work per voxel, so that a
+  !> broadband run's g-point switch does not sweep the voxels for its table.
   subroutine emission_init(em, atm, sfc, b_lev, b_sfc, b_top, solar_power, floor, error, b3, &
                            b_sfc_map, b_layer_bottom, b_layer_top, escape_sampling, storage, &
-                           sync, b3_by_writer)
+                           sync, b3_by_writer, voxel_abs, layer_abs)
     type(emission_t), intent(out), target :: em
     type(atmosphere_t), intent(in) :: atm
     type(surface_t), intent(in) :: sfc
@@ -173,11 +200,13 @@ contains
     procedure(voxel_sync_i), optional :: sync        !! with `storage`
     !> with `storage`: the voxel Planck radiances are the writer's alone (above; .false.)
     logical, intent(in), optional :: b3_by_writer
+    type(voxel_abs_t), intent(in), optional :: voxel_abs   !! the voxel components' part
+    real(wp), intent(in), optional :: layer_abs(:)         !! (n3) the layers' part [m-1]
     real(wp), allocatable :: pw_lay(:), cap_lay(:)
     real(wp), pointer, contiguous :: words(:)
     real(wp) :: dz, ka, ptot
     integer(i8) :: nv, nw
-    integer :: k, nz, ncol
+    integer :: k, nz, ncol, kr, iy
     type(c_ptr) :: base
     logical :: by_writer
     character(len=:), allocatable :: b3_fault
@@ -266,9 +295,53 @@ contains
       em%eps_b_mean = mean_eps_b(sfc, em%eps_h, b_sfc_map, atm%lx, atm%ly)
     end if
 
+    if (present(voxel_abs) .neqv. present(layer_abs)) then
+      call set_error(error, 'thermal emission: voxels drawn by layer need both parts of their '// &
+                     'absorption')
+      return
+    end if
+    if (present(voxel_abs)) then
+      if (em%has_b3 .or. present(storage)) then
+        call set_error(error, 'thermal emission: voxels drawn by layer take neither voxel '// &
+                       'Planck radiances nor the caller''s storage')
+        return
+      end if
+      if (size(layer_abs) /= atm%n3 .or. .not. allocated(voxel_abs%kc_row)) then
+        call set_error(error, 'thermal emission: the absorption of '//str(size(layer_abs))// &
+                       ' layers given for a 3-D region of '//str(atm%n3))
+        return
+      end if
+      if (any(shape(voxel_abs%kc_row) /= [atm%ny, atm%n3])) then
+        call set_error(error, 'thermal emission: the voxel components'' absorption is not '// &
+                       'that of the 3-D region')
+        return
+      end if
+      if (any(.not. (layer_abs >= 0.0_wp)) .or. any(.not. (voxel_abs%kc_row >= 0.0_wp))) then
+        call set_error(error, 'thermal emission: absorption coefficients must be finite and >= 0')
+        return
+      end if
+      em%layered = .true.
+      em%kb3 = layer_abs
+      em%cext => voxel_abs%cext
+      em%cssa => voxel_abs%cssa
+      em%koff = voxel_abs%koff
+      allocate (em%row_cum(0:atm%ny, atm%n3))
+      do kr = 1, atm%n3
+        em%row_cum(0, kr) = 0.0_wp
+        do iy = 1, atm%ny
+          em%row_cum(iy, kr) = em%row_cum(iy - 1, kr) + (atm%nx*layer_abs(kr) + &
+                               voxel_abs%kc_row(iy, kr))
+        end do
+      end do
+    end if
+
     em%e_lay = 3
     em%e_vox = em%e_lay + nz
-    em%n_ent = em%e_vox + ncol*atm%n3
+    if (em%layered) then
+      em%n_ent = em%e_vox + atm%n3
+    else
+      em%n_ent = em%e_vox + ncol*atm%n3
+    end if
     ! the 1-D layers (small: every process forms them)
     allocate (em%emit_layer(nz), em%tau_lay(nz), em%by_abs(nz), pw_lay(nz), cap_lay(nz))
     em%tau_lay = 0.0_wp
@@ -298,11 +371,14 @@ contains
     ! the table and the per-voxel arrays: here, or in the caller's storage (a header of the
     ! total power and the layers' emission first, which the other processes read)
     nv = int(ncol, i8)*atm%n3
+    if (em%layered) nv = 0_i8     ! no per-voxel arrays (emission_voxel_power forms the powers)
     if (.not. present(storage)) then
       allocate (em%cdf_own(0:em%n_ent), em%ratio_own(em%n_ent), em%emit_vox(nv))
       if (em%has_b3) em%b3_own = b3
       em%table_bytes_own = (2*int(em%n_ent, i8) + 1 + merge(2, 1, em%has_b3)*nv)* &
                            (storage_size(1.0_wp)/8)
+      if (em%layered) em%table_bytes_own = em%table_bytes_own + &
+                                           storage_size(1.0_wp)/8*size(em%row_cum, kind=i8)
       call emission_bind(em)
       call fill_table(em%cdf, em%ratio, em%emit_vox, ptot)
     else
@@ -368,6 +444,14 @@ contains
       do kr = 1, atm%n3
         k = atm%k3_lo + kr - 1
         dz = atm%z(k) - atm%z(k - 1)
+        if (em%layered) then
+          ! the layer's voxels as one entry: their absorption summed, B the layer's mean
+          bb = 0.5_wp*(em%b_bot(k) + em%b_top_lay(k))
+          cap(em%e_vox + kr) = FOUR_PI*em%row_cum(atm%ny, kr)*dz/ncol
+          pw(em%e_vox + kr) = cap(em%e_vox + kr)*bb
+          em%emit_layer(k) = em%emit_layer(k) + pw(em%e_vox + kr)
+          cycle
+        end if
         do iy = 1, atm%ny
           do ix = 1, atm%nx
             v = ix + (iy - 1)*atm%nx + (kr - 1)*ncol
@@ -418,6 +502,46 @@ contains
     end subroutine fill_table
   end subroutine emission_init
 
+  !> The voxel components' part of the voxels' absorption (voxel_abs_t) for the 3-D region of
+  !> `atm`: `cext`, `cssa` (nx, ny, nf, nc) with component layer kf at the region's layer
+  !> kr = kf - koff, which `va` points to (they must stay while the tables made with it draw).
+  subroutine voxel_abs_init(va, atm, cext, cssa, koff)
+    type(voxel_abs_t), intent(out) :: va
+    type(atmosphere_t), intent(in) :: atm
+    real(wp), pointer, contiguous, intent(in) :: cext(:, :, :, :), cssa(:, :, :, :)
+    integer, intent(in) :: koff
+    integer :: kr, iy, ix
+    real(wp) :: a
+    va%cext => cext
+    va%cssa => cssa
+    va%koff = koff
+    allocate (va%kc_row(atm%ny, atm%n3))
+    do kr = 1, atm%n3
+      do iy = 1, atm%ny
+        a = 0.0_wp
+        do ix = 1, atm%nx
+          a = a + components_abs(cext, cssa, koff, ix, iy, kr)
+        end do
+        va%kc_row(iy, kr) = a
+      end do
+    end do
+  end subroutine voxel_abs_init
+
+  !> kc of voxel (ix, iy, kr): the components' sum of ext (1 - ssa) (a component of extinction 0
+  !> adds nothing, whatever its albedo).
+  pure real(wp) function components_abs(cext, cssa, koff, ix, iy, kr) result(a)
+    real(wp), intent(in) :: cext(:, :, :, :), cssa(:, :, :, :)
+    integer, intent(in) :: koff, ix, iy, kr
+    integer :: kf, j
+    a = 0.0_wp
+    kf = kr + koff
+    if (kf < 1 .or. kf > size(cext, 3)) return
+    do j = 1, size(cext, 4)
+      if (cext(ix, iy, kf, j) > 0.0_wp) a = a + cext(ix, iy, kf, j)* &
+                                            max(0.0_wp, 1.0_wp - cssa(ix, iy, kf, j))
+    end do
+  end function components_abs
+
   !> Point a table that owns its arrays (not `on_node`) to them: needed after a copy of an
   !> emission_t (intrinsic assignment copies the arrays but leaves the copy reading the
   !> original's), before the original goes away or changes.
@@ -436,9 +560,31 @@ contains
   !> for summaries of tables whose storage is used again (the g-points of a broadband run).
   !> With `keep_voxels` = .false. the voxels' powers are let go too (a process that does not
   !> report them).
-  subroutine emission_detach(em, keep_voxels)
+  !> A table that draws its voxels by layer (`layered`) is detached the same way: it lets go of
+  !> the voxel components it reads, and with `keep_voxels` (the default) keeps the voxels' powers,
+  !> which it forms from `atm` (required then), the atmosphere it was made for.
+  subroutine emission_detach(em, keep_voxels, atm)
     type(emission_t), intent(inout) :: em
     logical, intent(in), optional :: keep_voxels
+    type(atmosphere_t), intent(in), optional :: atm
+    logical :: keep
+    keep = .true.
+    if (present(keep_voxels)) keep = keep_voxels
+    if (em%layered) then
+      if (keep .and. present(atm)) then
+        em%emit_vox = emission_voxel_power(em, atm)
+      else
+        if (allocated(em%emit_vox)) deallocate (em%emit_vox)
+        allocate (em%emit_vox(0))
+      end if
+      nullify (em%cext, em%cssa)
+      em%layered = .false.
+      if (allocated(em%cdf_own)) deallocate (em%cdf_own)
+      if (allocated(em%ratio_own)) deallocate (em%ratio_own)
+      nullify (em%cdf, em%ratio)
+      em%table_bytes_own = storage_size(1.0_wp)/8*size(em%emit_vox, kind=i8)
+      return
+    end if
     if (.not. em%on_node) return
     if (present(keep_voxels)) then
       if (.not. keep_voxels) allocate (em%emit_vox(0))
@@ -634,16 +780,19 @@ contains
   end function table_weight
 
   !> Launch a thermal photon from table entry `ie` (not the sun) of a batch of `n` photons with
-  !> table shift `u`: position, direction, weight and its emitter. Levels crossed at the launch
-  !> are the caller's to tally.
-  subroutine emission_launch(em, atm, sfc, rng, ie, n, u, p)
+  !> table shift `u`: position, direction, weight and its emitter. `uj` is the photon's place on
+  !> the table (the entry holds it); a table that draws voxels by layer places the photon
+  !> within the layer by it, so that the photons of a layer stay spread over its rows as those
+  !> of a table with one entry per voxel are. Levels crossed at the launch are the caller's to
+  !> tally.
+  subroutine emission_launch(em, atm, sfc, rng, ie, n, u, uj, p)
     type(emission_t), intent(in) :: em
     type(atmosphere_t), intent(in) :: atm
     type(surface_t), intent(in) :: sfc
     type(rng_t), intent(inout) :: rng
     integer, intent(in) :: ie
     integer(i8), intent(in) :: n
-    real(wp), intent(in) :: u
+    real(wp), intent(in) :: u, uj
     type(photon_t), intent(inout) :: p
     real(wp) :: mu, cphi, sphi, st, b, tl, et, t
     integer :: v, ix, iy, kr, k
@@ -707,10 +856,16 @@ contains
       call isotropic(p)
     else
       ! a voxel: uniform in x, y; in height uniform (voxel value) or linear in B (levels)
-      v = ie - em%e_vox
-      kr = (v - 1)/em%ncol + 1
-      iy = (v - 1 - (kr - 1)*em%ncol)/atm%nx + 1
-      ix = v - (kr - 1)*em%ncol - (iy - 1)*atm%nx
+      if (em%layered) then
+        kr = ie - em%e_vox
+        call layer_voxel(kr, ix, iy)
+        v = ix + (iy - 1)*atm%nx + (kr - 1)*em%ncol
+      else
+        v = ie - em%e_vox
+        kr = (v - 1)/em%ncol + 1
+        iy = (v - 1 - (kr - 1)*em%ncol)/atm%nx + 1
+        ix = v - (kr - 1)*em%ncol - (iy - 1)*atm%nx
+      end if
       k = atm%k3_lo + kr - 1
       p%emitter = EMIT_VOXEL
       p%em_k = k
@@ -734,6 +889,50 @@ contains
     if (b > 0.0_wp) p%rbe = 1.0_wp/b
 
   contains
+
+    !> The voxel (ix, iy) of layer kr of a layered table for the photon at uj: a row by the
+    !> rows' cumulative sums, then a voxel of the row in proportion to kb + kc (its selection
+    !> probability within the layer, m / row_cum(ny)); the weight takes k_a / m, k_a the
+    !> voxel's absorption in the voxel arrays, which the photons' absorption uses.
+    subroutine layer_voxel(kr, ix, iy)
+      integer, intent(in) :: kr
+      integer, intent(out) :: ix, iy
+      real(wp) :: q, t, s, m, kb, ka
+      integer :: i
+      kb = em%kb3(kr)
+      q = em%cdf(ie) - em%cdf(ie - 1)
+      t = 0.0_wp
+      if (q > 0.0_wp) t = (uj - em%cdf(ie - 1))/q
+      t = min(1.0_wp, max(0.0_wp, t))*em%row_cum(atm%ny, kr)
+      iy = table_entry(em%row_cum(:, kr), atm%ny, t)
+      ! a row without absorption only at the end of the layer (t at its total): the last one with
+      do while (iy > 1 .and. .not. (em%row_cum(iy, kr) > em%row_cum(iy - 1, kr)))
+        iy = iy - 1
+      end do
+      t = t - em%row_cum(iy - 1, kr)
+      ix = 0
+      s = 0.0_wp
+      m = 0.0_wp
+      do i = 1, atm%nx
+        q = kb + components_abs(em%cext, em%cssa, em%koff, i, iy, kr)
+        if (q > 0.0_wp) then
+          ix = i
+          m = q
+          s = s + q
+          if (s > t) exit
+        end if
+      end do
+      if (ix == 0) then
+        ! nothing absorbs in the layer (its entry has no photons then); keep the photon valid
+        ix = 1
+        p%w = 0.0_wp
+        p%w_entry = 0.0_wp
+        return
+      end if
+      ka = real(atm%ext3(ix, iy, kr), wp)*(1.0_wp - real(atm%omg3(ix, iy, kr), wp))
+      p%w = p%w*(ka/m)
+      p%w_entry = p%w
+    end subroutine layer_voxel
 
     subroutine isotropic(q)
       type(photon_t), intent(inout) :: q
@@ -786,10 +985,29 @@ contains
 
   !> Emitted power of each voxel of the 3-D region per unit column area [W m-2], (nx*ny*n3) in
   !> the order of the voxel entries (a copy, wherever the table lives).
-  function emission_voxel_power(em) result(p)
+  !> A table that draws its voxels by layer forms them from `atm` (required then): 4 pi k_a dz
+  !> B with k_a from the voxel arrays and B the layer's mean.
+  function emission_voxel_power(em, atm) result(p)
     type(emission_t), intent(in) :: em
+    type(atmosphere_t), intent(in), optional :: atm
     real(wp), allocatable :: p(:)
-    if (em%on_node) then
+    integer :: kr, k, ix, iy, ncol
+    real(wp) :: c
+    if (em%layered) then
+      if (.not. present(atm)) error stop 'emission_voxel_power: a layered table needs its atmosphere'
+      ncol = atm%nx*atm%ny
+      allocate (p(int(ncol, i8)*atm%n3))
+      do kr = 1, atm%n3
+        k = atm%k3_lo + kr - 1
+        c = FOUR_PI*(atm%z(k) - atm%z(k - 1))*0.5_wp*(em%b_bot(k) + em%b_top_lay(k))
+        do iy = 1, atm%ny
+          do ix = 1, atm%nx
+            p(ix + (iy - 1)*atm%nx + (kr - 1)*ncol) = c*real(atm%ext3(ix, iy, kr), wp)* &
+              (1.0_wp - real(atm%omg3(ix, iy, kr), wp))
+          end do
+        end do
+      end do
+    else if (em%on_node) then
       p = em%emit_vox_node
     else
       p = em%emit_vox

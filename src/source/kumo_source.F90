@@ -162,12 +162,12 @@ contains
     type(photon_t), intent(inout) :: p
     integer :: s_cell
     integer(i8) :: k
-    real(wp) :: fy
+    real(wp) :: fy, uj
     if (src%em%on) then
       if (ip > plan%n_sol) then
-        call emission_launch(src%em, atm, sfc, rng, emission_entry(src%em, &
-                             (real(ip - 1, wp) + plan%u_em)/real(plan%n, wp)), plan%n, &
-                             plan%u_em, p)
+        uj = (real(ip - 1, wp) + plan%u_em)/real(plan%n, wp)
+        call emission_launch(src%em, atm, sfc, rng, emission_entry(src%em, uj), plan%n, &
+                             plan%u_em, uj, p)
         p%w = p%w*src%w_unit
         p%w_entry = p%w_entry*src%w_unit
         return

@@ -1,11 +1,13 @@
 #!/usr/bin/env bash
 # SPDX-License-Identifier: BSD-3-Clause
 # A longwave broadband run over a cloud file (the I3RC LES example of examples/broadband, few
-# photons) whose ranks share one copy of the voxels and of each g-point's emission table per
-# node: the node's first rank forms them at every g-point switch and the others switch with it.
+# photons) whose ranks share one copy of the voxels per node: the node's first rank forms them
+# at every g-point switch and the others switch with it. Each g-point's emission table draws
+# the voxels layer by layer: every rank forms its own, of one entry per layer.
 # * 1, 2 and 3 ranks give the same batches, bit for bit;
-# * the run log shows that only rank 0 allocated the voxels and the tables (in the node's
-#   window), and no rank allocated any of its own;
+# * the run log shows that only rank 0 allocated the voxels (in the node's window), and no rank
+#   allocated any of its own; every rank's emission table is its own and small (no window, at
+#   most a fiftieth of the voxels' bytes);
 # * with one_scene_per_node = .false. every rank keeps its own copy, with the same batches;
 # * a run killed after its first checkpoint on 3 ranks and resumed on 2 (three slots on two
 #   ranks: one rank traces two batches per window while the other joins the switches without a
@@ -49,7 +51,7 @@ for np in 2 3; do
     fail=1
   fi
   # "... bytes allocated per rank (own, shared window): rank 0 O0 W0; rank 1 O1 W1; ..."
-  for what in 'voxel arrays' 'emission table'; do
+  for what in 'voxel arrays'; do
     line=$(grep "^$what: one copy per node" "np$np.log")
     [[ -n $line ]] || { echo "FAIL: no line on the $what in the log of $np ranks"; fail=1; continue; }
     read -r -a f <<< "${line##*(own, shared window):}"
@@ -68,6 +70,23 @@ for np in 2 3; do
       fail=1
     fi
   done
+  # "emission table: one per rank, voxels drawn layer by layer (B bytes); ... rank 0 O0 W0; ..."
+  line=$(grep '^emission table: one per rank, voxels drawn layer by layer' "np$np.log")
+  [[ -n $line ]] || { echo "FAIL: no line on the emission table in the log of $np ranks"; fail=1; continue; }
+  read -r -a f <<< "${line##*(own, shared window):}"
+  bad=""
+  for ((r = 0; r < np; r++)); do
+    own=${f[$((4 * r + 2))]}
+    win=${f[$((4 * r + 3))]%;}
+    [[ $win == 0 ]] || bad="$bad rank $r has $win bytes of window;"
+    ((own > 0 && own * 50 <= w0)) || bad="$bad rank $r has $own bytes of its own;"
+  done
+  if [[ -z $bad ]]; then
+    echo "$np ranks: every rank's emission table is its own and small (${f[2]} bytes on rank 0)"
+  else
+    echo "FAIL: $np ranks, emission table:$bad (voxel arrays $w0 bytes)"
+    fail=1
+  fi
 done
 # with one_scene_per_node = .false. every rank keeps its own copy and switches g-points on its
 # own: the same batches, and no window

@@ -1,0 +1,237 @@
+! SPDX-License-Identifier: BSD-3-Clause
+!> Emission tables that draw the voxels of the 3-D region layer by layer (kumo_emission
+!> emission_init `voxel_abs`, `layer_abs`; broadband longwave runs over cloud files), against
+!> the table with one entry per voxel built from the same atmosphere:
+!>
+!> * the total power and each layer's emission agree (to the rounding of the voxel arrays), and
+!>   so do the voxels' emitted powers (emission_voxel_power);
+!> * photons launched from the layered table over many batches carry each voxel's share of the
+!>   power, within 4 standard errors of the batch means, voxel by voxel; a voxel that does not
+!>   absorb never emits; every photon starts inside the voxel it names;
+!> * bad input is refused: one part of the absorption without the other, with voxel Planck
+!>   radiances, with a wrong number of layers.
+module test_emission_layered_suite
+  use kumo_kinds, only: wp, i8
+  use kumo_testing, only: error_t, unittest_t, new_unittest, check
+  use kumo_phase, only: phase_t, new_phase_isotropic
+  use kumo_atmosphere, only: atmosphere_t, atmosphere_options_t, atmosphere_init
+  use kumo_surface, only: surface_t, surface_init
+  use kumo_rng, only: rng_t, rng_init, rng_uniform
+  use kumo_photon, only: photon_t
+  use kumo_emission, only: emission_t, emission_init, emission_entry, emission_launch, &
+                           emission_voxel_power, voxel_abs_t, voxel_abs_init, EMIT_VOXEL
+  implicit none
+  private
+  public :: collect_emission_layered
+
+  integer, parameter :: NX = 5, NY = 4, N3 = 2
+  !> the voxel component (cloud) of the two 3-D layers; pointers, as voxel_abs_t keeps them
+  real(wp), pointer, contiguous :: cext(:, :, :, :) => null(), cssa(:, :, :, :) => null()
+
+contains
+
+  function collect_emission_layered() result(tests)
+    type(unittest_t), allocatable :: tests(:)
+    tests = [new_unittest('layered_equals_per_voxel_table', test_totals), &
+             new_unittest('layered_photons_carry_voxel_powers', test_photons), &
+             new_unittest('layered_bad_input', test_bad_input)]
+  end function collect_emission_layered
+
+  !> Four layers, layers 2 and 3 in the 3-D region (5 x 4 columns). The background absorbs in
+  !> layer 2 and only scatters in layer 3; the cloud absorbs in most voxels, not at all in
+  !> voxel (1, 1) of layer 3 (no cloud: it emits nothing) nor in voxel (2, 1) of layer 3 (a
+  !> cloud that only scatters).
+  subroutine scene(atm, sfc, b_lev, kb, error)
+    type(atmosphere_t), intent(out) :: atm
+    type(surface_t), intent(out) :: sfc
+    real(wp), allocatable, intent(out) :: b_lev(:), kb(:)
+    type(error_t), allocatable, intent(out) :: error
+    type(phase_t) :: phases(1)
+    type(atmosphere_options_t) :: opts
+    real(wp) :: e1(4, 1), w1(4, 1)
+    integer :: iph3(NX, NY, N3, 1), ix, iy, kr
+    phases(1) = new_phase_isotropic()
+    if (associated(cext)) deallocate (cext, cssa)
+    allocate (cext(NX, NY, N3, 1), cssa(NX, NY, N3, 1))
+    do kr = 1, N3
+      do iy = 1, NY
+        do ix = 1, NX
+          cext(ix, iy, kr, 1) = 2.0e-3_wp*(1 + mod(3*ix + 5*iy + 7*kr, 11))
+          cssa(ix, iy, kr, 1) = 0.3_wp + 0.05_wp*ix
+        end do
+      end do
+    end do
+    cext(1, 1, 2, 1) = 0.0_wp
+    cssa(2, 1, 2, 1) = 1.0_wp
+    cext(3:5, 2, 1, 1) = 0.0_wp          ! clear voxels in layer 2 (the background absorbs)
+    e1(:, 1) = [2.0e-4_wp, 1.0e-4_wp, 5.0e-5_wp, 2.0e-5_wp]
+    w1(:, 1) = [0.2_wp, 0.4_wp, 1.0_wp, 0.5_wp]
+    iph3 = 1
+    call atmosphere_init(atm, [0.0_wp, 500.0_wp, 1000.0_wp, 2000.0_wp, 3000.0_wp], 500.0_wp, &
+                         400.0_wp, e1, w1, reshape([1, 1, 1, 1], [4, 1]), phases, opts, error, &
+                         2, cext, cssa, iph3)
+    if (allocated(error)) return
+    call surface_init(sfc, reshape([0.1_wp], [1, 1]), 500.0_wp, 400.0_wp, error)
+    if (allocated(error)) return
+    b_lev = [9.0_wp, 8.5_wp, 8.0_wp, 7.0_wp, 6.5_wp]
+    kb = e1(2:3, 1)*(1.0_wp - w1(2:3, 1))
+  end subroutine scene
+
+  !> The per-voxel table and the layered one of the scene.
+  subroutine tables(atm, sfc, flat, lay, error)
+    type(atmosphere_t), intent(out) :: atm
+    type(surface_t), intent(out) :: sfc
+    type(emission_t), intent(out) :: flat, lay
+    type(error_t), allocatable, intent(out) :: error
+    real(wp), allocatable :: b_lev(:), kb(:)
+    type(voxel_abs_t) :: va
+    call scene(atm, sfc, b_lev, kb, error)
+    if (allocated(error)) return
+    call emission_init(flat, atm, sfc, b_lev, 9.5_wp, 0.0_wp, 0.0_wp, 0.1_wp, error)
+    if (allocated(error)) return
+    call voxel_abs_init(va, atm, cext, cssa, atm%k3_lo - atm%kf_lo)
+    call emission_init(lay, atm, sfc, b_lev, 9.5_wp, 0.0_wp, 0.0_wp, 0.1_wp, error, &
+                       voxel_abs=va, layer_abs=kb)
+  end subroutine tables
+
+  subroutine test_totals(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(atmosphere_t) :: atm
+    type(surface_t) :: sfc
+    type(emission_t) :: flat, lay
+    real(wp), allocatable :: pf(:), pl(:)
+    call tables(atm, sfc, flat, lay, error)
+    if (allocated(error)) return
+    call check(error, atm%n3 == N3 .and. lay%layered .and. .not. flat%layered, &
+               'the scene has two 3-D layers and the layered table draws them by layer')
+    if (allocated(error)) return
+    call check(error, lay%n_ent == flat%n_ent - NX*NY*N3 + N3, &
+               'one table entry per 3-D layer instead of one per voxel')
+    if (allocated(error)) return
+    call check(error, abs(lay%power/flat%power - 1.0_wp) < 1.0e-6_wp, &
+               'total power as the per-voxel table''s')
+    if (allocated(error)) return
+    call check(error, all(abs(lay%emit_layer - flat%emit_layer) <= 1.0e-6_wp*flat%emit_layer), &
+               'each layer''s emission as the per-voxel table''s')
+    if (allocated(error)) return
+    pf = emission_voxel_power(flat)
+    pl = emission_voxel_power(lay, atm)
+    call check(error, size(pl) == size(pf), 'a power for every voxel')
+    if (allocated(error)) return
+    call check(error, all(abs(pl - pf) <= 1.0e-12_wp*maxval(pf)), &
+               'the voxels'' emitted powers as the per-voxel table''s')
+  end subroutine test_totals
+
+  !> 400 batches of 3000 photons, launched as kumo_source does (photon j of a batch at
+  !> uj = (j - 1 + u)/n on the table, u once per batch).
+  subroutine test_photons(error)
+    type(error_t), allocatable, intent(out) :: error
+    integer, parameter :: NB = 400, NP = 3000
+    type(atmosphere_t) :: atm
+    type(surface_t) :: sfc
+    type(emission_t) :: flat, lay
+    type(rng_t) :: rng
+    type(photon_t) :: p
+    real(wp), allocatable :: expect(:), s1(:), s2(:), batch(:), mean(:), se(:)
+    real(wp) :: u, uj
+    integer :: ib, j, ie, ix, iy, kr, k, nv, bad
+    logical :: inside
+    call tables(atm, sfc, flat, lay, error)
+    if (allocated(error)) return
+    nv = NX*NY*N3
+    ! the share of the power of each voxel, by the per-voxel table, in units of the layered P
+    expect = emission_voxel_power(flat)/(NX*NY)/lay%power
+    allocate (s1(nv), s2(nv), batch(nv), source=0.0_wp)
+    call rng_init(rng, 12345_i8, 0_i8)
+    inside = .true.
+    do ib = 1, NB
+      batch = 0.0_wp
+      u = rng_uniform(rng)
+      do j = 1, NP
+        uj = (real(j - 1, wp) + u)/real(NP, wp)
+        ie = emission_entry(lay, uj)
+        if (ie <= lay%e_vox) cycle
+        call emission_launch(lay, atm, sfc, rng, ie, int(NP, i8), u, uj, p)
+        if (p%emitter /= EMIT_VOXEL) cycle
+        kr = (p%em_v - 1)/(NX*NY) + 1
+        iy = (p%em_v - 1 - (kr - 1)*NX*NY)/NX + 1
+        ix = p%em_v - (kr - 1)*NX*NY - (iy - 1)*NX
+        k = atm%k3_lo + kr - 1
+        if (p%x < (ix - 1)*atm%dx .or. p%x >= ix*atm%dx .or. p%y < (iy - 1)*atm%dy .or. &
+            p%y >= iy*atm%dy .or. p%z < atm%z(k - 1) .or. p%z > atm%z(k)) inside = .false.
+        batch(p%em_v) = batch(p%em_v) + p%w
+      end do
+      batch = batch/NP
+      s1 = s1 + batch
+      s2 = s2 + batch**2
+    end do
+    call check(error, inside, 'every photon starts inside the voxel it names')
+    if (allocated(error)) return
+    mean = s1/NB
+    se = sqrt(max(0.0_wp, s2/NB - mean**2)/(NB - 1))
+    call check(error, s1(1 + 0 + NX*NY) == 0.0_wp .and. s1(2 + NX*NY) == 0.0_wp, &
+               'voxels that do not absorb emit no photons')
+    if (allocated(error)) return
+    bad = count(abs(mean - expect) > 4.0_wp*se + 1.0e-12_wp)
+    call check(error, bad == 0, str_count(bad)//' voxels off their power share by more '// &
+               'than 4 standard errors (largest |z| '//str_real(maxval(abs(mean - expect)/ &
+               max(se, tiny(1.0_wp))))//')')
+    if (allocated(error)) return
+    call check(error, abs(sum(mean)/sum(expect) - 1.0_wp) < 1.0e-9_wp, &
+               'the photons of a batch carry the voxels'' total power exactly')
+  end subroutine test_photons
+
+  subroutine test_bad_input(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(atmosphere_t) :: atm
+    type(surface_t) :: sfc
+    type(emission_t) :: em
+    type(voxel_abs_t) :: va
+    type(error_t), allocatable :: err
+    real(wp), allocatable :: b_lev(:), kb(:), b3(:, :, :)
+    call scene(atm, sfc, b_lev, kb, error)
+    if (allocated(error)) return
+    call voxel_abs_init(va, atm, cext, cssa, 0)
+    call emission_init(em, atm, sfc, b_lev, 9.5_wp, 0.0_wp, 0.0_wp, 0.1_wp, err, voxel_abs=va)
+    call check(error, allocated(err), 'the voxel part without the layers'' part is refused')
+    if (allocated(error)) return
+    deallocate (err)
+    allocate (b3(NX, NY, N3), source=8.0_wp)
+    call emission_init(em, atm, sfc, b_lev, 9.5_wp, 0.0_wp, 0.0_wp, 0.1_wp, err, b3=b3, &
+                       voxel_abs=va, layer_abs=kb)
+    call check(error, allocated(err), 'voxel Planck radiances with layered drawing are refused')
+    if (allocated(error)) return
+    deallocate (err)
+    call emission_init(em, atm, sfc, b_lev, 9.5_wp, 0.0_wp, 0.0_wp, 0.1_wp, err, &
+                       voxel_abs=va, layer_abs=[kb, 1.0_wp])
+    call check(error, allocated(err), 'the absorption of the wrong number of layers is refused')
+    if (allocated(error)) return
+    call check(error, index(err%message, '3 layers given for a 3-D region of 2') > 0, &
+               'the message gives both counts: '//err%message)
+  end subroutine test_bad_input
+
+  function str_count(n) result(s)
+    integer, intent(in) :: n
+    character(len=:), allocatable :: s
+    character(len=16) :: buf
+    write (buf, '(i0)') n
+    s = trim(buf)
+  end function str_count
+
+  function str_real(x) result(s)
+    real(wp), intent(in) :: x
+    character(len=:), allocatable :: s
+    character(len=24) :: buf
+    write (buf, '(es10.3)') x
+    s = trim(adjustl(buf))
+  end function str_real
+end module test_emission_layered_suite
+
+program test_emission_layered
+  use kumo_testing, only: run_unittests
+  use test_emission_layered_suite, only: collect_emission_layered
+  implicit none
+  integer :: n_failed
+  call run_unittests('emission_layered', collect_emission_layered(), n_failed)
+  if (n_failed > 0) error stop 1
+end program test_emission_layered

@@ -203,27 +203,38 @@ contains
     real(vp), intent(in) :: ext(:, :, :)
     integer, intent(in) :: bx, by
     real(wp), intent(out) :: maj(:)
-    integer :: nbx, nby, ix, iy, k, jx, row
-    integer, allocatable :: jx_of(:)
-    real(vp), allocatable :: m(:)
-    ! one sweep in storage order (the maximum does not depend on the order of its operands, so
-    ! this is the maximum of every block's section to the last bit, as maxval would give it)
-    nbx = (size(ext, 1) + bx - 1)/bx
-    nby = (size(ext, 2) + by - 1)/by
-    allocate (jx_of(size(ext, 1)), m(nbx*nby))
-    do ix = 1, size(ext, 1)
-      jx_of(ix) = (ix - 1)/bx + 1
-    end do
-    m = -huge(1.0_vp)
-    do k = 1, size(ext, 3)
-      do iy = 1, size(ext, 2)
-        row = ((iy - 1)/by)*nbx
-        do ix = 1, size(ext, 1)
-          jx = row + jx_of(ix)
-          m(jx) = max(m(jx), ext(ix, iy, k))
+    integer :: nx, ny, nbx, nby, ix, iy, k, jx, jy, i0, i1, j0, j1
+    real(vp), allocatable :: col(:)
+    real(vp) :: m
+    ! for each row of blocks, first the maximum over its rows and layers voxel column by voxel
+    ! column (a streaming, vectorisable sweep), then over each block's columns (the maximum
+    ! does not depend on the order of its operands, so this is the maximum of every block's
+    ! section to the last bit, as maxval would give it)
+    nx = size(ext, 1)
+    ny = size(ext, 2)
+    nbx = (nx + bx - 1)/bx
+    nby = (ny + by - 1)/by
+    allocate (col(nx))
+    do jy = 1, nby
+      j0 = (jy - 1)*by + 1
+      j1 = min(ny, jy*by)
+      col = -huge(1.0_vp)
+      do k = 1, size(ext, 3)
+        do iy = j0, j1
+          do ix = 1, nx
+            col(ix) = max(col(ix), ext(ix, iy, k))
+          end do
         end do
       end do
+      do jx = 1, nbx
+        i0 = (jx - 1)*bx + 1
+        i1 = min(nx, jx*bx)
+        m = -huge(1.0_vp)
+        do ix = i0, i1
+          m = max(m, col(ix))
+        end do
+        maj((jy - 1)*nbx + jx) = real(m, wp)
+      end do
     end do
-    maj = real(m, wp)
   end subroutine block_majorants
 end module kumo_supervoxel

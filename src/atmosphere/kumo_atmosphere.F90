@@ -101,6 +101,11 @@ module kumo_atmosphere
     type(phase_t), allocatable :: phases(:)  !! phase functions referenced by index
     type(supervoxel_grid_t) :: sv            !! majorant grid of the 3-D region
     logical, allocatable :: uniform3(:)      !! (n3) every voxel of the 3-D layer is the same
+    !> (2, ny, n3) first and last column of each row with voxel components (none: first > last),
+    !> found by the first atmosphere_swap_background after a build for the layers it forms
+    !> (span_known), so that later swaps visit only those columns
+    integer, allocatable :: cloud_span(:, :, :)
+    logical, allocatable :: span_known(:)
     ! Truncation of forward peaks (set by atmosphere_set_truncation; off by default)
     logical :: truncated = .false.           !! truncation levels > 1 exist
     type(truncation_t) :: trunc              !! delta fractions per level and phase function
@@ -520,6 +525,10 @@ contains
     !> The voxels of layers kr = p + 1, p + 1 + np, ... of the region.
     subroutine form_voxels(p, np)
       integer, intent(in) :: p, np
+      if (.not. allocated(atm%span_known)) then
+        allocate (atm%cloud_span(2, atm%ny, atm%n3), atm%span_known(atm%n3))
+        atm%span_known = .false.
+      end if
       na1 = size(atm%act1)
       nc = atm%ncomp
       allocate (bg_sca(max(nc - 1, 1)), acc_bg(0:na1), clr_c(max(nc - 1, 1)))
@@ -576,8 +585,26 @@ contains
       real(vp), intent(inout) :: ext_l(:, :), omg_l(:, :)
       real(vp), intent(inout) :: csca_l(:, :, :)
       real(wp), intent(in) :: cx(:, :, :), cs(:, :, :)   !! (nx, ny, nc3)
-      integer :: ix, iy, j
-      real(wp) :: t(size(ext_l, 1))
+      integer :: ix, iy, j, lo, hi
+      real(wp) :: t(size(ext_l, 1)), tv
+      if (atm%span_known(kr)) then
+        ! the columns of each row that have components, as the first swap found them
+        do iy = 1, size(ext_l, 2)
+          do ix = atm%cloud_span(1, iy, kr), atm%cloud_span(2, iy, kr)
+            tv = 0.0_wp
+            do j = 1, size(cx, 3)
+              tv = tv + (abs(cx(ix, iy, j)) + 0.0_wp*cs(ix, iy, j))
+            end do
+            if (tv == 0.0_wp) cycle
+            if (nc > 1) then
+              call form_voxel(ix, iy, .true., ext_l(ix, iy), omg_l(ix, iy), csca_l(:, ix, iy))
+            else
+              call form_voxel(ix, iy, .true., ext_l(ix, iy), omg_l(ix, iy), clr_c)
+            end if
+          end do
+        end do
+        return
+      end if
       do iy = 1, size(ext_l, 2)
         ! which voxels of the row have a component: t is 0 exactly when every extinction is 0
         ! and every albedo finite (0 times an infinite or NaN albedo is NaN); a sum, so that the
@@ -588,15 +615,21 @@ contains
             t(ix) = t(ix) + (abs(cx(ix, iy, j)) + 0.0_wp*cs(ix, iy, j))
           end do
         end do
+        lo = size(ext_l, 1) + 1
+        hi = 0
         do ix = 1, size(ext_l, 1)
           if (t(ix) == 0.0_wp) cycle
+          lo = min(lo, ix)
+          hi = ix
           if (nc > 1) then
             call form_voxel(ix, iy, .true., ext_l(ix, iy), omg_l(ix, iy), csca_l(:, ix, iy))
           else
             call form_voxel(ix, iy, .true., ext_l(ix, iy), omg_l(ix, iy), clr_c)
           end if
         end do
+        atm%cloud_span(:, iy, kr) = [lo, hi]
       end do
+      atm%span_known(kr) = .true.
     end subroutine form_components
 
     !> The totals, albedo and cumulative scattering fractions of voxel (ix, iy) of layer kr

@@ -369,6 +369,22 @@ contains
     call check(error, all(swapped%csca3 == built%csca3), &
                'the cumulative scattering fractions equal a new build')
     call check(error, all(swapped%sv%maj == built%sv%maj), 'the majorants equal a new build')
+    if (allocated(error)) return
+    ! a second swap visits only the columns with components the first one found
+    call check(error, allocated(swapped%span_known), 'the first swap noted the columns with components')
+    if (allocated(error)) return
+    call check(error, all(swapped%span_known), 'every layer of the region has its columns noted')
+    if (allocated(error)) return
+    ext_b(:, 2) = [5.0e-4_wp, 0.0_wp, 2.0e-3_wp, 1.0e-6_wp, 3.0e-7_wp]
+    ext_b(:, 1) = 0.5_wp*ext_a(:, 1)
+    call atmosphere_swap_background(swapped, ext_b, ssa1, cext, cssa, opts, layout, done)
+    call check(error, done, 'the background was swapped again')
+    if (allocated(error)) return
+    call build(built, ext_b, layout)
+    if (allocated(error)) return
+    call check(error, all(swapped%ext3 == built%ext3) .and. all(swapped%omg3 == built%omg3) .and. &
+               all(swapped%csca3 == built%csca3) .and. all(swapped%sv%maj == built%sv%maj), &
+               'after a second swap the voxels and majorants equal a new build')
   contains
     subroutine build(atm, ext1, sv_layout)
       type(atmosphere_t), intent(inout) :: atm

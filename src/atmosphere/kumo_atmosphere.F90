@@ -595,12 +595,7 @@ contains
             do j = 1, size(cx, 3)
               tv = tv + (abs(cx(ix, iy, j)) + 0.0_wp*cs(ix, iy, j))
             end do
-            if (tv == 0.0_wp) cycle
-            if (nc > 1) then
-              call form_voxel(ix, iy, .true., ext_l(ix, iy), omg_l(ix, iy), csca_l(:, ix, iy))
-            else
-              call form_voxel(ix, iy, .true., ext_l(ix, iy), omg_l(ix, iy), clr_c)
-            end if
+            if (tv /= 0.0_wp) call form_cloudy(ix, iy, ext_l, omg_l, csca_l)
           end do
         end do
         return
@@ -621,16 +616,24 @@ contains
           if (t(ix) == 0.0_wp) cycle
           lo = min(lo, ix)
           hi = ix
-          if (nc > 1) then
-            call form_voxel(ix, iy, .true., ext_l(ix, iy), omg_l(ix, iy), csca_l(:, ix, iy))
-          else
-            call form_voxel(ix, iy, .true., ext_l(ix, iy), omg_l(ix, iy), clr_c)
-          end if
+          call form_cloudy(ix, iy, ext_l, omg_l, csca_l)
         end do
         atm%cloud_span(:, iy, kr) = [lo, hi]
       end do
       atm%span_known(kr) = .true.
     end subroutine form_components
+
+    !> Voxel (ix, iy) of the layer's arrays, with its components.
+    subroutine form_cloudy(ix, iy, ext_l, omg_l, csca_l)
+      integer, intent(in) :: ix, iy
+      real(vp), intent(inout) :: ext_l(:, :), omg_l(:, :)
+      real(vp), intent(inout) :: csca_l(:, :, :)
+      if (nc > 1) then
+        call form_voxel(ix, iy, .true., ext_l(ix, iy), omg_l(ix, iy), csca_l(:, ix, iy))
+      else
+        call form_voxel(ix, iy, .true., ext_l(ix, iy), omg_l(ix, iy), clr_c)
+      end if
+    end subroutine form_cloudy
 
     !> The totals, albedo and cumulative scattering fractions of voxel (ix, iy) of layer kr
     !> (host's k, kf, e, s, acc_bg), with its voxel components if `cloud`, else with none.

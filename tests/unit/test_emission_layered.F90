@@ -12,6 +12,7 @@
 !>   radiances, with a wrong number of layers.
 module test_emission_layered_suite
   use kumo_kinds, only: wp, i8
+  use kumo_error, only: str
   use kumo_testing, only: error_t, unittest_t, new_unittest, check
   use kumo_phase, only: phase_t, new_phase_isotropic
   use kumo_atmosphere, only: atmosphere_t, atmosphere_options_t, atmosphere_init
@@ -173,8 +174,8 @@ contains
                'voxels that do not absorb emit no photons')
     if (allocated(error)) return
     bad = count(abs(mean - expect) > 4.0_wp*se + 1.0e-12_wp)
-    call check(error, bad == 0, str_count(bad)//' voxels off their power share by more '// &
-               'than 4 standard errors (largest |z| '//str_real(maxval(abs(mean - expect)/ &
+    call check(error, bad == 0, str(bad)//' voxels off their power share by more '// &
+               'than 4 standard errors (largest |z| '//str(maxval(abs(mean - expect)/ &
                max(se, tiny(1.0_wp))))//')')
     if (allocated(error)) return
     call check(error, abs(sum(mean)/sum(expect) - 1.0_wp) < 1.0e-9_wp, &
@@ -210,21 +211,6 @@ contains
                'the message gives both counts: '//err%message)
   end subroutine test_bad_input
 
-  function str_count(n) result(s)
-    integer, intent(in) :: n
-    character(len=:), allocatable :: s
-    character(len=16) :: buf
-    write (buf, '(i0)') n
-    s = trim(buf)
-  end function str_count
-
-  function str_real(x) result(s)
-    real(wp), intent(in) :: x
-    character(len=:), allocatable :: s
-    character(len=24) :: buf
-    write (buf, '(es10.3)') x
-    s = trim(adjustl(buf))
-  end function str_real
 end module test_emission_layered_suite
 
 program test_emission_layered

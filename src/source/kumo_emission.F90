@@ -81,13 +81,19 @@ module kumo_emission
   !> voxel of a layer has (its gas and other background, given with each table) and that of
   !> the voxel components, kc = sum over the components of ext (1 - ssa), read from their
   !> arrays (a cloud's optics in one band of a broadband run: the same for every g-point of
-  !> the band). `kc_row` holds kc summed over each row of voxels, formed once.
+  !> the band). `kc_row` holds kc summed over each row of voxels and `kc_blk` over each run of
+  !> VA_RUN voxels of a row, formed once.
   type :: voxel_abs_t
     !> (nx, ny, nf, nc) extinction [m-1] and albedo of the voxel components
     real(wp), pointer, contiguous :: cext(:, :, :, :) => null(), cssa(:, :, :, :) => null()
     integer :: koff = 0                    !! voxel layer kr has component layer kr + koff
     real(wp), allocatable :: kc_row(:, :)  !! (ny, n3) kc summed over each row [m-1]
+    real(wp), allocatable :: kc_blk(:, :, :)  !! (nrun, ny, n3) kc summed over each run [m-1]
   end type voxel_abs_t
+
+  !> Voxels of a row summed together in voxel_abs_t kc_blk: a photon drawn for a layer looks at
+  !> about nx / VA_RUN run sums and VA_RUN voxels of its row instead of nx / 2 voxels.
+  integer, parameter :: VA_RUN = 32
 
   !> The emission table of a scene and the Planck values the photon loop reads.
   type :: emission_t
@@ -157,6 +163,7 @@ module kumo_emission
     logical :: layered = .false.
     real(wp), allocatable :: kb3(:)        !! (n3) absorption every voxel of the layer has [m-1]
     real(wp), allocatable :: row_cum(:, :) !! (0:ny, n3)
+    real(wp), allocatable :: kc_blk(:, :, :)  !! voxel_abs_t kc_blk
     real(wp), pointer, contiguous :: cext(:, :, :, :) => null(), cssa(:, :, :, :) => null()
     integer :: koff = 0
   end type emission_t
@@ -325,6 +332,7 @@ contains
       em%cext => voxel_abs%cext
       em%cssa => voxel_abs%cssa
       em%koff = voxel_abs%koff
+      em%kc_blk = voxel_abs%kc_blk
       allocate (em%row_cum(0:atm%ny, atm%n3))
       do kr = 1, atm%n3
         em%row_cum(0, kr) = 0.0_wp
@@ -510,19 +518,19 @@ contains
     type(atmosphere_t), intent(in) :: atm
     real(wp), pointer, contiguous, intent(in) :: cext(:, :, :, :), cssa(:, :, :, :)
     integer, intent(in) :: koff
-    integer :: kr, iy, ix
-    real(wp) :: a
+    integer :: kr, iy, ix, j
     va%cext => cext
     va%cssa => cssa
     va%koff = koff
-    allocate (va%kc_row(atm%ny, atm%n3))
+    allocate (va%kc_row(atm%ny, atm%n3), va%kc_blk((atm%nx + VA_RUN - 1)/VA_RUN, atm%ny, atm%n3))
+    va%kc_blk = 0.0_wp
     do kr = 1, atm%n3
       do iy = 1, atm%ny
-        a = 0.0_wp
         do ix = 1, atm%nx
-          a = a + components_abs(cext, cssa, koff, ix, iy, kr)
+          j = (ix - 1)/VA_RUN + 1
+          va%kc_blk(j, iy, kr) = va%kc_blk(j, iy, kr) + components_abs(cext, cssa, koff, ix, iy, kr)
         end do
-        va%kc_row(iy, kr) = a
+        va%kc_row(iy, kr) = sum(va%kc_blk(:, iy, kr))
       end do
     end do
   end subroutine voxel_abs_init
@@ -897,8 +905,8 @@ contains
     subroutine layer_voxel(kr, ix, iy)
       integer, intent(in) :: kr
       integer, intent(out) :: ix, iy
-      real(wp) :: q, t, s, m, kb, ka
-      integer :: i
+      real(wp) :: q, qr, t, s, m, kb, ka
+      integer :: i, jr
       kb = em%kb3(kr)
       q = em%cdf(ie) - em%cdf(ie - 1)
       t = 0.0_wp
@@ -910,18 +918,34 @@ contains
         iy = iy - 1
       end do
       t = t - em%row_cum(iy - 1, kr)
-      ix = 0
+      ! the run of voxels of the row, then the voxel of the run (the last with absorption when
+      ! rounding leaves t at or above the sums)
+      jr = 0
       s = 0.0_wp
-      m = 0.0_wp
-      do i = 1, atm%nx
-        q = kb + components_abs(em%cext, em%cssa, em%koff, i, iy, kr)
+      do i = 1, size(em%kc_blk, 1)
+        q = (min(atm%nx, i*VA_RUN) - (i - 1)*VA_RUN)*kb + em%kc_blk(i, iy, kr)
         if (q > 0.0_wp) then
-          ix = i
-          m = q
+          jr = i
+          qr = q
           s = s + q
           if (s > t) exit
         end if
       end do
+      ix = 0
+      m = 0.0_wp
+      if (jr > 0) then
+        t = t - (s - qr)
+        s = 0.0_wp
+        do i = (jr - 1)*VA_RUN + 1, min(atm%nx, jr*VA_RUN)
+          q = kb + components_abs(em%cext, em%cssa, em%koff, i, iy, kr)
+          if (q > 0.0_wp) then
+            ix = i
+            m = q
+            s = s + q
+            if (s > t) exit
+          end if
+        end do
+      end if
       if (ix == 0) then
         ! nothing absorbs in the layer (its entry has no photons then); keep the photon valid
         ix = 1
@@ -930,7 +954,11 @@ contains
         return
       end if
       ka = real(atm%ext3(ix, iy, kr), wp)*(1.0_wp - real(atm%omg3(ix, iy, kr), wp))
-      p%w = p%w*(ka/m)
+      ! the plain launch weight (P_L/P)/q_L of the layer, never the one that gives the layer
+      ! exactly its power in every batch (emission_weight): the photons of a batch that land in
+      ! a voxel are not independent of how many the layer gets, and that weight would favour
+      ! the voxels early in the layer's order
+      p%w = em%ratio(ie)*(ka/m)
       p%w_entry = p%w
     end subroutine layer_voxel
 

@@ -1259,7 +1259,7 @@ contains
     integer, intent(in) :: g
     type(atmosphere_t), intent(inout) :: atm
     type(error_t), allocatable, intent(out) :: error
-    real(wp), allocatable :: e(:, :), w(:, :), dz(:)
+    real(wp), allocatable :: e(:, :), w(:, :)
     integer, allocatable :: ip(:, :)
     type(phase_t), allocatable :: ph(:)
     integer :: nz, n_out_liq, n_out_ice
@@ -1272,19 +1272,7 @@ contains
       return
     end if
     nz = spec%nz
-    dz = spec%z(2:nz + 1) - spec%z(1:nz)     ! z is 1-based here (levels 0..nz)
-    if (spec%longwave) then
-      e = reshape([spec%ext1d, spec%tau_abs(:, g)/dz], [nz, size(spec%ext1d, 2) + 1])
-      w = reshape([spec%ssa1d, spread(0.0_wp, 1, nz)], [nz, size(spec%ext1d, 2) + 1])
-      ip = reshape([spec%phase1d, spread(1, 1, nz)], [nz, size(spec%ext1d, 2) + 1])
-    else
-      e = reshape([spec%ext1d, spec%tau_ray(:, g)/dz, spec%tau_abs(:, g)/dz], &
-                  [nz, size(spec%ext1d, 2) + 2])
-      w = reshape([spec%ssa1d, spread(1.0_wp, 1, nz), spread(0.0_wp, 1, nz)], &
-                  [nz, size(spec%ext1d, 2) + 2])
-      ip = reshape([spec%phase1d, spread(spec%iray, 1, nz), spread(1, 1, nz)], &
-                   [nz, size(spec%ext1d, 2) + 2])
-    end if
+    call gpoint_background(spec, g, e, w, ip)
     if (spec%cloud_on) then
       ! the cloud's voxels at the g-point's band over its gas layers. Within a band only the
       ! gas changes: the background is swapped. A new band builds the atmosphere anew; its
@@ -1341,6 +1329,32 @@ contains
     end if
   end subroutine spectral_set_optics
 
+  !> The 1-D components of every layer at g-point g, (nz, ncomp): the namelist's layers, then in
+  !> the shortwave Rayleigh scattering, then the gas's absorption; extinction [m-1], albedo and
+  !> phase index. Inside the 3-D region they are the voxels' background.
+  subroutine gpoint_background(spec, g, e, w, ip)
+    type(spectral_scene_t), intent(in) :: spec
+    integer, intent(in) :: g
+    real(wp), allocatable, intent(out) :: e(:, :), w(:, :)
+    integer, allocatable, intent(out) :: ip(:, :)
+    real(wp), allocatable :: dz(:)
+    integer :: nz
+    nz = spec%nz
+    dz = spec%z(2:nz + 1) - spec%z(1:nz)     ! z is 1-based here (levels 0..nz)
+    if (spec%longwave) then
+      e = reshape([spec%ext1d, spec%tau_abs(:, g)/dz], [nz, size(spec%ext1d, 2) + 1])
+      w = reshape([spec%ssa1d, spread(0.0_wp, 1, nz)], [nz, size(spec%ext1d, 2) + 1])
+      ip = reshape([spec%phase1d, spread(1, 1, nz)], [nz, size(spec%ext1d, 2) + 1])
+    else
+      e = reshape([spec%ext1d, spec%tau_ray(:, g)/dz, spec%tau_abs(:, g)/dz], &
+                  [nz, size(spec%ext1d, 2) + 2])
+      w = reshape([spec%ssa1d, spread(1.0_wp, 1, nz), spread(0.0_wp, 1, nz)], &
+                  [nz, size(spec%ext1d, 2) + 2])
+      ip = reshape([spec%phase1d, spread(spec%iray, 1, nz), spread(1, 1, nz)], &
+                   [nz, size(spec%ext1d, 2) + 2])
+    end if
+  end subroutine gpoint_background
+
   !> The emission table of g-point g for the atmosphere as it is (set to g): the layers' own
   !> bottom and top Planck sources, the surface's, escape sampling.
   !> Over a cloud file the table draws the voxels layer by layer (kumo_emission, `voxel_abs`):
@@ -1353,7 +1367,8 @@ contains
     type(scene_t), intent(in) :: scene
     type(emission_t), intent(out) :: em
     type(error_t), allocatable, intent(out) :: error
-    real(wp), allocatable :: b_lev(:), kb(:)
+    real(wp), allocatable :: b_lev(:), kb(:), e(:, :), w(:, :)
+    integer, allocatable :: ip(:, :)
     integer :: kr, k
     allocate (b_lev(0:spec%nz))
     ! level values: only what voxels would read, and voxels take the layers' own mean
@@ -1365,13 +1380,12 @@ contains
                             scene%atm%k3_lo - scene%atm%kf_lo)
         spec%va_band = spec%atm_band
       end if
-      ! what every voxel of a layer absorbs: the namelist's layers and the g-point's gas, as
-      ! the voxels' background (spectral_set_optics; no scattering by the gas here)
+      ! what every voxel of a layer absorbs: its background (spectral_set_optics)
+      call gpoint_background(spec, g, e, w, ip)
       allocate (kb(scene%atm%n3))
       do kr = 1, scene%atm%n3
         k = scene%atm%k3_lo + kr - 1
-        kb(kr) = sum(spec%ext1d(k, :)*(1.0_wp - spec%ssa1d(k, :)), mask=spec%ext1d(k, :) > 0.0_wp) + &
-                 spec%tau_abs(k, g)/(spec%z(k + 1) - spec%z(k))
+        kb(kr) = sum(e(k, :)*(1.0_wp - w(k, :)), mask=e(k, :) > 0.0_wp)
       end do
       call emission_init(em, scene%atm, scene%sfc, b_lev, spec%src_sfc(g), 0.0_wp, 0.0_wp, &
                          spec%floor, error, b_layer_bottom=spec%src_bot(:, g), &

@@ -81,13 +81,11 @@ module kumo_emission
   !> voxel of a layer has (its gas and other background, given with each table) and that of
   !> the voxel components, kc = sum over the components of ext (1 - ssa), read from their
   !> arrays (a cloud's optics in one band of a broadband run: the same for every g-point of
-  !> the band). `kc_row` holds kc summed over each row of voxels and `kc_blk` over each run of
-  !> VA_RUN voxels of a row, formed once.
+  !> the band). `kc_blk` holds kc summed over each run of VA_RUN voxels of a row, formed once.
   type :: voxel_abs_t
     !> (nx, ny, nf, nc) extinction [m-1] and albedo of the voxel components
     real(wp), pointer, contiguous :: cext(:, :, :, :) => null(), cssa(:, :, :, :) => null()
     integer :: koff = 0                    !! voxel layer kr has component layer kr + koff
-    real(wp), allocatable :: kc_row(:, :)  !! (ny, n3) kc summed over each row [m-1]
     real(wp), allocatable :: kc_blk(:, :, :)  !! (nrun, ny, n3) kc summed over each run [m-1]
   end type voxel_abs_t
 
@@ -313,17 +311,17 @@ contains
                        'Planck radiances nor the caller''s storage')
         return
       end if
-      if (size(layer_abs) /= atm%n3 .or. .not. allocated(voxel_abs%kc_row)) then
+      if (size(layer_abs) /= atm%n3 .or. .not. allocated(voxel_abs%kc_blk)) then
         call set_error(error, 'thermal emission: the absorption of '//str(size(layer_abs))// &
                        ' layers given for a 3-D region of '//str(atm%n3))
         return
       end if
-      if (any(shape(voxel_abs%kc_row) /= [atm%ny, atm%n3])) then
+      if (any(shape(voxel_abs%kc_blk) /= [(atm%nx + VA_RUN - 1)/VA_RUN, atm%ny, atm%n3])) then
         call set_error(error, 'thermal emission: the voxel components'' absorption is not '// &
                        'that of the 3-D region')
         return
       end if
-      if (any(.not. (layer_abs >= 0.0_wp)) .or. any(.not. (voxel_abs%kc_row >= 0.0_wp))) then
+      if (any(.not. (layer_abs >= 0.0_wp)) .or. any(.not. (voxel_abs%kc_blk >= 0.0_wp))) then
         call set_error(error, 'thermal emission: absorption coefficients must be finite and >= 0')
         return
       end if
@@ -338,7 +336,7 @@ contains
         em%row_cum(0, kr) = 0.0_wp
         do iy = 1, atm%ny
           em%row_cum(iy, kr) = em%row_cum(iy - 1, kr) + (atm%nx*layer_abs(kr) + &
-                               voxel_abs%kc_row(iy, kr))
+                               sum(voxel_abs%kc_blk(:, iy, kr)))
         end do
       end do
     end if
@@ -522,7 +520,7 @@ contains
     va%cext => cext
     va%cssa => cssa
     va%koff = koff
-    allocate (va%kc_row(atm%ny, atm%n3), va%kc_blk((atm%nx + VA_RUN - 1)/VA_RUN, atm%ny, atm%n3))
+    allocate (va%kc_blk((atm%nx + VA_RUN - 1)/VA_RUN, atm%ny, atm%n3))
     va%kc_blk = 0.0_wp
     do kr = 1, atm%n3
       do iy = 1, atm%ny
@@ -530,7 +528,6 @@ contains
           j = (ix - 1)/VA_RUN + 1
           va%kc_blk(j, iy, kr) = va%kc_blk(j, iy, kr) + components_abs(cext, cssa, koff, ix, iy, kr)
         end do
-        va%kc_row(iy, kr) = sum(va%kc_blk(:, iy, kr))
       end do
     end do
   end subroutine voxel_abs_init
@@ -579,27 +576,22 @@ contains
     keep = .true.
     if (present(keep_voxels)) keep = keep_voxels
     if (em%layered) then
-      if (keep .and. present(atm)) then
-        em%emit_vox = emission_voxel_power(em, atm)
-      else
-        if (allocated(em%emit_vox)) deallocate (em%emit_vox)
-        allocate (em%emit_vox(0))
-      end if
+      ! the voxels' powers from the atmosphere (emission_voxel_power stops without it)
+      if (allocated(em%emit_vox)) deallocate (em%emit_vox)
+      if (keep) em%emit_vox = emission_voxel_power(em, atm)
+      deallocate (em%cdf_own, em%ratio_own, em%kb3, em%row_cum, em%kc_blk)
       nullify (em%cext, em%cssa)
       em%layered = .false.
-      if (allocated(em%cdf_own)) deallocate (em%cdf_own)
-      if (allocated(em%ratio_own)) deallocate (em%ratio_own)
-      nullify (em%cdf, em%ratio)
-      em%table_bytes_own = storage_size(1.0_wp)/8*size(em%emit_vox, kind=i8)
+    else if (em%on_node) then
+      if (.not. keep) allocate (em%emit_vox(0))
+      if (.not. allocated(em%emit_vox)) em%emit_vox = em%emit_vox_node
+      nullify (em%b3, em%emit_vox_node)
+      em%on_node = .false.
+    else
       return
     end if
-    if (.not. em%on_node) return
-    if (present(keep_voxels)) then
-      if (.not. keep_voxels) allocate (em%emit_vox(0))
-    end if
-    if (.not. allocated(em%emit_vox)) em%emit_vox = em%emit_vox_node
-    nullify (em%cdf, em%ratio, em%b3, em%emit_vox_node)
-    em%on_node = .false.
+    if (.not. allocated(em%emit_vox)) allocate (em%emit_vox(0))
+    nullify (em%cdf, em%ratio)
     em%table_bytes_own = storage_size(1.0_wp)/8*size(em%emit_vox, kind=i8)
     em%table_bytes_borrowed = 0_i8
   end subroutine emission_detach

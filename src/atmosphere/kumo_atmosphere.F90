@@ -416,21 +416,7 @@ contains
       call build_supervoxels(atm%ext3, atm%dx, atm%dy, atm%z(klo:khi) - atm%z(klo - 1:khi - 1), &
                              opts%sv, atm%sv)
     end if
-    allocate (atm%uniform3(atm%n3))
-    do kr = 1, atm%n3
-      atm%uniform3(kr) = all(atm%ext3(:, :, kr) == atm%ext3(1, 1, kr)) .and. &
-                         all(atm%omg3(:, :, kr) == atm%omg3(1, 1, kr))
-      if (associated(atm%csca3)) atm%uniform3(kr) = atm%uniform3(kr) .and. &
-                                                   uniform_layer(atm%csca3(:, :, :, kr))
-      if (associated(atm%iph3)) then
-        do ic = 1, nc
-          atm%uniform3(kr) = atm%uniform3(kr) .and. &
-                             all(atm%iph3(ic, :, :, kr) == atm%iph3(ic, 1, 1, kr))
-        end do
-      end if
-      if (associated(atm%wph3)) atm%uniform3(kr) = atm%uniform3(kr) .and. &
-                                                  uniform_layer(atm%wph3(:, :, :, kr))
-    end do
+    call set_uniform3(atm)
 
   contains
 
@@ -479,8 +465,17 @@ contains
   !> `nparts`: the `nparts` processes sharing them call this with the same arguments once none
   !> of them reads the old values, process `part` (0 .. nparts - 1) forms the layers
   !> kr = part + 1 + j nparts, and every process takes its 1-D layers and majorants after `sync`.
+  !>
+  !> With `new_band`, the voxel components are those of another band, with their own phase
+  !> indices and blend weights (`ciph`, `cwph`, (nx, ny, n3f, nc3) as put by
+  !> atmosphere_put_layer; needed on the process that writes the voxels, which then forms every
+  !> layer alone). The phase functions of the atmosphere must hold every band's tables. The
+  !> indices and weights are checked as atmosphere_end checks them, and the layers that are the
+  !> same in every voxel are found again. `done` is .false. when a build would store the voxels
+  !> otherwise (no blend weights, or a phase index that does not vary) or would fail: then
+  !> build anew (the voxel values are no longer those of either band).
   subroutine atmosphere_swap_background(atm, ext1d, ssa1d, cext, cssa, opts, sv_layout, done, &
-                                        sync, part, nparts)
+                                        sync, part, nparts, new_band, ciph, cwph)
     type(atmosphere_t), intent(inout) :: atm
     real(wp), intent(in) :: ext1d(:, :), ssa1d(:, :)
     real(wp), intent(in) :: cext(:, :, :, :), cssa(:, :, :, :)
@@ -489,13 +484,19 @@ contains
     logical, intent(out) :: done
     procedure(voxel_sync_i), optional :: sync
     integer, intent(in), optional :: part, nparts
+    logical, intent(in), optional :: new_band
+    integer, intent(in), optional :: ciph(:, :, :, :)
+    real(vp), intent(in), optional :: cwph(:, :, :, :)
     integer :: k, ic, kr, kf, na1, nc, nc1, nf
     real(wp) :: e, s
     real(vp) :: clr_e, clr_w, no_csca(1, 1, 1)
     real(vp), allocatable :: bg_sca(:), clr_c(:)
     real(wp), allocatable :: acc_bg(:)
+    logical :: band, bad_index, bad_weight, bad_blend, blended
     done = .false.
     nc1 = atm%ncomp1
+    band = .false.
+    if (present(new_band)) band = new_band
     ! voxels in shared storage: formed by all the processes sharing them, seen after sync
     if (atm%voxels_borrowed .and. .not. (present(sync) .and. present(part) .and. &
                                          present(nparts))) return
@@ -506,21 +507,54 @@ contains
         if (any(ext1d(atm%k3_lo:atm%k3_hi, ic) > 0.0_wp)) return
       end do
     end if
+    if (band .and. atm%n3 > 0) then
+      ! a build keeps the phase indices and blend weights per voxel only when blends occur
+      if (.not. (associated(atm%iph3) .and. associated(atm%wph3))) return
+      if (atm%voxel_writer .and. .not. (present(ciph) .and. present(cwph))) return
+    end if
     done = .true.
     do k = 1, atm%nz
       call mix(ext1d(k, :), ssa1d(k, :), atm%ext1(k), atm%omg1(k), atm%csca1(1:nc1, k))
       atm%layer_class(k) = class_of_layer(atm, k, opts)
     end do
     if (atm%n3 == 0) return
-    if (atm%voxels_borrowed) then
+    if (band) then
+      ! another band: other voxels may hold components; its writer forms every layer
+      if (allocated(atm%span_known)) atm%span_known = .false.
+      if (atm%voxel_writer) call form_voxels(0, 1)
+    else if (atm%voxels_borrowed) then
       call form_voxels(part, nparts)
     else
       call form_voxels(0, 1)
     end if
     if (present(sync)) call sync()
+    if (band) then
+      ! what atmosphere_end finds of the indices and weights (every process, the same values)
+      call band_checks(bad_index, bad_weight, bad_blend, blended)
+      if (bad_index .or. bad_weight .or. bad_blend .or. .not. blended) then
+        done = .false.
+        return
+      end if
+      atm%iph3_const = atm%iph3(:, 1, 1, 1)
+      call set_uniform3(atm)
+    end if
     call supervoxel_majorants(atm%ext3, sv_layout, atm%sv)
 
   contains
+
+    !> index_checks of the layers with voxel components (the other layers' indices and
+    !> weights are those of the last build, which checked them)
+    subroutine band_checks(bad_index, bad_weight, bad_blend, blended)
+      logical, intent(out) :: bad_index, bad_weight, bad_blend, blended
+      integer :: klo, khi
+      integer, pointer, contiguous :: ip(:, :, :, :)
+      real(vp), pointer, contiguous :: wv(:, :, :, :)
+      klo = max(1, atm%kf_lo - atm%k3_lo + 1)
+      khi = min(atm%n3, atm%kf_hi - atm%k3_lo + 1)
+      ip => atm%iph3(:, :, :, klo:khi)
+      wv => atm%wph3(:, :, :, klo:khi)
+      call index_checks(ip, wv, size(atm%phases), bad_index, bad_weight, bad_blend, blended)
+    end subroutine band_checks
 
     !> The voxels of layers kr = p + 1, p + 1 + np, ... of the region.
     subroutine form_voxels(p, np)
@@ -579,6 +613,12 @@ contains
       end do
       if (kf < 1 .or. kf > nf) return
       call form_components(ext_l, omg_l, csca_l, cext(:, :, kf, :), cssa(:, :, kf, :))
+      if (.not. band) return
+      ! the band's phase indices and blends of the voxel components, as put_layer puts them
+      do ic = 1, atm%nc3
+        atm%iph3(na1 + ic, :, :, kr) = ciph(:, :, kf, ic)
+        atm%wph3(na1 + ic, :, :, kr) = cwph(:, :, kf, ic)
+      end do
     end subroutine form_layer
 
     subroutine form_components(ext_l, omg_l, csca_l, cx, cs)
@@ -787,15 +827,52 @@ contains
     end if
   end function class_of_layer
 
-  !> Every column of a layer holds the same values a(:, ix, iy).
-  pure logical function uniform_layer(a) result(same)
-    real(vp), intent(in) :: a(:, :, :)   !! (components, nx, ny)
-    integer :: ic
-    same = .true.
-    do ic = 1, size(a, 1)
-      same = same .and. all(a(ic, :, :) == a(ic, 1, 1))
+  !> Which layers of the 3-D region hold the same values in every voxel (uniform3): extinction,
+  !> albedo, scattering fractions, phase indices and blend weights, as far as they are stored.
+  !> Each layer's test stops at its first voxel that differs.
+  subroutine set_uniform3(atm)
+    type(atmosphere_t), intent(inout) :: atm
+    integer :: kr, ncol
+    if (allocated(atm%uniform3)) deallocate (atm%uniform3)
+    allocate (atm%uniform3(atm%n3))
+    ncol = atm%nx*atm%ny
+    do kr = 1, atm%n3
+      atm%uniform3(kr) = same_real(1, ncol, atm%ext3(:, :, kr))
+      if (atm%uniform3(kr)) atm%uniform3(kr) = same_real(1, ncol, atm%omg3(:, :, kr))
+      if (atm%uniform3(kr) .and. associated(atm%csca3)) &
+        atm%uniform3(kr) = same_real(size(atm%csca3, 1), ncol, atm%csca3(:, :, :, kr))
+      if (atm%uniform3(kr) .and. associated(atm%iph3)) &
+        atm%uniform3(kr) = same_int(size(atm%iph3, 1), ncol, atm%iph3(:, :, :, kr))
+      if (atm%uniform3(kr) .and. associated(atm%wph3)) &
+        atm%uniform3(kr) = same_real(size(atm%wph3, 1), ncol, atm%wph3(:, :, :, kr))
     end do
-  end function uniform_layer
+  contains
+    !> a(:, j) == a(:, 1) for every column j (the layer's contiguous values as dummies)
+    pure logical function same_real(m, n, a) result(same)
+      integer, intent(in) :: m, n
+      real(vp), intent(in) :: a(m, n)
+      integer :: i, j
+      same = .false.
+      do j = 1, n
+        do i = 1, m
+          if (.not. (a(i, j) == a(i, 1))) return
+        end do
+      end do
+      same = .true.
+    end function same_real
+    pure logical function same_int(m, n, a) result(same)
+      integer, intent(in) :: m, n
+      integer, intent(in) :: a(m, n)
+      integer :: i, j
+      same = .false.
+      do j = 1, n
+        do i = 1, m
+          if (a(i, j) /= a(i, 1)) return
+        end do
+      end do
+      same = .true.
+    end function same_int
+  end subroutine set_uniform3
 
   !> Switch truncation on: store the delta fractions and the truncated extinction of the 1-D
   !> layers per level (sigma_a + sum_i (1 - f_i) sigma_s,i, seed text eq. 4.2.20 per component).
@@ -913,20 +990,25 @@ contains
       logical, intent(out) :: any_w   !! a weight > 0
       logical, intent(out) :: late    !! a weight > 0 on index np (or above)
       integer :: i, n_bad, n_pos, n_late
-      ! one loop over all values, with counts rather than logical chains, so that the compiler
-      ! vectorises it
+      ! loops without branches, each of one kind of value, so that the compiler vectorises them
       imin = huge(1)
       imax = -huge(1)
-      n_bad = 0
-      n_pos = 0
-      n_late = 0
       do i = 1, n
         imin = min(imin, ip(i))
         imax = max(imax, ip(i))
+      end do
+      n_bad = 0
+      n_pos = 0
+      do i = 1, n
         n_bad = n_bad + merge(0, 1, w(i) >= 0.0_vp .and. w(i) <= 1.0_vp)
         n_pos = n_pos + merge(1, 0, w(i) > 0.0_vp)
-        n_late = n_late + merge(1, 0, w(i) > 0.0_vp .and. ip(i) >= np)
       end do
+      n_late = 0
+      if (n_pos > 0 .and. imax >= np) then
+        do i = 1, n
+          n_late = n_late + merge(1, 0, w(i) > 0.0_vp .and. ip(i) >= np)
+        end do
+      end if
       bad_w = n_bad > 0
       any_w = n_pos > 0
       late = n_late > 0

@@ -1290,6 +1290,26 @@ contains
                                           spec%aopts, spec%sv_layout, done)
         end if
         if (done) return
+      else if (spec%atm_band > 0) then
+        ! another band: the cloud's optics of the band (its writer forms them) swapped in with
+        ! the gas, which spares the build of every voxel array (kumo_atmosphere)
+        if (atm%voxel_writer .and. spec%cloud%band /= spec%gpt_band(g)) &
+          call spectral_cloud_band(spec%cloud, spec%gpt_band(g), n_out_liq, n_out_ice)
+        if (spec%node) then
+          call atmosphere_swap_background(atm, e, w, spec%cloud%cext, spec%cloud%cssa, &
+                                          spec%aopts, spec%sv_layout, done, sync=par_node_sync, &
+                                          part=par_node_rank(), nparts=par_node_size(), &
+                                          new_band=.true., ciph=spec%cloud%ciph, &
+                                          cwph=spec%cloud%cwph)
+        else
+          call atmosphere_swap_background(atm, e, w, spec%cloud%cext, spec%cloud%cssa, &
+                                          spec%aopts, spec%sv_layout, done, new_band=.true., &
+                                          ciph=spec%cloud%ciph, cwph=spec%cloud%cwph)
+        end if
+        if (done) then
+          spec%atm_band = spec%gpt_band(g)
+          return
+        end if
       end if
       call move_alloc(atm%phases, ph)
       if (spec%node) then

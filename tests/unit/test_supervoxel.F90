@@ -28,7 +28,8 @@ contains
              new_unittest('component_mixing', test_mixing), &
              new_unittest('voxels_put_by_layer_with_blends', test_put_layers), &
              new_unittest('kept_blocks_new_majorants', test_kept_layout), &
-             new_unittest('swapped_background_equals_a_new_build', test_swap_background)]
+             new_unittest('swapped_background_equals_a_new_build', test_swap_background), &
+             new_unittest('swapped_band_equals_a_new_build', test_swap_band)]
   end function collect_supervoxel
 
   function field(nx, ny, nz) result(ext)
@@ -412,6 +413,169 @@ contains
       end if
     end subroutine build
   end subroutine test_swap_background
+  !> A switch to another band (voxel components with other values, other clear voxels, other
+  !> phase indices and blends) gives the atmosphere a new build of that band gives, to the last
+  !> bit, and leaves it to a new build whenever that would store the voxels otherwise or fail.
+  subroutine test_swap_band(error)
+    type(error_t), allocatable, intent(out) :: error
+    integer, parameter :: NX = 6, NY = 5, NF = 3, NC3 = 2, NZ = 5, NP = 7
+    type(atmosphere_t) :: swapped, built
+    type(atmosphere_options_t) :: opts
+    type(supervoxel_grid_t) :: layout
+    type(phase_t), allocatable :: ph(:)
+    real(wp), dimension(NX, NY, NF, NC3) :: cext_a, cssa_a, cext_b, cssa_b
+    real(vp), dimension(NX, NY, NF, NC3) :: wph_a, wph_b, wph_x
+    integer, dimension(NX, NY, NF, NC3) :: iph_a, iph_b, iph_x
+    real(wp) :: ext1(NZ, 2), ssa1(NZ, 2), z(0:NZ)
+    integer :: iph1(NZ, 2), i, j, k, c
+    logical :: done
+    z = [(250.0_wp*k, k=0, NZ)]
+    ssa1(:, 1) = 1.0_wp
+    ssa1(:, 2) = 0.0_wp
+    iph1 = 1
+    ext1(:, 1) = [4.0e-6_wp, 3.0e-6_wp, 2.0e-6_wp, 1.5e-6_wp, 1.0e-6_wp]
+    ext1(:, 2) = [1.0e-4_wp, 7.0e-5_wp, 3.0e-5_wp, 1.0e-5_wp, 2.0e-6_wp]
+    do c = 1, NC3
+      do k = 1, NF
+        do j = 1, NY
+          do i = 1, NX
+            cext_a(i, j, k, c) = max(0.0_wp, 1.0e-2_wp*(sin(1.3_wp*i*c) + cos(0.7_wp*j + k)) - 5.0e-3_wp)
+            cssa_a(i, j, k, c) = 0.999_wp - 0.01_wp*c - 1.0e-4_wp*i
+            iph_a(i, j, k, c) = 1 + c + mod(i, 2)
+            wph_a(i, j, k, c) = real(0.25_wp*mod(i + j + c, 3), vp)
+          end do
+        end do
+      end do
+    end do
+    ! band b: other values, other voxels with components, its own tables
+    cext_b = 1.7_wp*cext_a
+    where (cext_a == 0.0_wp) cext_b = 2.0e-3_wp*cssa_a
+    cext_b(1:3, :, 2, :) = 0.0_wp
+    cssa_b = 0.9_wp*cssa_a
+    iph_b = iph_a + 2
+    wph_b = 0.5_vp*wph_a
+    ! its top layer of the field without components and with one table: the same everywhere
+    cext_b(:, :, NF, :) = 0.0_wp
+    iph_b(:, :, NF, :) = 5
+    wph_b(:, :, NF, :) = 0.0_vp
+    call build(swapped, cext_a, cssa_a, iph_a, wph_a)
+    if (allocated(error)) return
+    layout = swapped%sv
+    ! a gas switch first, so that columns with components are noted for band a
+    call atmosphere_swap_background(swapped, ext1, ssa1, cext_a, cssa_a, opts, layout, done)
+    call check(error, done, 'the background was swapped')
+    if (allocated(error)) return
+    call atmosphere_swap_background(swapped, ext1, ssa1, cext_b, cssa_b, opts, layout, done, &
+                                    new_band=.true., ciph=iph_b, cwph=wph_b)
+    call check(error, done, 'the band was swapped')
+    if (allocated(error)) return
+    call build(built, cext_b, cssa_b, iph_b, wph_b, layout)
+    if (allocated(error)) return
+    call compare('after the band switch')
+    if (allocated(error)) return
+    call check(error, built%uniform3(NF) .and. .not. built%uniform3(1), &
+               'the test has a uniform layer and one that is not')
+    if (allocated(error)) return
+    ! the next gas switch visits the columns band b has components in
+    ext1(:, 2) = 3.0_wp*ext1(:, 2)
+    call atmosphere_swap_background(swapped, ext1, ssa1, cext_b, cssa_b, opts, layout, done)
+    call check(error, done, 'the background was swapped in band b')
+    if (allocated(error)) return
+    call build(built, cext_b, cssa_b, iph_b, wph_b, layout)
+    if (allocated(error)) return
+    call compare('after a gas switch in the new band')
+    if (allocated(error)) return
+    ! a band without any blend: a build drops the weights, so the swap declines
+    wph_x = 0.0_vp
+    call atmosphere_swap_background(swapped, ext1, ssa1, cext_b, cssa_b, opts, layout, done, &
+                                    new_band=.true., ciph=iph_b, cwph=wph_x)
+    call check(error, .not. done, 'a band without blends is left to a new build')
+    if (allocated(error)) return
+    ! indices a build refuses: beyond the tables, or a blend with a table beyond them
+    iph_x = iph_b
+    iph_x(2, 2, 1, 1) = NP + 1
+    call atmosphere_swap_background(swapped, ext1, ssa1, cext_b, cssa_b, opts, layout, done, &
+                                    new_band=.true., ciph=iph_x, cwph=wph_b)
+    call check(error, .not. done, 'an index beyond the tables is left to a new build')
+    if (allocated(error)) return
+    iph_x = iph_b
+    wph_x = wph_b
+    iph_x(3, 1, 1, 2) = NP
+    wph_x(3, 1, 1, 2) = 0.5_vp
+    call atmosphere_swap_background(swapped, ext1, ssa1, cext_b, cssa_b, opts, layout, done, &
+                                    new_band=.true., ciph=iph_x, cwph=wph_x)
+    call check(error, .not. done, 'a blend with a table beyond the last is left to a new build')
+    if (allocated(error)) return
+    wph_x(3, 1, 1, 2) = 1.5_vp
+    iph_x(3, 1, 1, 2) = 2
+    call atmosphere_swap_background(swapped, ext1, ssa1, cext_b, cssa_b, opts, layout, done, &
+                                    new_band=.true., ciph=iph_x, cwph=wph_x)
+    call check(error, .not. done, 'a weight above 1 is left to a new build')
+    if (allocated(error)) return
+    ! and back to band a, after the declined swaps
+    call atmosphere_swap_background(swapped, ext1, ssa1, cext_a, cssa_a, opts, layout, done, &
+                                    new_band=.true., ciph=iph_a, cwph=wph_a)
+    call check(error, done, 'band a was swapped back')
+    if (allocated(error)) return
+    call build(built, cext_a, cssa_a, iph_a, wph_a, layout)
+    if (allocated(error)) return
+    call compare('back in band a')
+    if (allocated(error)) return
+    ! an atmosphere that stores no blend weights cannot take a band's
+    wph_x = 0.0_vp
+    call build(swapped, cext_a, cssa_a, iph_a, wph_x)
+    if (allocated(error)) return
+    call check(error, .not. associated(swapped%wph3), 'a build without blends drops the weights')
+    if (allocated(error)) return
+    call atmosphere_swap_background(swapped, ext1, ssa1, cext_b, cssa_b, opts, swapped%sv, done, &
+                                    new_band=.true., ciph=iph_b, cwph=wph_b)
+    call check(error, .not. done, 'without stored weights a band switch is left to a new build')
+  contains
+    subroutine compare(when)
+      character(len=*), intent(in) :: when
+      call check(error, all(swapped%ext1 == built%ext1) .and. all(swapped%omg1 == built%omg1) &
+                 .and. all(swapped%csca1 == built%csca1), 'the layers equal a new build '//when)
+      if (allocated(error)) return
+      call check(error, all(swapped%ext3 == built%ext3) .and. all(swapped%omg3 == built%omg3) &
+                 .and. all(swapped%csca3 == built%csca3), 'the voxel optics equal a new build '//when)
+      if (allocated(error)) return
+      call check(error, associated(swapped%iph3) .and. associated(built%iph3) .and. &
+                 associated(swapped%wph3) .and. associated(built%wph3), &
+                 'both store phase indices and weights '//when)
+      if (allocated(error)) return
+      call check(error, all(swapped%iph3 == built%iph3) .and. all(swapped%wph3 == built%wph3) .and. &
+                 all(swapped%iph3_const == built%iph3_const), &
+                 'the phase indices and weights equal a new build '//when)
+      if (allocated(error)) return
+      call check(error, all(swapped%uniform3 .eqv. built%uniform3), &
+                 'the uniform layers are those of a new build '//when)
+      if (allocated(error)) return
+      call check(error, all(swapped%sv%maj == built%sv%maj), 'the majorants equal a new build '//when)
+    end subroutine compare
+
+    subroutine build(atm, cext, cssa, iph, wph, sv_layout)
+      type(atmosphere_t), intent(inout) :: atm
+      real(wp), intent(in) :: cext(:, :, :, :), cssa(:, :, :, :)
+      integer, intent(in) :: iph(:, :, :, :)
+      real(vp), intent(in) :: wph(:, :, :, :)
+      type(supervoxel_grid_t), intent(in), optional :: sv_layout
+      ph = [(new_phase_isotropic(), i=1, NP)]
+      call atmosphere_begin(atm, z, 600.0_wp, 500.0_wp, ext1, ssa1, iph1, ph, opts, error, &
+                            k3_lo=2, nx=NX, ny=NY, n3f=NF, nc3=NC3, blend=.true.)
+      if (allocated(error)) return
+      do c = 1, NC3
+        do k = 1, NF
+          call atmosphere_put_layer(atm, c, k, cext(:, :, k, c), cssa(:, :, k, c), &
+                                    iph(:, :, k, c), real(wph(:, :, k, c), wp))
+        end do
+      end do
+      if (present(sv_layout)) then
+        call atmosphere_end(atm, opts, error, sv_layout=sv_layout)
+      else
+        call atmosphere_end(atm, opts, error)
+      end if
+    end subroutine build
+  end subroutine test_swap_band
 end module test_supervoxel_suite
 
 program test_supervoxel

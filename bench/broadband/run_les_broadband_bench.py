@@ -159,6 +159,12 @@ def main():
     ap.add_argument("--scenes", default="stcu,cumulus")
     ap.add_argument("--cases", default="sw30,sw60,lw")
     a = ap.parse_args()
+    for scene in a.scenes.split(","):
+        if scene not in ("stcu", "cumulus"):
+            ap.error(f"--scenes: unknown scene {scene!r} (stcu, cumulus)")
+    for case in a.cases.split(","):
+        if case != "lw" and not re.fullmatch(r"sw[0-9]+", case):
+            ap.error(f"--cases: unknown case {case!r} (swNN with the solar zenith angle, lw)")
     os.makedirs(a.out, exist_ok=True)
     kumo = os.path.abspath(a.kumo)
     results = {}

@@ -119,3 +119,31 @@ def test_mpi_run_matches_serial(exe, tmp_path):
     assert int(float(two.attrs["n_ranks"])) == 2
     for name in ("batch_reflectance", "batch_transmittance", "batch_absorptance"):
         assert np.array_equal(one[name].values, two[name].values), name
+
+
+def test_map_levels_choose_the_map_levels(exe, tmp_path):
+    """map_levels writes the per-column flux maps at levels of its own, on a dimension of their
+    own: the same numbers as the maps of a run with maps at every level (the maps draw no
+    random numbers, so both runs trace the same photons), and the same domain fluxes."""
+    ext = np.zeros((3, 2, 3))                              # (z, y, x) [m-1]
+    ext[1] = [[2e-3, 0.0, 8e-3], [4e-3, 1e-3, 0.0]]        # a broken layer in the middle
+    kumo.write_scene(tmp_path / "scene.nc", ext, np.full_like(ext, 0.95))
+    atmosphere = {"nz": 3, "z_levels": [0.0, 500.0, 1000.0, 1500.0], "lx": 3000.0,
+                  "ly": 2000.0, "scene_file": str(tmp_path / "scene.nc"), "k3d_bottom": 1,
+                  "nx": 3, "ny": 2, "nz3": 3}
+    every = kumo.run(small_case(atmosphere=atmosphere, source={"sza_deg": 30.0}),
+                     tmp_path / "every", exe=exe)
+    some = kumo.run(small_case(atmosphere=atmosphere, source={"sza_deg": 30.0},
+                               output={"file": "out.nc", "map_levels": [0, 3]}),
+                    tmp_path / "some", exe=exe)
+    assert every["flux_up_map"].dims[0] == "level"
+    assert some["flux_up_map"].dims == ("map_level", "y", "x")
+    assert np.array_equal(some["map_level"].values, [0.0, 1500.0])
+    for name in ("flux_up_map", "flux_down_map", "flux_down_direct_map", "flux_down_diffuse_map"):
+        for var in (name, name + "_stderr"):
+            assert np.array_equal(some[var].values, every[var].isel(level=[0, 3]).values), var
+    for name in ("flux_up", "flux_down", "reflectance", "absorptance_atmosphere"):
+        assert np.array_equal(some[name].values, every[name].values), name
+    # the column budget of the 3-D region needs maps at its bottom and top, which 0 and 3 are
+    assert np.array_equal(some["horizontal_transport_map"].values,
+                          every["horizontal_transport_map"].values)

@@ -164,7 +164,7 @@ contains
            (scene%atm%nx > 1 .or. scene%atm%ny > 1)
     voxel = cfg%output%voxel_absorption .and. scene%atm%n3 > 0
     if (maps) then
-      map_levels = cfg%output%flux_levels
+      map_levels = cfg%output%map_level_list()
     else
       allocate (map_levels(0))
     end if

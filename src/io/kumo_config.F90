@@ -445,6 +445,7 @@ contains
            'kumo_output.file = '//trim(cfg%output%file)//nl// &
            'kumo_output.flux_levels = '//join(cfg%output%flux_levels)//nl// &
            'kumo_output.column_fluxes = '//merge('T', 'F', cfg%output%column_fluxes)//nl// &
+           'kumo_output.map_levels = '//join(cfg%output%map_level_list())//nl// &
            'kumo_output.voxel_absorption = '//merge('T', 'F', cfg%output%voxel_absorption)//nl// &
            'kumo_output.deflate_level = '//str(cfg%output%deflate_level)//nl// &
            'kumo_vr.rr_threshold = '//str(cfg%vr%rr_threshold)//nl// &

@@ -62,7 +62,8 @@ contains
     type(result_set_t), intent(inout) :: set
     logical, intent(in), optional :: defer
     integer :: nz, k, n_out, i, ncol, kr, nv
-    integer, allocatable :: lev(:)
+    integer, allocatable :: lev(:), mlev(:)
+    character(len=9) :: map_dim
     real(dp), allocatable :: z(:), zmid(:), dz(:), m(:), e(:), fac(:), ma(:), fz(:), fh(:)
     real(dp) :: f_hor
     integer :: tv(8)
@@ -163,14 +164,25 @@ contains
                      long_name='y of the column centres')
       end if
       if (lay%do_maps) then
-        call put_range('flux_up_map', 'upward flux per column'//NORM, lay%i_map_up, n_out*ncol, &
-                       ['x    ', 'y    ', 'level'])
+        ! on the flux levels, or on levels of their own (map_levels)
+        mlev = cfg%output%map_level_list()
+        map_dim = 'level'
+        if (size(mlev) /= n_out) then
+          map_dim = 'map_level'
+        else if (any(mlev /= lev)) then
+          map_dim = 'map_level'
+        end if
+        if (map_dim == 'map_level') call add_dim(set, 'map_level', size(mlev), coord=z(mlev), &
+                                                 units='m', long_name='height of the levels '// &
+                                                 'of the per-column flux maps')
+        call put_range('flux_up_map', 'upward flux per column'//NORM, lay%i_map_up, &
+                       lay%n_map*ncol, [character(len=9) :: 'x', 'y', map_dim])
         call put_range('flux_down_direct_map', 'downward direct flux per column'//NORM, &
-                       lay%i_map_dir, n_out*ncol, ['x    ', 'y    ', 'level'])
+                       lay%i_map_dir, lay%n_map*ncol, [character(len=9) :: 'x', 'y', map_dim])
         call put_range('flux_down_diffuse_map', 'downward diffuse flux per column'//NORM, &
-                       lay%i_map_dif, n_out*ncol, ['x    ', 'y    ', 'level'])
+                       lay%i_map_dif, lay%n_map*ncol, [character(len=9) :: 'x', 'y', map_dim])
         call put_range('flux_down_map', 'total (direct + diffuse) downward flux per column'//NORM, &
-                       lay%i_map_dn, n_out*ncol, ['x    ', 'y    ', 'level'])
+                       lay%i_map_dn, lay%n_map*ncol, [character(len=9) :: 'x', 'y', map_dim])
       end if
       if (lay%do_voxel) then
         nv = atm%n3*ncol
@@ -640,7 +652,7 @@ contains
     character(len=:), allocatable :: coords
     do i = 1, size(set%dims)
       select case (trim(set%dims(i)%name))
-      case ('level', 'layer', 'z3d', 'rad_level')
+      case ('level', 'map_level', 'layer', 'z3d', 'rad_level')
         set%dims(i)%standard_name = 'height'
         set%dims(i)%axis = 'Z'
       end select

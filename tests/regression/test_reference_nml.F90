@@ -25,10 +25,11 @@ module test_reference_nml_suite
   character(len=*), parameter :: REF_OUTPUT_FILE = 'reference_out.nc'
   !> Variables that reference.nml lists only as a commented-out assignment, because setting
   !> them would change the defaults (air_density needs solar_flux > 0; the default of
-  !> flux_levels is "all levels", which has no literal form).
-  character(len=16), parameter :: NAMES_COMMENTED(4) = [character(len=16) :: 'air_density', &
-                                                       'flux_levels', 'planck_levels', &
-                                                       'planck_surface']
+  !> flux_levels is "all levels", which has no literal form, and that of map_levels is "the flux
+  !> levels").
+  character(len=16), parameter :: NAMES_COMMENTED(5) = [character(len=16) :: 'air_density', &
+                                                       'flux_levels', 'map_levels', &
+                                                       'planck_levels', 'planck_surface']
 
   character(len=:), allocatable :: ref_path, config_src_path, doc_path
   !> every source file of the configuration (config_src_path: their names, for messages)
@@ -192,6 +193,8 @@ contains
     if (allocated(error)) return
     call check(error, all(r%output%flux_levels == m%output%flux_levels), &
                'flux_levels differs from its default')
+    call check(error, all(r%output%map_level_list() == m%output%map_level_list()), &
+               'map_levels differs from its default')
     open (newunit=unit, file=MIN_PATH, status='old')
     close (unit, status='delete')
   end subroutine test_minimal

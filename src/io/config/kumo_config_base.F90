@@ -172,8 +172,11 @@ module kumo_config_base
     character(len=PATH_LEN) :: file = 'kumo_out.nc'!! output netCDF file
     integer, allocatable :: flux_levels(:)         !! levels (0..nz) written; default all
     logical :: column_fluxes = .true.              !! per-column flux maps (3-D scenes)
+    integer, allocatable :: map_levels(:)          !! levels (0..nz) of the maps; default flux_levels
     logical :: voxel_absorption = .true.           !! absorption/heating per voxel (3-D scenes)
     integer :: deflate_level = 0                   !! netCDF deflate level of the results (0: off)
+  contains
+    procedure :: map_level_list
   end type output_cfg_t
 
   !> &kumo_vr: Russian roulette and the tracer's fast paths.
@@ -295,6 +298,18 @@ module kumo_config_base
   end type config_t
 
 contains
+
+  !> The levels of the per-column flux maps: `map_levels`, or the flux levels when it is not set
+  !> (a configuration built in code may set only those).
+  pure function map_level_list(out) result(levels)
+    class(output_cfg_t), intent(in) :: out
+    integer, allocatable :: levels(:)
+    if (allocated(out%map_levels)) then
+      levels = out%map_levels
+    else
+      levels = out%flux_levels
+    end if
+  end function map_level_list
 
   !> The whole text of the file open on `unit`, lines joined with line ends.
   function unit_text(unit) result(text)

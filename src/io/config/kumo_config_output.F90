@@ -20,13 +20,15 @@ contains
     type(output_cfg_t), intent(inout) :: cfg
     type(error_t), allocatable, intent(out) :: error
     character(len=PATH_LEN) :: file
-    integer :: flux_levels(MAX_LAYERS + 1), ios, i, deflate_level
+    integer :: flux_levels(MAX_LAYERS + 1), map_levels(MAX_LAYERS + 1), ios, i, deflate_level
     logical :: column_fluxes, voxel_absorption
     character(len=512) :: msg
-    namelist /kumo_output/ file, flux_levels, column_fluxes, voxel_absorption, deflate_level
+    namelist /kumo_output/ file, flux_levels, column_fluxes, map_levels, voxel_absorption, &
+                           deflate_level
     file = cfg%file
     deflate_level = cfg%deflate_level
     flux_levels = IUNSET
+    map_levels = IUNSET
     column_fluxes = cfg%column_fluxes
     voxel_absorption = cfg%voxel_absorption
     rewind (unit)
@@ -39,6 +41,14 @@ contains
     if (allocated(error)) return
     call level_list('kumo_output', 'flux_levels', flux_levels, nz, [(i, i=0, nz)], &
                     cfg%flux_levels, error)
+    if (allocated(error)) return
+    ! the per-column maps: at the flux levels, or at a list of their own
+    call level_list('kumo_output', 'map_levels', map_levels, nz, cfg%flux_levels, &
+                    cfg%map_levels, error)
+    if (allocated(error)) return
+    call require(column_fluxes .or. all(map_levels == IUNSET), '&kumo_output: ', 'map_levels', &
+                 rule='chooses the levels of the per-column flux maps: it needs column_fluxes '// &
+                 '= .true.', error=error)
     if (allocated(error)) return
     call require(deflate_level >= 0 .and. deflate_level <= 9, '&kumo_output: ', 'deflate_level', &
                  deflate_level, 'must be within 0..9 (0: no compression)', error)

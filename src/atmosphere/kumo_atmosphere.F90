@@ -16,6 +16,7 @@
 module kumo_atmosphere
   use, intrinsic :: iso_c_binding, only: c_ptr, c_f_pointer, c_loc
   use kumo_kinds, only: wp, vp, i8
+  use, intrinsic :: iso_fortran_env, only: i1 => int8
   use kumo_error, only: error_t, set_error, str
   use kumo_phase, only: phase_t
   use kumo_truncation, only: truncation_t
@@ -106,6 +107,11 @@ module kumo_atmosphere
     !> (span_known), so that later swaps visit only those columns
     integer, allocatable :: cloud_span(:, :, :)
     logical, allocatable :: span_known(:)
+    !> (ncomp + 1, n3) the values of the voxels without components of each layer as this
+    !> process's last swap wrote them (extinction, albedo, scattering fractions), where
+    !> clear_known: a swap writes only those that changed
+    real(vp), allocatable :: clear_last(:, :)
+    logical, allocatable :: clear_known(:)
     ! Truncation of forward peaks (set by atmosphere_set_truncation; off by default)
     logical :: truncated = .false.           !! truncation levels > 1 exist
     type(truncation_t) :: trunc              !! delta fractions per level and phase function
@@ -521,6 +527,7 @@ contains
     if (band) then
       ! another band: other voxels may hold components; its writer forms every layer
       if (allocated(atm%span_known)) atm%span_known = .false.
+      if (allocated(atm%clear_known)) atm%clear_known = .false.
       if (atm%voxel_writer) call form_voxels(0, 1)
     else if (atm%voxels_borrowed) then
       call form_voxels(part, nparts)
@@ -563,6 +570,10 @@ contains
         allocate (atm%cloud_span(2, atm%ny, atm%n3), atm%span_known(atm%n3))
         atm%span_known = .false.
       end if
+      if (.not. allocated(atm%clear_known)) then
+        allocate (atm%clear_last(atm%ncomp + 1, atm%n3), atm%clear_known(atm%n3))
+        atm%clear_known = .false.
+      end if
       na1 = size(atm%act1)
       nc = atm%ncomp
       allocate (bg_sca(max(nc - 1, 1)), acc_bg(0:na1), clr_c(max(nc - 1, 1)))
@@ -601,16 +612,28 @@ contains
     !> The voxels of layer kr (its arrays, and the voxel components' layer, as dummies, so that
     !> the compiler keeps their addresses in registers instead of reloading them after every
     !> store): the layer's own values everywhere, then the voxels with components formed anew.
+    !> Within a band the voxels with components stay the same ones (span_known), so the others
+    !> still hold what the last swap wrote them: a value that has not changed is not written
+    !> again (in the longwave the albedo and fractions of a clear voxel never change, in the
+    !> shortwave its fractions).
     subroutine form_layer(ext_l, omg_l, csca_l)
       real(vp), intent(inout) :: ext_l(:, :), omg_l(:, :)
       real(vp), intent(inout) :: csca_l(:, :, :)   !! (nc - 1, nx, ny); not touched if nc = 1
       integer :: ic
-      ext_l = clr_e
-      omg_l = clr_w
+      logical :: known
+      ! (a layer outside the voxel components' holds no components at all)
+      known = atm%clear_known(kr) .and. (atm%span_known(kr) .or. kf < 1 .or. kf > nf)
+      if (.not. (known .and. same_bits(clr_e, atm%clear_last(1, kr)))) ext_l = clr_e
+      if (.not. (known .and. same_bits(clr_w, atm%clear_last(2, kr)))) omg_l = clr_w
       ! by component (a loop over the few components inside would become a call of memcpy)
       do ic = 1, nc - 1
-        csca_l(ic, :, :) = clr_c(ic)
+        if (.not. (known .and. same_bits(clr_c(ic), atm%clear_last(2 + ic, kr)))) &
+          csca_l(ic, :, :) = clr_c(ic)
       end do
+      atm%clear_last(1, kr) = clr_e
+      atm%clear_last(2, kr) = clr_w
+      atm%clear_last(3:nc + 1, kr) = clr_c(1:nc - 1)
+      atm%clear_known(kr) = .true.
       if (kf < 1 .or. kf > nf) return
       call form_components(ext_l, omg_l, csca_l, cext(:, :, kf, :), cssa(:, :, kf, :))
       if (.not. band) return
@@ -826,6 +849,12 @@ contains
       cls = LAYER_SCATTERING
     end if
   end function class_of_layer
+
+  !> a and b have the same bits (unlike ==, which takes -0 for 0 and no NaN for itself)
+  pure logical function same_bits(a, b)
+    real(vp), intent(in) :: a, b
+    same_bits = all(transfer(a, [0_i1]) == transfer(b, [0_i1]))
+  end function same_bits
 
   !> Which layers of the 3-D region hold the same values in every voxel (uniform3): extinction,
   !> albedo, scattering fractions, phase indices and blend weights, as far as they are stored.

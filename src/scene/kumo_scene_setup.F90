@@ -1131,7 +1131,7 @@ contains
     type(emission_t) :: em, em_sum, em_g
     real(wp), allocatable :: t3(:, :, :)
     real(wp), allocatable :: energy(:), importance(:), tau(:), fu(:), fd(:), fdir(:), &
-                             div(:), net(:), xflux(:), xheat(:), mass(:)
+                             net(:), xflux(:), xheat(:), mass(:)
     real(wp) :: eps
     integer :: g, nz
     nz = spec%nz
@@ -1150,7 +1150,7 @@ contains
     end if
     if (.not. spec%three_d) allocate (spec%em(spec%n_gpt))
     allocate (energy(spec%n_gpt), importance(spec%n_gpt), &
-              fu(0:nz), fd(0:nz), fdir(0:nz), div(0:nz), net(nz), xflux(spec%n_gpt), &
+              fu(0:nz), fd(0:nz), fdir(0:nz), net(nz), xflux(spec%n_gpt), &
               xheat(spec%n_gpt))
     ! mass per unit area of each layer (heating per unit net power)
     mass = scene%air_density*(scene%atm%z(1:nz) - scene%atm%z(0:nz - 1))
@@ -1191,7 +1191,7 @@ contains
         call add_context(error, '&kumo_spectral: g-point '//str(g))
         return
       end if
-      call thermal_column_fluxes(col, fu, fd, fdir, div, net)
+      call thermal_column_fluxes(col, fu, fd, fdir, layer_net=net)
       xflux(g) = fu(nz) + fd(0) + sum(abs(net)) + abs(eps*fd(0) - em%emit_sfc)
       xheat(g) = sum(abs(net)/mass)
     end do

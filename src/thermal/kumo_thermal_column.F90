@@ -206,7 +206,8 @@ contains
                              top, error, beam_flux, beam_mu0)
   end subroutine thermal_column_from_temperatures
 
-  !> Fluxes and divergences at all levels and layers.
+  !> Fluxes and divergences at all levels and layers (without `flux_div`, the mean radiances
+  !> that it needs, half the work, are not formed).
   pure subroutine thermal_column_fluxes(col, flux_up, flux_down, flux_direct, flux_div, layer_net)
     type(thermal_column_t), intent(in) :: col
     real(wp), intent(out) :: flux_up(0:)      !! (0:nz) upward flux [W m-2]
@@ -215,7 +216,7 @@ contains
     !> (0:nz) Int I dOmega - 4 pi B = -d(net flux)/d(tau) at the level [W m-2 per unit optical
     !> depth], the beam included (DISORT's DFDT for a non-scattering medium): > 0 means net
     !> absorption there.
-    real(wp), intent(out) :: flux_div(0:)
+    real(wp), intent(out), optional :: flux_div(0:)
     !> (nz) absorbed minus emitted power of layer k per unit area [W m-2] = net downward flux at
     !> its top minus that at its bottom (> 0 warms the layer).
     real(wp), intent(out) :: layer_net(:)
@@ -227,6 +228,7 @@ contains
       flux_up(i) = PI*b_up(col, i) + up_part
       flux_direct(i) = direct_flux(col, i)
       net(i) = PI*(b_down(col, i) - b_up(col, i)) + down_part - up_part + flux_direct(i)
+      if (.not. present(flux_div)) cycle
       call sums(col, i, 2, down_part, up_part)
       flux_div(i) = down_part + up_part + direct_flux(col, i)/col%beam_mu0
     end do

@@ -479,9 +479,13 @@ contains
   !> indices and weights are checked as atmosphere_end checks them, and the layers that are the
   !> same in every voxel are found again. `done` is .false. when a build would store the voxels
   !> otherwise (no blend weights, or a phase index that does not vary) or would fail: then
-  !> build anew (the voxel values are no longer those of either band).
+  !> build anew (the voxel values are no longer those of either band). A caller that switches
+  !> to the same band and g-point again may pass what the first switch found: `checked` (the
+  !> band's indices and weights passed), `uniform3` with `uniform3_known` (the uniform layers
+  !> after that switch); the voxels are then the same and these checks are not repeated.
   subroutine atmosphere_swap_background(atm, ext1d, ssa1d, cext, cssa, opts, sv_layout, done, &
-                                        sync, part, nparts, new_band, ciph, cwph)
+                                        sync, part, nparts, new_band, ciph, cwph, checked, &
+                                        uniform3, uniform3_known)
     type(atmosphere_t), intent(inout) :: atm
     real(wp), intent(in) :: ext1d(:, :), ssa1d(:, :)
     real(wp), intent(in) :: cext(:, :, :, :), cssa(:, :, :, :)
@@ -493,6 +497,7 @@ contains
     logical, intent(in), optional :: new_band
     integer, intent(in), optional :: ciph(:, :, :, :)
     real(vp), intent(in), optional :: cwph(:, :, :, :)
+    logical, intent(in), optional :: checked, uniform3(:), uniform3_known
     integer :: k, ic, kr, kf, na1, nc, nc1, nf
     real(wp) :: e, s
     real(vp) :: clr_e, clr_w, no_csca(1, 1, 1)
@@ -537,13 +542,22 @@ contains
     if (present(sync)) call sync()
     if (band) then
       ! what atmosphere_end finds of the indices and weights (every process, the same values)
-      call band_checks(bad_index, bad_weight, bad_blend, blended)
+      bad_index = .false.
+      bad_weight = .false.
+      bad_blend = .false.
+      blended = .true.
+      if (.not. present_and_true(checked)) &
+        call band_checks(bad_index, bad_weight, bad_blend, blended)
       if (bad_index .or. bad_weight .or. bad_blend .or. .not. blended) then
         done = .false.
         return
       end if
       atm%iph3_const = atm%iph3(:, 1, 1, 1)
-      call set_uniform3(atm)
+      if (present_and_true(uniform3_known) .and. present(uniform3)) then
+        atm%uniform3 = uniform3
+      else
+        call set_uniform3(atm)
+      end if
     end if
     call supervoxel_majorants(atm%ext3, sv_layout, atm%sv)
 
@@ -849,6 +863,12 @@ contains
       cls = LAYER_SCATTERING
     end if
   end function class_of_layer
+
+  pure logical function present_and_true(flag)
+    logical, intent(in), optional :: flag
+    present_and_true = .false.
+    if (present(flag)) present_and_true = flag
+  end function present_and_true
 
   !> a and b have the same bits (unlike ==, which takes -0 for 0 and no NaN for itself)
   pure logical function same_bits(a, b)

@@ -127,6 +127,9 @@ module kumo_scene_setup
     type(spectral_cloud_t) :: cloud
     type(supervoxel_grid_t) :: sv_layout          !! super-voxel blocks of the set-up's g-point
     integer :: atm_band = 0                       !! band of the atmosphere's cloud voxels
+    !> what a switch to a band found (spectral_set_optics): its indices and weights checked, and
+    !> (n3, n_gpt) the uniform layers after a switch to g-point g (uni_known)
+    logical, allocatable :: band_checked(:), uni3(:, :), uni_known(:)
     !> longwave over a cloud file: the cloud's share of the voxels' absorption in band
     !> `va_band` (row sums), from which each g-point's emission table draws the voxels layer by
     !> layer without a sweep over them (gpoint_emission)
@@ -1262,7 +1265,7 @@ contains
     real(wp), allocatable :: e(:, :), w(:, :)
     integer, allocatable :: ip(:, :)
     type(phase_t), allocatable :: ph(:)
-    integer :: nz, n_out_liq, n_out_ice
+    integer :: nz, n_out_liq, n_out_ice, b
     logical :: done
     if (.not. spec%three_d) then
       atm%ext1(:) = spec%ext1(:, g)
@@ -1295,19 +1298,36 @@ contains
         ! the gas, which spares the build of every voxel array (kumo_atmosphere)
         if (atm%voxel_writer .and. spec%cloud%band /= spec%gpt_band(g)) &
           call spectral_cloud_band(spec%cloud, spec%gpt_band(g), n_out_liq, n_out_ice)
+        ! the checks of a band, and the uniform layers after a switch to g-point g, come out the
+        ! same at every batch: found once, then handed in
+        if (.not. allocated(spec%uni3)) then
+          allocate (spec%band_checked(maxval(spec%gpt_band)), spec%uni3(atm%n3, spec%n_gpt), &
+                    spec%uni_known(spec%n_gpt))
+          spec%band_checked = .false.
+          spec%uni_known = .false.
+        end if
+        b = spec%gpt_band(g)
         if (spec%node) then
           call atmosphere_swap_background(atm, e, w, spec%cloud%cext, spec%cloud%cssa, &
                                           spec%aopts, spec%sv_layout, done, sync=par_node_sync, &
                                           part=par_node_rank(), nparts=par_node_size(), &
                                           new_band=.true., ciph=spec%cloud%ciph, &
-                                          cwph=spec%cloud%cwph)
+                                          cwph=spec%cloud%cwph, checked=spec%band_checked(b), &
+                                          uniform3=spec%uni3(:, g), &
+                                          uniform3_known=spec%uni_known(g))
         else
           call atmosphere_swap_background(atm, e, w, spec%cloud%cext, spec%cloud%cssa, &
                                           spec%aopts, spec%sv_layout, done, new_band=.true., &
-                                          ciph=spec%cloud%ciph, cwph=spec%cloud%cwph)
+                                          ciph=spec%cloud%ciph, cwph=spec%cloud%cwph, &
+                                          checked=spec%band_checked(b), &
+                                          uniform3=spec%uni3(:, g), &
+                                          uniform3_known=spec%uni_known(g))
         end if
         if (done) then
-          spec%atm_band = spec%gpt_band(g)
+          spec%band_checked(b) = .true.
+          spec%uni3(:, g) = atm%uniform3
+          spec%uni_known(g) = .true.
+          spec%atm_band = b
           return
         end if
       end if

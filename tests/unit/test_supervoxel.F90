@@ -429,6 +429,7 @@ contains
     real(wp) :: ext1(NZ, 2), ssa1(NZ, 2), z(0:NZ)
     integer :: iph1(NZ, 2), i, j, k, c
     logical :: done
+    logical, allocatable :: u_b(:)
     z = [(250.0_wp*k, k=0, NZ)]
     ssa1(:, 1) = 1.0_wp
     ssa1(:, 2) = 0.0_wp
@@ -476,6 +477,7 @@ contains
     call check(error, built%uniform3(NF) .and. .not. built%uniform3(1), &
                'the test has a uniform layer and one that is not')
     if (allocated(error)) return
+    u_b = swapped%uniform3
     ! the next gas switch visits the columns band b has components in
     ext1(:, 2) = 3.0_wp*ext1(:, 2)
     call atmosphere_swap_background(swapped, ext1, ssa1, cext_b, cssa_b, opts, layout, done)
@@ -520,6 +522,17 @@ contains
     call build(built, cext_a, cssa_a, iph_a, wph_a, layout)
     if (allocated(error)) return
     call compare('back in band a')
+    if (allocated(error)) return
+    ! band b again with the same gas, handed what the first switch found
+    ext1(:, 2) = ext1(:, 2)/3.0_wp
+    call atmosphere_swap_background(swapped, ext1, ssa1, cext_b, cssa_b, opts, layout, done, &
+                                    new_band=.true., ciph=iph_b, cwph=wph_b, checked=.true., &
+                                    uniform3=u_b, uniform3_known=.true.)
+    call check(error, done, 'band b was swapped in again with its known checks')
+    if (allocated(error)) return
+    call build(built, cext_b, cssa_b, iph_b, wph_b, layout)
+    if (allocated(error)) return
+    call compare('in band b again, with its known checks')
     if (allocated(error)) return
     ! an atmosphere that stores no blend weights cannot take a band's
     wph_x = 0.0_vp

@@ -406,11 +406,7 @@ contains
           end if
         end do
       end do
-      if (present(sv_layout)) then
-        call atmosphere_end(atm, opts, error, sv_layout=sv_layout)
-      else
-        call atmosphere_end(atm, opts, error)
-      end if
+      call end_build(atm, opts, error, sv_layout)
     end subroutine build
   end subroutine test_swap_background
   !> A switch to another band (voxel components with other values, other clear voxels, other
@@ -582,13 +578,21 @@ contains
                                     iph(:, :, k, c), real(wph(:, :, k, c), wp))
         end do
       end do
-      if (present(sv_layout)) then
-        call atmosphere_end(atm, opts, error, sv_layout=sv_layout)
-      else
-        call atmosphere_end(atm, opts, error)
-      end if
+      call end_build(atm, opts, error, sv_layout)
     end subroutine build
   end subroutine test_swap_band
+  !> atmosphere_end, keeping the blocks of `sv_layout` when it is given (the swap tests)
+  subroutine end_build(atm, opts, error, sv_layout)
+    type(atmosphere_t), intent(inout) :: atm
+    type(atmosphere_options_t), intent(in) :: opts
+    type(error_t), allocatable, intent(out) :: error
+    type(supervoxel_grid_t), intent(in), optional :: sv_layout
+    if (present(sv_layout)) then
+      call atmosphere_end(atm, opts, error, sv_layout=sv_layout)
+    else
+      call atmosphere_end(atm, opts, error)
+    end if
+  end subroutine end_build
 end module test_supervoxel_suite
 
 program test_supervoxel

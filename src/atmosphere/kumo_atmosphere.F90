@@ -474,8 +474,8 @@ contains
   !>
   !> With `new_band`, the voxel components are those of another band, with their own phase
   !> indices and blend weights (`ciph`, `cwph`, (nx, ny, n3f, nc3) as put by
-  !> atmosphere_put_layer; needed on the process that writes the voxels, which then forms every
-  !> layer alone). The phase functions of the atmosphere must hold every band's tables. The
+  !> atmosphere_put_layer; with shared voxels every process reads them, and `sync` first makes
+  !> the writer's new components visible). The phase functions of the atmosphere must hold every band's tables. The
   !> indices and weights are checked as atmosphere_end checks them, and the layers that are the
   !> same in every voxel are found again. `done` is .false. when a build would store the voxels
   !> otherwise (no blend weights, or a phase index that does not vary) or would fail: then
@@ -521,7 +521,7 @@ contains
     if (band .and. atm%n3 > 0) then
       ! a build keeps the phase indices and blend weights per voxel only when blends occur
       if (.not. (associated(atm%iph3) .and. associated(atm%wph3))) return
-      if (atm%voxel_writer .and. .not. (present(ciph) .and. present(cwph))) return
+      if (.not. (present(ciph) .and. present(cwph))) return
     end if
     done = .true.
     do k = 1, atm%nz
@@ -530,10 +530,14 @@ contains
     end do
     if (atm%n3 == 0) return
     if (band) then
-      ! another band: other voxels may hold components; its writer forms every layer
+      ! another band: other voxels may hold components
       if (allocated(atm%span_known)) atm%span_known = .false.
       if (allocated(atm%clear_known)) atm%clear_known = .false.
-      if (atm%voxel_writer) call form_voxels(0, 1)
+    end if
+    if (band .and. atm%voxels_borrowed) then
+      ! the writer's components of the band, seen by all, who then form a share of the layers
+      call sync()
+      call form_voxels(part, nparts)
     else if (atm%voxels_borrowed) then
       call form_voxels(part, nparts)
     else

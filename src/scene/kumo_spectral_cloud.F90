@@ -37,7 +37,7 @@ module kumo_spectral_cloud
   use kumo_kinds, only: vp
   use kumo_cloud_scene, only: mie_layer, table_radii
   use kumo_atmosphere, only: atmosphere_t, atmosphere_put_layer, voxel_storage_i
-  use, intrinsic :: iso_c_binding, only: c_ptr, c_f_pointer
+  use, intrinsic :: iso_c_binding, only: c_ptr, c_f_pointer, c_intptr_t
   use kumo_bundle, only: bundle_t
   use kumo_parallel, only: par_is_root
   use kumo_config, only: cloud_cfg_t, spectral_cfg_t
@@ -65,10 +65,12 @@ module kumo_spectral_cloud
     !> nc3): extinction [m-1], albedo, phase index, blend weight (spectral_cloud_band)
     integer :: band = 0
     real(wp), pointer, contiguous :: cext(:, :, :, :) => null(), cssa(:, :, :, :) => null()
-    !> where cext and cssa lie unless spectral_cloud_place put them in the caller's storage
+    integer, pointer, contiguous :: ciph(:, :, :, :) => null()
+    real(vp), pointer, contiguous :: cwph(:, :, :, :) => null()
+    !> where the four lie unless spectral_cloud_place put them in the caller's storage
     real(wp), allocatable :: c_own(:)
-    integer, allocatable :: ciph(:, :, :, :)
-    real(vp), allocatable :: cwph(:, :, :, :)
+    integer, allocatable :: ciph_own(:)
+    real(vp), allocatable :: cwph_own(:)
   end type spectral_cloud_t
 
 contains
@@ -333,8 +335,12 @@ contains
       sc%cext(1:sc%nx, 1:sc%ny, 1:sc%nz, 1:sc%nc3) => sc%c_own(1:nv)
       sc%cssa(1:sc%nx, 1:sc%ny, 1:sc%nz, 1:sc%nc3) => sc%c_own(nv + 1:2*nv)
     end if
-    if (.not. allocated(sc%ciph)) allocate (sc%ciph(sc%nx, sc%ny, sc%nz, sc%nc3), &
-                                            sc%cwph(sc%nx, sc%ny, sc%nz, sc%nc3))
+    if (.not. associated(sc%ciph)) then
+      nv = int(sc%nx, i8)*sc%ny*sc%nz*sc%nc3
+      allocate (sc%ciph_own(nv), sc%cwph_own(nv))
+      sc%ciph(1:sc%nx, 1:sc%ny, 1:sc%nz, 1:sc%nc3) => sc%ciph_own(1:nv)
+      sc%cwph(1:sc%nx, 1:sc%ny, 1:sc%nz, 1:sc%nc3) => sc%cwph_own(1:nv)
+    end if
     do ip = 1, np
       do k = 1, sc%nz
         call layer(sc%liq, sc%liq%lwc, sc%liq%reff, sc%liq_tab(band), sc%off_liq(band), ip, &
@@ -358,23 +364,33 @@ contains
     end subroutine layer
   end subroutine spectral_cloud_band
 
-  !> Place the extinction and albedo of the voxel components (cext, cssa) in the caller's
-  !> storage (kumo_atmosphere voxel_storage_i, e.g. one copy shared by the processes of a node),
-  !> where the storage's writer forms them (spectral_cloud_band) and every process sharing it
-  !> reads them (to swap the gas of the g-points of a band together). Every process sharing it
-  !> calls this once, before the first band.
+  !> Place the voxel components (cext, cssa, ciph, cwph) in the caller's storage
+  !> (kumo_atmosphere voxel_storage_i, e.g. one copy shared by the processes of a node), where
+  !> the storage's writer forms them (spectral_cloud_band) and every process sharing it reads
+  !> them (to swap a band's voxels, and the gas of its g-points, together). Every process
+  !> sharing it calls this once, before the first band.
   subroutine spectral_cloud_place(sc, storage)
     type(spectral_cloud_t), intent(inout) :: sc
     procedure(voxel_storage_i) :: storage
-    integer(i8) :: nv
+    integer(i8) :: nv, nb_real, nb_int
     real(wp), pointer, contiguous :: words(:)
+    integer, pointer, contiguous :: ints(:)
+    real(vp), pointer, contiguous :: weights(:)
     type(c_ptr) :: base
     logical :: writer
     nv = int(sc%nx, i8)*sc%ny*sc%nz*sc%nc3
-    call storage(2*nv*(storage_size(1.0_wp)/8), base, writer)
+    nb_real = 2*nv*(storage_size(1.0_wp)/8)
+    nb_int = nv*(storage_size(1)/8)
+    ! extinction and albedo, then the phase indices, then the blend weights
+    call storage(nb_real + nb_int + nv*(storage_size(1.0_vp)/8), base, writer)
     call c_f_pointer(base, words, [2*nv])
     sc%cext(1:sc%nx, 1:sc%ny, 1:sc%nz, 1:sc%nc3) => words(1:nv)
     sc%cssa(1:sc%nx, 1:sc%ny, 1:sc%nz, 1:sc%nc3) => words(nv + 1:2*nv)
+    call c_f_pointer(transfer(transfer(base, 0_c_intptr_t) + nb_real, base), ints, [nv])
+    sc%ciph(1:sc%nx, 1:sc%ny, 1:sc%nz, 1:sc%nc3) => ints(1:nv)
+    call c_f_pointer(transfer(transfer(base, 0_c_intptr_t) + nb_real + nb_int, base), &
+                     weights, [nv])
+    sc%cwph(1:sc%nx, 1:sc%ny, 1:sc%nz, 1:sc%nc3) => weights(1:nv)
   end subroutine spectral_cloud_place
 
   !> Put the voxel components of the current band (spectral_cloud_band) into an atmosphere

@@ -1266,7 +1266,7 @@ contains
     integer, allocatable :: ip(:, :)
     type(phase_t), allocatable :: ph(:)
     integer :: nz, n_out_liq, n_out_ice, b
-    logical :: done
+    logical :: done, new_band
     if (.not. spec%three_d) then
       atm%ext1(:) = spec%ext1(:, g)
       atm%omg1(:) = spec%omg1(:, g)
@@ -1277,59 +1277,49 @@ contains
     nz = spec%nz
     call gpoint_background(spec, g, e, w, ip)
     if (spec%cloud_on) then
-      ! the cloud's voxels at the g-point's band over its gas layers. Within a band only the
-      ! gas changes: the background is swapped. A new band builds the atmosphere anew; its
-      ! phase functions (every band's) move out of it and back in, uncopied. Voxels the node
-      ! shares are rewritten once no rank of the node traces the last g-point any more.
+      ! the cloud's voxels at the g-point's band over its gas layers, swapped into the voxel
+      ! arrays: within a band only the gas, at another band also the cloud's optics, phase
+      ! indices and blends (its writer forms them first). Where a swap declines, the atmosphere
+      ! is built anew; its phase functions (every band's) move out of it and back in, uncopied.
+      ! Voxels the node shares are rewritten, by a share of the layers on each of its ranks,
+      ! once no rank of the node traces the last g-point any more.
       if (spec%node) call par_node_sync()
-      if (spec%gpt_band(g) == spec%atm_band) then
-        if (spec%node) then
-          ! the ranks of the node form a share of the layers each
-          call atmosphere_swap_background(atm, e, w, spec%cloud%cext, spec%cloud%cssa, &
-                                          spec%aopts, spec%sv_layout, done, sync=par_node_sync, &
-                                          part=par_node_rank(), nparts=par_node_size())
-        else
-          call atmosphere_swap_background(atm, e, w, spec%cloud%cext, spec%cloud%cssa, &
-                                          spec%aopts, spec%sv_layout, done)
-        end if
-        if (done) return
-      else if (spec%atm_band > 0) then
-        ! another band: the cloud's optics of the band (its writer forms them) swapped in with
-        ! the gas, which spares the build of every voxel array (kumo_atmosphere)
-        if (atm%voxel_writer .and. spec%cloud%band /= spec%gpt_band(g)) &
-          call spectral_cloud_band(spec%cloud, spec%gpt_band(g), n_out_liq, n_out_ice)
-        ! the checks of a band, and the uniform layers after a switch to g-point g, come out the
-        ! same at every batch: found once, then handed in
-        if (.not. allocated(spec%uni3)) then
-          allocate (spec%band_checked(maxval(spec%gpt_band)), spec%uni3(atm%n3, spec%n_gpt), &
-                    spec%uni_known(spec%n_gpt))
-          spec%band_checked = .false.
-          spec%uni_known = .false.
-        end if
-        b = spec%gpt_band(g)
-        if (spec%node) then
-          call atmosphere_swap_background(atm, e, w, spec%cloud%cext, spec%cloud%cssa, &
-                                          spec%aopts, spec%sv_layout, done, sync=par_node_sync, &
-                                          part=par_node_rank(), nparts=par_node_size(), &
-                                          new_band=.true., ciph=spec%cloud%ciph, &
-                                          cwph=spec%cloud%cwph, checked=spec%band_checked(b), &
-                                          uniform3=spec%uni3(:, g), &
-                                          uniform3_known=spec%uni_known(g))
-        else
-          call atmosphere_swap_background(atm, e, w, spec%cloud%cext, spec%cloud%cssa, &
-                                          spec%aopts, spec%sv_layout, done, new_band=.true., &
-                                          ciph=spec%cloud%ciph, cwph=spec%cloud%cwph, &
-                                          checked=spec%band_checked(b), &
-                                          uniform3=spec%uni3(:, g), &
-                                          uniform3_known=spec%uni_known(g))
-        end if
-        if (done) then
+      b = spec%gpt_band(g)
+      new_band = b /= spec%atm_band
+      if (new_band .and. atm%voxel_writer .and. spec%cloud%band /= b) &
+        call spectral_cloud_band(spec%cloud, b, n_out_liq, n_out_ice)
+      ! a band's checks, and the uniform layers after a switch to g-point g, come out the same
+      ! at every batch: found at the first switch, then handed in
+      if (.not. allocated(spec%uni3)) then
+        allocate (spec%band_checked(maxval(spec%gpt_band)), spec%uni3(atm%n3, spec%n_gpt), &
+                  spec%uni_known(spec%n_gpt))
+        spec%band_checked = .false.
+        spec%uni_known = .false.
+      end if
+      if (spec%node) then
+        call atmosphere_swap_background(atm, e, w, spec%cloud%cext, spec%cloud%cssa, &
+                                        spec%aopts, spec%sv_layout, done, sync=par_node_sync, &
+                                        part=par_node_rank(), nparts=par_node_size(), &
+                                        new_band=new_band, ciph=spec%cloud%ciph, &
+                                        cwph=spec%cloud%cwph, checked=spec%band_checked(b), &
+                                        uniform3=spec%uni3(:, g), &
+                                        uniform3_known=spec%uni_known(g))
+      else
+        call atmosphere_swap_background(atm, e, w, spec%cloud%cext, spec%cloud%cssa, &
+                                        spec%aopts, spec%sv_layout, done, new_band=new_band, &
+                                        ciph=spec%cloud%ciph, cwph=spec%cloud%cwph, &
+                                        checked=spec%band_checked(b), &
+                                        uniform3=spec%uni3(:, g), &
+                                        uniform3_known=spec%uni_known(g))
+      end if
+      if (done) then
+        if (new_band) then
           spec%band_checked(b) = .true.
           spec%uni3(:, g) = atm%uniform3
           spec%uni_known(g) = .true.
           spec%atm_band = b
-          return
         end if
+        return
       end if
       call move_alloc(atm%phases, ph)
       if (spec%node) then
@@ -1342,12 +1332,8 @@ contains
                               spec%cloud%nc3, blend=.true.)
       end if
       if (allocated(error)) return
-      if (atm%voxel_writer) then
-        if (spec%cloud%band /= spec%gpt_band(g)) &
-          call spectral_cloud_band(spec%cloud, spec%gpt_band(g), n_out_liq, n_out_ice)
-        call spectral_cloud_put(spec%cloud, atm)
-      end if
-      spec%atm_band = spec%gpt_band(g)
+      if (atm%voxel_writer) call spectral_cloud_put(spec%cloud, atm)   ! the band's (above)
+      spec%atm_band = b
       if (spec%node) then
         call atmosphere_end(atm, spec%aopts, error, sv_layout=spec%sv_layout, sync=par_node_sync)
       else

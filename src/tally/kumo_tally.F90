@@ -47,6 +47,7 @@ module kumo_tally
     logical :: do_maps = .false.
     logical :: do_voxel = .false.
     logical :: log_voxel = .false.  !! collision scores of the voxels go through the log (tally_t)
+    logical :: log_maps = .false.   !! flux-map scores go through the log (tally_t)
     integer, allocatable :: map_slot(:)  !! (0:nz) slot of each level in the maps, 0 = none
     integer :: i_up = 0        !! up flux at level k: buf(i_up + k + 1), k = 0..nz
     integer :: i_dir = 0       !! direct down flux at level k
@@ -96,16 +97,22 @@ module kumo_tally
   !> (docs/performance.md, cost of doubling the horizontal resolution). Below, the voxels
   !> stay in the cache and the log would only add instructions.
   integer(i8), parameter :: LOG_MIN_VOXELS = 524288_i8
+  !> Map entries (levels times columns) from which on the flux-map scores go through the log:
+  !> 1 MiB per map, 3 MiB for the three a photon scores in (measured: a 64 x 64 field with maps
+  !> at 54 levels gains from the log; 2 levels of a 128 x 128 field fit the cache).
+  integer(i8), parameter :: LOG_MIN_MAP = 131072_i8
 
   !> The accumulators of one batch.
   !>
-  !> The voxel absorption scored at collisions in a large 3-D region (lay%log_voxel) is not
-  !> added to `buf` at once but appended to a short log, which `tally_flush` adds to `buf` in the order of scoring (so every entry
-  !> receives the same additions in the same order, and the sums are the same to the last bit).
-  !> On fine grids the voxels where photons collide lie far apart in memory and most scores
-  !> would wait for a cache line from memory in the middle of the photon's path; in the flush
-  !> loop the reads do not depend on each other and overlap. `buf` is complete only after
-  !> `tally_flush`: trace_batch flushes before it returns.
+  !> The voxel absorption scored at collisions in a large 3-D region (lay%log_voxel), and the
+  !> level crossings of large flux maps (lay%log_maps), are not added to `buf` at once but
+  !> appended to a short log, which `tally_flush` adds to `buf` in the order of scoring (so
+  !> every entry receives the same additions in the same order, and the sums are the same to
+  !> the last bit). On fine grids, and with maps at many levels, the entries a photon scores
+  !> lie far apart in memory and most scores would wait for a cache line from memory in the
+  !> middle of the photon's path; in the flush loop the reads do not depend on each other and
+  !> overlap. `buf` is complete only after `tally_flush`: trace_batch flushes before it
+  !> returns.
   type :: tally_t
     real(dp), allocatable :: buf(:)
     integer :: n_log = 0                 !! entries in the log
@@ -156,6 +163,7 @@ contains
     lay%do_maps = lay%n_map > 0
     lay%do_voxel = do_voxel .and. n3 > 0
     lay%log_voxel = lay%do_voxel .and. int(n3, i8)*ncol >= LOG_MIN_VOXELS
+    lay%log_maps = lay%do_maps .and. int(lay%n_map, i8)*ncol >= LOG_MIN_MAP
     pos = 0
     lay%i_up = pos
     pos = pos + nz + 1
@@ -244,7 +252,7 @@ contains
     type(tally_t), intent(inout) :: tal
     type(tally_layout_t), intent(in) :: lay
     if (.not. allocated(tal%buf)) allocate (tal%buf(lay%n))
-    if (lay%log_voxel .and. .not. allocated(tal%log_at)) allocate (tal%log_at(LOG_LEN), tal%log_w(LOG_LEN))
+    if ((lay%log_voxel .or. lay%log_maps) .and. .not. allocated(tal%log_at)) allocate (tal%log_at(LOG_LEN), tal%log_w(LOG_LEN))
     tal%buf = 0.0_dp
     tal%n_log = 0
     tal%anomalies = 0_i8
@@ -431,7 +439,7 @@ contains
   end subroutine score_flux
 
   !> The same crossing in the flux map of column icol; `slot` = lay%map_slot(k) > 0 (levels
-  !> with maps only).
+  !> with maps only). Large maps are scored through the log (see tally_t).
   pure subroutine score_flux_map(lay, tal, slot, up, order, icol, w)
     type(tally_layout_t), intent(in) :: lay
     type(tally_t), intent(inout) :: tal
@@ -447,7 +455,11 @@ contains
       i = lay%i_map_dif
     end if
     i = i + (slot - 1)*lay%ncol + icol
-    tal%buf(i) = tal%buf(i) + w
+    if (lay%log_maps) then
+      call log_score(tal, i, w)
+    else
+      tal%buf(i) = tal%buf(i) + w
+    end if
   end subroutine score_flux_map
 
   !> Weight `a` absorbed in layer k (1..nz).

@@ -11,7 +11,7 @@ module test_math_tally_suite
                         score_layer_abs, score_voxel_abs, score_surface_abs, score_roulette, &
                         score_lost, score_source, score_net_layer, score_net_surface, &
                         score_net_voxel, score_radiance, score_radiance_map, score_camera, &
-                        tally_flush, score_voxel_collision
+                        tally_flush, tally_free, score_voxel_collision
   implicit none
   private
   public :: collect_math_tally
@@ -228,6 +228,51 @@ contains
     call tally_flush(tal)
     call check(error, all(tal%buf(lay%i_vox + 1:lay%i_vox + ncol*n3) == direct(1:ncol*n3)), &
                'a second flush changed the sums')
+    if (allocated(error)) return
+    call test_map_log()
+  contains
+    !> Flux maps of 2**17 entries and more go through the same log, mixed with the voxel
+    !> collisions: the same sums to the last bit as scores added at once.
+    subroutine test_map_log()
+      integer, parameter :: nc = 65536
+      real(dp), allocatable :: want(:)
+      integer :: slot, i0
+      logical :: up
+      call layout_init(lay, 3, nc - 1, 1, [0, 3], .false.)
+      call check(error, .not. lay%log_maps, '2 x 65535 map entries must not use the log')
+      if (allocated(error)) return
+      call layout_init(lay, 3, nc, 8, [0, 3], .true.)
+      call check(error, lay%log_maps .and. lay%log_voxel, &
+                 '2 x 65536 map entries and 8 x 65536 voxels must use the log')
+      if (allocated(error)) return
+      call tally_free(tal)
+      call tally_reset(tal, lay)
+      allocate (want(lay%n))
+      want = 0.0_dp
+      do j = 1, n
+        v = 1.0_dp/real(j, dp) + merge(1.0e8_dp, 0.0_dp, mod(j, 89) == 0)
+        slot = 1 + mod(j, 2)
+        icol = 1 + mod(37*j, 64)
+        up = mod(j, 3) == 0
+        call score_flux_map(lay, tal, slot, up, mod(j, 2), icol, v)
+        if (up) then
+          i0 = lay%i_map_up
+        else if (mod(j, 2) == 0) then
+          i0 = lay%i_map_dir
+        else
+          i0 = lay%i_map_dif
+        end if
+        want(i0 + (slot - 1)*nc + icol) = want(i0 + (slot - 1)*nc + icol) + v
+        if (mod(j, 5) == 0) then
+          kr = 1 + mod(j, 8)
+          call score_voxel_collision(lay, tal, kr, icol, 0.5_dp*v)
+          want(lay%i_vox + (kr - 1)*nc + icol) = want(lay%i_vox + (kr - 1)*nc + icol) + 0.5_dp*v
+        end if
+      end do
+      call tally_flush(tal)
+      call check(error, all(tal%buf == want), &
+                 'map and voxel sums after the log differ from the sums added at once')
+    end subroutine test_map_log
   end subroutine test_score_log
   !> n-point Gauss-Legendre on [0, 1] integrates x^k exactly for k <= 2n - 1 (to 1/(k + 1)),
   !> and underestimates x^(2n) by the remainder term (positive for a positive 2n-th derivative).

@@ -431,16 +431,16 @@ contains
     logical :: inside
     np = merge(2, 1, c%points)
     nr = size(table%r_eff_um)
+    ! the values of a voxel without water everywhere first (most voxels of a cloud field), then
+    ! the voxels with water one by one
+    ext = 0.0_wp
+    ssa = table%ssa(1)
+    iph = offset + 1
+    wph = 0.0_wp
     do iy = 1, c%ny
       do ix = 1, c%nx
+        if (amount(ix, iy, k + ip - 1) <= 0.0_vp) cycle
         a = amount(ix, iy, k + ip - 1)/np
-        if (a <= 0.0_wp) then
-          ext(ix, iy) = 0.0_wp
-          ssa(ix, iy) = table%ssa(1)
-          iph(ix, iy) = offset + 1
-          wph(ix, iy) = 0.0_wp
-          cycle
-        end if
         r = reff(ix, iy, k + ip - 1)
         if (r < table%r_eff_um(1) .or. r > table%r_eff_um(nr)) then
           n_out = n_out + 1

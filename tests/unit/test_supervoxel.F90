@@ -317,14 +317,23 @@ contains
   !> layer whose background loses its scattering.
   subroutine test_swap_background(error)
     type(error_t), allocatable, intent(out) :: error
-    integer, parameter :: NX = 7, NY = 5, NF = 3, NC3 = 2, NZ = 5
+    call swap_background_case(error, 2)
+    if (allocated(error)) return
+    ! one component: the swap forms the majorants from the layers (supervoxel_majorants_layered)
+    call swap_background_case(error, 1)
+  end subroutine test_swap_background
+
+  subroutine swap_background_case(error, nc3)
+    type(error_t), allocatable, intent(out) :: error
+    integer, intent(in) :: nc3
+    integer, parameter :: NX = 7, NY = 5, NF = 3, NZ = 5
     type(atmosphere_t) :: swapped, built
     type(atmosphere_options_t) :: opts
     type(supervoxel_grid_t) :: layout
     type(phase_t), allocatable :: ph(:)
-    real(wp) :: cext(NX, NY, NF, NC3), cssa(NX, NY, NF, NC3), wph(NX, NY, NF, NC3)
+    real(wp) :: cext(NX, NY, NF, nc3), cssa(NX, NY, NF, nc3), wph(NX, NY, NF, nc3)
     real(wp) :: ext_a(NZ, 2), ext_b(NZ, 2), ssa1(NZ, 2), z(0:NZ)
-    integer :: iph(NX, NY, NF, NC3), iph1(NZ, 2), i, j, k, c
+    integer :: iph(NX, NY, NF, nc3), iph1(NZ, 2), i, j, k, c
     logical :: done
     z = [(200.0_wp*k, k=0, NZ)]
     ssa1(:, 1) = 1.0_wp     ! molecules
@@ -336,7 +345,7 @@ contains
     ext_b(:, 1) = 0.3_wp*ext_a(:, 1)
     ext_b(3, 1) = 0.0_wp    ! no molecular scattering in one layer of the region
     ext_b(:, 2) = [2.0e-3_wp, 9.0e-4_wp, 0.0_wp, 4.0e-4_wp, 1.0e-7_wp]
-    do c = 1, NC3
+    do c = 1, nc3
       do k = 1, NF
         do j = 1, NY
           do i = 1, NX
@@ -348,8 +357,10 @@ contains
         end do
       end do
     end do
-    cext(2, 3, 2, 1) = 0.0_wp   ! only the second component
-    cext(2, 3, 2, 2) = 3.0e-3_wp
+    if (nc3 > 1) then
+      cext(2, 3, 2, 1) = 0.0_wp   ! only the second component
+      cext(2, 3, 2, 2) = 3.0e-3_wp
+    end if
     cext(4, 1, 1, :) = 0.0_wp   ! no extinction, albedo still 0.5: no component
     cssa(4, 1, 1, :) = 0.5_wp
     call check(error, count(all(cext == 0.0_wp, dim=4)) > NX*NY, 'the field has clear voxels')
@@ -393,9 +404,9 @@ contains
       type(supervoxel_grid_t), intent(in), optional :: sv_layout
       ph = [(new_phase_isotropic(), i=1, 4)]
       call atmosphere_begin(atm, z, 700.0_wp, 500.0_wp, ext1, ssa1, iph1, ph, opts, error, &
-                            k3_lo=2, nx=NX, ny=NY, n3f=NF, nc3=NC3, blend=.true.)
+                            k3_lo=2, nx=NX, ny=NY, n3f=NF, nc3=nc3, blend=.true.)
       if (allocated(error)) return
-      do c = 1, NC3
+      do c = 1, nc3
         do k = 1, NF
           if (c == 1) then
             call atmosphere_put_layer(atm, c, k, cext(:, :, k, c), cssa(:, :, k, c), &
@@ -408,20 +419,29 @@ contains
       end do
       call end_build(atm, opts, error, sv_layout)
     end subroutine build
-  end subroutine test_swap_background
+  end subroutine swap_background_case
   !> A switch to another band (voxel components with other values, other clear voxels, other
   !> phase indices and blends) gives the atmosphere a new build of that band gives, to the last
   !> bit, and leaves it to a new build whenever that would store the voxels otherwise or fail.
   subroutine test_swap_band(error)
     type(error_t), allocatable, intent(out) :: error
-    integer, parameter :: NX = 6, NY = 5, NF = 3, NC3 = 2, NZ = 5, NP = 7
+    call swap_band_case(error, 2)
+    if (allocated(error)) return
+    ! one component: the band's largest component extinctions per block are found anew
+    call swap_band_case(error, 1)
+  end subroutine test_swap_band
+
+  subroutine swap_band_case(error, nc3)
+    type(error_t), allocatable, intent(out) :: error
+    integer, intent(in) :: nc3
+    integer, parameter :: NX = 6, NY = 5, NF = 3, NZ = 5, NP = 7
     type(atmosphere_t) :: swapped, built
     type(atmosphere_options_t) :: opts
     type(supervoxel_grid_t) :: layout
     type(phase_t), allocatable :: ph(:)
-    real(wp), dimension(NX, NY, NF, NC3) :: cext_a, cssa_a, cext_b, cssa_b
-    real(vp), dimension(NX, NY, NF, NC3) :: wph_a, wph_b, wph_x
-    integer, dimension(NX, NY, NF, NC3) :: iph_a, iph_b, iph_x
+    real(wp), dimension(NX, NY, NF, nc3) :: cext_a, cssa_a, cext_b, cssa_b
+    real(vp), dimension(NX, NY, NF, nc3) :: wph_a, wph_b, wph_x
+    integer, dimension(NX, NY, NF, nc3) :: iph_a, iph_b, iph_x
     real(wp) :: ext1(NZ, 2), ssa1(NZ, 2), z(0:NZ)
     integer :: iph1(NZ, 2), i, j, k, c
     logical :: done
@@ -432,7 +452,7 @@ contains
     iph1 = 1
     ext1(:, 1) = [4.0e-6_wp, 3.0e-6_wp, 2.0e-6_wp, 1.5e-6_wp, 1.0e-6_wp]
     ext1(:, 2) = [1.0e-4_wp, 7.0e-5_wp, 3.0e-5_wp, 1.0e-5_wp, 2.0e-6_wp]
-    do c = 1, NC3
+    do c = 1, nc3
       do k = 1, NF
         do j = 1, NY
           do i = 1, NX
@@ -498,14 +518,14 @@ contains
     if (allocated(error)) return
     iph_x = iph_b
     wph_x = wph_b
-    iph_x(3, 1, 1, 2) = NP
-    wph_x(3, 1, 1, 2) = 0.5_vp
+    iph_x(3, 1, 1, nc3) = NP
+    wph_x(3, 1, 1, nc3) = 0.5_vp
     call atmosphere_swap_background(swapped, ext1, ssa1, cext_b, cssa_b, opts, layout, done, &
                                     new_band=.true., ciph=iph_x, cwph=wph_x)
     call check(error, .not. done, 'a blend with a table beyond the last is left to a new build')
     if (allocated(error)) return
-    wph_x(3, 1, 1, 2) = 1.5_vp
-    iph_x(3, 1, 1, 2) = 2
+    wph_x(3, 1, 1, nc3) = 1.5_vp
+    iph_x(3, 1, 1, nc3) = 2
     call atmosphere_swap_background(swapped, ext1, ssa1, cext_b, cssa_b, opts, layout, done, &
                                     new_band=.true., ciph=iph_x, cwph=wph_x)
     call check(error, .not. done, 'a weight above 1 is left to a new build')
@@ -570,9 +590,9 @@ contains
       type(supervoxel_grid_t), intent(in), optional :: sv_layout
       ph = [(new_phase_isotropic(), i=1, NP)]
       call atmosphere_begin(atm, z, 600.0_wp, 500.0_wp, ext1, ssa1, iph1, ph, opts, error, &
-                            k3_lo=2, nx=NX, ny=NY, n3f=NF, nc3=NC3, blend=.true.)
+                            k3_lo=2, nx=NX, ny=NY, n3f=NF, nc3=nc3, blend=.true.)
       if (allocated(error)) return
-      do c = 1, NC3
+      do c = 1, nc3
         do k = 1, NF
           call atmosphere_put_layer(atm, c, k, cext(:, :, k, c), cssa(:, :, k, c), &
                                     iph(:, :, k, c), real(wph(:, :, k, c), wp))
@@ -580,7 +600,7 @@ contains
       end do
       call end_build(atm, opts, error, sv_layout)
     end subroutine build
-  end subroutine test_swap_band
+  end subroutine swap_band_case
   !> atmosphere_end, keeping the blocks of `sv_layout` when it is given (the swap tests)
   subroutine end_build(atm, opts, error, sv_layout)
     type(atmosphere_t), intent(inout) :: atm

@@ -252,7 +252,8 @@ contains
     type(tally_t), intent(inout) :: tal
     type(tally_layout_t), intent(in) :: lay
     if (.not. allocated(tal%buf)) allocate (tal%buf(lay%n))
-    if ((lay%log_voxel .or. lay%log_maps) .and. .not. allocated(tal%log_at)) allocate (tal%log_at(LOG_LEN), tal%log_w(LOG_LEN))
+    if ((lay%log_voxel .or. lay%log_maps) .and. .not. allocated(tal%log_at)) &
+      allocate (tal%log_at(LOG_LEN), tal%log_w(LOG_LEN))
     tal%buf = 0.0_dp
     tal%n_log = 0
     tal%anomalies = 0_i8

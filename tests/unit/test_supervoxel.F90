@@ -505,30 +505,22 @@ contains
     if (allocated(error)) return
     ! a band without any blend: a build drops the weights, so the swap declines
     wph_x = 0.0_vp
-    call atmosphere_swap_background(swapped, ext1, ssa1, cext_b, cssa_b, opts, layout, done, &
-                                    new_band=.true., ciph=iph_b, cwph=wph_x)
-    call check(error, .not. done, 'a band without blends is left to a new build')
+    call declines(iph_b, wph_x, 'a band without blends')
     if (allocated(error)) return
     ! indices a build refuses: beyond the tables, or a blend with a table beyond them
     iph_x = iph_b
     iph_x(2, 2, 1, 1) = NP + 1
-    call atmosphere_swap_background(swapped, ext1, ssa1, cext_b, cssa_b, opts, layout, done, &
-                                    new_band=.true., ciph=iph_x, cwph=wph_b)
-    call check(error, .not. done, 'an index beyond the tables is left to a new build')
+    call declines(iph_x, wph_b, 'an index beyond the tables')
     if (allocated(error)) return
     iph_x = iph_b
     wph_x = wph_b
     iph_x(3, 1, 1, nc3) = NP
     wph_x(3, 1, 1, nc3) = 0.5_vp
-    call atmosphere_swap_background(swapped, ext1, ssa1, cext_b, cssa_b, opts, layout, done, &
-                                    new_band=.true., ciph=iph_x, cwph=wph_x)
-    call check(error, .not. done, 'a blend with a table beyond the last is left to a new build')
+    call declines(iph_x, wph_x, 'a blend with a table beyond the last')
     if (allocated(error)) return
     wph_x(3, 1, 1, nc3) = 1.5_vp
     iph_x(3, 1, 1, nc3) = 2
-    call atmosphere_swap_background(swapped, ext1, ssa1, cext_b, cssa_b, opts, layout, done, &
-                                    new_band=.true., ciph=iph_x, cwph=wph_x)
-    call check(error, .not. done, 'a weight above 1 is left to a new build')
+    call declines(iph_x, wph_x, 'a weight above 1')
     if (allocated(error)) return
     ! and back to band a, after the declined swaps
     call atmosphere_swap_background(swapped, ext1, ssa1, cext_a, cssa_a, opts, layout, done, &
@@ -560,6 +552,16 @@ contains
                                     new_band=.true., ciph=iph_b, cwph=wph_b)
     call check(error, .not. done, 'without stored weights a band switch is left to a new build')
   contains
+    !> A switch to band b with these indices and weights is left to a new build.
+    subroutine declines(ciph, cwph, what)
+      integer, intent(in) :: ciph(:, :, :, :)
+      real(vp), intent(in) :: cwph(:, :, :, :)
+      character(len=*), intent(in) :: what
+      call atmosphere_swap_background(swapped, ext1, ssa1, cext_b, cssa_b, opts, layout, done, &
+                                      new_band=.true., ciph=ciph, cwph=cwph)
+      call check(error, .not. done, what//' is left to a new build')
+    end subroutine declines
+
     subroutine compare(when)
       character(len=*), intent(in) :: when
       call check(error, all(swapped%ext1 == built%ext1) .and. all(swapped%omg1 == built%omg1) &

@@ -21,18 +21,22 @@ module kumo_atmosphere
   use kumo_phase, only: phase_t
   use kumo_truncation, only: truncation_t
   use kumo_supervoxel, only: supervoxel_grid_t, supervoxel_options_t, build_supervoxels, &
-                             supervoxel_majorants
+                             supervoxel_majorants, supervoxel_copy_layout
   implicit none
   private
   public :: atmosphere_t, atmosphere_options_t, atmosphere_init, atmosphere_set_truncation
   public :: atmosphere_begin, atmosphere_put_layer, atmosphere_end, atmosphere_swap_background
-  public :: column_of, column_xy, sigma_trunc_3d
+  public :: column_of, column_xy, sigma_trunc_3d, voxel_ext, voxel_omg, voxel_layer, VOXEL_CLEAR
   public :: atmosphere_release, voxel_storage_i, voxel_sync_i
   public :: LAYER_CLEAR, LAYER_ABSORBING, LAYER_SCATTERING, LAYER_3D, LAYER_CLASS_NAMES
 
   integer, parameter :: LAYER_CLEAR = 0, LAYER_ABSORBING = 1, LAYER_SCATTERING = 2, LAYER_3D = 3
   character(len=10), parameter :: LAYER_CLASS_NAMES(0:3) = &
                                   ['clear     ', 'absorbing ', 'scattering', '3-D       ']
+  !> What ext3 and omg3 hold in a voxel without voxel components after a background swap: the
+  !> voxel's extinction and albedo are then its layer's (clear3), which voxel_ext and voxel_omg
+  !> return; every reader of the two arrays goes through them.
+  real(vp), parameter :: VOXEL_CLEAR = -1.0_vp
 
   abstract interface
     !> Storage for the voxel arrays of an atmosphere, handed in by the caller (atmosphere_begin's
@@ -102,14 +106,25 @@ module kumo_atmosphere
     type(phase_t), allocatable :: phases(:)  !! phase functions referenced by index
     type(supervoxel_grid_t) :: sv            !! majorant grid of the 3-D region
     logical, allocatable :: uniform3(:)      !! (n3) every voxel of the 3-D layer is the same
-    !> (2, ny, n3) first and last column of each row with voxel components (none: first > last),
-    !> found by the first atmosphere_swap_background after a build for the layers it forms
-    !> (span_known), so that later swaps visit only those columns
-    integer, allocatable :: cloud_span(:, :, :)
-    logical, allocatable :: span_known(:)
-    !> (ncomp + 1, n3) the values of the voxels without components of each layer as this
-    !> process's last swap wrote them (extinction, albedo, scattering fractions), where
-    !> clear_known: a swap writes only those that changed
+    !> The voxels with voxel components of each layer kr, as runs of consecutive columns
+    !> (ix_first, ix_last, iy) in cloud_run(:, cloud_ptr(kr) + 1 : cloud_ptr(kr + 1)), found by
+    !> the first
+    !> atmosphere_swap_background after a build or at a new band (list_known), for every layer
+    !> by every process: later swaps form only these, and the majorants take the others as one
+    !> value per layer (clear3). clear_all (per block of the majorant grid): every layer of the
+    !> block has a voxel without components; clear_part (2, n): (block, layer) where a block
+    !> that is not clear_all has some. Both are found with the list.
+    integer, allocatable :: cloud_ptr(:), cloud_run(:, :)
+    logical :: list_known = .false.
+    logical, allocatable :: clear_all(:)
+    integer, allocatable :: clear_part(:, :)
+    !> (2, n3) extinction and albedo of the voxels without components of each layer, where
+    !> ext3 and omg3 hold VOXEL_CLEAR (allocated with the voxel arrays, 0 before a swap)
+    real(vp), allocatable :: clear3(:, :)
+    !> (ncomp + 1, n3) the scattering fractions of the voxels without components of each layer
+    !> (rows 3 ..) as this process's last swap wrote them, where clear_known (rows 1 and 2 are
+    !> not used): a swap writes only those that changed; where clear_known the voxels without
+    !> components hold VOXEL_CLEAR
     real(vp), allocatable :: clear_last(:, :)
     logical, allocatable :: clear_known(:)
     ! Truncation of forward peaks (set by atmosphere_set_truncation; off by default)
@@ -531,7 +546,7 @@ contains
     if (atm%n3 == 0) return
     if (band) then
       ! another band: other voxels may hold components
-      if (allocated(atm%span_known)) atm%span_known = .false.
+      atm%list_known = .false.
       if (allocated(atm%clear_known)) atm%clear_known = .false.
     end if
     if (band .and. atm%voxels_borrowed) then
@@ -563,7 +578,7 @@ contains
         call set_uniform3(atm)
       end if
     end if
-    call supervoxel_majorants(atm%ext3, sv_layout, atm%sv)
+    call swap_majorants()
 
   contains
 
@@ -581,22 +596,20 @@ contains
       call index_checks(ip, wv, size(atm%phases), bad_index, bad_weight, bad_blend, blended)
     end subroutine band_checks
 
-    !> The voxels of layers kr = p + 1, p + 1 + np, ... of the region.
+    !> The voxels of layers kr = p + 1, p + 1 + np, ... of the region; the clear values
+    !> (clear3) and, once per band, the list of voxels with components, of every layer.
     subroutine form_voxels(p, np)
       integer, intent(in) :: p, np
-      if (.not. allocated(atm%span_known)) then
-        allocate (atm%cloud_span(2, atm%ny, atm%n3), atm%span_known(atm%n3))
-        atm%span_known = .false.
-      end if
       if (.not. allocated(atm%clear_known)) then
         allocate (atm%clear_last(atm%ncomp + 1, atm%n3), atm%clear_known(atm%n3))
         atm%clear_known = .false.
       end if
       na1 = size(atm%act1)
       nc = atm%ncomp
-      allocate (bg_sca(max(nc - 1, 1)), acc_bg(0:na1), clr_c(max(nc - 1, 1)))
       nf = atm%kf_hi - atm%kf_lo + 1
-      do kr = p + 1, atm%n3, np
+      if (.not. atm%list_known) call list_cloudy()
+      allocate (bg_sca(max(nc - 1, 1)), acc_bg(0:na1), clr_c(max(nc - 1, 1)))
+      do kr = 1, atm%n3
         k = atm%k3_lo + kr - 1
         kf = k - atm%kf_lo + 1          ! the layer of the voxel components, if any
         e = 0.0_wp
@@ -614,11 +627,14 @@ contains
           if (ic < nc) acc_bg(ic) = acc_bg(ic) + bg_sca(ic)
         end do
         ! A voxel without voxel components takes the layer's own values (as formed below with no
-        ! components, identical to the last bit), which most voxels of a cloud field do: they are
-        ! formed once per layer and stored, and only the voxels with components are formed one by
-        ! one. A component counts as absent when its extinction is 0 and its albedo finite (then
-        ! it adds exactly nothing).
+        ! components, identical to the last bit), which most voxels of a cloud field do: they
+        ! are formed once per layer and kept in clear3, the voxels hold VOXEL_CLEAR, and only the
+        ! voxels with components are formed one by one. A component counts as absent when its
+        ! extinction is 0 and its albedo finite (then it adds exactly nothing).
         call form_voxel(1, 1, .false., clr_e, clr_w, clr_c)
+        atm%clear3(1, kr) = clr_e
+        atm%clear3(2, kr) = clr_w
+        if (mod(kr - 1, np) /= p) cycle
         if (nc > 1) then
           call form_layer(atm%ext3(:, :, kr), atm%omg3(:, :, kr), atm%csca3(:, :, :, kr))
         else
@@ -627,33 +643,83 @@ contains
       end do
     end subroutine form_voxels
 
-    !> The voxels of layer kr (its arrays, and the voxel components' layer, as dummies, so that
-    !> the compiler keeps their addresses in registers instead of reloading them after every
-    !> store): the layer's own values everywhere, then the voxels with components formed anew.
-    !> Within a band the voxels with components stay the same ones (span_known), so the others
-    !> still hold what the last swap wrote them: a value that has not changed is not written
-    !> again (in the longwave the albedo and fractions of a clear voxel never change, in the
-    !> shortwave its fractions).
+    !> The voxels with voxel components of every layer (cloud_ptr, cloud_run): those where the
+    !> sum of |extinction| + 0 x albedo over the components is not 0 (0 exactly when every
+    !> extinction is 0 and every albedo finite; 0 times an infinite or NaN albedo is NaN).
+    subroutine list_cloudy()
+      integer :: kr, kf, ix, iy, j, n, lo
+      integer, allocatable :: grown(:, :)
+      real(wp) :: t(atm%nx + 1)
+      if (allocated(atm%clear_all)) deallocate (atm%clear_all, atm%clear_part)
+      if (allocated(atm%cloud_ptr)) deallocate (atm%cloud_ptr)
+      if (.not. allocated(atm%cloud_run)) allocate (atm%cloud_run(3, max(256, atm%ny)))
+      allocate (atm%cloud_ptr(atm%n3 + 1))
+      n = 0
+      atm%cloud_ptr(1) = 0
+      t(atm%nx + 1) = 0.0_wp            ! ends the last run of a row
+      do kr = 1, atm%n3
+        kf = atm%k3_lo + kr - 1 - atm%kf_lo + 1
+        if (kf >= 1 .and. kf <= nf) then
+          do iy = 1, atm%ny
+            ! a sum, so that the compiler vectorises it
+            t(1:atm%nx) = 0.0_wp
+            do j = 1, size(cext, 4)
+              do ix = 1, atm%nx
+                t(ix) = t(ix) + (abs(cext(ix, iy, kf, j)) + 0.0_wp*cssa(ix, iy, kf, j))
+              end do
+            end do
+            lo = 0
+            do ix = 1, atm%nx + 1
+              if (t(ix) /= 0.0_wp) then
+                if (lo == 0) lo = ix
+              else if (lo > 0) then
+                if (n == size(atm%cloud_run, 2)) then
+                  allocate (grown(3, 2*n))
+                  grown(:, 1:n) = atm%cloud_run(:, 1:n)
+                  call move_alloc(grown, atm%cloud_run)
+                end if
+                n = n + 1
+                atm%cloud_run(:, n) = [lo, ix - 1, iy]
+                lo = 0
+              end if
+            end do
+          end do
+        end if
+        atm%cloud_ptr(kr + 1) = n
+      end do
+      atm%list_known = .true.
+    end subroutine list_cloudy
+
+    !> The voxels of layer kr (its arrays as dummies, so that the compiler keeps their
+    !> addresses in registers instead of reloading them after every store): VOXEL_CLEAR and the
+    !> layer's scattering fractions everywhere, then the voxels with components formed anew.
+    !> Within a band the voxels with components stay the same ones, so the others still hold
+    !> what the last swap wrote them (clear_known): a value that has not changed is not
+    !> written again.
     subroutine form_layer(ext_l, omg_l, csca_l)
       real(vp), intent(inout) :: ext_l(:, :), omg_l(:, :)
       real(vp), intent(inout) :: csca_l(:, :, :)   !! (nc - 1, nx, ny); not touched if nc = 1
-      integer :: ic
+      integer :: ic, j, ix, iy
       logical :: known
-      ! (a layer outside the voxel components' holds no components at all)
-      known = atm%clear_known(kr) .and. (atm%span_known(kr) .or. kf < 1 .or. kf > nf)
-      if (.not. (known .and. same_bits(clr_e, atm%clear_last(1, kr)))) ext_l = clr_e
-      if (.not. (known .and. same_bits(clr_w, atm%clear_last(2, kr)))) omg_l = clr_w
+      known = atm%clear_known(kr)
+      if (.not. known) then
+        ext_l = VOXEL_CLEAR
+        omg_l = VOXEL_CLEAR
+      end if
       ! by component (a loop over the few components inside would become a call of memcpy)
       do ic = 1, nc - 1
         if (.not. (known .and. same_bits(clr_c(ic), atm%clear_last(2 + ic, kr)))) &
           csca_l(ic, :, :) = clr_c(ic)
       end do
-      atm%clear_last(1, kr) = clr_e
-      atm%clear_last(2, kr) = clr_w
       atm%clear_last(3:nc + 1, kr) = clr_c(1:nc - 1)
       atm%clear_known(kr) = .true.
       if (kf < 1 .or. kf > nf) return
-      call form_components(ext_l, omg_l, csca_l, cext(:, :, kf, :), cssa(:, :, kf, :))
+      do j = atm%cloud_ptr(kr) + 1, atm%cloud_ptr(kr + 1)
+        iy = atm%cloud_run(3, j)
+        do ix = atm%cloud_run(1, j), atm%cloud_run(2, j)
+          call form_cloudy(ix, iy, ext_l, omg_l, csca_l)
+        end do
+      end do
       if (.not. band) return
       ! the band's phase indices and blends of the voxel components, as put_layer puts them
       do ic = 1, atm%nc3
@@ -662,47 +728,149 @@ contains
       end do
     end subroutine form_layer
 
-    subroutine form_components(ext_l, omg_l, csca_l, cx, cs)
-      real(vp), intent(inout) :: ext_l(:, :), omg_l(:, :)
-      real(vp), intent(inout) :: csca_l(:, :, :)
-      real(wp), intent(in) :: cx(:, :, :), cs(:, :, :)   !! (nx, ny, nc3)
-      integer :: ix, iy, j, lo, hi
-      real(wp) :: t(size(ext_l, 1)), tv
-      if (atm%span_known(kr)) then
-        ! the columns of each row that have components, as the first swap found them
-        do iy = 1, size(ext_l, 2)
-          do ix = atm%cloud_span(1, iy, kr), atm%cloud_span(2, iy, kr)
-            tv = 0.0_wp
-            do j = 1, size(cx, 3)
-              tv = tv + (abs(cx(ix, iy, j)) + 0.0_wp*cs(ix, iy, j))
-            end do
-            if (tv /= 0.0_wp) call form_cloudy(ix, iy, ext_l, omg_l, csca_l)
-          end do
+    !> The majorant of each block of sv_layout: the largest extinction of its voxels with
+    !> components (the list) and of its layers' voxels without (clear3, in every layer of its
+    !> super-layer where clear_all says so, else in the layers clear_part lists). These are the
+    !> values a sweep over every voxel takes the maximum of, so the majorants are the same to
+    !> the last bit, without reading every voxel.
+    subroutine swap_majorants()
+      integer :: sl, kl, b, nb, j, ix, ie, o
+      real(vp), allocatable :: m(:)
+      real(vp) :: c
+      call supervoxel_copy_layout(sv_layout, atm%sv)
+      if (.not. allocated(atm%clear_all)) call find_clear_blocks()
+      allocate (m(size(atm%sv%maj)))
+      do sl = 1, atm%sv%ns
+        nb = atm%sv%nbx(sl)*atm%sv%nby(sl)
+        o = atm%sv%off(sl)
+        c = maxval(atm%clear3(1, atm%sv%kb(sl):atm%sv%kt(sl)))
+        do b = o + 1, o + nb
+          m(b) = merge(c, -huge(1.0_vp), atm%clear_all(b))
         end do
-        return
-      end if
-      do iy = 1, size(ext_l, 2)
-        ! which voxels of the row have a component: t is 0 exactly when every extinction is 0
-        ! and every albedo finite (0 times an infinite or NaN albedo is NaN); a sum, so that the
-        ! compiler vectorises it
-        t = 0.0_wp
-        do j = 1, size(cx, 3)
-          do ix = 1, size(ext_l, 1)
-            t(ix) = t(ix) + (abs(cx(ix, iy, j)) + 0.0_wp*cs(ix, iy, j))
-          end do
-        end do
-        lo = size(ext_l, 1) + 1
-        hi = 0
-        do ix = 1, size(ext_l, 1)
-          if (t(ix) == 0.0_wp) cycle
-          lo = min(lo, ix)
-          hi = ix
-          call form_cloudy(ix, iy, ext_l, omg_l, csca_l)
-        end do
-        atm%cloud_span(:, iy, kr) = [lo, hi]
       end do
-      atm%span_known(kr) = .true.
-    end subroutine form_components
+      do j = 1, size(atm%clear_part, 2)
+        b = atm%clear_part(1, j)
+        m(b) = max(m(b), atm%clear3(1, atm%clear_part(2, j)))
+      end do
+      do kl = 1, atm%n3
+        if (atm%cloud_ptr(kl + 1) - atm%cloud_ptr(kl) > atm%ny) then
+          ! many runs: a sweep over the layer (its clear voxels come in again, which does not
+          ! change a maximum)
+          call sweep_layer(kl, m)
+          cycle
+        end if
+        do j = atm%cloud_ptr(kl) + 1, atm%cloud_ptr(kl + 1)
+          ix = atm%cloud_run(1, j)
+          do while (ix <= atm%cloud_run(2, j))
+            call run_piece(kl, j, ix, ie, b)
+            m(b) = max(m(b), maxval(atm%ext3(ix:ie, atm%cloud_run(3, j), kl)))
+            ix = ie + 1
+          end do
+        end do
+      end do
+      atm%sv%maj = real(m, wp)
+    end subroutine swap_majorants
+
+    !> The largest extinction of each block in layer kl taken into m: for each row of blocks
+    !> the maximum over its rows column by column (a streaming, vectorisable sweep), then over
+    !> each block's columns.
+    subroutine sweep_layer(kl, m)
+      integer, intent(in) :: kl
+      real(vp), intent(inout) :: m(:)
+      real(vp) :: col(atm%nx), c
+      integer :: sl, bx, by, jx, jy, ix, iy, b
+      sl = atm%sv%sl_of_layer(kl)
+      bx = atm%sv%bx(sl)
+      by = atm%sv%by(sl)
+      c = atm%clear3(1, kl)
+      do jy = 1, atm%sv%nby(sl)
+        col = -huge(1.0_vp)
+        do iy = (jy - 1)*by + 1, min(atm%ny, jy*by)
+          do ix = 1, atm%nx
+            col(ix) = max(col(ix), merge(c, atm%ext3(ix, iy, kl), atm%ext3(ix, iy, kl) < 0.0_vp))
+          end do
+        end do
+        b = atm%sv%off(sl) + (jy - 1)*atm%sv%nbx(sl)
+        if (bx == 1) then
+          do ix = 1, atm%nx
+            m(b + ix) = max(m(b + ix), col(ix))
+          end do
+        else
+          do ix = 1, atm%nx
+            jx = (ix - 1)/bx + 1
+            m(b + jx) = max(m(b + jx), col(ix))
+          end do
+        end if
+      end do
+    end subroutine sweep_layer
+
+    !> The piece ix .. ie of run j of layer kl that lies in one block, b (global index).
+    subroutine run_piece(kl, j, ix, ie, b)
+      integer, intent(in) :: kl, j, ix
+      integer, intent(out) :: ie, b
+      integer :: sl, jx
+      sl = atm%sv%sl_of_layer(kl)
+      jx = (ix - 1)/atm%sv%bx(sl)
+      ie = min(atm%cloud_run(2, j), (jx + 1)*atm%sv%bx(sl))
+      b = atm%sv%off(sl) + ((atm%cloud_run(3, j) - 1)/atm%sv%by(sl))*atm%sv%nbx(sl) + jx + 1
+    end subroutine run_piece
+
+    !> clear_all and clear_part: which blocks have a voxel without components in which layer of
+    !> their super-layer (fewer voxels with components than the block holds).
+    subroutine find_clear_blocks()
+      integer :: sl, kl, b, nb, j, ix, ie, jx, jy, n, o, pass
+      integer, allocatable :: cnt(:), area(:)
+      allocate (atm%clear_all(size(atm%sv%maj)), area(size(atm%sv%maj)))
+      do sl = 1, atm%sv%ns
+        o = atm%sv%off(sl)
+        do jy = 1, atm%sv%nby(sl)
+          do jx = 1, atm%sv%nbx(sl)
+            area(o + (jy - 1)*atm%sv%nbx(sl) + jx) = &
+              (min(atm%nx, jx*atm%sv%bx(sl)) - (jx - 1)*atm%sv%bx(sl))* &
+              (min(atm%ny, jy*atm%sv%by(sl)) - (jy - 1)*atm%sv%by(sl))
+          end do
+        end do
+      end do
+      ! a block is not clear_all when one of its layers is full of voxels with components; the
+      ! layers where such a block has voxels without components go to clear_part
+      atm%clear_all = .true.
+      allocate (cnt(size(atm%sv%maj)), atm%clear_part(2, 0))
+      do pass = 1, 2
+        n = 0
+        do kl = 1, atm%n3
+          sl = atm%sv%sl_of_layer(kl)
+          o = atm%sv%off(sl)
+          nb = atm%sv%nbx(sl)*atm%sv%nby(sl)
+          cnt(o + 1:o + nb) = 0
+          do j = atm%cloud_ptr(kl) + 1, atm%cloud_ptr(kl + 1)
+            ix = atm%cloud_run(1, j)
+            do while (ix <= atm%cloud_run(2, j))
+              call run_piece(kl, j, ix, ie, b)
+              cnt(b) = cnt(b) + (ie - ix + 1)
+              ix = ie + 1
+            end do
+          end do
+          do b = o + 1, o + nb
+            if (pass == 1) then
+              if (cnt(b) == area(b)) atm%clear_all(b) = .false.
+            else if (.not. atm%clear_all(b) .and. cnt(b) < area(b)) then
+              n = n + 1
+              if (n > size(atm%clear_part, 2)) call grow_part()
+              atm%clear_part(:, n) = [b, kl]
+            end if
+          end do
+        end do
+        if (all(atm%clear_all)) exit
+      end do
+      atm%clear_part = atm%clear_part(:, 1:n)
+    end subroutine find_clear_blocks
+
+    subroutine grow_part()
+      integer, allocatable :: g(:, :)
+      allocate (g(2, max(64, 2*size(atm%clear_part, 2))))
+      g(:, 1:size(atm%clear_part, 2)) = atm%clear_part
+      call move_alloc(g, atm%clear_part)
+    end subroutine grow_part
 
     !> Voxel (ix, iy) of the layer's arrays, with its components.
     subroutine form_cloudy(ix, iy, ext_l, omg_l, csca_l)
@@ -784,6 +952,8 @@ contains
     nc = atm%ncomp
     nv = int(nx, i8)*ny*n3
     nw = nv*(2 + (nc - 1) + nc + merge(nc, 0, blend))
+    ! no voxel holds VOXEL_CLEAR before a swap
+    allocate (atm%clear3(2, n3), source=0.0_vp)
     if (.not. present(storage)) then
       allocate (atm%ext3(nx, ny, n3), atm%omg3(nx, ny, n3))
       if (nc > 1) allocate (atm%csca3(nc - 1, nx, ny, n3))
@@ -890,8 +1060,9 @@ contains
     allocate (atm%uniform3(atm%n3))
     ncol = atm%nx*atm%ny
     do kr = 1, atm%n3
-      atm%uniform3(kr) = same_real(1, ncol, atm%ext3(:, :, kr))
-      if (atm%uniform3(kr)) atm%uniform3(kr) = same_real(1, ncol, atm%omg3(:, :, kr))
+      atm%uniform3(kr) = same_voxel(ncol, atm%ext3(:, :, kr), atm%clear3(1, kr))
+      if (atm%uniform3(kr)) &
+        atm%uniform3(kr) = same_voxel(ncol, atm%omg3(:, :, kr), atm%clear3(2, kr))
       if (atm%uniform3(kr) .and. associated(atm%csca3)) &
         atm%uniform3(kr) = same_real(size(atm%csca3, 1), ncol, atm%csca3(:, :, :, kr))
       if (atm%uniform3(kr) .and. associated(atm%iph3)) &
@@ -913,6 +1084,23 @@ contains
       end do
       same = .true.
     end function same_real
+    !> The same for the voxel values of a layer's extinction or albedo, c where they hold
+    !> VOXEL_CLEAR
+    pure logical function same_voxel(n, a, c) result(same)
+      integer, intent(in) :: n
+      real(vp), intent(in) :: a(n), c
+      real(vp) :: a1, v
+      integer :: j
+      same = .false.
+      a1 = a(1)
+      if (a1 < 0.0_vp) a1 = c
+      do j = 1, n
+        v = a(j)
+        if (v < 0.0_vp) v = c
+        if (.not. (v == a1)) return
+      end do
+      same = .true.
+    end function same_voxel
     pure logical function same_int(m, n, a) result(same)
       integer, intent(in) :: m, n
       integer, intent(in) :: a(m, n)
@@ -953,6 +1141,35 @@ contains
     end do
   end subroutine atmosphere_set_truncation
 
+  !> Extinction of voxel (ix, iy) of 3-D layer kr [m-1]: its own, or its layer's where the voxel
+  !> holds VOXEL_CLEAR (a voxel without voxel components after a background swap).
+  pure real(vp) function voxel_ext(atm, ix, iy, kr) result(e)
+    type(atmosphere_t), intent(in) :: atm
+    integer, intent(in) :: ix, iy, kr
+    e = atm%ext3(ix, iy, kr)
+    e = merge(atm%clear3(1, kr), e, e < 0.0_vp)
+  end function voxel_ext
+
+  !> Extinction [m-1] and albedo of every voxel of 3-D layer kr, as voxel_ext and voxel_omg.
+  pure subroutine voxel_layer(atm, kr, e, w)
+    type(atmosphere_t), intent(in) :: atm
+    integer, intent(in) :: kr
+    real(vp), intent(out) :: e(:, :), w(:, :)   !! (nx, ny)
+    real(vp) :: ce, cw
+    ce = atm%clear3(1, kr)
+    cw = atm%clear3(2, kr)
+    e = merge(ce, atm%ext3(:, :, kr), atm%ext3(:, :, kr) < 0.0_vp)
+    w = merge(cw, atm%omg3(:, :, kr), atm%omg3(:, :, kr) < 0.0_vp)
+  end subroutine voxel_layer
+
+  !> Single-scattering albedo of voxel (ix, iy) of 3-D layer kr, as voxel_ext.
+  pure real(vp) function voxel_omg(atm, ix, iy, kr) result(w)
+    type(atmosphere_t), intent(in) :: atm
+    integer, intent(in) :: ix, iy, kr
+    w = atm%omg3(ix, iy, kr)
+    w = merge(atm%clear3(2, kr), w, w < 0.0_vp)
+  end function voxel_omg
+
   !> Truncated extinction of voxel (ix, iy, kr) at truncation level `lev` [m-1].
   pure function sigma_trunc_3d(atm, ix, iy, kr, lev) result(sig)
     type(atmosphere_t), intent(in) :: atm
@@ -960,7 +1177,7 @@ contains
     real(wp) :: sig
     real(wp) :: fbar, prev, c
     integer :: ic
-    sig = atm%ext3(ix, iy, kr)
+    sig = voxel_ext(atm, ix, iy, kr)
     if (lev <= 1 .or. sig <= 0.0_wp) return
     fbar = 0.0_wp
     prev = 0.0_wp
@@ -973,7 +1190,7 @@ contains
       fbar = fbar + (c - prev)*delta_fraction(atm, ic, ix, iy, kr, lev)
       prev = c
     end do
-    sig = sig*(1.0_wp - atm%omg3(ix, iy, kr)*fbar)
+    sig = sig*(1.0_wp - voxel_omg(atm, ix, iy, kr)*fbar)
   end function sigma_trunc_3d
 
   !> Truncated (delta) fraction of component ic of a voxel at level lev, blends included.

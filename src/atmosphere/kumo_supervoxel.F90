@@ -14,6 +14,7 @@ module kumo_supervoxel
   implicit none
   private
   public :: supervoxel_grid_t, supervoxel_options_t, build_supervoxels, supervoxel_majorants
+  public :: supervoxel_copy_layout
 
   !> Options of the super-voxel builder.
   type :: supervoxel_options_t
@@ -102,6 +103,17 @@ contains
     type(supervoxel_grid_t), intent(in) :: layout
     type(supervoxel_grid_t), intent(out) :: sv
     integer :: k
+    call supervoxel_copy_layout(layout, sv)
+    do k = 1, sv%ns
+      call block_majorants(ext(:, :, sv%kb(k):sv%kt(k)), sv%bx(k), sv%by(k), &
+                           sv%maj(sv%off(k) + 1:sv%off(k) + sv%nbx(k)*sv%nby(k)))
+    end do
+  end subroutine supervoxel_majorants
+
+  !> The blocks of `layout` in `sv`, with room for their majorants (not set).
+  subroutine supervoxel_copy_layout(layout, sv)
+    type(supervoxel_grid_t), intent(in) :: layout
+    type(supervoxel_grid_t), intent(inout) :: sv
     sv%ns = layout%ns
     sv%kb = layout%kb
     sv%kt = layout%kt
@@ -111,12 +123,11 @@ contains
     sv%nby = layout%nby
     sv%off = layout%off
     sv%sl_of_layer = layout%sl_of_layer
-    allocate (sv%maj(size(layout%maj)))
-    do k = 1, sv%ns
-      call block_majorants(ext(:, :, sv%kb(k):sv%kt(k)), sv%bx(k), sv%by(k), &
-                           sv%maj(sv%off(k) + 1:sv%off(k) + sv%nbx(k)*sv%nby(k)))
-    end do
-  end subroutine supervoxel_majorants
+    if (allocated(sv%maj)) then
+      if (size(sv%maj) /= size(layout%maj)) deallocate (sv%maj)
+    end if
+    if (.not. allocated(sv%maj)) allocate (sv%maj(size(layout%maj)))
+  end subroutine supervoxel_copy_layout
 
   !> Double the block size along x or y while the merge rule allows it (smaller extent first).
   subroutine merge_horizontally(ext, dz, dx, dy, opts, bx, by)

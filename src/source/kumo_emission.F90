@@ -53,12 +53,13 @@
 !> sampling every emitting cell uses net exchange, as above.
 module kumo_emission
   use, intrinsic :: iso_c_binding, only: c_ptr, c_f_pointer
-  use kumo_kinds, only: wp, i8
+  use kumo_kinds, only: wp, vp, i8
   use kumo_constants, only: PI, FOUR_PI
   use kumo_error, only: error_t, set_error, str
   use kumo_rng, only: rng_t, rng_uniform, sample_azimuth
   use kumo_math, only: UZ_MIN, gauss_legendre01
-  use kumo_atmosphere, only: atmosphere_t, LAYER_3D, voxel_storage_i, voxel_sync_i
+  use kumo_atmosphere, only: atmosphere_t, LAYER_3D, voxel_storage_i, voxel_sync_i, voxel_ext, &
+                             voxel_omg, voxel_layer
   use kumo_surface, only: surface_t
   use kumo_brdf, only: brdf_albedo
   use kumo_photon, only: photon_t
@@ -461,7 +462,7 @@ contains
         do iy = 1, atm%ny
           do ix = 1, atm%nx
             v = ix + (iy - 1)*atm%nx + (kr - 1)*ncol
-            ka = real(atm%ext3(ix, iy, kr), wp)*(1.0_wp - real(atm%omg3(ix, iy, kr), wp))
+            ka = real(voxel_ext(atm, ix, iy, kr), wp)*(1.0_wp - real(voxel_omg(atm, ix, iy, kr), wp))
             if (em%has_b3) then
               bb = b3(ix, iy, kr)
             else
@@ -945,7 +946,7 @@ contains
         p%w_entry = 0.0_wp
         return
       end if
-      ka = real(atm%ext3(ix, iy, kr), wp)*(1.0_wp - real(atm%omg3(ix, iy, kr), wp))
+      ka = real(voxel_ext(atm, ix, iy, kr), wp)*(1.0_wp - real(voxel_omg(atm, ix, iy, kr), wp))
       ! the plain launch weight (P_L/P)/q_L of the layer, never the one that gives the layer
       ! exactly its power in every batch (emission_weight): the photons of a batch that land in
       ! a voxel are not independent of how many the layer gets, and that weight would favour
@@ -1013,25 +1014,30 @@ contains
     real(wp), allocatable :: p(:)
     integer :: kr, k, ix, iy, ncol
     real(wp) :: c
+    real(vp), allocatable :: e(:, :), w(:, :)
     if (em%layered) then
       if (.not. present(atm)) error stop 'emission_voxel_power: a layered table needs its atmosphere'
       ncol = atm%nx*atm%ny
-      allocate (p(int(ncol, i8)*atm%n3))
+      allocate (p(int(ncol, i8)*atm%n3), e(atm%nx, atm%ny), w(atm%nx, atm%ny))
       do kr = 1, atm%n3
         k = atm%k3_lo + kr - 1
         c = FOUR_PI*(atm%z(k) - atm%z(k - 1))*0.5_wp*(em%b_bot(k) + em%b_top_lay(k))
-        do iy = 1, atm%ny
-          do ix = 1, atm%nx
-            p(ix + (iy - 1)*atm%nx + (kr - 1)*ncol) = c*real(atm%ext3(ix, iy, kr), wp)* &
-              (1.0_wp - real(atm%omg3(ix, iy, kr), wp))
-          end do
-        end do
+        call voxel_layer(atm, kr, e, w)
+        call layer_power(p((kr - 1)*ncol + 1:kr*ncol), e, w, ncol)
       end do
     else if (em%on_node) then
       p = em%emit_vox_node
     else
       p = em%emit_vox
     end if
+  contains
+    !> 4 pi k_a dz B of the voxels of a layer (e, w and c as formed above)
+    pure subroutine layer_power(pl, el, wl, n)
+      integer, intent(in) :: n
+      real(wp), intent(out) :: pl(n)
+      real(vp), intent(in) :: el(n), wl(n)   !! the layer's e and w, column by column
+      pl = c*real(el, wp)*(1.0_wp - real(wl, wp))
+    end subroutine layer_power
   end function emission_voxel_power
 
   !> Mean Planck radiance of what is absorbed along a straight path through a homogeneous 1-D

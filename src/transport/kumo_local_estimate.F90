@@ -34,7 +34,8 @@ module kumo_local_estimate
   use kumo_math, only: wrap, rotate_direction
   use kumo_phase, only: phase_t, phase_eval, phase_sample_mu, PHASE_TABLE
   use kumo_truncation, only: trunc_eval, trunc_sample_mu
-  use kumo_atmosphere, only: atmosphere_t, column_of, sigma_trunc_3d, LAYER_CLEAR, LAYER_3D
+  use kumo_atmosphere, only: atmosphere_t, column_of, sigma_trunc_3d, voxel_ext, LAYER_CLEAR, &
+                             LAYER_3D
   use kumo_voxel_walk, only: voxel_walk_t, walk_begin, walk_segment, walk_next
   use kumo_camera, only: camera_t, camera_project
   use kumo_tally, only: tally_layout_t, tally_t, score_radiance, score_radiance_map, score_camera, &
@@ -690,10 +691,7 @@ contains
     integer, intent(in) :: iz, lev_t
     real(wp), intent(inout) :: x, y, tau
     real(wp), intent(in) :: vx, vy, s, tau_stop
-    type(voxel_walk_t) :: wk
     integer :: kr
-    real(wp) :: sig
-    logical :: last
     select case (atm%layer_class(iz))
     case (LAYER_CLEAR)
     case (LAYER_3D)
@@ -701,23 +699,7 @@ contains
       if (atm%uniform3(kr)) then
         tau = tau + sigma_trunc_3d(atm, 1, 1, kr, lev_t)*s
       else
-        call walk_begin(wk, atm, x, y, vx, vy, s)
-        do
-          call walk_segment(wk, atm, last)
-          if (lev_t > 1) then
-            sig = sigma_trunc_3d(atm, wk%ix, wk%iy, kr, lev_t)
-          else
-            sig = atm%ext3(wk%ix, wk%iy, kr)
-          end if
-          tau = tau + sig*wk%step
-          if (last) exit
-          if (tau > tau_stop) return
-          call walk_next(wk, atm)
-        end do
-        x = wk%x + vx*wk%rem
-        y = wk%y + vy*wk%rem
-        call wrap(x, atm%lx)
-        call wrap(y, atm%ly)
+        call segment_3d(atm, kr, x, y, vx, vy, s, lev_t, tau, tau_stop)
         return
       end if
     case default
@@ -732,4 +714,33 @@ contains
     call wrap(x, atm%lx)
     call wrap(y, atm%ly)
   end subroutine layer_segment
+
+  !> layer_segment in 3-D layer kr whose voxels differ: the voxels the segment crosses, until
+  !> the optical depth exceeds tau_stop.
+  subroutine segment_3d(atm, kr, x, y, vx, vy, s, lev_t, tau, tau_stop)
+    type(atmosphere_t), intent(in) :: atm
+    integer, intent(in) :: kr, lev_t
+    real(wp), intent(inout) :: x, y, tau
+    real(wp), intent(in) :: vx, vy, s, tau_stop
+    type(voxel_walk_t) :: wk
+    real(wp) :: sig
+    logical :: last
+    call walk_begin(wk, atm, x, y, vx, vy, s)
+    do
+      call walk_segment(wk, atm, last)
+      if (lev_t > 1) then
+        sig = sigma_trunc_3d(atm, wk%ix, wk%iy, kr, lev_t)
+      else
+        sig = voxel_ext(atm, wk%ix, wk%iy, kr)
+      end if
+      tau = tau + sig*wk%step
+      if (last) exit
+      if (tau > tau_stop) return
+      call walk_next(wk, atm)
+    end do
+    x = wk%x + vx*wk%rem
+    y = wk%y + vy*wk%rem
+    call wrap(x, atm%lx)
+    call wrap(y, atm%ly)
+  end subroutine segment_3d
 end module kumo_local_estimate

@@ -33,7 +33,7 @@ module kumo_transport
   use kumo_local_estimate, only: detectors_t, le_particle, le_surface, ddis_factor, &
                                  ddis_direction, le_boundary_emission
   use kumo_voxel_walk, only: voxel_walk_t, walk_begin, walk_segment, walk_next
-  use kumo_atmosphere, only: atmosphere_t, column_of, column_xy, LAYER_CLEAR, &
+  use kumo_atmosphere, only: atmosphere_t, column_of, column_xy, voxel_ext, voxel_omg, LAYER_CLEAR, &
                              LAYER_ABSORBING, LAYER_SCATTERING, LAYER_3D
   use kumo_brdf, only: brdf_albedo, brdf_sample, lambert_direction
   use kumo_tally, only: tally_layout_t, tally_t, ANOM_UZ_NUDGED, ANOM_EVENT_CAP, &
@@ -370,7 +370,7 @@ contains
     iph = 1
     p%n_events = p%n_events + 1
     if (in3d) then
-      omega = scn%atm%omg3(ix, iy, kr)
+      omega = voxel_omg(scn%atm, ix, iy, kr)
     else
       omega = scn%atm%omg1(p%iz)
     end if
@@ -766,11 +766,11 @@ contains
             iy = min(iyhi, max(iylo, iy))
             tal%anomalies(ANOM_POSITION_REPAIR) = tal%anomalies(ANOM_POSITION_REPAIR) + 1
           end if
-          e = atm%ext3(ix, iy, kr)
+          e = voxel_ext(atm, ix, iy, kr)
           ! tentative collisions come at the rate smax/inv_cf: w k_abs inv_cf/smax at each is
           ! the track-length score in expectation
           if (est == ABS_TENTATIVE) call score_voxel(atm, lay, tal, iz, ix, iy, kr, &
-            w*((e*(1.0_wp - atm%omg3(ix, iy, kr)))*(inv_cf/smax)), .true.)
+            w*((e*(1.0_wp - voxel_omg(atm, ix, iy, kr)))*(inv_cf/smax)), .true.)
           ! real with probability e/smax; no random number is needed when the voxel is its
           ! block's majorant (always so for a block of one voxel)
           if (e < smax) then
@@ -903,16 +903,16 @@ contains
       if (n_steps > max_steps) return   ! the caller's step check stops the photon
       zb = level_ahead(atm, iz, uz)
       d = (zb - z)/uz
-      e = atm%ext3(ix, iy, kr)
+      e = voxel_ext(atm, ix, iy, kr)
       if (tau < e*d) then
         z = min(atm%z(iz), max(atm%z(iz - 1), z + uz*(tau/e)))
         if (track) call score_voxel(atm, lay, tal, iz, ix, iy, kr, &
-                                    w*(tau*(1.0_wp - atm%omg3(ix, iy, kr))), layers)
+                                    w*(tau*(1.0_wp - voxel_omg(atm, ix, iy, kr))), layers)
         ev = EV_COLLISION
         return
       end if
       if (track) call score_voxel(atm, lay, tal, iz, ix, iy, kr, &
-                                  w*((e*d)*(1.0_wp - atm%omg3(ix, iy, kr))), layers)
+                                  w*((e*d)*(1.0_wp - voxel_omg(atm, ix, iy, kr))), layers)
       tau = tau - e*d
       z = zb
       call cross_level(atm, lay, tal, x, y, uz, w, order, iz, ev)
@@ -940,13 +940,14 @@ contains
     if (s <= 0.0_wp) return
     kr = iz - atm%k3_lo + 1
     if (atm%uniform3(kr) .and. .not. lay%do_voxel) then
-      a = w*((atm%ext3(1, 1, kr)*(1.0_wp - atm%omg3(1, 1, kr)))*s)
+      a = w*((voxel_ext(atm, 1, 1, kr)*(1.0_wp - voxel_omg(atm, 1, 1, kr)))*s)
     else
       call walk_begin(wk, atm, x, y, ux, uy, s)
       a = 0.0_wp
       do
         call walk_segment(wk, atm, last)
-        dep = w*((atm%ext3(wk%ix, wk%iy, kr)*(1.0_wp - atm%omg3(wk%ix, wk%iy, kr)))*wk%step)
+        dep = w*((voxel_ext(atm, wk%ix, wk%iy, kr)*(1.0_wp - voxel_omg(atm, wk%ix, wk%iy, kr)))* &
+              wk%step)
         a = a + dep
         call score_voxel_abs(lay, tal, kr, wk%ix + (wk%iy - 1)*atm%nx, dep)
         if (last) exit

@@ -27,12 +27,12 @@
 !>   the run starts.
 !> The presets that set these from one word (`vr_preset`) are read with the namelist.
 module kumo_vr
-  use kumo_kinds, only: wp, dp, i8
+  use kumo_kinds, only: wp, vp, dp, i8
   use kumo_constants, only: PI
   use kumo_error, only: error_t, set_error, str
   use kumo_rng, only: rng_t, rng_uniform
   use kumo_phase, only: phase_t, phase_eval
-  use kumo_atmosphere, only: atmosphere_t, LAYER_3D
+  use kumo_atmosphere, only: atmosphere_t, LAYER_3D, voxel_layer
   use kumo_tally, only: tally_layout_t, tally_t, score_roulette
   implicit none
   private
@@ -133,7 +133,7 @@ contains
     tau_col = 0.0_wp
     do k = 1, atm%nz
       if (atm%layer_class(k) == LAYER_3D) then
-        tau_col = tau_col + sum(real(atm%ext3(:, :, k - atm%k3_lo + 1), wp))/(atm%nx*atm%ny)* &
+        tau_col = tau_col + sum(real(layer_ext(k - atm%k3_lo + 1), wp))/(atm%nx*atm%ny)* &
                   (atm%z(k) - atm%z(k - 1))
       else
         tau_col = tau_col + atm%ext1(k)*(atm%z(k) - atm%z(k - 1))
@@ -142,6 +142,13 @@ contains
     tau_col = tau_col/mu0
     factor = 1.0_wp
     if (tau_col > 0.0_wp .and. tau_col < tau_min) factor = tau_min/tau_col
+  contains
+    !> The extinction of the voxels of 3-D layer kr [m-1]
+    function layer_ext(kr) result(e)
+      integer, intent(in) :: kr
+      real(vp) :: e(atm%nx, atm%ny), w(atm%nx, atm%ny)
+      call voxel_layer(atm, kr, e, w)
+    end function layer_ext
   end function collision_forcing
 
   !> The ABS_* code of an absorption-estimator name (case-insensitive, leading blanks ignored),

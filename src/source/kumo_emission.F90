@@ -462,7 +462,8 @@ contains
         do iy = 1, atm%ny
           do ix = 1, atm%nx
             v = ix + (iy - 1)*atm%nx + (kr - 1)*ncol
-            ka = real(voxel_ext(atm, ix, iy, kr), wp)*(1.0_wp - real(voxel_omg(atm, ix, iy, kr), wp))
+            ka = real(voxel_ext(atm, ix, iy, kr), wp)* &
+                 (1.0_wp - real(voxel_omg(atm, ix, iy, kr), wp))
             if (em%has_b3) then
               bb = b3(ix, iy, kr)
             else

@@ -33,8 +33,8 @@ module kumo_transport
   use kumo_local_estimate, only: detectors_t, le_particle, le_surface, ddis_factor, &
                                  ddis_direction, le_boundary_emission
   use kumo_voxel_walk, only: voxel_walk_t, walk_begin, walk_segment, walk_next
-  use kumo_atmosphere, only: atmosphere_t, column_of, column_xy, voxel_ext, voxel_omg, LAYER_CLEAR, &
-                             LAYER_ABSORBING, LAYER_SCATTERING, LAYER_3D
+  use kumo_atmosphere, only: atmosphere_t, column_of, column_xy, voxel_ext, voxel_omg, &
+                             LAYER_CLEAR, LAYER_ABSORBING, LAYER_SCATTERING, LAYER_3D
   use kumo_brdf, only: brdf_albedo, brdf_sample, lambert_direction
   use kumo_tally, only: tally_layout_t, tally_t, ANOM_UZ_NUDGED, ANOM_EVENT_CAP, &
                         ANOM_STEP_CAP, ANOM_POSITION_REPAIR, ANOM_BRDF_ENVELOPE, score_flux, &

@@ -414,7 +414,8 @@ contains
                count(any(cext /= 0.0_wp, dim=4)), 'every voxel with components is listed')
     call check(error, count(swapped%ext3 == VOXEL_CLEAR) == swapped%nx*swapped%ny*swapped%n3 - &
                count(any(cext /= 0.0_wp, dim=4)), 'every other voxel holds its layer''s values')
-    if (full) call check(error, .not. all(swapped%clear_all) .and. size(swapped%clear_part, 2) > 0, &
+    if (full) call check(error, .not. all(swapped%clear_all) .and. &
+                         size(swapped%clear_part, 2) > 0, &
                          'blocks with a layer full of components take the other layers one by one')
     if (allocated(error)) return
     ext_b(:, 2) = [5.0e-4_wp, 0.0_wp, 2.0e-3_wp, 1.0e-6_wp, 3.0e-7_wp]

@@ -40,7 +40,7 @@ module kumo_scene_setup
   use kumo_brdf, only: brdf_params_t, BRDF_NPAR
   use kumo_source, only: solar_source, source_stratify
   use kumo_emission, only: emission_t, emission_init, emission_bind, emission_detach, &
-                           emission_voxel_power, voxel_abs_t, voxel_abs_init
+                           emission_voxel_power_add, voxel_abs_t, voxel_abs_init
   use kumo_planck, only: spectral_band_t, band_from_wavenumbers, band_monochromatic_wavelength, &
                          band_radiance, band_units
   use kumo_vr, only: collision_forcing, ddis_phases, spiky_without_vr, SPIKY_PEAK, DDIS_CONE_DEG, &
@@ -1177,8 +1177,8 @@ contains
       else
         em_sum%emit_sfc = em_sum%emit_sfc + em%emit_sfc
         em_sum%emit_layer = em_sum%emit_layer + em%emit_layer
-        if (size(em_sum%emit_vox) > 0) em_sum%emit_vox = em_sum%emit_vox + &
-                                                         emission_voxel_power(em, scene%atm)
+        if (size(em_sum%emit_vox) > 0) &
+          call emission_voxel_power_add(em, scene%atm, em_sum%emit_vox)
       end if
       ! a 1-D column keeps every g-point's table; a 3-D scene rebuilds it per g-point
       if (.not. spec%three_d) then

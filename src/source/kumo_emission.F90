@@ -70,7 +70,7 @@ module kumo_emission
   public :: emission_t, emission_init, emission_entry, emission_launch, emission_weight, &
             emission_b_point, emission_b_surface, &
             emission_b_segment, emission_surface_eps, emission_voxel_power, emission_bind, &
-            emission_detach
+            emission_voxel_power_add, emission_detach
   public :: EMIT_SOLAR, EMIT_TOP, EMIT_SURFACE, EMIT_LAYER, EMIT_VOXEL
   public :: voxel_abs_t, voxel_abs_init
 
@@ -1013,33 +1013,62 @@ contains
     type(emission_t), intent(in) :: em
     type(atmosphere_t), intent(in), optional :: atm
     real(wp), allocatable :: p(:)
-    integer :: kr, k, ix, iy, ncol
-    real(wp) :: c
-    real(vp), allocatable :: e(:, :), w(:, :)
     if (em%layered) then
       if (.not. present(atm)) error stop 'emission_voxel_power: a layered table needs its atmosphere'
-      ncol = atm%nx*atm%ny
-      allocate (p(int(ncol, i8)*atm%n3), e(atm%nx, atm%ny), w(atm%nx, atm%ny))
-      do kr = 1, atm%n3
-        k = atm%k3_lo + kr - 1
-        c = FOUR_PI*(atm%z(k) - atm%z(k - 1))*0.5_wp*(em%b_bot(k) + em%b_top_lay(k))
-        call voxel_layer(atm, kr, e, w)
-        call layer_power(p((kr - 1)*ncol + 1:kr*ncol), e, w, ncol)
-      end do
+      allocate (p(int(atm%nx*atm%ny, i8)*atm%n3))
+      call layered_power(em, atm, p, .false.)
     else if (em%on_node) then
       p = em%emit_vox_node
     else
       p = em%emit_vox
     end if
+  end function emission_voxel_power
+
+  !> acc + emission_voxel_power(em, atm), added in place (the same sums to the last bit, without
+  !> a temporary of every voxel): the broadband set-up sums the voxels' emission over g-points.
+  subroutine emission_voxel_power_add(em, atm, acc)
+    type(emission_t), intent(in) :: em
+    type(atmosphere_t), intent(in) :: atm
+    real(wp), intent(inout) :: acc(:)
+    if (em%layered) then
+      call layered_power(em, atm, acc, .true.)
+    else if (em%on_node) then
+      acc = acc + em%emit_vox_node
+    else
+      acc = acc + em%emit_vox
+    end if
+  end subroutine emission_voxel_power_add
+
+  !> The voxels' emitted powers of a table drawn by layer into p, or added to it (`add`)
+  subroutine layered_power(em, atm, p, add)
+    type(emission_t), intent(in) :: em
+    type(atmosphere_t), intent(in) :: atm
+    real(wp), intent(inout) :: p(:)
+    logical, intent(in) :: add
+    integer :: kr, k, ncol
+    real(wp) :: c
+    real(vp), allocatable :: e(:, :), w(:, :)
+    ncol = atm%nx*atm%ny
+    allocate (e(atm%nx, atm%ny), w(atm%nx, atm%ny))
+    do kr = 1, atm%n3
+      k = atm%k3_lo + kr - 1
+      c = FOUR_PI*(atm%z(k) - atm%z(k - 1))*0.5_wp*(em%b_bot(k) + em%b_top_lay(k))
+      call voxel_layer(atm, kr, e, w)
+      call layer_power(p((kr - 1)*ncol + 1:kr*ncol), e, w, ncol)
+    end do
   contains
-    !> 4 pi k_a dz B of the voxels of a layer (e, w and c as formed above)
+    !> 4 pi k_a dz B of the voxels of a layer (c as formed above; e and w column by column)
     pure subroutine layer_power(pl, el, wl, n)
       integer, intent(in) :: n
-      real(wp), intent(out) :: pl(n)
-      real(vp), intent(in) :: el(n), wl(n)   !! the layer's e and w, column by column
-      pl = c*real(el, wp)*(1.0_wp - real(wl, wp))
+      real(wp), intent(inout) :: pl(n)
+      real(vp), intent(in) :: el(n), wl(n)
+      if (add) then
+        pl = pl + c*real(el, wp)*(1.0_wp - real(wl, wp))
+      else
+        pl = c*real(el, wp)*(1.0_wp - real(wl, wp))
+      end if
     end subroutine layer_power
-  end function emission_voxel_power
+  end subroutine layered_power
 
   !> Mean Planck radiance of what is absorbed along a straight path through a homogeneous 1-D
   !> layer k from height z0 to z1 with absorption optical path tau: the absorption density

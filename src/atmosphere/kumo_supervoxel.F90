@@ -15,6 +15,7 @@ module kumo_supervoxel
   private
   public :: supervoxel_grid_t, supervoxel_options_t, build_supervoxels, supervoxel_majorants
   public :: supervoxel_copy_layout
+  public :: merge_ok, columns_merge_ok   ! for the tests: the two must agree
 
   !> Options of the super-voxel builder.
   type :: supervoxel_options_t
@@ -45,6 +46,8 @@ contains
     type(supervoxel_grid_t), intent(out) :: sv
     integer :: nx, ny, n3, k, kb, kt, s, nblk, bxs, bys
     integer :: kbs(size(dz)), kts(size(dz)), bxv(size(dz)), byv(size(dz))
+    real(vp), allocatable :: cmax(:, :)
+    real(wp), allocatable :: csum(:, :)
     nx = size(ext, 1)
     ny = size(ext, 2)
     n3 = size(ext, 3)
@@ -56,12 +59,21 @@ contains
       bxv(1) = nx
       byv(1) = ny
     else
+      allocate (cmax(nx, ny), csum(nx, ny))
       kb = 1
       do while (kb <= n3)
         kt = kb
+        ! each column's largest extinction and its sum times dz over layers kb .. kt, carried
+        ! from one test to the next (merge_ok with blocks of one column, without reading the
+        ! layers again)
+        cmax = ext(:, :, kb)
+        csum = 0.0_wp + real(ext(:, :, kb), wp)*dz(kb)
         do while (kt < n3 .and. kt - kb + 1 < opts%max_layers)
-          if (.not. merge_ok(ext(:, :, kb:kt + 1), dz(kb:kt + 1), dx, dy, 1, 1, opts)) exit
+          if (.not. columns_merge_ok(cmax, csum, ext(:, :, kt + 1), dz(kb:kt + 1), dx, dy, &
+                                     opts)) exit
           kt = kt + 1
+          cmax = max(cmax, ext(:, :, kt))
+          csum = csum + real(ext(:, :, kt), wp)*dz(kt)
         end do
         s = s + 1
         kbs(s) = kb
@@ -165,6 +177,42 @@ contains
     bx = min(bx, size(ext, 1))
     by = min(by, size(ext, 2))
   end subroutine merge_horizontally
+
+  !> merge_ok for blocks of one column over the layers of `dz`, the last of which is `enew`,
+  !> from each column's maximum `cmax` and sum of extinction times dz `csum` over the others:
+  !> the same numbers in the same order, so the same answer to the last bit.
+  logical function columns_merge_ok(cmax, csum, enew, dz, dx, dy, opts) result(ok)
+    real(vp), intent(in) :: cmax(:, :), enew(:, :)
+    real(wp), intent(in) :: csum(:, :)
+    real(wp), intent(in) :: dz(:), dx, dy
+    type(supervoxel_options_t), intent(in) :: opts
+    integer :: i, j, n_blocks, n_nonclear
+    real(wp) :: smax, smean, vol, size_opt, ratio, h, length
+    h = sum(dz)
+    vol = real(1, wp)*h
+    length = min(dx, dy, h)
+    size_opt = 0.0_wp
+    ratio = 0.0_wp
+    n_blocks = size(cmax)
+    n_nonclear = 0
+    do j = 1, size(cmax, 2)
+      do i = 1, size(cmax, 1)
+        smax = max(cmax(i, j), enew(i, j))
+        if (smax <= 0.0_wp) cycle
+        n_nonclear = n_nonclear + 1
+        smean = (csum(i, j) + real(enew(i, j), wp)*dz(size(dz)))/vol
+        size_opt = size_opt + smax*length
+        ratio = ratio + smean/smax
+      end do
+    end do
+    if (n_nonclear == 0) then
+      ok = .true.
+      return
+    end if
+    size_opt = size_opt/n_blocks
+    ratio = ratio/n_nonclear
+    ok = size_opt*opts%fsupg <= 1.0_wp .or. ratio*opts%fsupi >= 1.0_wp
+  end function columns_merge_ok
 
   !> Does the merge rule accept blocks of bx x by voxels spanning all layers of `ext`?
   logical function merge_ok(ext, dz, dx, dy, bx, by, opts) result(ok)

@@ -6,7 +6,7 @@ module test_supervoxel_suite
   use kumo_kinds, only: wp, vp
   use kumo_testing, only: error_t, unittest_t, new_unittest, check, check_close
   use kumo_supervoxel, only: supervoxel_grid_t, supervoxel_options_t, build_supervoxels, &
-                             supervoxel_majorants
+                             supervoxel_majorants, merge_ok, columns_merge_ok
   use kumo_atmosphere, only: atmosphere_t, atmosphere_options_t, atmosphere_init, &
                              atmosphere_begin, atmosphere_put_layer, atmosphere_end, &
                              atmosphere_swap_background, voxel_ext, voxel_omg, VOXEL_CLEAR, &
@@ -29,6 +29,7 @@ contains
              new_unittest('component_mixing', test_mixing), &
              new_unittest('voxels_put_by_layer_with_blends', test_put_layers), &
              new_unittest('kept_blocks_new_majorants', test_kept_layout), &
+             new_unittest('carried_column_sums_merge_alike', test_columns_merge), &
              new_unittest('swapped_background_equals_a_new_build', test_swap_background), &
              new_unittest('swapped_band_equals_a_new_build', test_swap_band)]
   end function collect_supervoxel
@@ -63,6 +64,50 @@ contains
       end do
     end do
   end function field
+
+  !> The vertical merge test of build_supervoxels carries each column's maximum and sum from
+  !> one group of layers to the next (columns_merge_ok); it must answer as merge_ok does on the
+  !> layers themselves, for every group, on fields with clear columns and a range of merge
+  !> factors (answers of both kinds occur).
+  subroutine test_columns_merge(error)
+    type(error_t), allocatable, intent(out) :: error
+    integer, parameter :: NX = 9, NY = 6, NZ = 8
+    type(supervoxel_options_t) :: opts
+    real(vp) :: ext(NX, NY, NZ), cmax(NX, NY)
+    real(wp) :: csum(NX, NY), dz(NZ), f
+    integer :: kb, kt, k, n_yes, n_no, ifac
+    logical :: a, b
+    ext = field(NX, NY, NZ)
+    ext(:, 2, :) = 0.0_vp                       ! a clear row of columns
+    ext(3, :, 4) = 50.0_vp*ext(3, :, 4)         ! a dense patch in one layer
+    dz = [(10.0_wp + 7.0_wp*k, k=1, NZ)]
+    n_yes = 0
+    n_no = 0
+    do ifac = 0, 6
+      f = 0.25_wp*2.0_wp**ifac
+      opts%fsupg = f
+      opts%fsupi = 1.0_wp + 0.1_wp*ifac
+      do kb = 1, NZ - 1
+        cmax = ext(:, :, kb)
+        csum = 0.0_wp + real(ext(:, :, kb), wp)*dz(kb)
+        do kt = kb, NZ - 1
+          a = merge_ok(ext(:, :, kb:kt + 1), dz(kb:kt + 1), 40.0_wp, 30.0_wp, 1, 1, opts)
+          b = columns_merge_ok(cmax, csum, ext(:, :, kt + 1), dz(kb:kt + 1), 40.0_wp, 30.0_wp, &
+                               opts)
+          call check(error, a .eqv. b, 'the carried sums merge as the layers do')
+          if (allocated(error)) return
+          if (a) then
+            n_yes = n_yes + 1
+          else
+            n_no = n_no + 1
+          end if
+          cmax = max(cmax, ext(:, :, kt + 1))
+          csum = csum + real(ext(:, :, kt + 1), wp)*dz(kt + 1)
+        end do
+      end do
+    end do
+    call check(error, n_yes > 0 .and. n_no > 0, 'both answers occur')
+  end subroutine test_columns_merge
 
   subroutine test_bounds(error)
     type(error_t), allocatable, intent(out) :: error

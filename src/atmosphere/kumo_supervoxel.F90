@@ -205,13 +205,7 @@ contains
         ratio = ratio + smean/smax
       end do
     end do
-    if (n_nonclear == 0) then
-      ok = .true.
-      return
-    end if
-    size_opt = size_opt/n_blocks
-    ratio = ratio/n_nonclear
-    ok = size_opt*opts%fsupg <= 1.0_wp .or. ratio*opts%fsupi >= 1.0_wp
+    ok = merge_rule(size_opt, ratio, n_blocks, n_nonclear, opts)
   end function columns_merge_ok
 
   !> Does the merge rule accept blocks of bx x by voxels spanning all layers of `ext`?
@@ -248,14 +242,20 @@ contains
         ratio = ratio + smean/smax
       end do
     end do
-    if (n_nonclear == 0) then
-      ok = .true.
-      return
-    end if
-    size_opt = size_opt/n_blocks
-    ratio = ratio/n_nonclear
-    ok = size_opt*opts%fsupg <= 1.0_wp .or. ratio*opts%fsupi >= 1.0_wp
+    ok = merge_rule(size_opt, ratio, n_blocks, n_nonclear, opts)
   end function merge_ok
+
+  !> The merge rule from the sums over the blocks of their optical size (majorant times
+  !> length) and of their mean-to-majorant ratio (`n_nonclear` blocks with a majorant > 0 of
+  !> `n_blocks`): merge while the blocks stay optically small or nearly uniform.
+  pure logical function merge_rule(size_opt, ratio, n_blocks, n_nonclear, opts) result(ok)
+    real(wp), intent(in) :: size_opt, ratio
+    integer, intent(in) :: n_blocks, n_nonclear
+    type(supervoxel_options_t), intent(in) :: opts
+    ok = .true.
+    if (n_nonclear == 0) return
+    ok = (size_opt/n_blocks)*opts%fsupg <= 1.0_wp .or. (ratio/n_nonclear)*opts%fsupi >= 1.0_wp
+  end function merge_rule
 
   !> Largest extinction in each block of bx x by voxels (over all layers of `ext`).
   subroutine block_majorants(ext, bx, by, maj)

@@ -108,23 +108,21 @@ module kumo_atmosphere
     logical, allocatable :: uniform3(:)      !! (n3) every voxel of the 3-D layer is the same
     !> The voxels with voxel components of each layer kr, as runs of consecutive columns
     !> (ix_first, ix_last, iy) in cloud_run(:, cloud_ptr(kr) + 1 : cloud_ptr(kr + 1)), found by
-    !> the first
-    !> atmosphere_swap_background after a build or at a new band (list_known), for every layer
-    !> by every process: later swaps form only these, and the majorants take the others as one
-    !> value per layer (clear3). clear_all (per block of the majorant grid): every layer of the
-    !> block has a voxel without components; clear_part (2, n): (block, layer) where a block
-    !> that is not clear_all has some. Both are found with the list.
+    !> the first atmosphere_swap_background after a build or at a new band (cloud_ptr not
+    !> allocated), for every layer by every process: later swaps form only these, and the
+    !> majorants take the others as one value per layer (clear3). clear_all (per block of the
+    !> majorant grid): every layer of the block has a voxel without components; clear_part
+    !> (2, n): (block, layer) where a block that is not clear_all has some. Both are found with
+    !> the list.
     integer, allocatable :: cloud_ptr(:), cloud_run(:, :)
-    logical :: list_known = .false.
     logical, allocatable :: clear_all(:)
     integer, allocatable :: clear_part(:, :)
     !> (2, n3) extinction and albedo of the voxels without components of each layer, where
     !> ext3 and omg3 hold VOXEL_CLEAR (allocated with the voxel arrays, 0 before a swap)
     real(vp), allocatable :: clear3(:, :)
-    !> (ncomp + 1, n3) the scattering fractions of the voxels without components of each layer
-    !> (rows 3 ..) as this process's last swap wrote them, where clear_known (rows 1 and 2 are
-    !> not used): a swap writes only those that changed; where clear_known the voxels without
-    !> components hold VOXEL_CLEAR
+    !> (ncomp - 1, n3) the scattering fractions of the voxels without components of each layer
+    !> as this process's last swap wrote them, where clear_known: a swap writes only those that
+    !> changed; where clear_known the voxels without components hold VOXEL_CLEAR
     real(vp), allocatable :: clear_last(:, :)
     logical, allocatable :: clear_known(:)
     ! Truncation of forward peaks (set by atmosphere_set_truncation; off by default)
@@ -546,7 +544,7 @@ contains
     if (atm%n3 == 0) return
     if (band) then
       ! another band: other voxels may hold components
-      atm%list_known = .false.
+      if (allocated(atm%cloud_ptr)) deallocate (atm%cloud_ptr)
       if (allocated(atm%clear_known)) atm%clear_known = .false.
     end if
     if (band .and. atm%voxels_borrowed) then
@@ -601,13 +599,13 @@ contains
     subroutine form_voxels(p, np)
       integer, intent(in) :: p, np
       if (.not. allocated(atm%clear_known)) then
-        allocate (atm%clear_last(atm%ncomp + 1, atm%n3), atm%clear_known(atm%n3))
+        allocate (atm%clear_last(atm%ncomp - 1, atm%n3), atm%clear_known(atm%n3))
         atm%clear_known = .false.
       end if
       na1 = size(atm%act1)
       nc = atm%ncomp
       nf = atm%kf_hi - atm%kf_lo + 1
-      if (.not. atm%list_known) call list_cloudy()
+      if (.not. allocated(atm%cloud_ptr)) call list_cloudy()
       allocate (bg_sca(max(nc - 1, 1)), acc_bg(0:na1), clr_c(max(nc - 1, 1)))
       do kr = 1, atm%n3
         k = atm%k3_lo + kr - 1
@@ -651,7 +649,6 @@ contains
       integer, allocatable :: grown(:, :)
       real(wp) :: t(atm%nx + 1)
       if (allocated(atm%clear_all)) deallocate (atm%clear_all, atm%clear_part)
-      if (allocated(atm%cloud_ptr)) deallocate (atm%cloud_ptr)
       if (.not. allocated(atm%cloud_run)) allocate (atm%cloud_run(3, max(256, atm%ny)))
       allocate (atm%cloud_ptr(atm%n3 + 1))
       n = 0
@@ -687,7 +684,6 @@ contains
         end if
         atm%cloud_ptr(kr + 1) = n
       end do
-      atm%list_known = .true.
     end subroutine list_cloudy
 
     !> The voxels of layer kr (its arrays as dummies, so that the compiler keeps their
@@ -708,10 +704,10 @@ contains
       end if
       ! by component (a loop over the few components inside would become a call of memcpy)
       do ic = 1, nc - 1
-        if (.not. (known .and. same_bits(clr_c(ic), atm%clear_last(2 + ic, kr)))) &
+        if (.not. (known .and. same_bits(clr_c(ic), atm%clear_last(ic, kr)))) &
           csca_l(ic, :, :) = clr_c(ic)
       end do
-      atm%clear_last(3:nc + 1, kr) = clr_c(1:nc - 1)
+      atm%clear_last(:, kr) = clr_c(1:nc - 1)
       atm%clear_known(kr) = .true.
       if (kf < 1 .or. kf > nf) return
       do j = atm%cloud_ptr(kr) + 1, atm%cloud_ptr(kr + 1)

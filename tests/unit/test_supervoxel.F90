@@ -452,7 +452,8 @@ contains
     call check(error, all(swapped%sv%maj == built%sv%maj), 'the majorants equal a new build')
     if (allocated(error)) return
     ! the swap lists the voxels with components and marks the others as their layer's
-    call check(error, swapped%list_known, 'the first swap listed the voxels with components')
+    call check(error, allocated(swapped%cloud_ptr), &
+               'the first swap listed the voxels with components')
     if (allocated(error)) return
     i = swapped%cloud_ptr(swapped%n3 + 1)
     call check(error, sum(swapped%cloud_run(2, 1:i) - swapped%cloud_run(1, 1:i) + 1) == &

@@ -496,9 +496,12 @@ contains
   !> to the same band and g-point again may pass what the first switch found: `checked` (the
   !> band's indices and weights passed), `uniform3` with `uniform3_known` (the uniform layers
   !> after that switch); the voxels are then the same and these checks are not repeated.
+  !> `same_clear` says that the voxels whose components are all absent are those of the last
+  !> swap, with the same phase indices and blend weights (a cloud file's voxels without water
+  !> in every band): a new band then keeps the list of the others and writes only theirs.
   subroutine atmosphere_swap_background(atm, ext1d, ssa1d, cext, cssa, opts, sv_layout, done, &
                                         sync, part, nparts, new_band, ciph, cwph, checked, &
-                                        uniform3, uniform3_known)
+                                        uniform3, uniform3_known, same_clear)
     type(atmosphere_t), intent(inout) :: atm
     real(wp), intent(in) :: ext1d(:, :), ssa1d(:, :)
     real(wp), intent(in) :: cext(:, :, :, :), cssa(:, :, :, :)
@@ -510,7 +513,7 @@ contains
     logical, intent(in), optional :: new_band
     integer, intent(in), optional :: ciph(:, :, :, :)
     real(vp), intent(in), optional :: cwph(:, :, :, :)
-    logical, intent(in), optional :: checked, uniform3(:), uniform3_known
+    logical, intent(in), optional :: checked, uniform3(:), uniform3_known, same_clear
     integer :: k, ic, kr, kf, na1, nc, nc1, nf
     real(wp) :: e, s
     real(vp) :: clr_e, clr_w, no_csca(1, 1, 1)
@@ -542,7 +545,7 @@ contains
       atm%layer_class(k) = class_of_layer(atm, k, opts)
     end do
     if (atm%n3 == 0) return
-    if (band) then
+    if (band .and. .not. present_and_true(same_clear)) then
       ! another band: other voxels may hold components
       if (allocated(atm%cloud_ptr)) deallocate (atm%cloud_ptr)
       if (allocated(atm%clear_known)) atm%clear_known = .false.
@@ -718,6 +721,17 @@ contains
       end do
       if (.not. band) return
       ! the band's phase indices and blends of the voxel components, as put_layer puts them
+      ! (with same_clear, those of the voxels without components stay what they are)
+      if (present_and_true(same_clear)) then
+        do j = atm%cloud_ptr(kr) + 1, atm%cloud_ptr(kr + 1)
+          iy = atm%cloud_run(3, j)
+          do ix = atm%cloud_run(1, j), atm%cloud_run(2, j)
+            atm%iph3(na1 + 1:na1 + atm%nc3, ix, iy, kr) = ciph(ix, iy, kf, :)
+            atm%wph3(na1 + 1:na1 + atm%nc3, ix, iy, kr) = cwph(ix, iy, kf, :)
+          end do
+        end do
+        return
+      end if
       do ic = 1, atm%nc3
         atm%iph3(na1 + ic, :, :, kr) = ciph(:, :, kf, ic)
         atm%wph3(na1 + ic, :, :, kr) = cwph(:, :, kf, ic)

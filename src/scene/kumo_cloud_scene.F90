@@ -47,8 +47,8 @@ module kumo_cloud_scene
   use kumo_config, only: cloud_cfg_t
   implicit none
   private
-  public :: build_cloud_atmosphere, rayleigh_layers, cloud_temperature_t, mie_layer, table_radii, &
-            ice_table, water_table, mcarats_scan_t, mcarats_scan, take_temperature
+  public :: build_cloud_atmosphere, rayleigh_layers, cloud_temperature_t, mie_layer, mie_voxel, &
+            table_radii, ice_table, water_table, mcarats_scan_t, mcarats_scan, take_temperature
 
   !> What the voxel values of an MCARaTS file decide before its atmosphere is built
   !> (mcarats_scan): the tables some voxel uses, whether a code blends two tables, whether the
@@ -426,11 +426,8 @@ contains
     real(wp), intent(out) :: ext(:, :), ssa(:, :), wph(:, :)   !! (nx, ny)
     integer, intent(out) :: iph(:, :)
     integer, intent(inout) :: n_out
-    integer :: ix, iy, np, i1, i2, nr
-    real(wp) :: a, r, f, w_phase, e1, e2, scale
-    logical :: inside
+    integer :: ix, iy, np
     np = merge(2, 1, c%points)
-    nr = size(table%r_eff_um)
     ! the values of a voxel without water everywhere first (most voxels of a cloud field), then
     ! the voxels with water one by one
     ext = 0.0_wp
@@ -440,29 +437,49 @@ contains
     do iy = 1, c%ny
       do ix = 1, c%nx
         if (amount(ix, iy, k + ip - 1) <= 0.0_vp) cycle
-        a = amount(ix, iy, k + ip - 1)/np
-        r = reff(ix, iy, k + ip - 1)
-        if (r < table%r_eff_um(1) .or. r > table%r_eff_um(nr)) then
-          n_out = n_out + 1
-          r = min(max(r, table%r_eff_um(1)), table%r_eff_um(nr))
-        end if
-        ! i2 = i1 + 1, or i1 for a table of one radius
-        call mie_table_bracket(table%r_eff_um, table%ext_per_lwc, table%ssa, r, i1, i2, f, &
-                               w_phase, inside)
-        e1 = f*table%ext_per_lwc(i1)
-        e2 = (1.0_wp - f)*table%ext_per_lwc(i2)
-        if (is_ext) then
-          scale = a/(e1 + e2)      ! the file's extinction
-        else
-          scale = a                ! extinction = water content x extinction per water
-        end if
-        ext(ix, iy) = (e1 + e2)*scale
-        ssa(ix, iy) = (e1*table%ssa(i1) + e2*table%ssa(i2))/(e1 + e2)
-        iph(ix, iy) = offset + i1
-        wph(ix, iy) = merge(1.0_wp - w_phase, 0.0_wp, i2 > i1)
+        call mie_voxel(real(amount(ix, iy, k + ip - 1)/np, wp), reff(ix, iy, k + ip - 1), &
+                       table, offset, is_ext, ext(ix, iy), ssa(ix, iy), iph(ix, iy), &
+                       wph(ix, iy), n_out)
       end do
     end do
   end subroutine mie_layer
+
+  !> The optics of one voxel with water: `a` its share of the water content [g m-3] (or of the
+  !> extinction [m-1] when `is_ext`), `r` its effective radius [um], clamped to the table
+  !> (counted in `n_out`); the mixture of the two table radii around r that has that radius.
+  subroutine mie_voxel(a, r_in, table, offset, is_ext, ext, ssa, iph, wph, n_out)
+    real(wp), intent(in) :: a
+    real(vp), intent(in) :: r_in
+    type(mie_table_t), intent(in) :: table
+    integer, intent(in) :: offset
+    logical, intent(in) :: is_ext
+    real(wp), intent(out) :: ext, ssa, wph
+    integer, intent(out) :: iph
+    integer, intent(inout) :: n_out
+    integer :: i1, i2, nr
+    real(wp) :: r, f, w_phase, e1, e2, scale
+    logical :: inside
+    nr = size(table%r_eff_um)
+    r = r_in
+    if (r < table%r_eff_um(1) .or. r > table%r_eff_um(nr)) then
+      n_out = n_out + 1
+      r = min(max(r, table%r_eff_um(1)), table%r_eff_um(nr))
+    end if
+    ! i2 = i1 + 1, or i1 for a table of one radius
+    call mie_table_bracket(table%r_eff_um, table%ext_per_lwc, table%ssa, r, i1, i2, f, &
+                           w_phase, inside)
+    e1 = f*table%ext_per_lwc(i1)
+    e2 = (1.0_wp - f)*table%ext_per_lwc(i2)
+    if (is_ext) then
+      scale = a/(e1 + e2)      ! the file's extinction
+    else
+      scale = a                ! extinction = water content x extinction per water
+    end if
+    ext = (e1 + e2)*scale
+    ssa = (e1*table%ssa(i1) + e2*table%ssa(i2))/(e1 + e2)
+    iph = offset + i1
+    wph = merge(1.0_wp - w_phase, 0.0_wp, i2 > i1)
+  end subroutine mie_voxel
 
   !> The phase functions of an MCARaTS 3-D atmosphere (Iwabuchi, MCARaTS 0.10 `mcarAtm`,
   !> `mcarSca`), in the order its voxels refer to them after the scene's list: 1 isotropic,

@@ -1303,14 +1303,16 @@ contains
                                         new_band=new_band, ciph=spec%cloud%ciph, &
                                         cwph=spec%cloud%cwph, checked=spec%band_checked(b), &
                                         uniform3=spec%uni3(:, g), &
-                                        uniform3_known=spec%uni_known(g))
+                                        uniform3_known=spec%uni_known(g), &
+                                        same_clear=spec%cloud%wet_exact)
       else
         call atmosphere_swap_background(atm, e, w, spec%cloud%cext, spec%cloud%cssa, &
                                         spec%aopts, spec%sv_layout, done, new_band=new_band, &
                                         ciph=spec%cloud%ciph, cwph=spec%cloud%cwph, &
                                         checked=spec%band_checked(b), &
                                         uniform3=spec%uni3(:, g), &
-                                        uniform3_known=spec%uni_known(g))
+                                        uniform3_known=spec%uni_known(g), &
+                                        same_clear=spec%cloud%wet_exact)
       end if
       if (done) then
         if (new_band) then

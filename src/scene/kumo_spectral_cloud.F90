@@ -35,7 +35,7 @@ module kumo_spectral_cloud
   use kumo_cloud_input, only: cloud_input_t, cloud_request_t, CLOUD_WATER
   use kumo_cloud_share, only: read_cloud_on_root
   use kumo_kinds, only: vp
-  use kumo_cloud_scene, only: mie_layer, table_radii
+  use kumo_cloud_scene, only: mie_voxel, table_radii
   use kumo_atmosphere, only: atmosphere_t, atmosphere_put_layer, voxel_storage_i
   use, intrinsic :: iso_c_binding, only: c_ptr, c_f_pointer, c_intptr_t
   use kumo_bundle, only: bundle_t
@@ -64,6 +64,13 @@ module kumo_spectral_cloud
     !> the voxel components of band `band` as they are put into an atmosphere (nx, ny, nz,
     !> nc3): extinction [m-1], albedo, phase index, blend weight (spectral_cloud_band)
     integer :: band = 0
+    !> the voxels with water (the only ones whose components differ from band to band): of
+    !> layer k and component ic, the columns ix + (iy - 1) nx in wet_col(wet_ptr(l) + 1 :
+    !> wet_ptr(l + 1)), l = k + (ic - 1) nz; found at the first band
+    integer, allocatable :: wet_ptr(:), wet_col(:)
+    !> every table's extinction per water is positive, so that the voxels with extinction are
+    !> the voxels with water at every band (atmosphere_swap_background's same_clear)
+    logical :: wet_exact = .false.
     real(wp), pointer, contiguous :: cext(:, :, :, :) => null(), cssa(:, :, :, :) => null()
     integer, pointer, contiguous :: ciph(:, :, :, :) => null()
     real(vp), pointer, contiguous :: cwph(:, :, :, :) => null()
@@ -170,6 +177,13 @@ contains
     end if
     notes = 'cloud file '//ccfg%req%path//' ('//trim(sc%liq%format)//'): '//sc%liq%notes// &
             new_line('a')//notes
+    sc%wet_exact = .true.
+    do ib = 1, nb
+      if (.not. all(sc%liq_tab(ib)%ext_per_lwc > 0.0_wp)) sc%wet_exact = .false.
+      if (sc%has_ice) then
+        if (.not. all(sc%ice_tab(ib)%ext_per_lwc > 0.0_wp)) sc%wet_exact = .false.
+      end if
+    end do
 
   contains
 
@@ -324,7 +338,7 @@ contains
     type(spectral_cloud_t), intent(inout), target :: sc
     integer, intent(in) :: band
     integer, intent(out) :: n_out_liq, n_out_ice
-    integer :: np, ip, k
+    integer :: np, ip, k, n
     integer(i8) :: nv
     np = merge(2, 1, sc%liq%points)
     n_out_liq = 0
@@ -341,27 +355,84 @@ contains
       sc%ciph(1:sc%nx, 1:sc%ny, 1:sc%nz, 1:sc%nc3) => sc%ciph_own(1:nv)
       sc%cwph(1:sc%nx, 1:sc%ny, 1:sc%nz, 1:sc%nc3) => sc%cwph_own(1:nv)
     end if
+    if (.not. allocated(sc%wet_ptr)) call first_band()
     do ip = 1, np
       do k = 1, sc%nz
-        call layer(sc%liq, sc%liq%lwc, sc%liq%reff, sc%liq_tab(band), sc%off_liq(band), ip, &
-                   n_out_liq)
-        if (sc%has_ice) call layer(sc%ice, sc%ice%iwc, sc%ice%reff_ice, sc%ice_tab(band), &
-                                   sc%off_ice(band), np + ip, n_out_ice)
+        call wet_layer(sc%liq, sc%liq%lwc, sc%liq%reff, sc%liq_tab(band), sc%off_liq(band), &
+                       ip, n_out_liq)
+        if (sc%has_ice) call wet_layer(sc%ice, sc%ice%iwc, sc%ice%reff_ice, sc%ice_tab(band), &
+                                       sc%off_ice(band), np + ip, n_out_ice)
       end do
     end do
     sc%band = band
   contains
-    subroutine layer(c, amount, reff, table, offset, ic, n_out)
+    !> The values of the voxels without water, the same at every band (no extinction, and the
+    !> first band's first table: a voxel's component without extinction is never scattered
+    !> by, but its phase index must be valid), and the lists of the voxels with water.
+    subroutine first_band()
+      integer :: ic, l
+      allocate (sc%wet_ptr(sc%nz*sc%nc3 + 1), sc%wet_col(0))
+      sc%wet_ptr(1) = 0
+      n = 0
+      do ic = 1, sc%nc3
+        do k = 1, sc%nz
+          l = k + (ic - 1)*sc%nz
+          sc%cext(:, :, k, ic) = 0.0_wp
+          sc%cwph(:, :, k, ic) = 0.0_vp
+          if (ic <= np) then
+            sc%cssa(:, :, k, ic) = sc%liq_tab(band)%ssa(1)
+            sc%ciph(:, :, k, ic) = sc%off_liq(1) + 1
+            call list_wet(sc%liq%lwc(:, :, k + ic - 1))
+          else
+            sc%cssa(:, :, k, ic) = sc%ice_tab(band)%ssa(1)
+            sc%ciph(:, :, k, ic) = sc%off_ice(1) + 1
+            call list_wet(sc%ice%iwc(:, :, k + ic - np - 1))
+          end if
+          sc%wet_ptr(l + 1) = n
+        end do
+      end do
+    end subroutine first_band
+
+    !> the columns of `amount` with water appended to wet_col (n of them so far)
+    subroutine list_wet(amount)
+      real(vp), intent(in) :: amount(:, :)
+      integer, allocatable :: more(:)
+      integer :: ix, iy
+      do iy = 1, sc%ny
+        do ix = 1, sc%nx
+          if (amount(ix, iy) <= 0.0_vp) cycle
+          if (n == size(sc%wet_col)) then
+            allocate (more(max(1024, 2*n)))
+            more(1:n) = sc%wet_col(1:n)
+            call move_alloc(more, sc%wet_col)
+          end if
+          n = n + 1
+          sc%wet_col(n) = ix + (iy - 1)*sc%nx
+        end do
+      end do
+    end subroutine list_wet
+
+    !> The voxels with water of layer k of component ic (plane ip of its field), as mie_layer
+    !> forms them
+    subroutine wet_layer(c, amount, reff, table, offset, ic, n_out)
       type(cloud_input_t), intent(in) :: c
       real(vp), intent(in) :: amount(:, :, :), reff(:, :, :)
       type(mie_table_t), intent(in) :: table
       integer, intent(in) :: offset, ic
       integer, intent(inout) :: n_out
-      real(wp) :: wph(sc%nx, sc%ny)
-      call mie_layer(c, amount, reff, table, offset, .false., k, ip, &
-                     sc%cext(:, :, k, ic), sc%cssa(:, :, k, ic), sc%ciph(:, :, k, ic), wph, n_out)
-      sc%cwph(:, :, k, ic) = real(wph, vp)
-    end subroutine layer
+      integer :: j, l, ix, iy, npl
+      real(wp) :: w
+      npl = merge(2, 1, c%points)
+      l = k + (ic - 1)*sc%nz
+      do j = sc%wet_ptr(l) + 1, sc%wet_ptr(l + 1)
+        iy = (sc%wet_col(j) - 1)/sc%nx + 1
+        ix = sc%wet_col(j) - (iy - 1)*sc%nx
+        call mie_voxel(real(amount(ix, iy, k + ip - 1)/npl, wp), reff(ix, iy, k + ip - 1), &
+                       table, offset, .false., sc%cext(ix, iy, k, ic), sc%cssa(ix, iy, k, ic), &
+                       sc%ciph(ix, iy, k, ic), w, n_out)
+        sc%cwph(ix, iy, k, ic) = real(w, vp)
+      end do
+    end subroutine wet_layer
   end subroutine spectral_cloud_band
 
   !> Place the voxel components (cext, cssa, ciph, cwph) in the caller's storage

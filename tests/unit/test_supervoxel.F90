@@ -516,9 +516,9 @@ contains
     type(atmosphere_options_t) :: opts
     type(supervoxel_grid_t) :: layout
     type(phase_t), allocatable :: ph(:)
-    real(wp), dimension(NX, NY, NF, nc3) :: cext_a, cssa_a, cext_b, cssa_b
-    real(vp), dimension(NX, NY, NF, nc3) :: wph_a, wph_b, wph_x
-    integer, dimension(NX, NY, NF, nc3) :: iph_a, iph_b, iph_x
+    real(wp), dimension(NX, NY, NF, nc3) :: cext_a, cssa_a, cext_b, cssa_b, cext_c, cssa_c
+    real(vp), dimension(NX, NY, NF, nc3) :: wph_a, wph_b, wph_x, wph_c
+    integer, dimension(NX, NY, NF, nc3) :: iph_a, iph_b, iph_x, iph_c
     real(wp) :: ext1(NZ, 2), ssa1(NZ, 2), z(0:NZ)
     integer :: iph1(NZ, 2), i, j, k, c
     logical :: done
@@ -618,6 +618,48 @@ contains
     call build(built, cext_b, cssa_b, iph_b, wph_b, layout)
     if (allocated(error)) return
     call compare('in band b again, with its known checks')
+    if (allocated(error)) return
+    ! band c has components in the voxels of band a and no others, and its voxels without
+    ! components have band a's indices and weights (a cloud file's voxels without water):
+    ! with same_clear a switch keeps the list of band a and writes only the voxels in it
+    cext_c = 1.3_wp*cext_a
+    cssa_c = 0.95_wp*cssa_a
+    iph_c = iph_a
+    wph_c = wph_a
+    do k = 1, NF
+      do j = 1, NY
+        do i = 1, NX
+          if (all(cext_a(i, j, k, :) == 0.0_wp)) cycle
+          iph_c(i, j, k, :) = iph_a(i, j, k, :) + 2
+          wph_c(i, j, k, :) = 0.5_vp*wph_a(i, j, k, :)
+        end do
+      end do
+    end do
+    call check(error, any(cext_a == 0.0_wp) .and. any(iph_c /= iph_a), &
+               'the test has voxels without components and indices that change')
+    if (allocated(error)) return
+    call atmosphere_swap_background(swapped, ext1, ssa1, cext_a, cssa_a, opts, layout, done, &
+                                    new_band=.true., ciph=iph_a, cwph=wph_a)
+    if (allocated(error)) return
+    call atmosphere_swap_background(swapped, ext1, ssa1, cext_c, cssa_c, opts, layout, done, &
+                                    new_band=.true., ciph=iph_c, cwph=wph_c, same_clear=.true.)
+    call check(error, done, 'band c was swapped in with same_clear')
+    if (allocated(error)) return
+    call build(built, cext_c, cssa_c, iph_c, wph_c, layout)
+    if (allocated(error)) return
+    call compare('in band c, switched with same_clear')
+    if (allocated(error)) return
+    ext1(:, 2) = 2.0_wp*ext1(:, 2)
+    call atmosphere_swap_background(swapped, ext1, ssa1, cext_c, cssa_c, opts, layout, done)
+    call build(built, cext_c, cssa_c, iph_c, wph_c, layout)
+    if (allocated(error)) return
+    call compare('after a gas switch in band c')
+    if (allocated(error)) return
+    call atmosphere_swap_background(swapped, ext1, ssa1, cext_a, cssa_a, opts, layout, done, &
+                                    new_band=.true., ciph=iph_a, cwph=wph_a, same_clear=.true.)
+    call build(built, cext_a, cssa_a, iph_a, wph_a, layout)
+    if (allocated(error)) return
+    call compare('back in band a with same_clear')
     if (allocated(error)) return
     ! an atmosphere that stores no blend weights cannot take a band's
     wph_x = 0.0_vp

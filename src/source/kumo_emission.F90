@@ -513,17 +513,34 @@ contains
   !> The voxel components' part of the voxels' absorption (voxel_abs_t) for the 3-D region of
   !> `atm`: `cext`, `cssa` (nx, ny, nf, nc) with component layer kf at the region's layer
   !> kr = kf - koff, which `va` points to (they must stay while the tables made with it draw).
+  !> After a background swap of `atm` to these components (its list of the voxels with
+  !> components, cloud_ptr, allocated) only the listed voxels are read.
   subroutine voxel_abs_init(va, atm, cext, cssa, koff)
     type(voxel_abs_t), intent(out) :: va
     type(atmosphere_t), intent(in) :: atm
     real(wp), pointer, contiguous, intent(in) :: cext(:, :, :, :), cssa(:, :, :, :)
     integer, intent(in) :: koff
-    integer :: kr, iy, ix, j
+    integer :: kr, iy, ix, j, r
     va%cext => cext
     va%cssa => cssa
     va%koff = koff
     allocate (va%kc_blk((atm%nx + VA_RUN - 1)/VA_RUN, atm%ny, atm%n3))
     va%kc_blk = 0.0_wp
+    if (allocated(atm%cloud_ptr)) then
+      ! after a swap: only the voxels it lists as having components add anything (the others
+      ! add +0 exactly), in the order of the sweep below
+      do kr = 1, atm%n3
+        do r = atm%cloud_ptr(kr) + 1, atm%cloud_ptr(kr + 1)
+          iy = atm%cloud_run(3, r)
+          do ix = atm%cloud_run(1, r), atm%cloud_run(2, r)
+            j = (ix - 1)/VA_RUN + 1
+            va%kc_blk(j, iy, kr) = va%kc_blk(j, iy, kr) + &
+                                   components_abs(cext, cssa, koff, ix, iy, kr)
+          end do
+        end do
+      end do
+      return
+    end if
     do kr = 1, atm%n3
       do iy = 1, atm%ny
         do ix = 1, atm%nx

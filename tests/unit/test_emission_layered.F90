@@ -16,7 +16,8 @@ module test_emission_layered_suite
   use kumo_error, only: str
   use kumo_testing, only: error_t, unittest_t, new_unittest, check
   use kumo_phase, only: phase_t, new_phase_isotropic
-  use kumo_atmosphere, only: atmosphere_t, atmosphere_options_t, atmosphere_init
+  use kumo_atmosphere, only: atmosphere_t, atmosphere_options_t, atmosphere_init, &
+                             atmosphere_swap_background
   use kumo_surface, only: surface_t, surface_init
   use kumo_rng, only: rng_t, rng_init, rng_uniform
   use kumo_photon, only: photon_t
@@ -36,7 +37,8 @@ contains
     type(unittest_t), allocatable :: tests(:)
     tests = [new_unittest('layered_equals_per_voxel_table', test_totals), &
              new_unittest('layered_photons_carry_voxel_powers', test_photons), &
-             new_unittest('layered_bad_input', test_bad_input)]
+             new_unittest('layered_bad_input', test_bad_input), &
+             new_unittest('run_sums_from_the_swap_list', test_swap_list)]
   end function collect_emission_layered
 
   !> Four layers, layers 2 and 3 in the 3-D region (70 x 3 columns). The background absorbs in
@@ -97,6 +99,35 @@ contains
     call emission_init(lay, atm, sfc, b_lev, 9.5_wp, 0.0_wp, 0.0_wp, 0.1_wp, error, &
                        voxel_abs=va, layer_abs=kb)
   end subroutine tables
+
+  !> After a background swap voxel_abs_init reads only the voxels the swap lists as having
+  !> components; its run sums must be those of the sweep over every voxel, bit for bit.
+  subroutine test_swap_list(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(atmosphere_t) :: atm
+    type(surface_t) :: sfc
+    type(atmosphere_options_t) :: opts
+    type(voxel_abs_t) :: swept, listed
+    real(wp), allocatable :: b_lev(:), kb(:)
+    real(wp) :: e1(4, 1), w1(4, 1)
+    logical :: done
+    call scene(atm, sfc, b_lev, kb, error)
+    if (allocated(error)) return
+    call check(error, .not. allocated(atm%cloud_ptr), 'a new build has no list')
+    if (allocated(error)) return
+    call voxel_abs_init(swept, atm, cext, cssa, atm%k3_lo - atm%kf_lo)
+    e1(:, 1) = [3.0e-4_wp, 1.5e-4_wp, 5.0e-5_wp, 2.0e-5_wp]
+    w1(:, 1) = [0.3_wp, 0.4_wp, 1.0_wp, 0.5_wp]
+    call atmosphere_swap_background(atm, e1, w1, cext, cssa, opts, atm%sv, done)
+    call check(error, done .and. allocated(atm%cloud_ptr), 'the swap lists the voxels')
+    if (allocated(error)) return
+    call check(error, atm%cloud_ptr(N3 + 1) > 0 .and. &
+               atm%cloud_ptr(N3 + 1) > atm%cloud_ptr(N3), 'the list has runs in both layers')
+    if (allocated(error)) return
+    call voxel_abs_init(listed, atm, cext, cssa, atm%k3_lo - atm%kf_lo)
+    call check(error, all(listed%kc_blk == swept%kc_blk) .and. any(swept%kc_blk > 0.0_wp), &
+               'the run sums from the list equal the sweep''s')
+  end subroutine test_swap_list
 
   subroutine test_totals(error)
     type(error_t), allocatable, intent(out) :: error

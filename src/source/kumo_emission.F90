@@ -82,12 +82,15 @@ module kumo_emission
   !> voxel of a layer has (its gas and other background, given with each table) and that of
   !> the voxel components, kc = sum over the components of ext (1 - ssa), read from their
   !> arrays (a cloud's optics in one band of a broadband run: the same for every g-point of
-  !> the band). `kc_blk` holds kc summed over each run of VA_RUN voxels of a row, formed once.
+  !> the band). `kc_blk` holds kc summed over each run of VA_RUN voxels of a row, `kc_row` the
+  !> sums of each row's runs, both formed once by voxel_abs_init (and checked there: `bad`).
   type :: voxel_abs_t
     !> (nx, ny, nf, nc) extinction [m-1] and albedo of the voxel components
     real(wp), pointer, contiguous :: cext(:, :, :, :) => null(), cssa(:, :, :, :) => null()
     integer :: koff = 0                    !! voxel layer kr has component layer kr + koff
     real(wp), allocatable :: kc_blk(:, :, :)  !! (nrun, ny, n3) kc summed over each run [m-1]
+    real(wp), allocatable :: kc_row(:, :)     !! (ny, n3) sum(kc_blk(:, iy, kr)) [m-1]
+    logical :: bad = .false.                  !! some kc_blk is negative or NaN
   end type voxel_abs_t
 
   !> Voxels of a row summed together in voxel_abs_t kc_blk: a photon drawn for a layer looks at
@@ -322,7 +325,8 @@ contains
                        'that of the 3-D region')
         return
       end if
-      if (any(.not. (layer_abs >= 0.0_wp)) .or. any(.not. (voxel_abs%kc_blk >= 0.0_wp))) then
+      if (any(.not. (layer_abs >= 0.0_wp)) .or. voxel_abs%bad .or. &
+          .not. allocated(voxel_abs%kc_row)) then
         call set_error(error, 'thermal emission: absorption coefficients must be finite and >= 0')
         return
       end if
@@ -337,7 +341,7 @@ contains
         em%row_cum(0, kr) = 0.0_wp
         do iy = 1, atm%ny
           em%row_cum(iy, kr) = em%row_cum(iy - 1, kr) + (atm%nx*layer_abs(kr) + &
-                               sum(voxel_abs%kc_blk(:, iy, kr)))
+                               voxel_abs%kc_row(iy, kr))
         end do
       end do
     end if
@@ -539,14 +543,23 @@ contains
           end do
         end do
       end do
-      return
+    else
+      do kr = 1, atm%n3
+        do iy = 1, atm%ny
+          do ix = 1, atm%nx
+            j = (ix - 1)/VA_RUN + 1
+            va%kc_blk(j, iy, kr) = va%kc_blk(j, iy, kr) + &
+                                   components_abs(cext, cssa, koff, ix, iy, kr)
+          end do
+        end do
+      end do
     end if
+    ! what every table made with it reads: the rows' sums and the check of the values
+    va%bad = any(.not. (va%kc_blk >= 0.0_wp))
+    allocate (va%kc_row(atm%ny, atm%n3))
     do kr = 1, atm%n3
       do iy = 1, atm%ny
-        do ix = 1, atm%nx
-          j = (ix - 1)/VA_RUN + 1
-          va%kc_blk(j, iy, kr) = va%kc_blk(j, iy, kr) + components_abs(cext, cssa, koff, ix, iy, kr)
-        end do
+        va%kc_row(iy, kr) = sum(va%kc_blk(:, iy, kr))
       end do
     end do
   end subroutine voxel_abs_init

@@ -1075,16 +1075,39 @@ contains
     type(atmosphere_t), intent(in) :: atm
     real(wp), intent(inout) :: p(:)
     logical, intent(in) :: add
-    integer :: kr, k, ncol
+    integer :: kr, k, ncol, j, ix, iy
     real(wp) :: c
     real(vp), allocatable :: e(:, :), w(:, :)
+    real(wp), allocatable :: v(:)
     ncol = atm%nx*atm%ny
-    allocate (e(atm%nx, atm%ny), w(atm%nx, atm%ny))
+    if (allocated(atm%cloud_ptr)) then
+      allocate (v(ncol))
+    else
+      allocate (e(atm%nx, atm%ny), w(atm%nx, atm%ny))
+    end if
     do kr = 1, atm%n3
       k = atm%k3_lo + kr - 1
       c = FOUR_PI*(atm%z(k) - atm%z(k - 1))*0.5_wp*(em%b_bot(k) + em%b_top_lay(k))
-      call voxel_layer(atm, kr, e, w)
-      call layer_power(p((kr - 1)*ncol + 1:kr*ncol), e, w, ncol)
+      if (allocated(atm%cloud_ptr)) then
+        ! after a swap every voxel that it does not list holds its layer's values (clear3): one
+        ! value for all of them, then the listed voxels their own (the same numbers)
+        v = c*real(atm%clear3(1, kr), wp)*(1.0_wp - real(atm%clear3(2, kr), wp))
+        do j = atm%cloud_ptr(kr) + 1, atm%cloud_ptr(kr + 1)
+          iy = atm%cloud_run(3, j)
+          do ix = atm%cloud_run(1, j), atm%cloud_run(2, j)
+            v(ix + (iy - 1)*atm%nx) = c*real(atm%ext3(ix, iy, kr), wp)* &
+                                      (1.0_wp - real(atm%omg3(ix, iy, kr), wp))
+          end do
+        end do
+        if (add) then
+          p((kr - 1)*ncol + 1:kr*ncol) = p((kr - 1)*ncol + 1:kr*ncol) + v
+        else
+          p((kr - 1)*ncol + 1:kr*ncol) = v
+        end if
+      else
+        call voxel_layer(atm, kr, e, w)
+        call layer_power(p((kr - 1)*ncol + 1:kr*ncol), e, w, ncol)
+      end if
     end do
   contains
     !> 4 pi k_a dz B of the voxels of a layer (c as formed above; e and w column by column)

@@ -100,15 +100,17 @@ contains
                        voxel_abs=va, layer_abs=kb)
   end subroutine tables
 
-  !> After a background swap voxel_abs_init reads only the voxels the swap lists as having
-  !> components; its run sums must be those of the sweep over every voxel, bit for bit.
+  !> After a background swap voxel_abs_init and the voxels' emitted powers read only the voxels
+  !> the swap lists as having components (the others: their layer's values); both must be
+  !> those of the sweep over every voxel, bit for bit.
   subroutine test_swap_list(error)
     type(error_t), allocatable, intent(out) :: error
     type(atmosphere_t) :: atm
     type(surface_t) :: sfc
     type(atmosphere_options_t) :: opts
     type(voxel_abs_t) :: swept, listed
-    real(wp), allocatable :: b_lev(:), kb(:)
+    type(emission_t) :: lay
+    real(wp), allocatable :: b_lev(:), kb(:), p_built(:)
     real(wp) :: e1(4, 1), w1(4, 1)
     logical :: done
     call scene(atm, sfc, b_lev, kb, error)
@@ -116,6 +118,20 @@ contains
     call check(error, .not. allocated(atm%cloud_ptr), 'a new build has no list')
     if (allocated(error)) return
     call voxel_abs_init(swept, atm, cext, cssa, atm%k3_lo - atm%kf_lo)
+    call emission_init(lay, atm, sfc, b_lev, 9.5_wp, 0.0_wp, 0.0_wp, 0.1_wp, error, &
+                       voxel_abs=swept, layer_abs=kb)
+    if (allocated(error)) return
+    p_built = emission_voxel_power(lay, atm)
+    ! the scene's own background swapped in again: the voxels without components now hold
+    ! VOXEL_CLEAR, and the voxels' powers come from the list, the same to the last bit
+    e1(:, 1) = [2.0e-4_wp, 1.0e-4_wp, 5.0e-5_wp, 2.0e-5_wp]
+    w1(:, 1) = [0.2_wp, 0.4_wp, 1.0_wp, 0.5_wp]
+    call atmosphere_swap_background(atm, e1, w1, cext, cssa, opts, atm%sv, done)
+    call check(error, done .and. allocated(atm%cloud_ptr), 'the swap lists the voxels')
+    if (allocated(error)) return
+    call check(error, all(emission_voxel_power(lay, atm) == p_built), &
+               'the voxels'' powers from the list equal those of the build')
+    if (allocated(error)) return
     e1(:, 1) = [3.0e-4_wp, 1.5e-4_wp, 5.0e-5_wp, 2.0e-5_wp]
     w1(:, 1) = [0.3_wp, 0.4_wp, 1.0_wp, 0.5_wp]
     call atmosphere_swap_background(atm, e1, w1, cext, cssa, opts, atm%sv, done)

@@ -115,6 +115,11 @@ module kumo_atmosphere
     !> (2, n): (block, layer) where a block that is not clear_all has some. Both are found with
     !> the list.
     integer, allocatable :: cloud_ptr(:), cloud_run(:, :)
+    !> (2 ncomp3, n) the listed voxels' components, extinction then albedo, in the order of the
+    !> list, gathered from the band's arrays at its first swap (cloud_c not allocated), so that
+    !> the swaps of its g-points read them side by side; run j starts at cloud_first(j)
+    real(wp), allocatable :: cloud_c(:, :)
+    integer, allocatable :: cloud_first(:)
     logical, allocatable :: clear_all(:)
     integer, allocatable :: clear_part(:, :)
     !> (2, n3) extinction and albedo of the voxels without components of each layer, where
@@ -545,6 +550,8 @@ contains
       atm%layer_class(k) = class_of_layer(atm, k, opts)
     end do
     if (atm%n3 == 0) return
+    ! another band: other components, gathered again
+    if (band .and. allocated(atm%cloud_c)) deallocate (atm%cloud_c)
     if (band .and. .not. present_and_true(same_clear)) then
       ! another band: other voxels may hold components
       if (allocated(atm%cloud_ptr)) deallocate (atm%cloud_ptr)
@@ -609,6 +616,7 @@ contains
       nc = atm%ncomp
       nf = atm%kf_hi - atm%kf_lo + 1
       if (.not. allocated(atm%cloud_ptr)) call list_cloudy()
+      if (.not. allocated(atm%cloud_c)) call gather_cloudy()
       allocate (bg_sca(max(nc - 1, 1)), acc_bg(0:na1), clr_c(max(nc - 1, 1)))
       do kr = 1, atm%n3
         k = atm%k3_lo + kr - 1
@@ -632,7 +640,7 @@ contains
         ! are formed once per layer and kept in clear3, the voxels hold VOXEL_CLEAR, and only the
         ! voxels with components are formed one by one. A component counts as absent when its
         ! extinction is 0 and its albedo finite (then it adds exactly nothing).
-        call form_voxel(1, 1, .false., clr_e, clr_w, clr_c)
+        call form_voxel(0, .false., clr_e, clr_w, clr_c)
         atm%clear3(1, kr) = clr_e
         atm%clear3(2, kr) = clr_w
         if (mod(kr - 1, np) /= p) cycle
@@ -652,6 +660,7 @@ contains
       integer, allocatable :: grown(:, :)
       real(wp) :: t(atm%nx + 1)
       if (allocated(atm%clear_all)) deallocate (atm%clear_all, atm%clear_part)
+      if (allocated(atm%cloud_c)) deallocate (atm%cloud_c)
       if (.not. allocated(atm%cloud_run)) allocate (atm%cloud_run(3, max(256, atm%ny)))
       allocate (atm%cloud_ptr(atm%n3 + 1))
       n = 0
@@ -689,6 +698,32 @@ contains
       end do
     end subroutine list_cloudy
 
+    !> cloud_c and cloud_first: the components of the listed voxels of every layer, side by side
+    subroutine gather_cloudy()
+      integer :: kr, kf, j, ix, iy, n, nr
+      nr = atm%cloud_ptr(atm%n3 + 1)
+      if (allocated(atm%cloud_first)) deallocate (atm%cloud_first)
+      allocate (atm%cloud_first(nr))
+      n = 0
+      do j = 1, nr
+        atm%cloud_first(j) = n + 1
+        n = n + atm%cloud_run(2, j) - atm%cloud_run(1, j) + 1
+      end do
+      allocate (atm%cloud_c(2*atm%nc3, n))
+      n = 0
+      do kr = 1, atm%n3
+        kf = atm%k3_lo + kr - 1 - atm%kf_lo + 1
+        do j = atm%cloud_ptr(kr) + 1, atm%cloud_ptr(kr + 1)
+          iy = atm%cloud_run(3, j)
+          do ix = atm%cloud_run(1, j), atm%cloud_run(2, j)
+            n = n + 1
+            atm%cloud_c(1:atm%nc3, n) = cext(ix, iy, kf, :)
+            atm%cloud_c(atm%nc3 + 1:2*atm%nc3, n) = cssa(ix, iy, kf, :)
+          end do
+        end do
+      end do
+    end subroutine gather_cloudy
+
     !> The voxels of layer kr (its arrays as dummies, so that the compiler keeps their
     !> addresses in registers instead of reloading them after every store): VOXEL_CLEAR and the
     !> layer's scattering fractions everywhere, then the voxels with components formed anew.
@@ -698,7 +733,7 @@ contains
     subroutine form_layer(ext_l, omg_l, csca_l)
       real(vp), intent(inout) :: ext_l(:, :), omg_l(:, :)
       real(vp), intent(inout) :: csca_l(:, :, :)   !! (nc - 1, nx, ny); not touched if nc = 1
-      integer :: ic, j, ix, iy
+      integer :: ic, j, ix, iy, iv
       logical :: known
       known = atm%clear_known(kr)
       if (.not. known) then
@@ -715,8 +750,10 @@ contains
       if (kf < 1 .or. kf > nf) return
       do j = atm%cloud_ptr(kr) + 1, atm%cloud_ptr(kr + 1)
         iy = atm%cloud_run(3, j)
+        iv = atm%cloud_first(j)
         do ix = atm%cloud_run(1, j), atm%cloud_run(2, j)
-          call form_cloudy(ix, iy, ext_l, omg_l, csca_l)
+          call form_cloudy(ix, iy, iv, ext_l, omg_l, csca_l)
+          iv = iv + 1
         end do
       end do
       if (.not. band) return
@@ -882,22 +919,22 @@ contains
       call move_alloc(g, atm%clear_part)
     end subroutine grow_part
 
-    !> Voxel (ix, iy) of the layer's arrays, with its components.
-    subroutine form_cloudy(ix, iy, ext_l, omg_l, csca_l)
-      integer, intent(in) :: ix, iy
+    !> Voxel (ix, iy) of the layer's arrays, with its components (cloud_c(:, iv)).
+    subroutine form_cloudy(ix, iy, iv, ext_l, omg_l, csca_l)
+      integer, intent(in) :: ix, iy, iv
       real(vp), intent(inout) :: ext_l(:, :), omg_l(:, :)
       real(vp), intent(inout) :: csca_l(:, :, :)
       if (nc > 1) then
-        call form_voxel(ix, iy, .true., ext_l(ix, iy), omg_l(ix, iy), csca_l(:, ix, iy))
+        call form_voxel(iv, .true., ext_l(ix, iy), omg_l(ix, iy), csca_l(:, ix, iy))
       else
-        call form_voxel(ix, iy, .true., ext_l(ix, iy), omg_l(ix, iy), clr_c)
+        call form_voxel(iv, .true., ext_l(ix, iy), omg_l(ix, iy), clr_c)
       end if
     end subroutine form_cloudy
 
-    !> The totals, albedo and cumulative scattering fractions of voxel (ix, iy) of layer kr
-    !> (host's k, kf, e, s, acc_bg), with its voxel components if `cloud`, else with none.
-    subroutine form_voxel(ix, iy, cloud, ext_v, omg_v, csca_v)
-      integer, intent(in) :: ix, iy
+    !> The totals, albedo and cumulative scattering fractions of a voxel of layer kr (host's
+    !> k, e, s, acc_bg), with the voxel components cloud_c(:, iv) if `cloud`, else with none.
+    subroutine form_voxel(iv, cloud, ext_v, omg_v, csca_v)
+      integer, intent(in) :: iv
       logical, intent(in) :: cloud
       real(vp), intent(out) :: ext_v, omg_v
       real(vp), intent(out) :: csca_v(:)
@@ -908,8 +945,8 @@ contains
       st = real(s, vp)
       if (cloud) then
         do j = 1, atm%nc3
-          sca = cext(ix, iy, kf, j)*cssa(ix, iy, kf, j)
-          et = real(et + cext(ix, iy, kf, j), vp)
+          sca = atm%cloud_c(j, iv)*atm%cloud_c(atm%nc3 + j, iv)
+          et = real(et + atm%cloud_c(j, iv), vp)
           st = real(st + sca, vp)
         end do
       end if
@@ -931,7 +968,8 @@ contains
       acc = acc_bg(na1)
       do icc = na1 + 1, nc - 1
         sca = 0.0_wp
-        if (cloud) sca = real(real(cext(ix, iy, kf, icc - na1)*cssa(ix, iy, kf, icc - na1), vp), wp)
+        if (cloud) sca = real(real(atm%cloud_c(icc - na1, iv)* &
+                                   atm%cloud_c(atm%nc3 + icc - na1, iv), vp), wp)
         acc = acc + sca
         if (sca_tot > 0.0_wp) then
           csca_v(icc) = real(min(1.0_wp, acc/sca_tot), vp)

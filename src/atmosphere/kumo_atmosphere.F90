@@ -117,7 +117,8 @@ module kumo_atmosphere
     integer, allocatable :: cloud_ptr(:), cloud_run(:, :)
     !> (2 ncomp3, n) the listed voxels' components, extinction then albedo, in the order of the
     !> list, gathered from the band's arrays at its first swap (cloud_c not allocated), so that
-    !> the swaps of its g-points read them side by side; run j starts at cloud_first(j)
+    !> the swaps of its g-points read them side by side; run j starts at cloud_first(j). Only
+    !> the layers this process forms (voxels shared by several processes).
     real(wp), allocatable :: cloud_c(:, :)
     integer, allocatable :: cloud_first(:)
     logical, allocatable :: clear_all(:)
@@ -616,7 +617,7 @@ contains
       nc = atm%ncomp
       nf = atm%kf_hi - atm%kf_lo + 1
       if (.not. allocated(atm%cloud_ptr)) call list_cloudy()
-      if (.not. allocated(atm%cloud_c)) call gather_cloudy()
+      if (.not. allocated(atm%cloud_c)) call gather_cloudy(p, np)
       allocate (bg_sca(max(nc - 1, 1)), acc_bg(0:na1), clr_c(max(nc - 1, 1)))
       do kr = 1, atm%n3
         k = atm%k3_lo + kr - 1
@@ -698,20 +699,28 @@ contains
       end do
     end subroutine list_cloudy
 
-    !> cloud_c and cloud_first: the components of the listed voxels of every layer, side by side
-    subroutine gather_cloudy()
+    !> cloud_c and cloud_first: the components of the listed voxels side by side, of the layers
+    !> this process forms (kr = p + 1, p + 1 + np, ...: the processes sharing the voxels hold
+    !> one copy between them)
+    subroutine gather_cloudy(p, np)
+      integer, intent(in) :: p, np
       integer :: kr, kf, j, ix, iy, n, nr
       nr = atm%cloud_ptr(atm%n3 + 1)
       if (allocated(atm%cloud_first)) deallocate (atm%cloud_first)
       allocate (atm%cloud_first(nr))
+      atm%cloud_first = 0
       n = 0
-      do j = 1, nr
-        atm%cloud_first(j) = n + 1
-        n = n + atm%cloud_run(2, j) - atm%cloud_run(1, j) + 1
+      do kr = 1, atm%n3
+        if (mod(kr - 1, np) /= p) cycle
+        do j = atm%cloud_ptr(kr) + 1, atm%cloud_ptr(kr + 1)
+          atm%cloud_first(j) = n + 1
+          n = n + atm%cloud_run(2, j) - atm%cloud_run(1, j) + 1
+        end do
       end do
       allocate (atm%cloud_c(2*atm%nc3, n))
       n = 0
       do kr = 1, atm%n3
+        if (mod(kr - 1, np) /= p) cycle
         kf = atm%k3_lo + kr - 1 - atm%kf_lo + 1
         do j = atm%cloud_ptr(kr) + 1, atm%cloud_ptr(kr + 1)
           iy = atm%cloud_run(3, j)

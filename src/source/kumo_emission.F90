@@ -524,7 +524,7 @@ contains
     type(atmosphere_t), intent(in) :: atm
     real(wp), pointer, contiguous, intent(in) :: cext(:, :, :, :), cssa(:, :, :, :)
     integer, intent(in) :: koff
-    integer :: kr, iy, ix, j, r
+    integer :: kr, iy, ix, r
     va%cext => cext
     va%cssa => cssa
     va%koff = koff
@@ -537,9 +537,7 @@ contains
         do r = atm%cloud_ptr(kr) + 1, atm%cloud_ptr(kr + 1)
           iy = atm%cloud_run(3, r)
           do ix = atm%cloud_run(1, r), atm%cloud_run(2, r)
-            j = (ix - 1)/VA_RUN + 1
-            va%kc_blk(j, iy, kr) = va%kc_blk(j, iy, kr) + &
-                                   components_abs(cext, cssa, koff, ix, iy, kr)
+            call add_voxel(ix, iy, kr)
           end do
         end do
       end do
@@ -547,9 +545,7 @@ contains
       do kr = 1, atm%n3
         do iy = 1, atm%ny
           do ix = 1, atm%nx
-            j = (ix - 1)/VA_RUN + 1
-            va%kc_blk(j, iy, kr) = va%kc_blk(j, iy, kr) + &
-                                   components_abs(cext, cssa, koff, ix, iy, kr)
+            call add_voxel(ix, iy, kr)
           end do
         end do
       end do
@@ -562,6 +558,14 @@ contains
         va%kc_row(iy, kr) = sum(va%kc_blk(:, iy, kr))
       end do
     end do
+  contains
+    !> kc of voxel (ix, iy, kr) into the sum of its run
+    subroutine add_voxel(ix, iy, kr)
+      integer, intent(in) :: ix, iy, kr
+      integer :: j
+      j = (ix - 1)/VA_RUN + 1
+      va%kc_blk(j, iy, kr) = va%kc_blk(j, iy, kr) + components_abs(cext, cssa, koff, ix, iy, kr)
+    end subroutine add_voxel
   end subroutine voxel_abs_init
 
   !> kc of voxel (ix, iy, kr): the components' sum of ext (1 - ssa) (a component of extinction 0

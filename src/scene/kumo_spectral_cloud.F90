@@ -48,6 +48,10 @@ module kumo_spectral_cloud
 
   !> Nodes per band of the band-averaged Mie tables (kumo_band_mie: wide bands get more).
   integer, parameter :: MIE_NODES = 8
+  !> Most bytes the optics of the voxels with water of every band may take to be kept between
+  !> the visits of a band (24 bytes per voxel, component and band); beyond, they are formed at
+  !> every visit.
+  integer(i8), parameter :: KEEP_BYTES = 64_i8*1024_i8**2
 
   !> A cloud file's fields and its optics tables per band.
   type :: spectral_cloud_t
@@ -71,6 +75,14 @@ module kumo_spectral_cloud
     !> every table's extinction per water is positive, so that the voxels with extinction are
     !> the voxels with water at every band (atmosphere_swap_background's same_clear)
     logical :: wet_exact = .false.
+    !> the optics of the voxels with water of each band visited, in the order of wet_col
+    !> (when they fit KEEP_BYTES): extinction and albedo (2, n_wet, n_band), phase index and
+    !> blend weight (n_wet, n_band), and the band's counts of radii outside the tables (2,
+    !> n_band; -1 until the band is kept)
+    real(wp), allocatable :: kept_c(:, :, :)
+    integer, allocatable :: kept_iph(:, :)
+    real(vp), allocatable :: kept_wph(:, :)
+    integer, allocatable :: kept_out(:, :)
     real(wp), pointer, contiguous :: cext(:, :, :, :) => null(), cssa(:, :, :, :) => null()
     integer, pointer, contiguous :: ciph(:, :, :, :) => null()
     real(vp), pointer, contiguous :: cwph(:, :, :, :) => null()
@@ -356,6 +368,15 @@ contains
       sc%cwph(1:sc%nx, 1:sc%ny, 1:sc%nz, 1:sc%nc3) => sc%cwph_own(1:nv)
     end if
     if (.not. allocated(sc%wet_ptr)) call first_band()
+    if (allocated(sc%kept_out)) then
+      if (sc%kept_out(1, band) >= 0) then
+        call kept(.false.)
+        n_out_liq = sc%kept_out(1, band)
+        n_out_ice = sc%kept_out(2, band)
+        sc%band = band
+        return
+      end if
+    end if
     do ip = 1, np
       do k = 1, sc%nz
         call wet_layer(sc%liq, sc%liq%lwc, sc%liq%reff, sc%liq_tab(band), sc%off_liq(band), &
@@ -364,8 +385,36 @@ contains
                                        sc%off_ice(band), np + ip, n_out_ice)
       end do
     end do
+    if (allocated(sc%kept_out)) then
+      call kept(.true.)
+      sc%kept_out(:, band) = [n_out_liq, n_out_ice]
+    end if
     sc%band = band
   contains
+    !> The band's optics of the voxels with water into its kept copy (`store`) or out of it
+    subroutine kept(store)
+      logical, intent(in) :: store
+      integer :: ic, j, ix, iy
+      do ic = 1, sc%nc3
+        do k = 1, sc%nz
+          do j = sc%wet_ptr(k + (ic - 1)*sc%nz) + 1, sc%wet_ptr(k + (ic - 1)*sc%nz + 1)
+            iy = (sc%wet_col(j) - 1)/sc%nx + 1
+            ix = sc%wet_col(j) - (iy - 1)*sc%nx
+            if (store) then
+              sc%kept_c(:, j, band) = [sc%cext(ix, iy, k, ic), sc%cssa(ix, iy, k, ic)]
+              sc%kept_iph(j, band) = sc%ciph(ix, iy, k, ic)
+              sc%kept_wph(j, band) = sc%cwph(ix, iy, k, ic)
+            else
+              sc%cext(ix, iy, k, ic) = sc%kept_c(1, j, band)
+              sc%cssa(ix, iy, k, ic) = sc%kept_c(2, j, band)
+              sc%ciph(ix, iy, k, ic) = sc%kept_iph(j, band)
+              sc%cwph(ix, iy, k, ic) = sc%kept_wph(j, band)
+            end if
+          end do
+        end do
+      end do
+    end subroutine kept
+
     !> The values of the voxels without water, the same at every band (no extinction, and the
     !> first band's first table: a voxel's component without extinction is never scattered
     !> by, but its phase index must be valid), and the lists of the voxels with water.
@@ -391,6 +440,12 @@ contains
           sc%wet_ptr(l + 1) = n
         end do
       end do
+      ! the bands' optics of these voxels are kept when they are few enough
+      if (24_i8*n*sc%n_band <= KEEP_BYTES) then
+        allocate (sc%kept_c(2, n, sc%n_band), sc%kept_iph(n, sc%n_band), &
+                  sc%kept_wph(n, sc%n_band), sc%kept_out(2, sc%n_band))
+        sc%kept_out = -1
+      end if
     end subroutine first_band
 
     !> the columns of `amount` with water appended to wet_col (n of them so far)

@@ -350,8 +350,10 @@ contains
     type(spectral_cloud_t), intent(inout), target :: sc
     integer, intent(in) :: band
     integer, intent(out) :: n_out_liq, n_out_ice
-    integer :: np, ip, k, n
+    integer :: np, ip, ic, k, n, j, ix, iy
     integer(i8) :: nv
+    real(wp) :: w
+    logical :: keep, restore
     np = merge(2, 1, sc%liq%points)
     n_out_liq = 0
     n_out_ice = 0
@@ -368,53 +370,52 @@ contains
       sc%cwph(1:sc%nx, 1:sc%ny, 1:sc%nz, 1:sc%nc3) => sc%cwph_own(1:nv)
     end if
     if (.not. allocated(sc%wet_ptr)) call first_band()
-    if (allocated(sc%kept_out)) then
-      if (sc%kept_out(1, band) >= 0) then
-        call kept(.false.)
-        n_out_liq = sc%kept_out(1, band)
-        n_out_ice = sc%kept_out(2, band)
-        sc%band = band
-        return
-      end if
-    end if
-    do ip = 1, np
+    keep = allocated(sc%kept_out)
+    restore = .false.
+    if (keep) restore = sc%kept_out(1, band) >= 0
+    ! the voxels with water, component by component (liquid planes, then ice planes): formed
+    ! from the band's table (and kept when they fit), or copied back from the kept ones
+    do ic = 1, sc%nc3
+      ip = merge(ic, ic - np, ic <= np)
       do k = 1, sc%nz
-        call wet_layer(sc%liq, sc%liq%lwc, sc%liq%reff, sc%liq_tab(band), sc%off_liq(band), &
-                       ip, n_out_liq)
-        if (sc%has_ice) call wet_layer(sc%ice, sc%ice%iwc, sc%ice%reff_ice, sc%ice_tab(band), &
-                                       sc%off_ice(band), np + ip, n_out_ice)
+        do j = sc%wet_ptr(k + (ic - 1)*sc%nz) + 1, sc%wet_ptr(k + (ic - 1)*sc%nz + 1)
+          iy = (sc%wet_col(j) - 1)/sc%nx + 1
+          ix = sc%wet_col(j) - (iy - 1)*sc%nx
+          if (restore) then
+            sc%cext(ix, iy, k, ic) = sc%kept_c(1, j, band)
+            sc%cssa(ix, iy, k, ic) = sc%kept_c(2, j, band)
+            sc%ciph(ix, iy, k, ic) = sc%kept_iph(j, band)
+            sc%cwph(ix, iy, k, ic) = sc%kept_wph(j, band)
+            cycle
+          end if
+          if (ic <= np) then
+            call mie_voxel(real(sc%liq%lwc(ix, iy, k + ip - 1)/np, wp), &
+                           sc%liq%reff(ix, iy, k + ip - 1), sc%liq_tab(band), sc%off_liq(band), &
+                           .false., sc%cext(ix, iy, k, ic), sc%cssa(ix, iy, k, ic), &
+                           sc%ciph(ix, iy, k, ic), w, n_out_liq)
+          else
+            call mie_voxel(real(sc%ice%iwc(ix, iy, k + ip - 1)/np, wp), &
+                           sc%ice%reff_ice(ix, iy, k + ip - 1), sc%ice_tab(band), &
+                           sc%off_ice(band), .false., sc%cext(ix, iy, k, ic), &
+                           sc%cssa(ix, iy, k, ic), sc%ciph(ix, iy, k, ic), w, n_out_ice)
+          end if
+          sc%cwph(ix, iy, k, ic) = real(w, vp)
+          if (keep) then
+            sc%kept_c(:, j, band) = [sc%cext(ix, iy, k, ic), sc%cssa(ix, iy, k, ic)]
+            sc%kept_iph(j, band) = sc%ciph(ix, iy, k, ic)
+            sc%kept_wph(j, band) = sc%cwph(ix, iy, k, ic)
+          end if
+        end do
       end do
     end do
-    if (allocated(sc%kept_out)) then
-      call kept(.true.)
+    if (restore) then
+      n_out_liq = sc%kept_out(1, band)
+      n_out_ice = sc%kept_out(2, band)
+    else if (keep) then
       sc%kept_out(:, band) = [n_out_liq, n_out_ice]
     end if
     sc%band = band
   contains
-    !> The band's optics of the voxels with water into its kept copy (`store`) or out of it
-    subroutine kept(store)
-      logical, intent(in) :: store
-      integer :: ic, j, ix, iy
-      do ic = 1, sc%nc3
-        do k = 1, sc%nz
-          do j = sc%wet_ptr(k + (ic - 1)*sc%nz) + 1, sc%wet_ptr(k + (ic - 1)*sc%nz + 1)
-            iy = (sc%wet_col(j) - 1)/sc%nx + 1
-            ix = sc%wet_col(j) - (iy - 1)*sc%nx
-            if (store) then
-              sc%kept_c(:, j, band) = [sc%cext(ix, iy, k, ic), sc%cssa(ix, iy, k, ic)]
-              sc%kept_iph(j, band) = sc%ciph(ix, iy, k, ic)
-              sc%kept_wph(j, band) = sc%cwph(ix, iy, k, ic)
-            else
-              sc%cext(ix, iy, k, ic) = sc%kept_c(1, j, band)
-              sc%cssa(ix, iy, k, ic) = sc%kept_c(2, j, band)
-              sc%ciph(ix, iy, k, ic) = sc%kept_iph(j, band)
-              sc%cwph(ix, iy, k, ic) = sc%kept_wph(j, band)
-            end if
-          end do
-        end do
-      end do
-    end subroutine kept
-
     !> The values of the voxels without water, the same at every band (no extinction, and the
     !> first band's first table: a voxel's component without extinction is never scattered
     !> by, but its phase index must be valid), and the lists of the voxels with water.
@@ -466,28 +467,6 @@ contains
         end do
       end do
     end subroutine list_wet
-
-    !> The voxels with water of layer k of component ic (plane ip of its field), as mie_layer
-    !> forms them
-    subroutine wet_layer(c, amount, reff, table, offset, ic, n_out)
-      type(cloud_input_t), intent(in) :: c
-      real(vp), intent(in) :: amount(:, :, :), reff(:, :, :)
-      type(mie_table_t), intent(in) :: table
-      integer, intent(in) :: offset, ic
-      integer, intent(inout) :: n_out
-      integer :: j, l, ix, iy, npl
-      real(wp) :: w
-      npl = merge(2, 1, c%points)
-      l = k + (ic - 1)*sc%nz
-      do j = sc%wet_ptr(l) + 1, sc%wet_ptr(l + 1)
-        iy = (sc%wet_col(j) - 1)/sc%nx + 1
-        ix = sc%wet_col(j) - (iy - 1)*sc%nx
-        call mie_voxel(real(amount(ix, iy, k + ip - 1)/npl, wp), reff(ix, iy, k + ip - 1), &
-                       table, offset, .false., sc%cext(ix, iy, k, ic), sc%cssa(ix, iy, k, ic), &
-                       sc%ciph(ix, iy, k, ic), w, n_out)
-        sc%cwph(ix, iy, k, ic) = real(w, vp)
-      end do
-    end subroutine wet_layer
   end subroutine spectral_cloud_band
 
   !> Place the voxel components (cext, cssa, ciph, cwph) in the caller's storage

@@ -315,7 +315,8 @@ contains
                        'Planck radiances nor the caller''s storage')
         return
       end if
-      if (size(layer_abs) /= atm%n3 .or. .not. allocated(voxel_abs%kc_blk)) then
+      if (size(layer_abs) /= atm%n3 .or. .not. allocated(voxel_abs%kc_blk) .or. &
+          .not. allocated(voxel_abs%kc_row)) then
         call set_error(error, 'thermal emission: the absorption of '//str(size(layer_abs))// &
                        ' layers given for a 3-D region of '//str(atm%n3))
         return
@@ -325,8 +326,7 @@ contains
                        'that of the 3-D region')
         return
       end if
-      if (any(.not. (layer_abs >= 0.0_wp)) .or. voxel_abs%bad .or. &
-          .not. allocated(voxel_abs%kc_row)) then
+      if (any(.not. (layer_abs >= 0.0_wp)) .or. voxel_abs%bad) then
         call set_error(error, 'thermal emission: absorption coefficients must be finite and >= 0')
         return
       end if

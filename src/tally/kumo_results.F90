@@ -202,19 +202,22 @@ contains
     type(result_var_t), intent(in) :: v
     integer, intent(in) :: j0
     real(dp), intent(inout) :: x(:)
-    integer :: j, k
-    if (allocated(v%fac_a)) then
-      do j = 1, size(x)
+    if (allocated(v%fac_a)) call by_block(v%fac_a, x)
+    if (allocated(v%fac_b)) call by_block(v%fac_b, x)
+  contains
+    !> y(j) times f of the block of value j0 + j, one block's run of values at a time
+    pure subroutine by_block(f, y)
+      real(dp), intent(in) :: f(:)
+      real(dp), intent(inout) :: y(:)
+      integer :: j, je, k
+      j = 1
+      do while (j <= size(y))
         k = (j0 + j - 1)/v%block + 1
-        x(j) = x(j)*v%fac_a(k)
+        je = min(size(y), k*v%block - j0)
+        y(j:je) = y(j:je)*f(k)
+        j = je + 1
       end do
-    end if
-    if (allocated(v%fac_b)) then
-      do j = 1, size(x)
-        k = (j0 + j - 1)/v%block + 1
-        x(j) = x(j)*v%fac_b(k)
-      end do
-    end if
+    end subroutine by_block
   end subroutine apply_factors
 
   !> Form the values of every deferred variable and let the set drop the sums: for code that

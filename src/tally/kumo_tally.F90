@@ -306,9 +306,9 @@ contains
     type(tally_layout_t), intent(in) :: lay
     type(tally_t), intent(in) :: tal
     integer(i8), intent(in) :: n_photons
-    real(dp) :: scale_dom, scale_col, x, a, h
-    real(dp), allocatable :: xd(:)
-    integer :: i, nz, c, kr, ib, it
+    real(dp) :: scale_dom, scale_col
+    real(dp), allocatable :: xd(:), a(:), h(:)
+    integer :: nz, c, kr, ib, it, n, o
     nz = lay%nz
     scale_dom = 1.0_dp/real(n_photons, dp)
     scale_col = real(lay%ncol, dp)/real(n_photons, dp)
@@ -325,51 +325,75 @@ contains
                                              xd(lay%i_up + 1:lay%i_up + nz + 1)
     st%s1(1:lay%i_map_up) = st%s1(1:lay%i_map_up) + xd
     st%s2(1:lay%i_map_up) = st%s2(1:lay%i_map_up) + xd*xd
-    do i = lay%i_map_up + 1, lay%i_cam0
-      x = tal%buf(i)*scale_col
-      st%s1(i) = st%s1(i) + x
-      st%s2(i) = st%s2(i) + x*x
-    end do
-    do i = lay%i_cam0 + 1, lay%i_col_abs
-      x = tal%buf(i)*scale_dom
-      st%s1(i) = st%s1(i) + x
-      st%s2(i) = st%s2(i) + x*x
-    end do
+    n = lay%i_cam0 - lay%i_map_up
+    call add_moments(n, st%s1(lay%i_map_up + 1:), st%s2(lay%i_map_up + 1:), &
+                     tal%buf(lay%i_map_up + 1:), scale_col)
+    n = lay%i_col_abs - lay%i_cam0
+    call add_moments(n, st%s1(lay%i_cam0 + 1:), st%s2(lay%i_cam0 + 1:), &
+                     tal%buf(lay%i_cam0 + 1:), scale_dom)
     if (lay%do_budget) then
       ! per column: A = sum of its voxels; H = net flux in at the top - net flux out at the
-      ! bottom - A (zero in every column when nothing moves sideways and no roulette acts)
+      ! bottom - A (zero in every column when nothing moves sideways and no roulette acts).
+      ! The voxels are summed layer by layer into a(:), each column's in the order kr = 1, 2, ...
       ib = (lay%budget_slot(1) - 1)*lay%ncol
       it = (lay%budget_slot(2) - 1)*lay%ncol
-      do c = 1, lay%ncol
-        a = 0.0_dp
-        do kr = 1, lay%n3
-          a = a + tal%buf(lay%i_vox + (kr - 1)*lay%ncol + c)
-        end do
-        h = tal%buf(lay%i_map_dir + it + c) + tal%buf(lay%i_map_dif + it + c) &
-            - tal%buf(lay%i_map_up + it + c) &
-            - (tal%buf(lay%i_map_dir + ib + c) + tal%buf(lay%i_map_dif + ib + c) &
-               - tal%buf(lay%i_map_up + ib + c)) - a
-        a = a*scale_col
-        h = h*scale_col
-        st%s1(lay%i_col_abs + c) = st%s1(lay%i_col_abs + c) + a
-        st%s2(lay%i_col_abs + c) = st%s2(lay%i_col_abs + c) + a*a
-        st%s1(lay%i_htr + c) = st%s1(lay%i_htr + c) + h
-        st%s2(lay%i_htr + c) = st%s2(lay%i_htr + c) + h*h
+      allocate (a(lay%ncol), h(lay%ncol))
+      a = 0.0_dp
+      do kr = 1, lay%n3
+        o = lay%i_vox + (kr - 1)*lay%ncol
+        a = a + tal%buf(o + 1:o + lay%ncol)
       end do
+      do c = 1, lay%ncol
+        h(c) = tal%buf(lay%i_map_dir + it + c) + tal%buf(lay%i_map_dif + it + c) &
+               - tal%buf(lay%i_map_up + it + c) &
+               - (tal%buf(lay%i_map_dir + ib + c) + tal%buf(lay%i_map_dif + ib + c) &
+                  - tal%buf(lay%i_map_up + ib + c)) - a(c)
+      end do
+      call add_moments(lay%ncol, st%s1(lay%i_col_abs + 1:), st%s2(lay%i_col_abs + 1:), a, &
+                       scale_col)
+      call add_moments(lay%ncol, st%s1(lay%i_htr + 1:), st%s2(lay%i_htr + 1:), h, scale_col)
     end if
     if (lay%do_maps) then
       ! total downward flux per column, per batch, so that its standard error is exact
-      do c = 1, lay%n_map*lay%ncol
-        x = (tal%buf(lay%i_map_dir + c) + tal%buf(lay%i_map_dif + c))*scale_col
-        st%s1(lay%i_map_dn + c) = st%s1(lay%i_map_dn + c) + x
-        st%s2(lay%i_map_dn + c) = st%s2(lay%i_map_dn + c) + x*x
-      end do
+      n = lay%n_map*lay%ncol
+      call add_moments_sum(n, st%s1(lay%i_map_dn + 1:), st%s2(lay%i_map_dn + 1:), &
+                           tal%buf(lay%i_map_dir + 1:), tal%buf(lay%i_map_dif + 1:), scale_col)
     end if
     st%n_batches = st%n_batches + 1_i8
     st%n_photons = st%n_photons + n_photons
     st%anomalies = st%anomalies + tal%anomalies
     st%work = st%work + tal%work
   end subroutine stats_add_batch
+
+  !> s1 += x, s2 += x*x with x = b*scale, for n values (separate dummies: the compiler knows
+  !> they do not overlap and may work on several values at once; each value is formed as in
+  !> a loop over one)
+  pure subroutine add_moments(n, s1, s2, b, scale)
+    integer, intent(in) :: n
+    real(dp), intent(inout) :: s1(n), s2(n)
+    real(dp), intent(in) :: b(n), scale
+    real(dp) :: x
+    integer :: i
+    do i = 1, n
+      x = b(i)*scale
+      s1(i) = s1(i) + x
+      s2(i) = s2(i) + x*x
+    end do
+  end subroutine add_moments
+
+  !> The same with x = (b(i) + c(i))*scale.
+  pure subroutine add_moments_sum(n, s1, s2, b, c, scale)
+    integer, intent(in) :: n
+    real(dp), intent(inout) :: s1(n), s2(n)
+    real(dp), intent(in) :: b(n), c(n), scale
+    real(dp) :: x
+    integer :: i
+    do i = 1, n
+      x = (b(i) + c(i))*scale
+      s1(i) = s1(i) + x
+      s2(i) = s2(i) + x*x
+    end do
+  end subroutine add_moments_sum
 
   !> The energy budget of one batch's tally, summed over its photons: reflected (up at the top),
   !> transmitted (down at the surface, direct + diffuse) and absorbed in the atmosphere.
@@ -407,14 +431,13 @@ contains
       e = 0.0_dp
       return
     end if
+    ! without a branch, so that several values are formed at once (abs keeps the root's
+    ! argument >= 0 where its value is not taken, and a NaN a NaN)
     do i = lo, hi
       m = st%s1(i)/b
       v = st%s2(i)/b - m*m
-      if (v <= 16.0_dp*epsilon(1.0_dp)*m*m) then
-        e(i - lo + 1) = 0.0_dp
-      else
-        e(i - lo + 1) = sqrt(v/(b - 1.0_dp))
-      end if
+      e(i - lo + 1) = merge(0.0_dp, sqrt(abs(v)/(b - 1.0_dp)), &
+                            v <= 16.0_dp*epsilon(1.0_dp)*m*m)
     end do
   end function stats_stderr
   ! ---- Scoring: one procedure per kind of score. Weights are in units of the photon weight;

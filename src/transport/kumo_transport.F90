@@ -934,13 +934,28 @@ contains
     real(wp), intent(in) :: x, y, ux, uy, s, w
     logical, intent(in) :: layers
     type(voxel_walk_t) :: wk
-    real(wp) :: a, dep
+    real(wp) :: a, dep, ka
     integer :: kr
     logical :: last
     if (s <= 0.0_wp) return
     kr = iz - atm%k3_lo + 1
-    if (atm%uniform3(kr) .and. .not. lay%do_voxel) then
-      a = w*((voxel_ext(atm, 1, 1, kr)*(1.0_wp - voxel_omg(atm, 1, 1, kr)))*s)
+    if (atm%uniform3(kr)) then
+      ! every voxel of the layer has the same optics: taken once, not read at every voxel
+      ka = voxel_ext(atm, 1, 1, kr)*(1.0_wp - voxel_omg(atm, 1, 1, kr))
+      if (.not. lay%do_voxel) then
+        a = w*(ka*s)
+      else
+        call walk_begin(wk, atm, x, y, ux, uy, s)
+        a = 0.0_wp
+        do
+          call walk_segment(wk, atm, last)
+          dep = w*(ka*wk%step)
+          a = a + dep
+          call score_voxel_abs(lay, tal, kr, wk%ix + (wk%iy - 1)*atm%nx, dep)
+          if (last) exit
+          call walk_next(wk, atm)
+        end do
+      end if
     else
       call walk_begin(wk, atm, x, y, ux, uy, s)
       a = 0.0_wp

@@ -21,7 +21,7 @@ module kumo_tally
   public :: score_flux, score_flux_map, score_layer_abs, score_voxel_abs, score_surface_abs, &
             score_roulette, score_lost, score_source, score_net_layer, score_net_surface, &
             score_net_voxel, score_radiance, score_radiance_map, score_camera
-  public :: score_radiance_map_run, score_voxel_collision
+  public :: score_radiance_map_run
   public :: ANOM_UZ_NUDGED, ANOM_EVENT_CAP, ANOM_STEP_CAP, ANOM_POSITION_REPAIR, &
             ANOM_BRDF_ENVELOPE, N_ANOMALIES, ANOMALY_NAMES
 
@@ -46,7 +46,7 @@ module kumo_tally
     integer :: n_map = 0       !! number of levels with per-column flux maps
     logical :: do_maps = .false.
     logical :: do_voxel = .false.
-    logical :: log_voxel = .false.  !! collision scores of the voxels go through the log (tally_t)
+    logical :: log_voxel = .false.  !! the voxel absorption scores go through the log (tally_t)
     logical :: log_maps = .false.   !! flux-map scores go through the log (tally_t)
     integer, allocatable :: map_slot(:)  !! (0:nz) slot of each level in the maps, 0 = none
     integer :: i_up = 0        !! up flux at level k: buf(i_up + k + 1), k = 0..nz
@@ -104,7 +104,7 @@ module kumo_tally
 
   !> The accumulators of one batch.
   !>
-  !> The voxel absorption scored at collisions in a large 3-D region (lay%log_voxel), and the
+  !> The voxel absorption scored in a large 3-D region (lay%log_voxel), and the
   !> level crossings of large flux maps (lay%log_maps), are not added to `buf` at once but
   !> appended to a short log, which `tally_flush` adds to `buf` in the order of scoring (so
   !> every entry receives the same additions in the same order, and the sums are the same to
@@ -496,6 +496,9 @@ contains
   end subroutine score_layer_abs
 
   !> Weight `a` absorbed in voxel (kr, icol) of the 3-D region; nothing without voxel tallies.
+  !> In a large region (lay%log_voxel) every voxel score, at collisions and along paths alike,
+  !> goes through the log (tally_t), so each voxel still receives its additions in the order
+  !> they were scored.
   pure subroutine score_voxel_abs(lay, tal, kr, icol, a)
     type(tally_layout_t), intent(in) :: lay
     type(tally_t), intent(inout) :: tal
@@ -504,24 +507,12 @@ contains
     integer :: i
     if (.not. lay%do_voxel) return
     i = lay%i_vox + (kr - 1)*lay%ncol + icol
-    tal%buf(i) = tal%buf(i) + a
-  end subroutine score_voxel_abs
-
-  !> The same score for the absorption at a collision, logged in a large region: in `buf` after
-  !> tally_flush. The scores along paths (score_voxel_abs) go to neighbouring voxels one after
-  !> the other and find them in the cache; collisions are spread over the cloud. A run scores
-  !> its voxels either way, never both (the order of the additions to a voxel would change).
-  pure subroutine score_voxel_collision(lay, tal, kr, icol, a)
-    type(tally_layout_t), intent(in) :: lay
-    type(tally_t), intent(inout) :: tal
-    integer, intent(in) :: kr, icol
-    real(dp), intent(in) :: a
     if (lay%log_voxel) then
-      call log_score(tal, lay%i_vox + (kr - 1)*lay%ncol + icol, a)
+      call log_score(tal, i, a)
     else
-      call score_voxel_abs(lay, tal, kr, icol, a)
+      tal%buf(i) = tal%buf(i) + a
     end if
-  end subroutine score_voxel_collision
+  end subroutine score_voxel_abs
 
   !> Weight `a` absorbed by the surface.
   pure subroutine score_surface_abs(lay, tal, a)

@@ -40,7 +40,7 @@ module kumo_transport
                         ANOM_STEP_CAP, ANOM_POSITION_REPAIR, ANOM_BRDF_ENVELOPE, score_flux, &
                         score_flux_map, score_layer_abs, score_voxel_abs, score_surface_abs, &
                         score_roulette, score_lost, score_source, score_net_layer, &
-                        score_net_surface, score_net_voxel, tally_flush, score_voxel_collision
+                        score_net_surface, score_net_voxel, tally_flush
   use kumo_photon, only: photon_t
   use kumo_source, only: launch_plan_t, source_begin_batch, source_launch
   use kumo_emission, only: emission_b_point, emission_b_segment, emission_b_surface, &
@@ -388,8 +388,8 @@ contains
     else
       call score_layer_abs(lay, tal, p%iz, p%w - wn)
       ! ABS_TRACK_VOXELS: the voxels were scored along the flight
-      if (in3d .and. .not. bat%track) call score_voxel_collision(lay, tal, kr, &
-                                                                 ix + (iy - 1)*scn%atm%nx, p%w - wn)
+      if (in3d .and. .not. bat%track) call score_voxel_abs(lay, tal, kr, &
+                                                           ix + (iy - 1)*scn%atm%nx, p%w - wn)
     end if
     if (bat%thermal) then
       ! 1-D layers come with ix = iy = kr = 0 (fly), for which emission_b_point takes the level

@@ -11,7 +11,7 @@ module test_math_tally_suite
                         score_layer_abs, score_voxel_abs, score_surface_abs, score_roulette, &
                         score_lost, score_source, score_net_layer, score_net_surface, &
                         score_net_voxel, score_radiance, score_radiance_map, score_camera, &
-                        tally_flush, tally_free, score_voxel_collision
+                        tally_flush, tally_free
   implicit none
   private
   public :: collect_math_tally
@@ -191,9 +191,9 @@ contains
     end subroutine expect
   end subroutine test_scores
 
-  !> Voxel absorption at collisions is logged and added at tally_flush (also when the log fills
-  !> during a batch): every entry must get the same additions in the same order as if they had
-  !> been added at once, so the sums agree to the last bit. Values of very different size make
+  !> Voxel absorption (at collisions and along paths alike) is logged and added at tally_flush
+  !> (also when the log fills during a batch): every entry must get the same additions in the
+  !> same order as if they had been added at once, so the sums agree to the last bit. Values of very different size make
   !> the sum depend on the order of the additions.
   subroutine test_score_log(error)
     type(error_t), allocatable, intent(out) :: error
@@ -217,7 +217,7 @@ contains
       v = 1.0_dp/real(j, dp) + merge(1.0e8_dp, 0.0_dp, mod(j, 97) == 0)
       kr = 1 + mod(j, n3)
       icol = 1 + mod(j/3, ncol)
-      call score_voxel_collision(lay, tal, kr, icol, v)
+      call score_voxel_abs(lay, tal, kr, icol, v)
       direct((kr - 1)*ncol + icol) = direct((kr - 1)*ncol + icol) + v
     end do
     call tally_flush(tal)
@@ -265,7 +265,7 @@ contains
         want(i0 + (slot - 1)*nc + icol) = want(i0 + (slot - 1)*nc + icol) + v
         if (mod(j, 5) == 0) then
           kr = 1 + mod(j, 8)
-          call score_voxel_collision(lay, tal, kr, icol, 0.5_dp*v)
+          call score_voxel_abs(lay, tal, kr, icol, 0.5_dp*v)
           want(lay%i_vox + (kr - 1)*nc + icol) = want(lay%i_vox + (kr - 1)*nc + icol) + 0.5_dp*v
         end if
       end do

@@ -29,7 +29,7 @@ module kumo_scene_setup
   use kumo_spectral, only: spectral_column_t, spectral_sw_column, spectral_lw_column, &
                            spectral_plan_t, spectral_plan_init, spectral_batch_t
   use kumo_thermal_column, only: thermal_column_t, thermal_column_init_layers, &
-                                 thermal_column_fluxes
+                                 thermal_column_fluxes_diffusivity
   use kumo_exact_column, only: exact_thermal_possible
   use kumo_truncation, only: truncation_t, truncation_init
   use kumo_camera, only: camera_t, camera_init, CAMERA_PINHOLE, CAMERA_ORTHOGRAPHIC, &
@@ -1133,7 +1133,7 @@ contains
     type(thermal_column_t) :: col
     type(emission_t) :: em, em_sum, em_g
     real(wp), allocatable :: t3(:, :, :)
-    real(wp), allocatable :: energy(:), importance(:), tau(:), fu(:), fd(:), fdir(:), &
+    real(wp), allocatable :: energy(:), importance(:), tau(:), fu(:), fd(:), &
                              net(:), xflux(:), xheat(:), mass(:)
     real(wp) :: eps
     integer :: g, nz
@@ -1153,7 +1153,7 @@ contains
     end if
     if (.not. spec%three_d) allocate (spec%em(spec%n_gpt))
     allocate (energy(spec%n_gpt), importance(spec%n_gpt), &
-              fu(0:nz), fd(0:nz), fdir(0:nz), net(nz), xflux(spec%n_gpt), &
+              fu(0:nz), fd(0:nz), net(nz), xflux(spec%n_gpt), &
               xheat(spec%n_gpt))
     ! mass per unit area of each layer (heating per unit net power)
     mass = scene%air_density*(scene%atm%z(1:nz) - scene%atm%z(0:nz - 1))
@@ -1185,7 +1185,9 @@ contains
         spec%em(g) = em
         call emission_bind(spec%em(g))
       end if
-      ! the same column without scattering, exactly
+      ! the same column without scattering, in the diffusivity approximation (a few per cent,
+      ! which is all an importance needs; the exact solution's O(nz^2) exponential integrals
+      ! were a third of the set-up)
       tau = scene%atm%ext1*(1.0_wp - scene%atm%omg1)*(scene%atm%z(1:nz) - scene%atm%z(0:nz - 1))
       eps = em%eps_mean
       call thermal_column_init_layers(col, tau, spec%src_bot(:, g), spec%src_top(:, g), eps, &
@@ -1194,7 +1196,7 @@ contains
         call add_context(error, '&kumo_spectral: g-point '//str(g))
         return
       end if
-      call thermal_column_fluxes(col, fu, fd, fdir, layer_net=net)
+      call thermal_column_fluxes_diffusivity(col, fu, fd, net)
       xflux(g) = fu(nz) + fd(0) + sum(abs(net)) + abs(eps*fd(0) - em%emit_sfc)
       xheat(g) = sum(abs(net)/mass)
     end do

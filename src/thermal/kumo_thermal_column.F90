@@ -56,7 +56,12 @@ module kumo_thermal_column
   private
   public :: thermal_column_t, thermal_column_init, thermal_column_from_temperatures, &
             thermal_column_init_layers
-  public :: thermal_column_fluxes, thermal_column_radiance
+  public :: thermal_column_fluxes, thermal_column_radiance, thermal_column_fluxes_diffusivity
+
+  !> Diffusivity factor of the two-stream fluxes of thermal_column_fluxes_diffusivity: flux
+  !> transmission 2 E_3(tau) replaced by exp(-D tau) (Elsasser 1942; the value of RRTMG and
+  !> most band models)
+  real(wp), parameter :: DIFFUSIVITY = 1.66_wp
 
   !> A non-scattering column with its boundary conditions. Build it with thermal_column_init
   !> or thermal_column_from_temperatures (both validate).
@@ -236,6 +241,50 @@ contains
       layer_net(k) = net(k) - net(k - 1)
     end do
   end subroutine thermal_column_fluxes
+
+  !> Approximate fluxes of the same column, with the diffusivity approximation: each hemisphere's
+  !> flux crosses a layer of optical depth tau with transmission exp(-D tau), D = DIFFUSIVITY,
+  !> instead of 2 E_3(tau); B linear in optical depth inside each layer, jumps at the levels and
+  !> the boundaries as in thermal_column_fluxes (no beam). O(nz) exponentials instead of O(nz^2)
+  !> exponential integrals, for uses that need a few per cent (the importance of the g-points of
+  !> a broadband longwave run). Isothermal columns come out exactly (zero net flux); an optically
+  !> thin layer emits D tau pi B per hemisphere instead of 2 tau pi B.
+  pure subroutine thermal_column_fluxes_diffusivity(col, flux_up, flux_down, layer_net)
+    type(thermal_column_t), intent(in) :: col
+    real(wp), intent(out) :: flux_up(0:)      !! (0:nz) upward flux [W m-2]
+    real(wp), intent(out) :: flux_down(0:)    !! (0:nz) downward flux [W m-2]
+    real(wp), intent(out) :: layer_net(:)     !! (nz) net downward flux at the top minus the bottom
+    real(wp) :: t, g
+    integer :: k
+    flux_down(col%nz) = PI*col%i_top
+    do k = col%nz, 1, -1
+      call layer_factors(col%tau(k), t, g)
+      flux_down(k - 1) = flux_down(k)*t + &
+                         PI*(col%bb(k) - col%bt(k)*t - (col%bb(k) - col%bt(k))*g)
+    end do
+    flux_up(0) = PI*col%emissivity*col%b_surface + (1.0_wp - col%emissivity)*flux_down(0)
+    do k = 1, col%nz
+      call layer_factors(col%tau(k), t, g)
+      flux_up(k) = flux_up(k - 1)*t + PI*(col%bt(k) - col%bb(k)*t - (col%bt(k) - col%bb(k))*g)
+    end do
+    do k = 1, col%nz
+      layer_net(k) = (flux_down(k) - flux_up(k)) - (flux_down(k - 1) - flux_up(k - 1))
+    end do
+  contains
+    !> t = exp(-x) and g = (1 - t)/x for x = D tau (the series of g below x = 1e-3)
+    pure subroutine layer_factors(tau, t, g)
+      real(wp), intent(in) :: tau
+      real(wp), intent(out) :: t, g
+      real(wp) :: x
+      x = DIFFUSIVITY*tau
+      t = exp(-x)
+      if (x < 1.0e-3_wp) then
+        g = 1.0_wp - x*(0.5_wp - x*(1.0_wp/6.0_wp - x/24.0_wp))
+      else
+        g = (1.0_wp - t)/x
+      end if
+    end subroutine layer_factors
+  end subroutine thermal_column_fluxes_diffusivity
 
   !> Diffuse radiance at level i (0..nz) in direction mu (> 0 upward, < 0 downward, |mu| <= 1).
   !> i_surface, if given, replaces the Lambertian surface-leaving radiance for this direction

@@ -33,7 +33,8 @@ module test_kumo_thermal_column
                          band_radiance
   use kumo_expint, only: expint_e, expint_d, expint_divdiff
   use kumo_thermal_column, only: thermal_column_t, thermal_column_init, thermal_column_from_temperatures, &
-                                 thermal_column_fluxes, thermal_column_radiance
+                                 thermal_column_fluxes, thermal_column_radiance, &
+                                 thermal_column_init_layers, thermal_column_fluxes_diffusivity
   use kumo_testing, only: error_t, unittest_t, new_unittest, check, check_close, check_error_words
   implicit none
   private
@@ -66,6 +67,7 @@ contains
              new_unittest('fluxes_equal_angular_integrals', test_consistency), &
              new_unittest('energy_closure', test_energy), &
              new_unittest('thin_and_thick_limits', test_limits), &
+             new_unittest('diffusivity_fluxes', test_diffusivity), &
              new_unittest('bad_inputs', test_bad_inputs)]
   end function collect_thermal_column
 
@@ -422,6 +424,59 @@ contains
     ! (B 50 -> 20 under a sky of 3) cools.
     call check(error, net(4) > 0.0_wp .and. net(5) < 0.0_wp, 'signs of the layer budgets')
   end subroutine test_energy
+
+  !> The diffusivity approximation (thermal_column_fluxes_diffusivity, D = 1.66): exact for an
+  !> isothermal enclosure (jumps at the levels between equal values included) and for the top of
+  !> an opaque column; within a few per cent of the exact fluxes on a column with thin and thick
+  !> layers, level jumps, a grey surface and a sky; its thin-layer emission is D/2 of the exact.
+  subroutine test_diffusivity(error)
+    type(error_t), allocatable, intent(out) :: error
+    real(wp), parameter :: tau(7) = [1.0e-9_wp, 0.3_wp, 50.0_wp, 2.0e-5_wp, 0.05_wp, 2.0_wp, 0.0_wp]
+    real(wp), parameter :: bb(7) = [120.0_wp, 110.0_wp, 95.0_wp, 70.0_wp, 66.0_wp, 60.0_wp, 40.0_wp]
+    real(wp), parameter :: bt(7) = [112.0_wp, 96.0_wp, 72.0_wp, 67.0_wp, 61.0_wp, 42.0_wp, 40.0_wp]
+    type(thermal_column_t) :: col
+    type(error_t), allocatable :: err
+    real(wp) :: fu(0:7), fd(0:7), fdir(0:7), net(7), au(0:7), ad(0:7), anet(7)
+    real(wp) :: fu1(0:1), fd1(0:1), net1(1)
+    integer :: i
+    ! isothermal enclosure: every flux pi B, every layer budget zero
+    call thermal_column_init_layers(col, tau, spread(80.0_wp, 1, 7), spread(80.0_wp, 1, 7), 0.4_wp, &
+                                    80.0_wp, 80.0_wp, err)
+    call check(error, .not. allocated(err), 'column init failed')
+    if (allocated(error)) return
+    call thermal_column_fluxes_diffusivity(col, au, ad, anet)
+    do i = 0, 7
+      call check_close(error, au(i), PI*80.0_wp, rel_tol=1.0e-14_wp, label='isothermal F_up')
+      call check_close(error, ad(i), PI*80.0_wp, rel_tol=1.0e-14_wp, label='isothermal F_down')
+    end do
+    call check(error, all(abs(anet) <= 1.0e-12_wp*PI*80.0_wp), 'isothermal layer budgets not zero')
+    if (allocated(error)) return
+    ! against the exact column
+    call thermal_column_init_layers(col, tau, bb, bt, 0.85_wp, 125.0_wp, 10.0_wp, err)
+    call thermal_column_fluxes(col, fu, fd, fdir, layer_net=net)
+    call thermal_column_fluxes_diffusivity(col, au, ad, anet)
+    do i = 0, 7
+      call check_close(error, au(i), fu(i), rel_tol=0.03_wp, label='F_up level '//fmt(real(i, wp)))
+      call check_close(error, ad(i), fd(i), rel_tol=0.05_wp, label='F_down level '//fmt(real(i, wp)))
+    end do
+    ! the layer budgets within 20 % of the largest (thin layers emit D/2 = 0.83 of the exact)
+    do i = 1, 7
+      call check_close(error, anet(i), net(i), abs_tol=0.2_wp*maxval(abs(net)), &
+                       label='layer budget '//fmt(real(i, wp)))
+    end do
+    ! energy: layers + surface + top
+    call check_close(error, sum(anet) + ad(0) - au(0), ad(7) - au(7), rel_tol=1.0e-13_wp, &
+                     label='energy closure')
+    ! an opaque layer: the top sees its top value, the surface nothing
+    call thermal_column_init_layers(col, [800.0_wp], [300.0_wp], [100.0_wp], 1.0_wp, 1.0e6_wp, 0.0_wp, err)
+    call thermal_column_fluxes_diffusivity(col, fu1, fd1, net1)
+    call check_close(error, fu1(1), PI*100.0_wp, rel_tol=1.0e-2_wp, label='opaque layer F_up')
+    call check_close(error, fd1(0), PI*300.0_wp, rel_tol=1.0e-2_wp, label='opaque layer F_down')
+    ! a thin layer emits D tau pi B into each hemisphere
+    call thermal_column_init_layers(col, [1.0e-7_wp], [100.0_wp], [100.0_wp], 1.0_wp, 0.0_wp, 0.0_wp, err)
+    call thermal_column_fluxes_diffusivity(col, fu1, fd1, net1)
+    call check_close(error, fu1(1), 1.66_wp*1.0e-7_wp*PI*100.0_wp, rel_tol=1.0e-6_wp, label='thin layer F_up')
+  end subroutine test_diffusivity
 
   !> Optically thin layer: emission = 2 pi tau B(mean) * 2 (both hemispheres) to first order;
   !> very thick column: the top sees the top level only.

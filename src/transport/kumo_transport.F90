@@ -936,33 +936,23 @@ contains
     type(voxel_walk_t) :: wk
     real(wp) :: a, dep, ka
     integer :: kr
-    logical :: last
+    logical :: last, uniform
     if (s <= 0.0_wp) return
     kr = iz - atm%k3_lo + 1
-    if (atm%uniform3(kr)) then
-      ! every voxel of the layer has the same optics: taken once, not read at every voxel
-      ka = voxel_ext(atm, 1, 1, kr)*(1.0_wp - voxel_omg(atm, 1, 1, kr))
-      if (.not. lay%do_voxel) then
-        a = w*(ka*s)
-      else
-        call walk_begin(wk, atm, x, y, ux, uy, s)
-        a = 0.0_wp
-        do
-          call walk_segment(wk, atm, last)
-          dep = w*(ka*wk%step)
-          a = a + dep
-          call score_voxel_abs(lay, tal, kr, wk%ix + (wk%iy - 1)*atm%nx, dep)
-          if (last) exit
-          call walk_next(wk, atm)
-        end do
-      end if
+    ! a layer whose voxels all have the same optics takes them once, not at every voxel
+    uniform = atm%uniform3(kr)
+    ka = 0.0_wp
+    if (uniform) ka = voxel_ext(atm, 1, 1, kr)*(1.0_wp - voxel_omg(atm, 1, 1, kr))
+    if (uniform .and. .not. lay%do_voxel) then
+      a = w*(ka*s)
     else
       call walk_begin(wk, atm, x, y, ux, uy, s)
       a = 0.0_wp
       do
         call walk_segment(wk, atm, last)
-        dep = w*((voxel_ext(atm, wk%ix, wk%iy, kr)*(1.0_wp - voxel_omg(atm, wk%ix, wk%iy, kr)))* &
-              wk%step)
+        if (.not. uniform) &
+          ka = voxel_ext(atm, wk%ix, wk%iy, kr)*(1.0_wp - voxel_omg(atm, wk%ix, wk%iy, kr))
+        dep = w*(ka*wk%step)
         a = a + dep
         call score_voxel_abs(lay, tal, kr, wk%ix + (wk%iy - 1)*atm%nx, dep)
         if (last) exit

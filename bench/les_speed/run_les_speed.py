@@ -37,7 +37,8 @@ machine's load falls on both alike; the 1-minute load average is logged with eve
 
 --old-vr / --new-vr add settings to &kumo_vr of that side's runs (after the preset, so they
 override it), e.g. --new-vr "sv_fsupg=4,sv_fsupi=1.5" with --new the same program as --old.
-Values are written as given (quote strings: absorption_estimator='track'). --scale multiplies
+Values are written as given, except that a bare word is quoted (absorption_estimator=track
+becomes absorption_estimator = 'track'). --scale multiplies
 every photon count. --shared is the folder holding data/i3rc/les_examples/les_stcu_w213.prp
 (default: the folder 'shared' next to the repository).
 
@@ -82,8 +83,22 @@ def vr_text(preset, extra):
     items = []
     if preset:
         items.append(f"vr_preset = '{preset}'")
-    items += [kv.strip() for kv in extra.split(",") if kv.strip()] if extra else []
+    items += [quote_word(kv.strip()) for kv in extra.split(",") if kv.strip()] if extra else []
     return f"&kumo_vr {', '.join(items)} /\n" if items else ""
+
+
+def quote_word(kv):
+    """'key=value' with a bare word as value (track) quoted for the namelist ('track');
+    numbers, logicals and quoted strings are left as they are."""
+    key, sep, value = kv.partition("=")
+    v = value.strip()
+    if not sep or not v or v[0] in "'\"" or v.lower() in (".true.", ".false.", "t", "f"):
+        return kv
+    try:
+        float(v.replace("d", "e").replace("D", "e"))
+        return kv
+    except ValueError:
+        return f"{key.strip()} = '{v}'"
 
 
 def stcu_namelist(prp, npb, nb, seed, out, preset, extra, radiance):

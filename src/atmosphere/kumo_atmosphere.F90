@@ -583,6 +583,8 @@ contains
       atm%iph3_const = atm%iph3(:, 1, 1, 1)
       if (present_and_true(uniform3_known) .and. present(uniform3)) then
         atm%uniform3 = uniform3
+      else if (present_and_true(same_clear) .and. allocated(atm%uniform3)) then
+        call set_uniform3(atm, keep=atm%cloud_ptr(2:atm%n3 + 1) == atm%cloud_ptr(1:atm%n3))
       else
         call set_uniform3(atm)
       end if
@@ -1109,14 +1111,23 @@ contains
 
   !> Which layers of the 3-D region hold the same values in every voxel (uniform3): extinction,
   !> albedo, scattering fractions, phase indices and blend weights, as far as they are stored.
-  !> Each layer's test stops at its first voxel that differs.
-  subroutine set_uniform3(atm)
+  !> Each layer's test stops at its first voxel that differs. Layers with `keep` set keep the
+  !> answer they have (a band switch with same_clear: a layer without voxel components holds
+  !> its layer's optics everywhere and the indices and weights of the last switch, so its
+  !> answer is that of the last test).
+  subroutine set_uniform3(atm, keep)
     type(atmosphere_t), intent(inout) :: atm
+    logical, intent(in), optional :: keep(:)
     integer :: kr, ncol
-    if (allocated(atm%uniform3)) deallocate (atm%uniform3)
-    allocate (atm%uniform3(atm%n3))
+    if (.not. present(keep)) then
+      if (allocated(atm%uniform3)) deallocate (atm%uniform3)
+      allocate (atm%uniform3(atm%n3))
+    end if
     ncol = atm%nx*atm%ny
     do kr = 1, atm%n3
+      if (present(keep)) then
+        if (keep(kr)) cycle
+      end if
       atm%uniform3(kr) = same_voxel(ncol, atm%ext3(:, :, kr), atm%clear3(1, kr))
       if (atm%uniform3(kr)) &
         atm%uniform3(kr) = same_voxel(ncol, atm%omg3(:, :, kr), atm%clear3(2, kr))

@@ -661,6 +661,38 @@ contains
     if (allocated(error)) return
     call compare('back in band a with same_clear')
     if (allocated(error)) return
+    ! bands d and e: field layer 1 without components and with one index and weight (a uniform
+    ! layer), layer NF without components but with indices that vary (not uniform). With
+    ! same_clear a switch keeps those layers' uniformity from the switch before, which must be
+    ! what a new build finds.
+    cext_b = cext_a
+    cext_b(:, :, 1, :) = 0.0_wp
+    cext_b(:, :, NF, :) = 0.0_wp
+    iph_b = iph_a
+    wph_b = wph_a
+    iph_b(:, :, 1, :) = 2
+    wph_b(:, :, 1, :) = 0.0_vp
+    wph_b(:, :, NF, :) = 0.0_vp
+    call atmosphere_swap_background(swapped, ext1, ssa1, cext_b, cssa_a, opts, layout, done, &
+                                    new_band=.true., ciph=iph_b, cwph=wph_b)
+    call check(error, done, 'band d was swapped in')
+    if (allocated(error)) return
+    call check(error, swapped%cloud_ptr(2) == swapped%cloud_ptr(1) .and. &
+               swapped%uniform3(1) .and. .not. swapped%uniform3(NF), &
+               'band d has a uniform layer without components and one that is not uniform')
+    if (allocated(error)) return
+    cext_c = 1.2_wp*cext_b
+    iph_c = iph_b
+    wph_c = wph_b
+    where (cext_b > 0.0_wp) iph_c = iph_b + 2
+    call atmosphere_swap_background(swapped, ext1, ssa1, cext_c, cssa_a, opts, layout, done, &
+                                    new_band=.true., ciph=iph_c, cwph=wph_c, same_clear=.true.)
+    call check(error, done, 'band e was swapped in with same_clear')
+    if (allocated(error)) return
+    call build(built, cext_c, cssa_a, iph_c, wph_c, layout)
+    if (allocated(error)) return
+    call compare('in band e, switched with same_clear')
+    if (allocated(error)) return
     ! an atmosphere that stores no blend weights cannot take a band's
     wph_x = 0.0_vp
     call build(swapped, cext_a, cssa_a, iph_a, wph_x)

@@ -175,7 +175,7 @@ contains
   subroutine var_values(set, iv, j0, mean, stderr)
     type(result_set_t), intent(in) :: set
     integer, intent(in) :: iv, j0
-    real(dp), intent(out), optional :: mean(:), stderr(:)
+    real(dp), intent(out), optional, contiguous :: mean(:), stderr(:)
     integer :: lo, hi
     associate (v => set%vars(iv))
       if (v%src_lo < 0) then
@@ -201,7 +201,7 @@ contains
   pure subroutine apply_factors(v, j0, x)
     type(result_var_t), intent(in) :: v
     integer, intent(in) :: j0
-    real(dp), intent(inout) :: x(:)
+    real(dp), intent(inout), contiguous :: x(:)
     if (allocated(v%fac_a)) call by_block(v%fac_a, x)
     if (allocated(v%fac_b)) call by_block(v%fac_b, x)
   contains

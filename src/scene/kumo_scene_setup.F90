@@ -1187,7 +1187,7 @@ contains
       end if
       ! the same column without scattering, in the diffusivity approximation (a few per cent,
       ! which is all an importance needs; the exact solution's O(nz^2) exponential integrals
-      ! were a third of the set-up)
+      ! were most of the set-up)
       tau = scene%atm%ext1*(1.0_wp - scene%atm%omg1)*(scene%atm%z(1:nz) - scene%atm%z(0:nz - 1))
       eps = em%eps_mean
       call thermal_column_init_layers(col, tau, spec%src_bot(:, g), spec%src_top(:, g), eps, &

@@ -559,13 +559,7 @@ contains
     call atmosphere_swap_background(swapped, ext1, ssa1, cext_a, cssa_a, opts, layout, done)
     call check(error, done, 'the background was swapped')
     if (allocated(error)) return
-    call atmosphere_swap_background(swapped, ext1, ssa1, cext_b, cssa_b, opts, layout, done, &
-                                    new_band=.true., ciph=iph_b, cwph=wph_b)
-    call check(error, done, 'the band was swapped')
-    if (allocated(error)) return
-    call build(built, cext_b, cssa_b, iph_b, wph_b, layout)
-    if (allocated(error)) return
-    call compare('after the band switch')
+    call switch_band(cext_b, cssa_b, iph_b, wph_b, .false., 'band b')
     if (allocated(error)) return
     call check(error, built%uniform3(NF) .and. .not. built%uniform3(1), &
                'the test has a uniform layer and one that is not')
@@ -600,13 +594,7 @@ contains
     call declines(iph_x, wph_x, 'a weight above 1')
     if (allocated(error)) return
     ! and back to band a, after the declined swaps
-    call atmosphere_swap_background(swapped, ext1, ssa1, cext_a, cssa_a, opts, layout, done, &
-                                    new_band=.true., ciph=iph_a, cwph=wph_a)
-    call check(error, done, 'band a was swapped back')
-    if (allocated(error)) return
-    call build(built, cext_a, cssa_a, iph_a, wph_a, layout)
-    if (allocated(error)) return
-    call compare('back in band a')
+    call switch_band(cext_a, cssa_a, iph_a, wph_a, .false., 'band a, after the declined swaps')
     if (allocated(error)) return
     ! band b again with the same gas, handed what the first switch found
     ext1(:, 2) = ext1(:, 2)/3.0_wp
@@ -641,13 +629,7 @@ contains
     call atmosphere_swap_background(swapped, ext1, ssa1, cext_a, cssa_a, opts, layout, done, &
                                     new_band=.true., ciph=iph_a, cwph=wph_a)
     if (allocated(error)) return
-    call atmosphere_swap_background(swapped, ext1, ssa1, cext_c, cssa_c, opts, layout, done, &
-                                    new_band=.true., ciph=iph_c, cwph=wph_c, same_clear=.true.)
-    call check(error, done, 'band c was swapped in with same_clear')
-    if (allocated(error)) return
-    call build(built, cext_c, cssa_c, iph_c, wph_c, layout)
-    if (allocated(error)) return
-    call compare('in band c, switched with same_clear')
+    call switch_band(cext_c, cssa_c, iph_c, wph_c, .true., 'band c with same_clear')
     if (allocated(error)) return
     ext1(:, 2) = 2.0_wp*ext1(:, 2)
     call atmosphere_swap_background(swapped, ext1, ssa1, cext_c, cssa_c, opts, layout, done)
@@ -655,11 +637,7 @@ contains
     if (allocated(error)) return
     call compare('after a gas switch in band c')
     if (allocated(error)) return
-    call atmosphere_swap_background(swapped, ext1, ssa1, cext_a, cssa_a, opts, layout, done, &
-                                    new_band=.true., ciph=iph_a, cwph=wph_a, same_clear=.true.)
-    call build(built, cext_a, cssa_a, iph_a, wph_a, layout)
-    if (allocated(error)) return
-    call compare('back in band a with same_clear')
+    call switch_band(cext_a, cssa_a, iph_a, wph_a, .true., 'band a with same_clear')
     if (allocated(error)) return
     ! bands d and e: field layer 1 without components and with one index and weight (a uniform
     ! layer), layer NF without components but with indices that vary (not uniform). With
@@ -673,9 +651,7 @@ contains
     iph_b(:, :, 1, :) = 2
     wph_b(:, :, 1, :) = 0.0_vp
     wph_b(:, :, NF, :) = 0.0_vp
-    call atmosphere_swap_background(swapped, ext1, ssa1, cext_b, cssa_a, opts, layout, done, &
-                                    new_band=.true., ciph=iph_b, cwph=wph_b)
-    call check(error, done, 'band d was swapped in')
+    call switch_band(cext_b, cssa_a, iph_b, wph_b, .false., 'band d')
     if (allocated(error)) return
     call check(error, swapped%cloud_ptr(2) == swapped%cloud_ptr(1) .and. &
                swapped%uniform3(1) .and. .not. swapped%uniform3(NF), &
@@ -685,13 +661,7 @@ contains
     iph_c = iph_b
     wph_c = wph_b
     where (cext_b > 0.0_wp) iph_c = iph_b + 2
-    call atmosphere_swap_background(swapped, ext1, ssa1, cext_c, cssa_a, opts, layout, done, &
-                                    new_band=.true., ciph=iph_c, cwph=wph_c, same_clear=.true.)
-    call check(error, done, 'band e was swapped in with same_clear')
-    if (allocated(error)) return
-    call build(built, cext_c, cssa_a, iph_c, wph_c, layout)
-    if (allocated(error)) return
-    call compare('in band e, switched with same_clear')
+    call switch_band(cext_c, cssa_a, iph_c, wph_c, .true., 'band e with same_clear')
     if (allocated(error)) return
     ! an atmosphere that stores no blend weights cannot take a band's
     wph_x = 0.0_vp
@@ -703,6 +673,22 @@ contains
                                     new_band=.true., ciph=iph_b, cwph=wph_b)
     call check(error, .not. done, 'without stored weights a band switch is left to a new build')
   contains
+    !> A switch to a band (with `same_clear` or not) gives what a new build of it gives.
+    subroutine switch_band(cext, cssa, iph, wph, same_clear, what)
+      real(wp), intent(in) :: cext(:, :, :, :), cssa(:, :, :, :)
+      integer, intent(in) :: iph(:, :, :, :)
+      real(vp), intent(in) :: wph(:, :, :, :)
+      logical, intent(in) :: same_clear
+      character(len=*), intent(in) :: what
+      call atmosphere_swap_background(swapped, ext1, ssa1, cext, cssa, opts, layout, done, &
+                                      new_band=.true., ciph=iph, cwph=wph, same_clear=same_clear)
+      call check(error, done, what//' was swapped in')
+      if (allocated(error)) return
+      call build(built, cext, cssa, iph, wph, layout)
+      if (allocated(error)) return
+      call compare('in '//what)
+    end subroutine switch_band
+
     !> A switch to band b with these indices and weights is left to a new build.
     subroutine declines(ciph, cwph, what)
       integer, intent(in) :: ciph(:, :, :, :)

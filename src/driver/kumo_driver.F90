@@ -173,7 +173,8 @@ contains
     if (cfg%cam%n > 0) cam_npix = cfg%cam%npx*cfg%cam%npy
     call layout_init(lay, scene%atm%nz, scene%atm%nx*scene%atm%ny, scene%atm%n3, map_levels, &
                      voxel, scene%det%n_dir, scene%det%levels, rad_maps, cam_npix, &
-                     [scene%atm%k3_lo - 1, scene%atm%k3_hi], thermal=scene%src%em%on)
+                     [scene%atm%k3_lo - 1, scene%atm%k3_hi], thermal=scene%src%em%on, &
+                     map_nx=scene%atm%nx, rad_map_blocks=scene%det%diff_scale > 0.0_wp)
     ! a non-scattering thermal column: every batch from the exact solution, no photons
     exact = scene%exact_thermal .and. exact_thermal_possible(scene)
     if (exact) scene%notes = scene%notes//'thermal emission of a non-scattering column: solved '// &

@@ -21,7 +21,7 @@ module kumo_tally
   public :: score_flux, score_flux_map, score_layer_abs, score_voxel_abs, score_surface_abs, &
             score_roulette, score_lost, score_source, score_net_layer, score_net_surface, &
             score_net_voxel, score_radiance, score_radiance_map, score_camera
-  public :: score_radiance_map_run
+  public :: score_radiance_map_block, radiance_maps_integrate
   public :: ANOM_UZ_NUDGED, ANOM_EVENT_CAP, ANOM_STEP_CAP, ANOM_POSITION_REPAIR, &
             ANOM_BRDF_ENVELOPE, N_ANOMALIES, ANOMALY_NAMES
 
@@ -78,6 +78,13 @@ module kumo_tally
     logical :: do_rad_maps = .false.
     integer :: i_rad_map = 0   !! radiance map: buf(i_rad_map + ((idir-1)*n_rad_lev + slot-1)*ncol
                                !! + icol)
+    !> Numerical diffusion spreads each radiance-map sample evenly over a block of columns.
+    !> With `rad_map_blocks`, a batch adds each block to the maps as the four corners of its
+    !> 2-D difference (score_radiance_map_block), whatever its size, and
+    !> `radiance_maps_integrate` turns the differences into the maps' values at the end of the
+    !> batch. The columns of a map are rows of `map_nx` (icol = (iy - 1) map_nx + ix).
+    logical :: rad_map_blocks = .false.
+    integer :: map_nx = 1
     integer :: i_cam0 = 0      !! entries after this one are camera pixels (domain scaling)
     integer, allocatable :: i_cam(:)  !! camera c, pixel p: buf(i_cam(c) + p)
     ! Column budget of the 3-D region, derived per batch from the maps and voxels: needs maps at
@@ -140,7 +147,7 @@ contains
   !> (the levels below and above the 3-D region) give the column budget when both have maps
   !> and voxel absorption is on.
   subroutine layout_init(lay, nz, ncol, n3, map_levels, do_voxel, n_rad_dir, rad_levels, &
-                         rad_maps, cam_npix, region_levels, thermal)
+                         rad_maps, cam_npix, region_levels, thermal, map_nx, rad_map_blocks)
     type(tally_layout_t), intent(out) :: lay
     integer, intent(in) :: nz, ncol, n3
     integer, intent(in) :: map_levels(:)
@@ -150,6 +157,10 @@ contains
     integer, intent(in), optional :: cam_npix(:)
     integer, intent(in), optional :: region_levels(2)
     logical, intent(in), optional :: thermal   !! thermal emission: net-exchange tallies
+    !> columns per row of the maps (ncol = map_nx * rows), and whether radiance-map samples
+    !> come as blocks of columns (numerical diffusion): see tally_layout_t
+    integer, intent(in), optional :: map_nx
+    logical, intent(in), optional :: rad_map_blocks
     integer :: i, pos
     lay%nz = nz
     lay%ncol = ncol
@@ -222,6 +233,12 @@ contains
     lay%i_rad_map = pos
     if (present(rad_maps)) lay%do_rad_maps = rad_maps .and. lay%n_rad_dir > 0
     if (lay%do_rad_maps) pos = pos + lay%n_rad_dir*lay%n_rad_lev*ncol
+    if (present(map_nx)) lay%map_nx = map_nx
+    if (present(rad_map_blocks)) lay%rad_map_blocks = rad_map_blocks .and. lay%do_rad_maps
+    if (lay%rad_map_blocks) then
+      if (lay%map_nx < 1 .or. mod(ncol, lay%map_nx) /= 0) error stop &
+        'layout_init: the map rows (map_nx) must divide the columns'
+    end if
     lay%i_cam0 = pos
     if (present(cam_npix)) then
       allocate (lay%i_cam(size(cam_npix)))
@@ -598,17 +615,64 @@ contains
     tal%buf(i) = tal%buf(i) + v
   end subroutine score_radiance_map
 
-  !> The same sample `v` in each of the radiance-map columns icol1 .. icol2 (consecutive
-  !> columns of one row; nothing when icol1 > icol2): numerical diffusion spreads one sample so.
-  pure subroutine score_radiance_map_run(lay, tal, d, slot, icol1, icol2, v)
+  !> Sample `v` in every column of the block ix1..ix2 x iy1..iy2 of the radiance map of
+  !> direction d at `slot` (1 <= ix1 <= ix2 <= map_nx, 1 <= iy1 <= iy2 <= rows; a block that
+  !> wraps around the periodic edges comes as up to four blocks), for lay%rad_map_blocks: as
+  !> the corners of its 2-D difference, +v at (ix1, iy1), -v at (ix2+1, iy1) and (ix1, iy2+1),
+  !> +v at (ix2+1, iy2+1), those beyond the map's last column or row left out (the running
+  !> sums of radiance_maps_integrate end there). Four additions whatever the block's size.
+  pure subroutine score_radiance_map_block(lay, tal, d, slot, ix1, ix2, iy1, iy2, v)
     type(tally_layout_t), intent(in) :: lay
     type(tally_t), intent(inout) :: tal
-    integer, intent(in) :: d, slot, icol1, icol2
+    integer, intent(in) :: d, slot, ix1, ix2, iy1, iy2
     real(dp), intent(in) :: v
-    integer :: i
-    i = lay%i_rad_map + ((d - 1)*lay%n_rad_lev + slot - 1)*lay%ncol
-    tal%buf(i + icol1:i + icol2) = tal%buf(i + icol1:i + icol2) + v
-  end subroutine score_radiance_map_run
+    integer :: i, nx
+    logical :: right, below
+    nx = lay%map_nx
+    i = lay%i_rad_map + ((d - 1)*lay%n_rad_lev + slot - 1)*lay%ncol + (iy1 - 1)*nx + ix1
+    right = ix2 < nx
+    below = iy2*nx < lay%ncol
+    tal%buf(i) = tal%buf(i) + v
+    if (right) tal%buf(i + ix2 + 1 - ix1) = tal%buf(i + ix2 + 1 - ix1) - v
+    if (below) then
+      i = i + (iy2 + 1 - iy1)*nx
+      tal%buf(i) = tal%buf(i) - v
+      if (right) tal%buf(i + ix2 + 1 - ix1) = tal%buf(i + ix2 + 1 - ix1) + v
+    end if
+  end subroutine score_radiance_map_block
+
+  !> End of a batch with lay%rad_map_blocks: every radiance map, scored as 2-D differences
+  !> (score_radiance_map_block), becomes its values: running sums along each row, then down
+  !> each column. Each value is the sum of the blocks over it, to round-off (sums of a few
+  !> hundred terms of either sign); a column no block covered may keep a round-off residue
+  !> instead of an exact zero.
+  pure subroutine radiance_maps_integrate(lay, tal)
+    type(tally_layout_t), intent(in) :: lay
+    type(tally_t), intent(inout) :: tal
+    integer :: m, i0, nx, ny, iy, i
+    if (.not. lay%rad_map_blocks) return
+    nx = lay%map_nx
+    ny = lay%ncol/nx
+    do m = 1, lay%n_rad_dir*lay%n_rad_lev
+      i0 = lay%i_rad_map + (m - 1)*lay%ncol
+      do iy = 1, ny
+        i = i0 + (iy - 1)*nx
+        call running_sum(tal%buf(i + 1:i + nx))
+      end do
+      do iy = 2, ny
+        i = i0 + (iy - 1)*nx
+        tal%buf(i + 1:i + nx) = tal%buf(i + 1:i + nx) + tal%buf(i + 1 - nx:i)
+      end do
+    end do
+  contains
+    pure subroutine running_sum(a)
+      real(dp), intent(inout) :: a(:)
+      integer :: j
+      do j = 2, size(a)
+        a(j) = a(j) + a(j - 1)
+      end do
+    end subroutine running_sum
+  end subroutine radiance_maps_integrate
 
   !> Sample `v` of pixel ipix (1-based) of camera c.
   pure subroutine score_camera(lay, tal, c, ipix, v)

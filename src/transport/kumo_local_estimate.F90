@@ -39,7 +39,7 @@ module kumo_local_estimate
   use kumo_voxel_walk, only: voxel_walk_t, walk_begin, walk_segment, walk_next
   use kumo_camera, only: camera_t, camera_project
   use kumo_tally, only: tally_layout_t, tally_t, score_radiance, score_radiance_map, score_camera, &
-                        score_radiance_map_run
+                        score_radiance_map_block
   use kumo_surface, only: surface_t
   use kumo_brdf, only: brdf_albedo, brdf_table_eval_dir
   use kumo_emission, only: emission_surface_eps
@@ -553,34 +553,40 @@ contains
     integer, intent(in) :: d, slot
     real(wp), intent(in) :: x, y, a, v
     real(wp) :: r, share
-    integer :: nrx, nry, ix0, iy0, j, row0, lo, hi, lo2, hi2
+    integer :: nrx, nry, ix0, iy0, xlo(2), xhi(2), ylo(2), yhi(2), i, j
     r = det%diff_scale*sqrt(PI*a)
     nrx = min(det%diff_max, int(r*atm%inv_dx), (atm%nx - 1)/2)
     nry = min(det%diff_max, int(r*atm%inv_dy), (atm%ny - 1)/2)
     ix0 = min(atm%nx, max(1, int(x*atm%inv_dx) + 1))
     iy0 = min(atm%ny, max(1, int(y*atm%inv_dy) + 1))
     share = v/real((2*nrx + 1)*(2*nry + 1), wp)
-    ! The columns ix0 - nrx .. ix0 + nrx of a row (2 nrx + 1 <= nx, so no column twice), as at
-    ! most two runs of consecutive columns after the periodic wrap: [lo, hi] and [lo2, hi2]
-    ! (empty when lo2 > hi2). Each column gets the same share as one cell at a time would.
-    lo = ix0 - nrx
-    hi = ix0 + nrx
-    lo2 = 1
-    hi2 = 0
-    if (lo < 1) then
-      lo2 = lo + atm%nx
-      hi2 = atm%nx
-      lo = 1
-    else if (hi > atm%nx) then
-      lo2 = 1
-      hi2 = hi - atm%nx
-      hi = atm%nx
-    end if
-    do j = -nry, nry
-      row0 = modulo(iy0 - 1 + j, atm%ny)*atm%nx   ! columns before this row
-      call score_radiance_map_run(lay, tal, d, slot, row0 + lo, row0 + hi, share)
-      call score_radiance_map_run(lay, tal, d, slot, row0 + lo2, row0 + hi2, share)
+    ! The columns ix0 - nrx .. ix0 + nrx (2 nrx + 1 <= nx, so no column twice) as at most two
+    ! runs after the periodic wrap, and the rows likewise: at most four blocks, each added as
+    ! the corners of its 2-D difference (the map is formed at the end of the batch).
+    call wrap_runs(ix0, nrx, atm%nx, xlo, xhi)
+    call wrap_runs(iy0, nry, atm%ny, ylo, yhi)
+    do j = 1, 2
+      if (ylo(j) > yhi(j)) cycle
+      do i = 1, 2
+        if (xlo(i) > xhi(i)) cycle
+        call score_radiance_map_block(lay, tal, d, slot, xlo(i), xhi(i), ylo(j), yhi(j), share)
+      end do
     end do
+  contains
+    !> i0 - nr .. i0 + nr on a periodic axis of n cells as runs [lo(1), hi(1)] and
+    !> [lo(2), hi(2)] (the second empty, lo > hi, unless the wrap splits it)
+    pure subroutine wrap_runs(i0, nr, n, lo, hi)
+      integer, intent(in) :: i0, nr, n
+      integer, intent(out) :: lo(2), hi(2)
+      lo = [i0 - nr, 1]
+      hi = [i0 + nr, 0]
+      if (lo(1) < 1) then
+        lo = [1, lo(1) + n]
+        hi = [hi(1), n]
+      else if (hi(1) > n) then
+        hi = [n, hi(1) - n]
+      end if
+    end subroutine wrap_runs
   end subroutine spread_sample
 
   !> Contribution of one event to pixel ipix of camera c through the line of sight

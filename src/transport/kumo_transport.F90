@@ -40,7 +40,8 @@ module kumo_transport
                         ANOM_STEP_CAP, ANOM_POSITION_REPAIR, ANOM_BRDF_ENVELOPE, score_flux, &
                         score_flux_map, score_layer_abs, score_voxel_abs, score_surface_abs, &
                         score_roulette, score_lost, score_source, score_net_layer, &
-                        score_net_surface, score_net_voxel, tally_flush
+                        score_net_surface, score_net_voxel, tally_flush, &
+                        radiance_maps_integrate
   use kumo_photon, only: photon_t
   use kumo_source, only: launch_plan_t, source_begin_batch, source_launch
   use kumo_emission, only: emission_b_point, emission_b_segment, emission_b_surface, &
@@ -144,6 +145,8 @@ contains
     end if
     ! the voxel absorption at collisions is logged while photons fly
     call tally_flush(tal)
+    ! diffused radiance-map samples were added as block differences
+    call radiance_maps_integrate(lay, tal)
   end subroutine trace_batch
 
   !> Follow photon `p` from its current state until it escapes, is absorbed, killed or lost:

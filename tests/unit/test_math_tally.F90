@@ -4,14 +4,15 @@ module test_math_tally_suite
   use kumo_kinds, only: wp, dp, i8
   use kumo_testing, only: error_t, unittest_t, new_unittest, check, check_close
   use kumo_math, only: rotate_direction, gauss_legendre01
-  use kumo_rng, only: rng_t, rng_init, sample_azimuth
+  use kumo_rng, only: rng_t, rng_init, sample_azimuth, rng_uniform
   use kumo_constants, only: PI
   use kumo_tally, only: tally_layout_t, tally_t, stats_t, layout_init, tally_reset, stats_init, &
                         stats_add_batch, stats_mean, stats_stderr, score_flux, score_flux_map, &
                         score_layer_abs, score_voxel_abs, score_surface_abs, score_roulette, &
                         score_lost, score_source, score_net_layer, score_net_surface, &
                         score_net_voxel, score_radiance, score_radiance_map, score_camera, &
-                        tally_flush, tally_free
+                        tally_flush, tally_free, score_radiance_map_block, &
+                        radiance_maps_integrate
   implicit none
   private
   public :: collect_math_tally
@@ -26,6 +27,7 @@ contains
              new_unittest('layout_is_contiguous', test_layout), &
              new_unittest('each_score_has_its_own_place', test_scores), &
              new_unittest('logged_scores_add_in_scoring_order', test_score_log), &
+             new_unittest('map_blocks_integrate_to_their_sums', test_map_blocks), &
              new_unittest('polar_azimuth_is_uniform', test_azimuth), &
              new_unittest('gauss_legendre_is_exact_for_polynomials', test_gauss)]
   end function collect_math_tally
@@ -190,6 +192,72 @@ contains
                  label//': value not found at its entry alone')
     end subroutine expect
   end subroutine test_scores
+
+  !> Diffused radiance-map samples are added as the corners of blocks and integrated at the end
+  !> of the batch: each map column must hold the sum of the blocks over it (to round-off), for
+  !> blocks anywhere on the map, up to the last row and column and over the whole map, in every
+  !> map of several directions and levels, and nothing outside the maps may change. Without
+  !> lay%rad_map_blocks the integration leaves the buffer alone.
+  subroutine test_map_blocks(error)
+    type(error_t), allocatable, intent(out) :: error
+    integer, parameter :: NX = 7, NY = 5, NCOL = NX*NY
+    type(tally_layout_t) :: lay
+    type(tally_t) :: tal
+    type(rng_t) :: rng
+    real(dp), allocatable :: expect(:), before(:)
+    real(dp) :: v
+    integer :: k, d, slot, ix1, ix2, iy1, iy2, i0, iy
+    call layout_init(lay, 3, NCOL, 2, [0, 3], .true., n_rad_dir=2, rad_levels=[0, 3], &
+                     rad_maps=.true., map_nx=NX, rad_map_blocks=.true.)
+    call check(error, lay%rad_map_blocks .and. lay%map_nx == NX, 'layout keeps the map rows')
+    if (allocated(error)) return
+    call tally_reset(tal, lay)
+    allocate (expect(lay%n))
+    expect = 0.0_dp
+    call rng_init(rng, 99_i8, 1_i8)
+    do k = 1, 400
+      d = 1 + int(2*rng_uniform(rng))
+      slot = 1 + int(2*rng_uniform(rng))
+      ix1 = 1 + int(NX*rng_uniform(rng))
+      ix2 = ix1 + int((NX - ix1 + 1)*rng_uniform(rng))
+      iy1 = 1 + int(NY*rng_uniform(rng))
+      iy2 = iy1 + int((NY - iy1 + 1)*rng_uniform(rng))
+      if (k <= 4) then   ! each map whole, then single corner columns
+        d = 1 + mod(k - 1, 2)
+        slot = 1 + (k - 1)/2
+        ix1 = 1
+        ix2 = NX
+        iy1 = 1
+        iy2 = NY
+      else if (k <= 6) then
+        ix1 = merge(1, NX, k == 5)
+        ix2 = ix1
+        iy1 = merge(1, NY, k == 5)
+        iy2 = iy1
+      end if
+      v = 10.0_dp**(3*rng_uniform(rng) - 2)
+      call score_radiance_map_block(lay, tal, d, slot, ix1, ix2, iy1, iy2, v)
+      i0 = lay%i_rad_map + ((d - 1)*lay%n_rad_lev + slot - 1)*NCOL
+      do iy = iy1, iy2
+        expect(i0 + (iy - 1)*NX + ix1:i0 + (iy - 1)*NX + ix2) = &
+          expect(i0 + (iy - 1)*NX + ix1:i0 + (iy - 1)*NX + ix2) + v
+      end do
+    end do
+    call score_radiance(lay, tal, 1, 1, 2.5_dp)
+    expect(lay%i_rad + 1) = 2.5_dp
+    call radiance_maps_integrate(lay, tal)
+    call check(error, all(abs(tal%buf - expect) <= 1.0e-12_dp*maxval(expect)), &
+               'a map column differs from the sum of the blocks over it')
+    if (allocated(error)) return
+    call check(error, count(expect > 0) == 4*NCOL + 1, 'the blocks cover every map column')
+    if (allocated(error)) return
+    ! the same buffer under a layout without map blocks: untouched
+    call layout_init(lay, 3, NCOL, 2, [0, 3], .true., n_rad_dir=2, rad_levels=[0, 3], &
+                     rad_maps=.true., map_nx=NX)
+    before = tal%buf
+    call radiance_maps_integrate(lay, tal)
+    call check(error, all(tal%buf == before), 'integrated maps without map blocks')
+  end subroutine test_map_blocks
 
   !> Voxel absorption (at collisions and along paths alike) is logged and added at tally_flush
   !> (also when the log fills during a batch): every entry must get the same additions in the

@@ -44,7 +44,7 @@ module kumo_phase
   public :: phase_t, phase_kind_from_name
   public :: new_phase_isotropic, new_phase_rayleigh, new_phase_rayleigh_depol, new_phase_hg
   public :: phase_from_table, phase_from_legendre
-  public :: phase_sample_mu, phase_eval
+  public :: phase_sample_mu, phase_eval, phase_inv_xi
   public :: isotropic_sample_mu, rayleigh_sample_mu, hg_sample_mu, rayleigh_eval, hg_eval
 
   integer, parameter :: PHASE_ISOTROPIC = 1  !! P = 1
@@ -56,8 +56,15 @@ module kumo_phase
   character(len=9), parameter :: PHASE_NAMES(4) = [character(len=9) :: &
                                                    'isotropic', 'rayleigh', 'hg', 'table']
 
-  !> Default number of points of the inverse-CDF table (the MCARaTS default is 20,000).
+  !> Default resolution of the inverse-CDF table: its finest step in probability is at most
+  !> 1/(n_inv - 1) (the MCARaTS default is 20,000 uniform points).
   integer, parameter :: PHASE_N_INV_DEFAULT = 20000
+  !> Pieces of equal probability of the inverse-CDF table; each has its own step.
+  integer, parameter :: INV_PIECES = 64
+  !> Linear interpolation between the kept nodes of the inverse CDF stays within this much
+  !> probability of the finest grid's nodes (sampling a table then moves no probability by more
+  !> than INV_TOL plus the finest grid's own interpolation error).
+  real(wp), parameter :: INV_TOL = 1.0e-7_wp
 
   !> Input angles 0 and 180 deg may be off by this much [deg].
   real(wp), parameter :: ANGLE_TOL_DEG = 1.0e-6_wp
@@ -112,10 +119,17 @@ module kumo_phase
     !> Factor the input table was multiplied by to be normalised (1 for analytic kinds);
     !> 1/norm_factor = (1/2) Int P_input sin(Theta) dTheta of the interpolated input.
     real(wp) :: norm_factor = 1.0_wp
-    !> Inverse CDF: mu_inv(j) = F^-1(xi_j), xi_j = (j-1)/(n_inv-1), F accumulated from mu = -1;
-    !> non-decreasing from mu_inv(1) = -1 to mu_inv(n_inv) = 1 (if P vanishes on an end range
-    !> of angles, the inner end of that range).
+    !> Inverse CDF at its nodes: mu_inv(j) = F^-1(xi_j), F accumulated from mu = -1;
+    !> non-decreasing from mu_inv(1) = -1 to the last node's 1 (if P vanishes on an end range
+    !> of angles, the inner end of that range). The nodes divide [0, 1] into INV_PIECES pieces
+    !> of equal probability; piece p (0-based) has inv_m(p) equal steps in xi, its nodes are
+    !> mu_inv(inv_off(p) + 1 .. inv_off(p) + inv_m(p) + 1) (the last one is the first of piece
+    !> p + 1), so xi of node inv_off(p) + i + 1 is (p + i/inv_m(p))/INV_PIECES
+    !> (`phase_inv_xi`). Each piece has as few steps as keep linear interpolation within
+    !> INV_TOL in probability of the finest grid: see `phase_from_table`.
     real(wp), allocatable :: mu_inv(:)
+    integer, allocatable :: inv_off(:)     !! (0:INV_PIECES-1) nodes before each piece
+    real(wp), allocatable :: inv_m(:)      !! (0:INV_PIECES-1) steps of each piece
     real(wp), allocatable :: mu_tab(:)     !! input angles as cosines, ascending (-1 ... 1)
     real(wp), allocatable :: theta_tab(:)  !! the same angles [rad], descending (pi ... 0)
     real(wp), allocatable :: p_tab(:)      !! normalised P at mu_tab
@@ -306,6 +320,9 @@ contains
     integer, allocatable :: nsub(:), itab(:)
     logical, allocatable :: loglin(:)
     real(wp) :: total, moment1, xi, part, dpart, theta
+    real(wp), allocatable :: mu_f(:)
+    integer, allocatable :: msteps(:)
+    integer :: fpp, nf
     integer :: n, ninv, nfine, i, j, k, m
     logical :: bad
 
@@ -444,19 +461,26 @@ contains
     cum = cum*ph%norm_factor                 ! from here on everything is normalised
     cum(nfine) = 1.0_wp
 
-    ! --- inverse CDF on xi_j = (j-1)/(ninv-1) -----------------------------------------------
-    ! One walk through the pieces; each xi_j is solved inside the piece that brackets it.
-    allocate (ph%mu_inv(ninv))
+    ! --- inverse CDF -------------------------------------------------------------------------
+    ! First on a fine grid, xi_j = (j-1)/nf, nf = INV_PIECES fpp (fpp a power of two, so that
+    ! the finest step is at most 1/(ninv - 1)); one walk through the pieces, each xi_j solved
+    ! inside the piece that brackets it.
+    fpp = 1
+    do while (INV_PIECES*fpp < ninv - 1)
+      fpp = 2*fpp
+    end do
+    nf = INV_PIECES*fpp
+    allocate (mu_f(0:nf))
     k = 1
     do while (cum(k) <= 0.0_wp .and. k < nfine)   ! F = 0 up to th_f(k-1): largest such mu
       k = k + 1
     end do
-    ph%mu_inv(1) = cos(th_f(k - 1))
-    do j = 2, ninv
-      if (j == ninv) then
+    mu_f(0) = cos(th_f(k - 1))
+    do j = 1, nf
+      if (j == nf) then
         xi = 1.0_wp
       else
-        xi = real(j - 1, wp)/real(ninv - 1, wp)
+        xi = real(j, wp)/real(nf, wp)
       end if
       do while (cum(k) < xi .and. k < nfine)
         k = k + 1
@@ -468,10 +492,55 @@ contains
       else
         theta = table_invert(ph, i, th_f(k), th_f(k - 1), xi - cum(k - 1), cum(k) - cum(k - 1))
       end if
-      ph%mu_inv(j) = max(cos(theta), ph%mu_inv(j - 1))
+      mu_f(j) = max(cos(theta), mu_f(j - 1))
     end do
-    ph%mu_inv(1) = max(ph%mu_inv(1), -1.0_wp)
-    ph%mu_inv(ninv) = min(ph%mu_inv(ninv), 1.0_wp)
+    mu_f(0) = max(mu_f(0), -1.0_wp)
+    mu_f(nf) = min(mu_f(nf), 1.0_wp)
+    ! Then, per piece, the fewest equal steps (fpp/2^k) whose linear interpolation is within
+    ! INV_TOL in probability of every fine node: at node j the error in mu, times the density
+    ! dF/dmu estimated from the smaller of the node's two fine steps, (1/nf)/dmu.
+    allocate (ph%inv_off(0:INV_PIECES - 1), ph%inv_m(0:INV_PIECES - 1), msteps(0:INV_PIECES - 1))
+    do m = 0, INV_PIECES - 1
+      msteps(m) = piece_steps(mu_f(m*fpp:(m + 1)*fpp), nf)
+    end do
+    allocate (ph%mu_inv(sum(msteps) + 1))
+    j = 0
+    do m = 0, INV_PIECES - 1
+      ph%inv_off(m) = j
+      ph%inv_m(m) = real(msteps(m), wp)
+      ph%mu_inv(j + 1:j + msteps(m)) = mu_f(m*fpp:(m + 1)*fpp - 1:fpp/msteps(m))
+      j = j + msteps(m)
+    end do
+    ph%mu_inv(j + 1) = mu_f(nf)
+  contains
+    !> Steps of one piece: f(0:n) its fine nodes (n a power of two), nf the steps of the whole
+    !> fine grid.
+    pure integer function piece_steps(f, nf) result(ms)
+      real(wp), intent(in) :: f(0:)
+      integer, intent(in) :: nf
+      real(wp) :: dmu, lin, err
+      integer :: n, s, q, a
+      logical :: ok
+      n = size(f) - 1
+      ms = 1
+      do while (ms < n)
+        s = n/ms
+        ok = .true.
+        do q = 1, n - 1
+          a = (q/s)*s
+          if (a == q) cycle
+          lin = f(a) + real(q - a, wp)/real(s, wp)*(f(a + s) - f(a))
+          dmu = min(f(q + 1) - f(q), f(q) - f(q - 1))
+          err = abs(lin - f(q))
+          if (err > INV_TOL*real(nf, wp)*dmu) then
+            ok = .false.
+            exit
+          end if
+        end do
+        if (ok) exit
+        ms = 2*ms
+      end do
+    end function piece_steps
   end function phase_from_table
 
   !> Phase function given by its normalised Legendre moments, P(mu) = sum_l (2l+1) chi_l P_l(mu)
@@ -604,17 +673,20 @@ contains
     real(wp), intent(in) :: u        !! uniform deviate in [0, 1]
     real(wp) :: mu                   !! cosine of the scattering angle
     real(wp) :: x
-    integer :: j, n
+    integer :: j, p
 
     select case (ph%kind)
     case (PHASE_HG)
       mu = hg_sample_mu(ph%g, u)
     case (PHASE_TABLE)
-      n = size(ph%mu_inv)
-      x = min(real(n - 1, wp), max(0.0_wp, u*real(n - 1, wp)))
-      j = min(int(x), n - 2)
+      ! the piece of u, then the step inside it
+      x = min(real(INV_PIECES, wp), max(0.0_wp, u*real(INV_PIECES, wp)))
+      p = min(int(x), INV_PIECES - 1)
+      x = (x - p)*ph%inv_m(p)
+      j = min(int(x), int(ph%inv_m(p)) - 1)
       x = x - j
-      mu = ph%mu_inv(j + 1) + x*(ph%mu_inv(j + 2) - ph%mu_inv(j + 1))
+      j = j + ph%inv_off(p) + 1
+      mu = ph%mu_inv(j) + x*(ph%mu_inv(j + 1) - ph%mu_inv(j))
     case (PHASE_RAYLEIGH)
       if (ph%depol > 0.0_wp) then
         mu = rayleigh_depol_sample_mu(ph%depol, u)
@@ -625,6 +697,21 @@ contains
       mu = isotropic_sample_mu(u)
     end select
   end function phase_sample_mu
+
+  !> Probabilities xi of the nodes of a table's inverse CDF (mu_inv(j) = F^-1(xi(j))).
+  pure function phase_inv_xi(ph) result(xi)
+    type(phase_t), intent(in) :: ph
+    real(wp), allocatable :: xi(:)
+    integer :: p, i, m
+    allocate (xi(size(ph%mu_inv)))
+    do p = 0, INV_PIECES - 1
+      m = int(ph%inv_m(p))
+      do i = 0, m - 1
+        xi(ph%inv_off(p) + i + 1) = (real(p, wp) + real(i, wp)/real(m, wp))/INV_PIECES
+      end do
+    end do
+    xi(size(xi)) = 1.0_wp
+  end function phase_inv_xi
 
   ! ------------------------------------------------------------------------------------------
   ! Private helpers

@@ -51,6 +51,14 @@ contains
                        label='cosine between old and new direction')
       if (allocated(error)) return
     end do
+    ! the renormalisation is one Newton step: an input 1e-6 off unit length comes out off by
+    ! about 1.5e-12, an exact unit input stays within rounding
+    vx = 0.3_wp*(1.0_wp + 1.0e-6_wp)
+    vy = -0.4_wp*(1.0_wp + 1.0e-6_wp)
+    vz = sqrt(0.75_wp)*(1.0_wp + 1.0e-6_wp)
+    call rotate_direction(vx, vy, vz, 0.2_wp, cos(1.0_wp), sin(1.0_wp))
+    call check_close(error, vx*vx + vy*vy + vz*vz, 1.0_wp, abs_tol=1.0e-11_wp, &
+                     label='|v|^2 after turning a vector 1e-6 off unit length')
   end subroutine test_rotation
 
   !> A photon travelling straight down (sun at zenith) or up: the new direction must make the

@@ -12,8 +12,10 @@
 !>   direction, F(mu) = (1/2) Int_{-1}^{mu} P dmu': the deviate u = 0 gives mu = -1 and u -> 1
 !>   gives mu -> 1, and mu is non-decreasing in u. Samplers take the deviate as an argument.
 !>
-!> Tabulated phase functions are converted once, at setup, into an inverse-CDF table on an
-!> equally spaced deviate grid (I3RC `inversePhaseFunctions`, MCARaTS), so sampling is one
+!> Tabulated phase functions are converted once, at setup, into an inverse-CDF table (as the
+!> I3RC model's `inversePhaseFunctions` and MCARaTS do, there on an equally spaced deviate
+!> grid; here with steps of their own in each of 64 pieces of equal probability, as long as
+!> interpolation allows, so that the tables of a scene stay in the cache), so sampling is one
 !> table interpolation per scattering event. Between the angles of the input table, P is
 !> interpolated linearly in the scattering angle of log P where both neighbouring values are
 !> positive (exact for an exponential decay of the forward peak; keeps P > 0 between positive
@@ -61,7 +63,7 @@ module kumo_phase
   integer, parameter :: PHASE_N_INV_DEFAULT = 20000
   !> Pieces of equal probability of the inverse-CDF table; each has its own step.
   integer, parameter :: INV_PIECES = 64
-  !> Linear interpolation between the kept nodes of the inverse CDF stays within this much
+  !> Interpolation between the kept nodes of the inverse CDF stays within this much
   !> probability of the finest grid's nodes (sampling a table then moves no probability by more
   !> than INV_TOL plus the finest grid's own interpolation error).
   real(wp), parameter :: INV_TOL = 1.0e-7_wp
@@ -125,8 +127,9 @@ module kumo_phase
     !> of equal probability; piece p (0-based) has inv_m(p) equal steps in xi, its nodes are
     !> mu_inv(inv_off(p) + 1 .. inv_off(p) + inv_m(p) + 1) (the last one is the first of piece
     !> p + 1), so xi of node inv_off(p) + i + 1 is (p + i/inv_m(p))/INV_PIECES
-    !> (`phase_inv_xi`). Each piece has as few steps as keep linear interpolation within
-    !> INV_TOL in probability of the finest grid: see `phase_from_table`.
+    !> (`phase_inv_xi`). Each piece has as few steps as keep its interpolation (quadratic
+    !> through three nodes) within INV_TOL in probability of the finest grid: see
+    !> `phase_from_table`.
     real(wp), allocatable :: mu_inv(:)
     integer, allocatable :: inv_off(:)     !! (0:INV_PIECES-1) nodes before each piece
     real(wp), allocatable :: inv_m(:)      !! (0:INV_PIECES-1) steps of each piece
@@ -310,7 +313,8 @@ contains
     !> scattering angles [deg], strictly increasing, first 0 and last 180 (within 1e-6 deg)
     real(wp), intent(in) :: angle_deg(:)
     real(wp), intent(in) :: value(:)      !! phase function at angle_deg, finite, >= 0, any scale
-    !> number of points of the inverse-CDF table (>= 2, default PHASE_N_INV_DEFAULT)
+    !> resolution of the inverse-CDF table: finest step 1/(n_inv - 1) in probability or less
+    !> (>= 2, default PHASE_N_INV_DEFAULT)
     integer, intent(in), optional :: n_inv
     type(error_t), allocatable, intent(out) :: error  !! set if the table is invalid
     type(phase_t) :: ph  !! the phase function (the default, isotropic, on error)
@@ -496,9 +500,10 @@ contains
     end do
     mu_f(0) = max(mu_f(0), -1.0_wp)
     mu_f(nf) = min(mu_f(nf), 1.0_wp)
-    ! Then, per piece, the fewest equal steps (fpp/2^k) whose linear interpolation is within
-    ! INV_TOL in probability of every fine node: at node j the error in mu, times the density
-    ! dF/dmu estimated from the smaller of the node's two fine steps, (1/nf)/dmu.
+    ! Then, per piece, the fewest equal steps (fpp/2^k) whose interpolation (as in
+    ! phase_sample_mu: quadratic through three nodes of the piece) is within INV_TOL in
+    ! probability of every fine node: at node j the error in mu, times the density dF/dmu
+    ! estimated from the smaller of the node's two fine steps, (1/nf)/dmu.
     allocate (ph%inv_off(0:INV_PIECES - 1), ph%inv_m(0:INV_PIECES - 1), msteps(0:INV_PIECES - 1))
     do m = 0, INV_PIECES - 1
       msteps(m) = piece_steps(mu_f(m*fpp:(m + 1)*fpp), nf)
@@ -518,7 +523,7 @@ contains
     pure integer function piece_steps(f, nf) result(ms)
       real(wp), intent(in) :: f(0:)
       integer, intent(in) :: nf
-      real(wp) :: dmu, lin, err
+      real(wp) :: dmu, lin, err, x
       integer :: n, s, q, a
       logical :: ok
       n = size(f) - 1
@@ -529,7 +534,15 @@ contains
         do q = 1, n - 1
           a = (q/s)*s
           if (a == q) cycle
-          lin = f(a) + real(q - a, wp)/real(s, wp)*(f(a + s) - f(a))
+          x = real(q - a, wp)/real(s, wp)
+          if (ms == 1) then
+            lin = f(a) + x*(f(a + s) - f(a))
+          else if (a + 2*s <= n) then
+            lin = quad_through(f(a), f(a + s), f(a + 2*s), x)
+          else
+            lin = quad_through(f(a - s), f(a), f(a + s), x + 1.0_wp)
+          end if
+          lin = min(max(lin, f(a)), f(a + s))
           dmu = min(f(q + 1) - f(q), f(q) - f(q - 1))
           err = abs(lin - f(q))
           if (err > INV_TOL*real(nf, wp)*dmu) then
@@ -556,7 +569,7 @@ contains
   !> `norm_factor`), computes g and builds the inverse CDF.
   function phase_from_legendre(chi, n_inv, error, n_negative) result(ph)
     real(wp), intent(in) :: chi(0:)  !! normalised Legendre moments chi_l, l = 0 ... L
-    !> number of points of the inverse-CDF table (>= 2; PHASE_N_INV_DEFAULT is the usual)
+    !> resolution of the inverse-CDF table (>= 2; PHASE_N_INV_DEFAULT is the usual)
     integer, intent(in) :: n_inv
     type(error_t), allocatable, intent(out) :: error  !! set if the moments are invalid
     !> number of grid angles where the series was < 0 (those values are set to 0)
@@ -667,13 +680,13 @@ contains
   end function phase_eval
 
   !> Sample mu from the phase function with one uniform deviate (u = 0 gives the backward end,
-  !> see the module header). Tables: linear interpolation in the inverse-CDF table.
+  !> see the module header). Tables: interpolation in the inverse-CDF table (see phase_t).
   pure function phase_sample_mu(ph, u) result(mu)
     type(phase_t), intent(in) :: ph  !! phase function
     real(wp), intent(in) :: u        !! uniform deviate in [0, 1]
     real(wp) :: mu                   !! cosine of the scattering angle
     real(wp) :: x
-    integer :: j, p
+    integer :: i, j, m, p
 
     select case (ph%kind)
     case (PHASE_HG)
@@ -683,10 +696,20 @@ contains
       x = min(real(INV_PIECES, wp), max(0.0_wp, u*real(INV_PIECES, wp)))
       p = min(int(x), INV_PIECES - 1)
       x = (x - p)*ph%inv_m(p)
-      j = min(int(x), int(ph%inv_m(p)) - 1)
+      m = int(ph%inv_m(p))
+      j = min(int(x), m - 1)
       x = x - j
-      j = j + ph%inv_off(p) + 1
-      mu = ph%mu_inv(j) + x*(ph%mu_inv(j + 1) - ph%mu_inv(j))
+      i = j + ph%inv_off(p) + 1
+      ! quadratic through the step's nodes and the next one (the previous one at the end of a
+      ! piece), kept between the step's nodes
+      if (m == 1) then
+        mu = ph%mu_inv(i) + x*(ph%mu_inv(i + 1) - ph%mu_inv(i))
+      else if (j + 2 <= m) then
+        mu = quad_through(ph%mu_inv(i), ph%mu_inv(i + 1), ph%mu_inv(i + 2), x)
+      else
+        mu = quad_through(ph%mu_inv(i - 1), ph%mu_inv(i), ph%mu_inv(i + 1), x + 1.0_wp)
+      end if
+      mu = min(max(mu, ph%mu_inv(i)), ph%mu_inv(i + 1))
     case (PHASE_RAYLEIGH)
       if (ph%depol > 0.0_wp) then
         mu = rayleigh_depol_sample_mu(ph%depol, u)
@@ -716,6 +739,12 @@ contains
   ! ------------------------------------------------------------------------------------------
   ! Private helpers
   ! ------------------------------------------------------------------------------------------
+
+  !> The quadratic through (0, fa), (1, fb), (2, fc) at t.
+  pure real(wp) function quad_through(fa, fb, fc, t) result(f)
+    real(wp), intent(in) :: fa, fb, fc, t
+    f = 0.5_wp*fa*(t - 1.0_wp)*(t - 2.0_wp) - fb*t*(t - 2.0_wp) + 0.5_wp*fc*t*(t - 1.0_wp)
+  end function quad_through
 
   !> The bins of `phase_eval`'s search: GUIDE_PER_NODE bins of theta per table angle (at least
   !> GUIDE_MIN, at most GUIDE_MAX), each pointing to the interval of its largest angle, so that

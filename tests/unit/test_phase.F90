@@ -647,6 +647,7 @@ contains
     call check_close(error, inverse_node_error(ph), 0.0_wp, abs_tol=1.0e-11_wp, &
                      label='max |F_table(mu_inv(j)) - xi_j|')
     ! and within 1e-7 (the kept nodes' tolerance) plus the finest grid's own error between them
+    ! (9.8e-8 measured)
     call check_close(error, sample_cdf_error(ph, 200000), 0.0_wp, abs_tol=1.5e-7_wp, &
                      label='max |F_table(mu(u)) - u|')
   end subroutine test_table_from_hg
@@ -688,14 +689,12 @@ contains
     do i = 1, n
       mean = mean + phase_sample_mu(ph, (i - 0.5_wp)/n)/n
     end do
-    ! the sampler moves each u by at most 1e-7 in probability, so the mean cosine by at most
-    ! 1e-7 times the range of mu (2), plus the midpoint rule's O(1/n^2)
-    call check_close(error, mean, ph%g, abs_tol=2.0e-7_wp, label='stratified <mu> vs g')
+    call check_close(error, mean, ph%g, abs_tol=1.0e-8_wp, label='stratified <mu> vs g')
     call check_close(error, inverse_node_error(ph), 0.0_wp, abs_tol=1.0e-11_wp, &
                      label='max |F_table(mu_inv(j)) - xi_j|')
     ! within 1e-7 of the finest grid, whose own interpolation error is largest in its first
-    ! step (u < 3e-5, beyond 179.3 deg, where the glory bends the CDF): 1.2e-6 there
-    call check_close(error, sample_cdf_error(ph, 200000), 0.0_wp, abs_tol=2.0e-6_wp, &
+    ! steps (u < 1e-4, beyond 178.5 deg, where the glory bends the CDF): 3.5e-7 there
+    call check_close(error, sample_cdf_error(ph, 200000), 0.0_wp, abs_tol=5.0e-7_wp, &
                      label='max |F_table(mu(u)) - u|')
   end subroutine test_table_c1
 

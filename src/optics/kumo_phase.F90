@@ -323,10 +323,11 @@ contains
     real(wp), allocatable :: th_f(:), cum(:), sin_tab(:), cos_tab(:)
     integer, allocatable :: nsub(:), itab(:)
     logical, allocatable :: loglin(:)
-    real(wp) :: total, moment1, xi, part, dpart, theta
+    real(wp) :: total, moment1, part, dpart
     real(wp), allocatable :: mu_f(:)
+    logical, allocatable :: have(:)
     integer, allocatable :: msteps(:)
-    integer :: fpp, nf
+    integer :: fpp, nf, k0
     integer :: n, ninv, nfine, i, j, k, m
     logical :: bad
 
@@ -466,86 +467,109 @@ contains
     cum(nfine) = 1.0_wp
 
     ! --- inverse CDF -------------------------------------------------------------------------
-    ! First on a fine grid, xi_j = (j-1)/nf, nf = INV_PIECES fpp (fpp a power of two, so that
-    ! the finest step is at most 1/(ninv - 1)); one walk through the pieces, each xi_j solved
-    ! inside the piece that brackets it.
+    ! Nodes of a fine grid, xi_j = j/nf, nf = INV_PIECES fpp (fpp a power of two, so that the
+    ! finest step is at most 1/(ninv - 1)), each solved inside the piece of the CDF that
+    ! brackets it; only the nodes that the choice of steps below asks for are solved.
     fpp = 1
     do while (INV_PIECES*fpp < ninv - 1)
       fpp = 2*fpp
     end do
     nf = INV_PIECES*fpp
-    allocate (mu_f(0:nf))
-    k = 1
-    do while (cum(k) <= 0.0_wp .and. k < nfine)   ! F = 0 up to th_f(k-1): largest such mu
-      k = k + 1
+    allocate (mu_f(0:nf), have(0:nf))
+    have = .false.
+    k0 = 1
+    do while (cum(k0) <= 0.0_wp .and. k0 < nfine)   ! F = 0 up to th_f(k0-1): largest such mu
+      k0 = k0 + 1
     end do
-    mu_f(0) = cos(th_f(k - 1))
-    do j = 1, nf
-      if (j == nf) then
-        xi = 1.0_wp
-      else
-        xi = real(j, wp)/real(nf, wp)
-      end if
-      do while (cum(k) < xi .and. k < nfine)
-        k = k + 1
-      end do
-      i = itab(k)
-      if (loglin(i)) then
-        theta = loglin_invert(ph, i, sin_tab(i), cos_tab(i), sin_tab(i + 1), xi - cum(k - 1), &
-                              cum(k) - cum(k - 1))
-      else
-        theta = table_invert(ph, i, th_f(k), th_f(k - 1), xi - cum(k - 1), cum(k) - cum(k - 1))
-      end if
-      mu_f(j) = max(cos(theta), mu_f(j - 1))
-    end do
-    mu_f(0) = max(mu_f(0), -1.0_wp)
-    mu_f(nf) = min(mu_f(nf), 1.0_wp)
-    ! Then, per piece, the fewest equal steps (fpp/2^k) whose interpolation (as in
-    ! phase_sample_mu: quadratic through three nodes of the piece) is within INV_TOL in
-    ! probability of every fine node: at node j the error in mu, times the density dF/dmu
-    ! estimated from the smaller of the node's two fine steps, (1/nf)/dmu.
+    mu_f(0) = max(cos(th_f(k0 - 1)), -1.0_wp)
+    have(0) = .true.
+    ! Per piece, the fewest equal steps (fpp/2^k) whose interpolation (as in phase_sample_mu:
+    ! quadratic through three nodes of the piece, linear for a single step) is within INV_TOL
+    ! in probability at the midpoints of the steps: there the error in mu, times the density
+    ! dF/dmu estimated from the smaller half step, is compared. The midpoints are the nodes of
+    ! the next finer choice, so a piece costs about four solutions per node it keeps.
     allocate (ph%inv_off(0:INV_PIECES - 1), ph%inv_m(0:INV_PIECES - 1), msteps(0:INV_PIECES - 1))
     do m = 0, INV_PIECES - 1
-      msteps(m) = piece_steps(mu_f(m*fpp:(m + 1)*fpp), nf)
+      msteps(m) = piece_steps(m*fpp)
     end do
     allocate (ph%mu_inv(sum(msteps) + 1))
     j = 0
     do m = 0, INV_PIECES - 1
       ph%inv_off(m) = j
       ph%inv_m(m) = real(msteps(m), wp)
-      ph%mu_inv(j + 1:j + msteps(m)) = mu_f(m*fpp:(m + 1)*fpp - 1:fpp/msteps(m))
+      do i = 0, msteps(m) - 1
+        ph%mu_inv(j + i + 1) = fine_node(m*fpp + i*(fpp/msteps(m)))
+      end do
       j = j + msteps(m)
     end do
-    ph%mu_inv(j + 1) = mu_f(nf)
+    ph%mu_inv(j + 1) = min(fine_node(nf), 1.0_wp)
+    do i = 2, size(ph%mu_inv)      ! non-decreasing to rounding: make it so exactly
+      ph%mu_inv(i) = max(ph%mu_inv(i), ph%mu_inv(i - 1))
+    end do
   contains
-    !> Steps of one piece: f(0:n) its fine nodes (n a power of two), nf the steps of the whole
-    !> fine grid.
-    pure integer function piece_steps(f, nf) result(ms)
-      real(wp), intent(in) :: f(0:)
-      integer, intent(in) :: nf
-      real(wp) :: dmu, lin, err, x
-      integer :: n, s, q, a
-      logical :: ok
-      n = size(f) - 1
-      ms = 1
-      do while (ms < n)
-        s = n/ms
-        ok = .true.
-        do q = 1, n - 1
-          a = (q/s)*s
-          if (a == q) cycle
-          x = real(q - a, wp)/real(s, wp)
-          if (ms == 1) then
-            lin = f(a) + x*(f(a + s) - f(a))
-          else if (a + 2*s <= n) then
-            lin = quad_through(f(a), f(a + s), f(a + 2*s), x)
+    !> mu at fine node j (solved on first use)
+    real(wp) function fine_node(j) result(mu)
+      integer, intent(in) :: j
+      real(wp) :: xi, theta
+      integer :: k, lo, hi, i
+      if (.not. have(j)) then
+        xi = real(j, wp)/real(nf, wp)
+        if (j == nf) xi = 1.0_wp
+        ! the first piece k >= k0 with cum(k) >= xi (the last piece if none)
+        lo = k0
+        hi = nfine
+        do while (lo < hi)
+          k = (lo + hi)/2
+          if (cum(k) < xi) then
+            lo = k + 1
           else
-            lin = quad_through(f(a - s), f(a), f(a + s), x + 1.0_wp)
+            hi = k
           end if
-          lin = min(max(lin, f(a)), f(a + s))
-          dmu = min(f(q + 1) - f(q), f(q) - f(q - 1))
-          err = abs(lin - f(q))
-          if (err > INV_TOL*real(nf, wp)*dmu) then
+        end do
+        k = lo
+        i = itab(k)
+        if (loglin(i)) then
+          theta = loglin_invert(ph, i, sin_tab(i), cos_tab(i), sin_tab(i + 1), xi - cum(k - 1), &
+                                cum(k) - cum(k - 1))
+        else
+          theta = table_invert(ph, i, th_f(k), th_f(k - 1), xi - cum(k - 1), &
+                               cum(k) - cum(k - 1))
+        end if
+        mu_f(j) = cos(theta)
+        have(j) = .true.
+      end if
+      mu = mu_f(j)
+    end function fine_node
+
+    !> Steps of the piece whose first fine node is `base`.
+    integer function piece_steps(base) result(ms)
+      integer, intent(in) :: base
+      real(wp) :: dmu, lin, err, fa, fb, fq, fc
+      integer :: s, h, t, a
+      logical :: ok
+      ms = 1
+      do while (ms < fpp)
+        s = fpp/ms
+        h = s/2
+        ok = .true.
+        do t = 0, ms - 1
+          a = base + t*s
+          fa = fine_node(a)
+          fb = fine_node(a + s)
+          fq = fine_node(a + h)
+          if (ms == 1) then
+            lin = 0.5_wp*(fa + fb)
+          else if (t + 2 <= ms) then
+            fc = fine_node(a + 2*s)
+            lin = quad_through(fa, fb, fc, 0.5_wp)
+          else
+            fc = fine_node(a - s)
+            lin = quad_through(fc, fa, fb, 1.5_wp)
+          end if
+          lin = min(max(lin, fa), fb)
+          dmu = max(0.0_wp, min(fq - fa, fb - fq))
+          err = abs(lin - fq)
+          if (err*real(h, wp) > INV_TOL*real(nf, wp)*dmu) then
             ok = .false.
             exit
           end if

@@ -6,7 +6,8 @@ module kumo_math
   use kumo_constants, only: PI
   implicit none
   private
-  public :: rotate_direction, within, wrap, gauss_legendre01, UZ_MIN, GL5_X, GL5_W
+  public :: rotate_direction, within, wrap, gauss_legendre01, first_not_below, UZ_MIN, GL5_X, &
+            GL5_W
 
   !> Smallest |uz| a photon may travel with. Plane crossings divide by uz; directions closer to
   !> the horizontal are nudged to this value and the nudge is counted as an anomaly.
@@ -63,6 +64,24 @@ contains
     uy = vy*norm
     uz = vz*norm
   end subroutine rotate_direction
+
+  !> The first index i of the ascending list x with x(i) >= v (size(x) when there is none),
+  !> by bisection.
+  pure integer function first_not_below(x, v) result(i)
+    real(wp), intent(in) :: x(:), v
+    integer :: lo, hi
+    lo = 1
+    hi = size(x)
+    do while (lo < hi)
+      i = (lo + hi)/2
+      if (x(i) < v) then
+        lo = i + 1
+      else
+        hi = i
+      end if
+    end do
+    i = lo
+  end function first_not_below
 
   !> Map a coordinate back into the periodic interval [0, l).
   pure subroutine wrap(x, l)

@@ -20,6 +20,7 @@ module kumo_cloud_input
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use kumo_kinds, only: wp, vp
   use kumo_error, only: error_t, set_error, str, to_lower
+  use kumo_math, only: first_not_below
   use kumo_les_netcdf, only: les_names_t, les_field_t, read_les_field
   use kumo_shdom_files, only: lwc_field_t, prp_field_t, read_lwc_file, read_prp_file, &
                               set_reff_from_droplet_number
@@ -563,18 +564,7 @@ contains
   !> Index of the value v in the sorted, distinct list x (v must be present).
   pure integer function locate(x, v) result(i)
     real(wp), intent(in) :: x(:), v
-    integer :: lo, hi
-    lo = 1
-    hi = size(x)
-    do while (lo < hi)
-      i = (lo + hi)/2
-      if (x(i) < v) then
-        lo = i + 1
-      else
-        hi = i
-      end if
-    end do
-    i = lo
+    i = first_not_below(x, v)
   end function locate
 
 end module kumo_cloud_input

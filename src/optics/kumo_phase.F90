@@ -35,7 +35,7 @@
 module kumo_phase
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite, ieee_is_nan
   use kumo_kinds, only: wp
-  use kumo_math, only: GL_X => GL5_X, GL_W => GL5_W
+  use kumo_math, only: GL_X => GL5_X, GL_W => GL5_W, first_not_below
   use kumo_constants, only: PI, DEG2RAD
   use kumo_error, only: error_t, set_error, add_context, str, to_lower, join
   use kumo_rayleigh, only: DEPOL_MAX, rayleigh_depol_eval, rayleigh_depol_sample_mu
@@ -511,22 +511,12 @@ contains
     real(wp) function fine_node(j) result(mu)
       integer, intent(in) :: j
       real(wp) :: xi, theta
-      integer :: k, lo, hi, i
+      integer :: k, i
       if (.not. have(j)) then
         xi = real(j, wp)/real(nf, wp)
         if (j == nf) xi = 1.0_wp
         ! the first piece k >= k0 with cum(k) >= xi (the last piece if none)
-        lo = k0
-        hi = nfine
-        do while (lo < hi)
-          k = (lo + hi)/2
-          if (cum(k) < xi) then
-            lo = k + 1
-          else
-            hi = k
-          end if
-        end do
-        k = lo
+        k = k0 - 1 + first_not_below(cum(k0:nfine), xi)
         i = itab(k)
         if (loglin(i)) then
           theta = loglin_invert(ph, i, sin_tab(i), cos_tab(i), sin_tab(i + 1), xi - cum(k - 1), &

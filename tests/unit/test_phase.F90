@@ -114,59 +114,52 @@ contains
     end do
   end function norm_integral
 
-  !> Largest |F(mu_inv(j)) - xi_j| over the nodes of the inverse-CDF table, with
-  !> F(mu) = (1/2) Int_{-1}^{mu} P dmu' integrated independently from `phase_eval` (in angle,
-  !> 0.01 deg intervals, so the nodes of 0.1 deg tables are interval ends).
-  function inverse_node_error(ph) result(max_err)
+  !> Largest |F(mu(j)) - xi(j)|, with F(mu) = (1/2) Int_{-1}^{mu} P dmu' integrated
+  !> independently from `phase_eval` (in angle, 0.01 deg intervals, so the nodes of 0.1 deg
+  !> tables are interval ends).
+  function cdf_error(ph, mu, xi) result(max_err)
     type(phase_t), intent(in) :: ph
+    real(wp), intent(in) :: mu(:), xi(:)
     real(wp) :: max_err
     integer, parameter :: n_int = 18000
-    real(wp), allocatable :: c(:), xis(:)
-    real(wp) :: h, theta, f, xi
-    integer :: j, k, n_inv
+    real(wp) :: c(0:n_int)
+    real(wp) :: h, theta, f
+    integer :: j, k
     h = PI/n_int
-    allocate (c(0:n_int))       ! c(k) = (1/2) Int_{k h}^{pi} P sin t dt
-    c(n_int) = 0.0_wp
+    c(n_int) = 0.0_wp           ! c(k) = (1/2) Int_{k h}^{pi} P sin t dt
     do k = n_int - 1, 0, -1
       c(k) = c(k + 1) + gl_piece(ph, k*h, (k + 1)*h, 0)
     end do
-    n_inv = size(ph%mu_inv)
-    xis = phase_inv_xi(ph)
     max_err = 0.0_wp
-    do j = 1, n_inv
-      xi = xis(j)
-      theta = acos(ph%mu_inv(j))
+    do j = 1, size(mu)
+      theta = acos(mu(j))
       k = min(int(theta/h), n_int - 1)
       f = c(k + 1) + gl_piece(ph, theta, (k + 1)*h, 0)
-      max_err = max(max_err, abs(f - xi))
+      max_err = max(max_err, abs(f - xi(j)))
     end do
+  end function cdf_error
+
+  !> Largest |F(mu_inv(j)) - xi_j| over the nodes of the inverse-CDF table (cdf_error).
+  function inverse_node_error(ph) result(max_err)
+    type(phase_t), intent(in) :: ph
+    real(wp) :: max_err
+    max_err = cdf_error(ph, ph%mu_inv, phase_inv_xi(ph))
   end function inverse_node_error
 
-  !> Largest |F(phase_sample_mu(ph, u)) - u| over u = (i - 1/2)/n, i = 1..n, with F integrated
-  !> independently as in inverse_node_error: what sampling moves in probability, nodes and
-  !> the linear interpolation between them together.
+  !> Largest |F(phase_sample_mu(ph, u)) - u| over u = (i - 1/2)/n, i = 1..n (cdf_error): what
+  !> sampling moves in probability, nodes and the interpolation between them together.
   function sample_cdf_error(ph, n) result(max_err)
     type(phase_t), intent(in) :: ph
     integer, intent(in) :: n
     real(wp) :: max_err
-    integer, parameter :: n_int = 18000
-    real(wp), allocatable :: c(:)
-    real(wp) :: h, theta, f, u
-    integer :: i, k
-    h = PI/n_int
-    allocate (c(0:n_int))
-    c(n_int) = 0.0_wp
-    do k = n_int - 1, 0, -1
-      c(k) = c(k + 1) + gl_piece(ph, k*h, (k + 1)*h, 0)
-    end do
-    max_err = 0.0_wp
+    real(wp), allocatable :: u(:), mu(:)
+    integer :: i
+    u = [((i - 0.5_wp)/n, i=1, n)]
+    allocate (mu(n))
     do i = 1, n
-      u = (i - 0.5_wp)/n
-      theta = acos(phase_sample_mu(ph, u))
-      k = min(int(theta/h), n_int - 1)
-      f = c(k + 1) + gl_piece(ph, theta, (k + 1)*h, 0)
-      max_err = max(max_err, abs(f - u))
+      mu(i) = phase_sample_mu(ph, u(i))
     end do
+    max_err = cdf_error(ph, mu, u)
   end function sample_cdf_error
 
   !> Henyey-Greenstein CDF from mu = -1, evaluated in quadruple precision:

@@ -531,7 +531,8 @@ contains
       slot = lay%rad_slot(kd)
       call score_radiance(lay, tal, d, slot, psi0*exp(-min(tau, tau_lim)))
       if (lay%do_rad_maps) then
-        if (det%diff_scale > 0.0_wp) then
+        ! the layout's choice, so that the samples come as the blocks its batch end integrates
+        if (lay%rad_map_blocks) then
           call spread_sample(det, atm, lay, tal, d, slot, xc, yc, a, psi0*exp(-min(tau, tau_lim)))
         else
           call score_radiance_map(lay, tal, d, slot, column_of(atm, xc, yc), &

@@ -6,8 +6,8 @@ module kumo_math
   use kumo_constants, only: PI
   implicit none
   private
-  public :: rotate_direction, within, wrap, gauss_legendre01, first_not_below, UZ_MIN, GL5_X, &
-            GL5_W
+  public :: rotate_direction, within, wrap, gauss_legendre01, first_not_below, arccos, UZ_MIN, &
+            GL5_X, GL5_W
 
   !> Smallest |uz| a photon may travel with. Plane crossings divide by uz; directions closer to
   !> the horizontal are nudged to this value and the nudge is counted as an anomaly.
@@ -24,7 +24,46 @@ module kumo_math
                                      (322.0_wp + 13.0_wp*sqrt(70.0_wp))/900.0_wp, &
                                      (322.0_wp - 13.0_wp*sqrt(70.0_wp))/900.0_wp]
 
+  !> arccos: pi and pi/2 as the nearest double plus the remainder, and the coefficients c_k of
+  !> R(z) = (asin(sqrt(z)) - sqrt(z))/z^(3/2) = sum c_k z^k on [0, 1/4], from Chebyshev
+  !> interpolation of degree 12 in 50-digit arithmetic (largest error 1.5e-17; c_0 = 1/6 and
+  !> c_1 = 3/40 are the Taylor coefficients to 16 digits).
+  real(wp), parameter :: PI_HI = 3.141592653589793116_wp, PI_LO = 1.2246467991473532e-16_wp
+  real(wp), parameter :: PIO2_HI = 1.5707963267948965580_wp, PIO2_LO = 6.123233995736766e-17_wp
+  real(wp), parameter :: ASIN_C(0:12) = [0.16666666666666667827_wp, 0.074999999999984329332_wp, &
+    0.044642857146355429783_wp, 0.030381944138531247287_wp, 0.022372172942149887875_wp, &
+    0.017352392720869972942_wp, 0.013971212973552933304_wp, 0.011479177415184905896_wp, &
+    0.010322814350185779287_wp, 0.0054575067186403583004_wp, 0.017400879442694022443_wp, &
+    -0.014851887071247203224_wp, 0.028757851367421564708_wp]
+
 contains
+
+  !> acos(x) for x in [-1, 1], within one unit in the last place of the library's value, for the
+  !> phase-function evaluations of the photon loop: one polynomial, one square root and no
+  !> branches (the library's acos takes about 1.4 times as long per call, and its two ranges
+  !> branch at random on scattering angles). asin(a) = a + a^3 R(a^2) for |x| <= 1/2;
+  !> acos(x) = 2 asin(sqrt((1 - x)/2)) beyond, and pi minus that for x < 0; both with
+  !> z <= 1/4, where R is a polynomial (ASIN_C), summed in Estrin's order.
+  elemental real(wp) function arccos(x) result(t)
+    real(wp), intent(in) :: x
+    real(wp) :: a, z, s, r, q, z2, z4, z8
+    logical :: inner
+    a = abs(x)
+    inner = a <= 0.5_wp
+    z = merge(a*a, 0.5_wp - 0.5_wp*a, inner)
+    s = merge(a, sqrt(z), inner)
+    z2 = z*z
+    z4 = z2*z2
+    z8 = z4*z4
+    r = ((ASIN_C(0) + ASIN_C(1)*z) + z2*(ASIN_C(2) + ASIN_C(3)*z)) &
+        + z4*((ASIN_C(4) + ASIN_C(5)*z) + z2*(ASIN_C(6) + ASIN_C(7)*z)) &
+        + z8*(((ASIN_C(8) + ASIN_C(9)*z) + z2*(ASIN_C(10) + ASIN_C(11)*z)) + z4*ASIN_C(12))
+    r = s + s*z*r                 ! asin(s)
+    ! inner: pi/2 - sign(x) r; beyond: 2 r for x > 0, pi - 2 r for x < 0
+    q = merge(r, 2.0_wp*r, inner)
+    q = merge(-q, q, x < 0.0_wp)
+    t = merge(PIO2_HI - (q - PIO2_LO), merge(PI_HI - (-q - PI_LO), q, x < 0.0_wp), inner)
+  end function arccos
 
   !> lo <= x <= hi, false for NaN. NaN is tested before any comparison, so input validation does
   !> not raise the invalid-operation flag (which debug builds trap).

@@ -35,7 +35,7 @@
 module kumo_phase
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite, ieee_is_nan
   use kumo_kinds, only: wp
-  use kumo_math, only: GL_X => GL5_X, GL_W => GL5_W, first_not_below
+  use kumo_math, only: GL_X => GL5_X, GL_W => GL5_W, first_not_below, arccos
   use kumo_constants, only: PI, DEG2RAD
   use kumo_error, only: error_t, set_error, add_context, str, to_lower, join
   use kumo_rayleigh, only: DEPOL_MAX, rayleigh_depol_eval, rayleigh_depol_sample_mu
@@ -676,7 +676,7 @@ contains
       ! guess of the angle's bin by steps in the direction the comparisons say (the same lo
       ! whatever the guess)
       m = min(1.0_wp, max(-1.0_wp, mu))
-      th = acos(m)
+      th = arccos(m)
       n = size(ph%mu_tab)
       lo = ph%guide(min(size(ph%guide) - 1, int(th*ph%guide_scale)) + 1)
       do while (lo > 1)

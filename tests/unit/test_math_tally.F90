@@ -3,7 +3,7 @@
 module test_math_tally_suite
   use kumo_kinds, only: wp, dp, i8
   use kumo_testing, only: error_t, unittest_t, new_unittest, check, check_close
-  use kumo_math, only: rotate_direction, gauss_legendre01
+  use kumo_math, only: rotate_direction, gauss_legendre01, arccos
   use kumo_rng, only: rng_t, rng_init, sample_azimuth, rng_uniform
   use kumo_constants, only: PI
   use kumo_tally, only: tally_layout_t, tally_t, stats_t, layout_init, tally_reset, stats_init, &
@@ -29,8 +29,66 @@ contains
              new_unittest('logged_scores_add_in_scoring_order', test_score_log), &
              new_unittest('map_blocks_integrate_to_their_sums', test_map_blocks), &
              new_unittest('polar_azimuth_is_uniform', test_azimuth), &
-             new_unittest('gauss_legendre_is_exact_for_polynomials', test_gauss)]
+             new_unittest('gauss_legendre_is_exact_for_polynomials', test_gauss), &
+             new_unittest('arccos_within_an_ulp_of_acos', test_arccos)]
   end function collect_math_tally
+
+  !> arccos against the compiler's acos: over [-1, 1] in fine steps, around the ends and the
+  !> switch at |x| = 1/2 ulp by ulp, and at exact values; at most one unit in the last place.
+  subroutine test_arccos(error)
+    type(error_t), allocatable, intent(out) :: error
+    integer, parameter :: N = 400001
+    real(wp) :: x, worst, xw, d
+    integer :: i, k
+    real(wp), parameter :: EDGES(5) = [-1.0_wp, -0.5_wp, 0.0_wp, 0.5_wp, 1.0_wp]
+    worst = 0.0_wp
+    xw = 0.0_wp
+    do i = 0, N - 1
+      x = -1.0_wp + 2.0_wp*real(i, wp)/real(N - 1, wp)
+      call note(x)
+    end do
+    do k = 1, size(EDGES)
+      x = EDGES(k)
+      do i = 1, 64
+        call note(x)
+        if (x > -1.0_wp) call note(nearest(x, -1.0_wp))
+        x = nearest(x, 1.0_wp)
+        if (x > 1.0_wp) exit
+      end do
+      x = EDGES(k)
+      do i = 1, 64
+        if (x <= -1.0_wp) exit
+        x = nearest(x, -1.0_wp)
+        call note(x)
+      end do
+    end do
+    do i = 1, 300                        ! tiny arguments and arguments near +-1 in octaves
+      call note(2.0_wp**(-i))
+      call note(-2.0_wp**(-i))
+      if (i <= 52) call note(1.0_wp - 2.0_wp**(-i))
+      if (i <= 52) call note(-1.0_wp + 2.0_wp**(-i))
+    end do
+    call check(error, worst <= 1.0_wp, 'arccos differs from acos by more than one ulp at x = ' &
+               //trim(fmt(xw)))
+    if (allocated(error)) return
+    call check(error, arccos(1.0_wp) == 0.0_wp .and. arccos(-1.0_wp) == acos(-1.0_wp) .and. &
+               arccos(0.0_wp) == acos(0.0_wp), 'arccos at -1, 0 and 1')
+  contains
+    subroutine note(v)
+      real(wp), intent(in) :: v
+      d = abs(arccos(v) - acos(v))/spacing(acos(v))
+      if (acos(v) == 0.0_wp) d = abs(arccos(v))/tiny(1.0_wp)
+      if (d > worst) then
+        worst = d
+        xw = v
+      end if
+    end subroutine note
+    function fmt(v) result(t)
+      real(wp), intent(in) :: v
+      character(len=32) :: t
+      write (t, '(es24.16)') v
+    end function fmt
+  end subroutine test_arccos
 
   subroutine test_rotation(error)
     type(error_t), allocatable, intent(out) :: error

@@ -734,7 +734,7 @@ contains
     logical :: last
     call walk_begin(wk, atm, x, y, vx, vy, s)
     do
-      call walk_segment(wk, atm, last)
+      call walk_segment(wk, last)
       if (lev_t > 1) then
         sig = sigma_trunc_3d(atm, wk%ix, wk%iy, kr, lev_t)
       else
@@ -745,8 +745,8 @@ contains
       if (tau > tau_stop) return
       call walk_next(wk, atm)
     end do
-    x = wk%x + vx*wk%rem
-    y = wk%y + vy*wk%rem
+    x = x + vx*s
+    y = y + vy*s
     call wrap(x, atm%lx)
     call wrap(y, atm%ly)
   end subroutine segment_3d

@@ -952,7 +952,7 @@ contains
       call walk_begin(wk, atm, x, y, ux, uy, s)
       a = 0.0_wp
       do
-        call walk_segment(wk, atm, last)
+        call walk_segment(wk, last)
         if (.not. uniform) &
           ka = voxel_ext(atm, wk%ix, wk%iy, kr)*(1.0_wp - voxel_omg(atm, wk%ix, wk%iy, kr))
         dep = w*(ka*wk%step)

@@ -12,19 +12,21 @@
 !>
 !>     call walk_begin(wk, atm, x, y, vx, vy, s)
 !>     do
-!>       call walk_segment(wk, atm, last)   ! voxel (wk%ix, wk%iy), length wk%step
+!>       call walk_segment(wk, last)        ! voxel (wk%ix, wk%iy), length wk%step
 !>       ... use the segment ...
 !>       if (last) exit                     ! the end of the piece lies in this voxel
 !>       call walk_next(wk, atm)            ! cross into the next voxel
 !>     end do
 !>
-!> A face that is crossed sets the coordinate exactly onto it (and wraps it periodically); the
-!> other coordinate is moved and its cell found again from the position. The null-collision
-!> flight itself (`fly_3d`) does not use this walk: it steps through the super-voxel blocks of
-!> the majorant grid (kumo_supervoxel), in three dimensions (see docs/design.md).
+!> The walk is a digital differential analyser in path length: it keeps the distances to the
+!> next x and y faces, and after each segment takes the segment from both and sets the one it
+!> crossed to a whole voxel's width (dx/|vx| or dy/|vy|), so a step needs no division, no
+!> position and no search for the cell; the periodic boundaries only wrap the cell index. The
+!> null-collision flight itself (`fly_3d`) does not use this walk: it steps through the
+!> super-voxel blocks of the majorant grid (kumo_supervoxel), in three dimensions (see
+!> docs/design.md).
 module kumo_voxel_walk
   use kumo_kinds, only: wp
-  use kumo_math, only: wrap
   use kumo_atmosphere, only: atmosphere_t, column_xy
   implicit none
   private
@@ -34,8 +36,9 @@ module kumo_voxel_walk
   !> values, so that starting a walk costs nothing beyond what it sets).
   type :: voxel_walk_t
     integer :: ix, iy          !! voxel column of the current segment
-    real(wp) :: x, y           !! start of the current segment [m]
-    real(wp) :: vx, vy         !! horizontal direction cosines
+    integer :: sx, sy          !! step of ix, iy at an x, y face (+1, -1; 0 along no face)
+    real(wp) :: tx, ty         !! path from the start of the current segment to the next x, y face [m]
+    real(wp) :: tdx, tdy       !! path across one voxel from x face to x face, y face to y face [m]
     real(wp) :: rem            !! path left from the start of the current segment [m]
     real(wp) :: step           !! length of the current segment [m]
     logical :: x_face          !! the current segment ends on an x face (else a y face)
@@ -49,24 +52,18 @@ contains
     type(atmosphere_t), intent(in) :: atm
     real(wp), intent(in) :: x, y, vx, vy, s
     call column_xy(atm, x, y, wk%ix, wk%iy)
-    wk%x = x
-    wk%y = y
-    wk%vx = vx
-    wk%vy = vy
+    call first_face(wk%ix, x, vx, atm%dx, wk%sx, wk%tx, wk%tdx)
+    call first_face(wk%iy, y, vy, atm%dy, wk%sy, wk%ty, wk%tdy)
     wk%rem = s
   end subroutine walk_begin
 
   !> The segment inside voxel column (wk%ix, wk%iy): its length wk%step, and `last` when the
   !> walk ends inside this voxel (then wk%step = wk%rem).
-  pure subroutine walk_segment(wk, atm, last)
+  pure subroutine walk_segment(wk, last)
     type(voxel_walk_t), intent(inout) :: wk
-    type(atmosphere_t), intent(in) :: atm
     logical, intent(out) :: last
-    real(wp) :: tx, ty
-    tx = face_distance(wk%ix, wk%x, wk%vx, atm%dx)
-    ty = face_distance(wk%iy, wk%y, wk%vy, atm%dy)
-    wk%step = min(tx, ty, wk%rem)
-    wk%x_face = tx <= ty
+    wk%step = min(wk%tx, wk%ty, wk%rem)
+    wk%x_face = wk%tx <= wk%ty
     last = wk%step >= wk%rem
   end subroutine walk_segment
 
@@ -76,60 +73,40 @@ contains
     type(atmosphere_t), intent(in) :: atm
     wk%rem = wk%rem - wk%step
     if (wk%x_face) then
-      call cross_face(wk%ix, wk%x, wk%vx, atm%nx, atm%dx, atm%lx)
-      call advance(wk%iy, wk%y, wk%vy*wk%step, atm%ny, atm%ly, atm%inv_dy)
+      wk%ty = wk%ty - wk%step
+      wk%tx = wk%tdx
+      wk%ix = wk%ix + wk%sx
+      if (wk%ix > atm%nx) wk%ix = 1
+      if (wk%ix < 1) wk%ix = atm%nx
     else
-      call cross_face(wk%iy, wk%y, wk%vy, atm%ny, atm%dy, atm%ly)
-      call advance(wk%ix, wk%x, wk%vx*wk%step, atm%nx, atm%lx, atm%inv_dx)
+      wk%tx = wk%tx - wk%step
+      wk%ty = wk%tdy
+      wk%iy = wk%iy + wk%sy
+      if (wk%iy > atm%ny) wk%iy = 1
+      if (wk%iy < 1) wk%iy = atm%ny
     end if
   end subroutine walk_next
 
-  !> Distance along the path to the face of cell i (width d) ahead of coordinate x, for the
-  !> direction cosine v along that axis; huge for v = 0.
-  pure real(wp) function face_distance(i, x, v, d) result(t)
+  !> Along one axis, for cell i (width d) holding coordinate x and direction cosine v: the step
+  !> of i at a face (the sign of v), the path to the face ahead and the path across one cell
+  !> (both huge for v = 0).
+  pure subroutine first_face(i, x, v, d, si, t, td)
     integer, intent(in) :: i
     real(wp), intent(in) :: x, v, d
+    integer, intent(out) :: si
+    real(wp), intent(out) :: t, td
     if (v > 0.0_wp) then
+      si = 1
       t = max(0.0_wp, (i*d - x)/v)
+      td = d/v
     else if (v < 0.0_wp) then
+      si = -1
       t = max(0.0_wp, ((i - 1)*d - x)/v)
+      td = -d/v
     else
+      si = 0
       t = huge(1.0_wp)
+      td = huge(1.0_wp)
     end if
-  end function face_distance
-
-  !> Step into the next cell along one axis (direction cosine v /= 0), periodically: the
-  !> coordinate is set exactly onto the face that was crossed.
-  pure subroutine cross_face(i, x, v, n, d, l)
-    integer, intent(inout) :: i
-    real(wp), intent(inout) :: x
-    real(wp), intent(in) :: v, d, l
-    integer, intent(in) :: n
-    if (v > 0.0_wp) then
-      i = i + 1
-      x = (i - 1)*d
-      if (i > n) then
-        i = 1
-        x = 0.0_wp
-      end if
-    else
-      i = i - 1
-      x = i*d
-      if (i < 1) then
-        i = n
-        x = l
-      end if
-    end if
-  end subroutine cross_face
-
-  !> Move along the other axis by dx and find its cell again (periodic).
-  pure subroutine advance(i, x, dx, n, l, inv_d)
-    integer, intent(out) :: i
-    real(wp), intent(inout) :: x
-    real(wp), intent(in) :: dx, l, inv_d
-    integer, intent(in) :: n
-    x = x + dx
-    call wrap(x, l)
-    i = min(n, max(1, int(x*inv_d) + 1))
-  end subroutine advance
+  end subroutine first_face
 end module kumo_voxel_walk

@@ -18,7 +18,8 @@ contains
     tests = [new_unittest('oblique_path_across_boundaries', test_oblique), &
              new_unittest('backward_path', test_backward), &
              new_unittest('axis_parallel_path', test_axis), &
-             new_unittest('path_inside_one_voxel', test_short)]
+             new_unittest('path_inside_one_voxel', test_short), &
+             new_unittest('long_path_keeps_its_voxels', test_long)]
   end function collect_voxel_walk
 
   !> A 3 x 2 grid of 100 m x 50 m voxels (lx = 300 m, ly = 100 m).
@@ -49,7 +50,7 @@ contains
     t = 0.0_wp
     n_seg = 0
     do
-      call walk_segment(wk, atm, last)
+      call walk_segment(wk, last)
       n_seg = n_seg + 1
       call check(error, wk%step > 0.0_wp, 'segment of positive length')
       if (allocated(error)) return
@@ -64,7 +65,7 @@ contains
       t = t + wk%step
       if (last) exit
       call walk_next(wk, atm)
-      call check(error, n_seg < 1000, 'walk ends')
+      call check(error, n_seg < 100000, 'walk ends')
       if (allocated(error)) return
     end do
     call check_close(error, t, s, 1.0e-9_wp, 1.0e-12_wp, 'segments add up to the path')
@@ -105,6 +106,17 @@ contains
     if (allocated(error)) return
     call check(error, n == 1, 'one segment')
   end subroutine test_short
+
+  !> A long path (the face distances are carried from segment to segment, not recomputed from
+  !> positions): 60 km at 0.6 x and -0.8 y per metre cross 360 x faces and 960 y faces, and every
+  !> segment's midpoint must still lie in the voxel the walk names.
+  subroutine test_long(error)
+    type(error_t), allocatable, intent(out) :: error
+    integer :: n
+    call check_walk(error, 37.3_wp, 12.9_wp, 0.6_wp, -0.8_wp, 60000.0_wp, n)
+    if (allocated(error)) return
+    call check(error, n == 1 + 360 + 960, 'one segment per voxel entered')
+  end subroutine test_long
 end module test_voxel_walk_suite
 
 program test_voxel_walk

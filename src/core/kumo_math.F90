@@ -122,12 +122,21 @@ contains
     i = lo
   end function first_not_below
 
-  !> Map a coordinate back into the periodic interval [0, l).
+  !> Map a coordinate back into the periodic interval [0, l). A photon that has just crossed
+  !> the boundary is less than one period out: x + l or x - l is then what modulo gives (x - l
+  !> is exact there, and modulo adds l to the remainder x of a negative x), without the
+  !> library's fmod.
   pure subroutine wrap(x, l)
     real(wp), intent(inout) :: x
     real(wp), intent(in) :: l
     if (x >= 0.0_wp .and. x < l) return
-    x = modulo(x, l)
+    if (x < 0.0_wp .and. x > -l) then
+      x = x + l
+    else if (x >= l .and. x < 2.0_wp*l) then
+      x = x - l
+    else
+      x = modulo(x, l)
+    end if
     if (x >= l) x = 0.0_wp
   end subroutine wrap
 

@@ -3,7 +3,7 @@
 module test_math_tally_suite
   use kumo_kinds, only: wp, dp, i8
   use kumo_testing, only: error_t, unittest_t, new_unittest, check, check_close
-  use kumo_math, only: rotate_direction, gauss_legendre01, arccos
+  use kumo_math, only: rotate_direction, gauss_legendre01, arccos, wrap
   use kumo_rng, only: rng_t, rng_init, sample_azimuth, rng_uniform
   use kumo_constants, only: PI
   use kumo_tally, only: tally_layout_t, tally_t, stats_t, layout_init, tally_reset, stats_init, &
@@ -30,7 +30,8 @@ contains
              new_unittest('map_blocks_integrate_to_their_sums', test_map_blocks), &
              new_unittest('polar_azimuth_is_uniform', test_azimuth), &
              new_unittest('gauss_legendre_is_exact_for_polynomials', test_gauss), &
-             new_unittest('arccos_within_an_ulp_of_acos', test_arccos)]
+             new_unittest('arccos_within_an_ulp_of_acos', test_arccos), &
+             new_unittest('wrap_is_modulo_into_the_period', test_wrap)]
   end function collect_math_tally
 
   !> arccos against the compiler's acos: over [-1, 1] in fine steps, around the ends and the
@@ -89,6 +90,37 @@ contains
       write (t, '(es24.16)') v
     end function fmt
   end subroutine test_arccos
+
+  !> wrap gives what modulo does (and 0 where that rounds up to the period), within one period
+  !> of the interval, at its ends and far beyond, for two periods.
+  subroutine test_wrap(error)
+    type(error_t), allocatable, intent(out) :: error
+    real(wp) :: l, x, y, r, u
+    real(wp) :: probes(16)
+    integer :: i, il
+    type(rng_t) :: rng
+    call rng_init(rng, 5_i8, 0_i8)
+    do il = 1, 2
+      l = merge(1800.0_wp, 0.1_wp*PI, il == 1)
+      probes = [-2.0_wp*l, -l, nearest(-l, 1.0_wp), nearest(-l, -1.0_wp), -1.0e-300_wp, &
+                -tiny(1.0_wp), 0.0_wp, 1.0e-300_wp, nearest(l, -1.0_wp), l, nearest(l, 1.0_wp), &
+                nearest(2.0_wp*l, -1.0_wp), 2.0_wp*l, 3.7_wp*l, -5.3_wp*l, 1.0e-17_wp - l]
+      do i = 1, size(probes) + 20000
+        if (i <= size(probes)) then
+          x = probes(i)
+        else
+          u = rng_uniform(rng)
+          x = (6.0_wp*u - 3.0_wp)*l
+        end if
+        r = modulo(x, l)
+        if (r >= l) r = 0.0_wp
+        y = x
+        call wrap(y, l)
+        call check(error, y == r .and. y >= 0.0_wp .and. y < l, 'wrap differs from modulo')
+        if (allocated(error)) return
+      end do
+    end do
+  end subroutine test_wrap
 
   subroutine test_rotation(error)
     type(error_t), allocatable, intent(out) :: error

@@ -262,13 +262,16 @@ contains
     real(wp), intent(in) :: uxi, uyi, uzi, vx, vy, vz
     real(wp) :: p_in, p_d, c
     integer :: d
-    p_in = phase_value(atm, iph, lev, uxi*vx + uyi*vy + uzi*vz)
     p_d = 0.0_wp
     do d = 1, det%n_dir
       c = det%ux(d)*vx + det%uy(d)*vy + det%uz(d)*vz
       if (c >= det%ddis_mu_cone) p_d = p_d + phase_value(atm, iph, lev, c)
     end do
+    ! outside every cone (most directions) the factor is p_in/p_in = 1: no evaluation of p_in
+    fac = 1.0_wp
+    if (p_d <= 0.0_wp) return
     p_d = p_d/det%n_dir
+    p_in = phase_value(atm, iph, lev, uxi*vx + uyi*vy + uzi*vz)
     fac = p_in/(p_in + det%ddis_eps*p_d)
   end function ddis_factor
 

@@ -4,7 +4,9 @@
 !> the bin edges, the bound is never below the angular density P^/(4 pi) that the local estimate
 !> uses (phase_eval, or trunc_eval/(1 - f) when truncated), for a sharp tabulated forward peak,
 !> Henyey-Greenstein with g of either sign, Rayleigh and isotropic; and it is tight where the
-!> function is flat (isotropic: the bound is the value itself up to the safety factor).
+!> function is flat (isotropic: the bound is the value itself up to the safety factor). The DDIS
+!> weight factor (ddis_factor) is the balance heuristic P_in/(P_in + eps mean_d P_d 1[cone_d]),
+!> and exactly 1 outside every detector's cone.
 module test_le_bounds_suite
   use kumo_kinds, only: wp
   use kumo_constants, only: PI, DEG2RAD
@@ -14,7 +16,8 @@ module test_le_bounds_suite
   use kumo_truncation, only: truncation_init, trunc_eval
   use kumo_atmosphere, only: atmosphere_t
   use kumo_camera, only: camera_t
-  use kumo_local_estimate, only: detectors_t, detectors_init, detectors_bounds, density_bound
+  use kumo_local_estimate, only: detectors_t, detectors_init, detectors_bounds, density_bound, &
+                                 ddis_factor
   implicit none
   private
   public :: collect_le_bounds
@@ -27,7 +30,8 @@ contains
     type(unittest_t), allocatable :: tests(:)
     tests = [new_unittest('bounds_untruncated', test_untruncated), &
              new_unittest('bounds_truncated', test_truncated), &
-             new_unittest('no_table_without_roulette', test_no_roulette)]
+             new_unittest('no_table_without_roulette', test_no_roulette), &
+             new_unittest('ddis_factor_is_the_balance_heuristic', test_ddis_factor)]
   end function collect_le_bounds
 
   !> Henyey-Greenstein g = 0.97 tabulated on 0, 0.1, ..., 180 deg (P(0) about 2200), HG
@@ -144,6 +148,55 @@ contains
     call detectors_bounds(det, atm)
     call check(error, .not. allocated(det%p_bound), 'no table when contributions are not rouletted')
   end subroutine test_no_roulette
+
+  !> Two detector directions (nadir and mu 0.5 at phi 180), eps 0.1, cones of 15 deg, the sharp
+  !> table: for photons arriving along fixed directions and leaving along directions spread over
+  !> the sphere (many inside the cones), the factor against the formula evaluated here.
+  subroutine test_ddis_factor(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(atmosphere_t) :: atm
+    type(detectors_t) :: det
+    type(camera_t) :: cams(0)
+    real(wp) :: ui(3), v(3), p_in, p_d, c, expect, fac, t, ph, worst
+    integer :: i, j, d, n_in, n_out
+    real(wp), parameter :: arrive(3, 3) = reshape([0.6_wp, 0.0_wp, 0.8_wp, 0.0_wp, 0.0_wp, &
+                                                   1.0_wp, 0.3_wp, -0.4_wp, -0.866_wp], [3, 3])
+    atm%phases = test_phases()
+    atm%truncated = .false.
+    call detectors_init(det, [1.0_wp, 0.5_wp], [0.0_wp, 180.0_wp], [1, 1], cams, 0.3_wp, &
+                        1.0_wp, 1.0_wp, ddis_eps=0.1_wp)
+    det%ddis_mu_cone = cos(15.0_wp*DEG2RAD)
+    worst = 0.0_wp
+    n_in = 0
+    n_out = 0
+    do j = 1, 3
+      ui = arrive(:, j)
+      do i = 1, 4000
+        t = acos(1.0_wp - 2.0_wp*(real(i, wp) - 0.5_wp)/4000.0_wp)   ! polar angle, even in mu
+        ph = real(i, wp)*2.39996_wp                                  ! golden-angle azimuths
+        v = [sin(t)*cos(ph), sin(t)*sin(ph), cos(t)]
+        p_in = phase_eval(atm%phases(1), dot_product(ui, v))
+        p_d = 0.0_wp
+        do d = 1, 2
+          c = det%ux(d)*v(1) + det%uy(d)*v(2) + det%uz(d)*v(3)
+          if (c >= det%ddis_mu_cone) p_d = p_d + phase_eval(atm%phases(1), c)
+        end do
+        fac = ddis_factor(det, atm, 1, 1, ui(1), ui(2), ui(3), v(1), v(2), v(3))
+        if (p_d > 0.0_wp) then
+          n_in = n_in + 1
+          expect = p_in/(p_in + 0.1_wp*p_d/2.0_wp)
+          worst = max(worst, abs(fac - expect)/expect)
+        else
+          n_out = n_out + 1
+          call check(error, fac == 1.0_wp, 'outside every cone the factor must be exactly 1')
+          if (allocated(error)) return
+        end if
+      end do
+    end do
+    call check(error, n_in > 100 .and. n_out > 100, 'directions inside and outside the cones')
+    if (allocated(error)) return
+    call check(error, worst <= 1.0e-14_wp, 'inside a cone the factor is P_in/(P_in + eps mean P_d)')
+  end subroutine test_ddis_factor
 end module test_le_bounds_suite
 
 program test_le_bounds

@@ -6,6 +6,7 @@ module test_math_tally_suite
   use kumo_math, only: rotate_direction, gauss_legendre01, arccos, wrap
   use kumo_rng, only: rng_t, rng_init, sample_azimuth, rng_uniform
   use kumo_constants, only: PI
+  use kumo_error, only: str
   use kumo_tally, only: tally_layout_t, tally_t, stats_t, layout_init, tally_reset, stats_init, &
                         stats_add_batch, stats_mean, stats_stderr, score_flux, score_flux_map, &
                         score_layer_abs, score_voxel_abs, score_surface_abs, score_roulette, &
@@ -70,7 +71,7 @@ contains
       if (i <= 52) call note(-1.0_wp + 2.0_wp**(-i))
     end do
     call check(error, worst <= 1.0_wp, 'arccos differs from acos by more than one ulp at x = ' &
-               //trim(fmt(xw)))
+               //str(xw))
     if (allocated(error)) return
     call check(error, arccos(1.0_wp) == 0.0_wp .and. arccos(-1.0_wp) == acos(-1.0_wp) .and. &
                arccos(0.0_wp) == acos(0.0_wp), 'arccos at -1, 0 and 1')
@@ -84,11 +85,6 @@ contains
         xw = v
       end if
     end subroutine note
-    function fmt(v) result(t)
-      real(wp), intent(in) :: v
-      character(len=32) :: t
-      write (t, '(es24.16)') v
-    end function fmt
   end subroutine test_arccos
 
   !> wrap gives what modulo does (and 0 where that rounds up to the period), within one period

@@ -46,7 +46,7 @@ contains
   !> z <= 1/4, where R is a polynomial (ASIN_C), summed in Estrin's order.
   elemental real(wp) function arccos(x) result(t)
     real(wp), intent(in) :: x
-    real(wp) :: a, z, s, r, q, z2, z4, z8
+    real(wp) :: a, z, s, r, z2, z4, z8
     logical :: inner
     a = abs(x)
     inner = a <= 0.5_wp
@@ -60,9 +60,8 @@ contains
         + z8*(((ASIN_C(8) + ASIN_C(9)*z) + z2*(ASIN_C(10) + ASIN_C(11)*z)) + z4*ASIN_C(12))
     r = s + s*z*r                 ! asin(s)
     ! inner: pi/2 - sign(x) r; beyond: 2 r for x > 0, pi - 2 r for x < 0
-    q = merge(r, 2.0_wp*r, inner)
-    q = merge(-q, q, x < 0.0_wp)
-    t = merge(PIO2_HI - (q - PIO2_LO), merge(PI_HI - (-q - PI_LO), q, x < 0.0_wp), inner)
+    t = merge(PIO2_HI - (sign(r, x) - PIO2_LO), &
+              merge(PI_HI - (2.0_wp*r - PI_LO), 2.0_wp*r, x < 0.0_wp), inner)
   end function arccos
 
   !> lo <= x <= hi, false for NaN. NaN is tested before any comparison, so input validation does

@@ -737,16 +737,8 @@ contains
       step: do
         n_steps = n_steps + 1
         if (n_steps > max_steps) return   ! the caller's step check stops the photon
-        if (dzf <= dxf .and. dzf <= dyf) then
-          d = dzf
-          face = 3
-        else if (dxf <= dyf) then
-          d = dxf
-          face = 1
-        else
-          d = dyf
-          face = 2
-        end if
+        ! the nearest face; which one it is matters only if the photon gets there
+        d = min(dzf, dxf, dyf)
 
         if (smax*d > tau) then
           ! tentative collision inside the block
@@ -789,9 +781,16 @@ contains
           return
         end if
 
-        ! cross the nearest face
+        ! cross the nearest face (the level where it ties with a side face, then x before y)
         tau = tau - smax*d
         sl = sl + d
+        if (dzf <= dxf .and. dzf <= dyf) then
+          face = 3
+        else if (dxf <= dyf) then
+          face = 1
+        else
+          face = 2
+        end if
         if (face == 3) then
           ! a level: tally it; leave the region, or go on in the next layer
           x = x + ux*d

@@ -36,7 +36,7 @@ module kumo_local_estimate
   use kumo_truncation, only: trunc_eval, trunc_sample_mu
   use kumo_atmosphere, only: atmosphere_t, column_of, sigma_trunc_3d, voxel_ext, LAYER_CLEAR, &
                              LAYER_3D
-  use kumo_voxel_walk, only: voxel_walk_t, walk_begin, walk_segment, walk_next
+  use kumo_voxel_walk, only: voxel_walk_t, walk_begin, walk_segment, walk_next, walk_extend
   use kumo_camera, only: camera_t, camera_project
   use kumo_tally, only: tally_layout_t, tally_t, score_radiance, score_radiance_map, score_camera, &
                         score_radiance_map_block
@@ -627,11 +627,14 @@ contains
     real(wp), intent(in) :: vx, vy, vz, tau_stop
     integer, intent(in) :: kd, lev_t
     real(wp) :: zb, s
+    type(voxel_walk_t) :: wk
+    logical :: walking
+    walking = .false.
     if (vz > 0.0_wp) then
       do while (iz <= kd)
         zb = atm%z(iz)
         s = (zb - z)/vz
-        call layer_segment(atm, iz, x, y, vx, vy, s, lev_t, tau, tau_stop)
+        call layer_segment(atm, iz, x, y, vx, vy, s, lev_t, tau, tau_stop, wk, walking)
         z = zb
         iz = iz + 1
         if (tau > tau_stop) return
@@ -640,7 +643,7 @@ contains
       do while (iz > kd)
         zb = atm%z(iz - 1)
         s = (zb - z)/vz
-        call layer_segment(atm, iz, x, y, vx, vy, s, lev_t, tau, tau_stop)
+        call layer_segment(atm, iz, x, y, vx, vy, s, lev_t, tau, tau_stop, wk, walking)
         z = zb
         iz = iz - 1
         if (tau > tau_stop) return
@@ -657,6 +660,9 @@ contains
     real(wp), intent(out) :: tau
     real(wp) :: xc, yc, zc, left, s, zb
     integer :: k
+    type(voxel_walk_t) :: wk
+    logical :: walking
+    walking = .false.
     xc = x
     yc = y
     zc = z
@@ -676,10 +682,10 @@ contains
       end if
       s = max(0.0_wp, s)
       if (s >= left) then
-        call layer_segment(atm, k, xc, yc, vx, vy, left, lev_t, tau, tau_stop)
+        call layer_segment(atm, k, xc, yc, vx, vy, left, lev_t, tau, tau_stop, wk, walking)
         return
       end if
-      call layer_segment(atm, k, xc, yc, vx, vy, s, lev_t, tau, tau_stop)
+      call layer_segment(atm, k, xc, yc, vx, vy, s, lev_t, tau, tau_stop, wk, walking)
       if (tau > tau_stop) return
       left = left - s
       zc = zb
@@ -696,11 +702,15 @@ contains
   !> Optical depth of a straight segment of length s inside layer iz, starting at (x, y) with
   !> horizontal direction (vx, vy); (x, y) move to the end of the segment (wrapped) when the
   !> horizontal position matters.
-  subroutine layer_segment(atm, iz, x, y, vx, vy, s, lev_t, tau, tau_stop)
+  subroutine layer_segment(atm, iz, x, y, vx, vy, s, lev_t, tau, tau_stop, wk, walking)
     type(atmosphere_t), intent(in) :: atm
     integer, intent(in) :: iz, lev_t
     real(wp), intent(inout) :: x, y, tau
     real(wp), intent(in) :: vx, vy, s, tau_stop
+    !> the voxel walk of the path, and whether it ended at the bottom or top of this layer in
+    !> the layer before (then it goes on instead of starting again; false after any other layer)
+    type(voxel_walk_t), intent(inout) :: wk
+    logical, intent(inout) :: walking
     integer :: kr
     select case (atm%layer_class(iz))
     case (LAYER_CLEAR)
@@ -709,7 +719,7 @@ contains
       if (atm%uniform3(kr)) then
         tau = tau + sigma_trunc_3d(atm, 1, 1, kr, lev_t)*s
       else
-        call segment_3d(atm, kr, x, y, vx, vy, s, lev_t, tau, tau_stop)
+        call segment_3d(atm, kr, x, y, vx, vy, s, lev_t, tau, tau_stop, wk, walking)
         return
       end if
     case default
@@ -719,6 +729,7 @@ contains
         tau = tau + atm%ext1(iz)*s
       end if
     end select
+    walking = .false.
     x = x + vx*s
     y = y + vy*s
     call wrap(x, atm%lx)
@@ -726,16 +737,23 @@ contains
   end subroutine layer_segment
 
   !> layer_segment in 3-D layer kr whose voxels differ: the voxels the segment crosses, until
-  !> the optical depth exceeds tau_stop.
-  subroutine segment_3d(atm, kr, x, y, vx, vy, s, lev_t, tau, tau_stop)
+  !> the optical depth exceeds tau_stop. A walk that ended on this layer's boundary in the
+  !> layer before (`walking`) goes on; otherwise one starts at (x, y).
+  subroutine segment_3d(atm, kr, x, y, vx, vy, s, lev_t, tau, tau_stop, wk, walking)
     type(atmosphere_t), intent(in) :: atm
     integer, intent(in) :: kr, lev_t
     real(wp), intent(inout) :: x, y, tau
     real(wp), intent(in) :: vx, vy, s, tau_stop
-    type(voxel_walk_t) :: wk
+    type(voxel_walk_t), intent(inout) :: wk
+    logical, intent(inout) :: walking
     real(wp) :: sig
     logical :: last
-    call walk_begin(wk, atm, x, y, vx, vy, s)
+    if (walking) then
+      call walk_extend(wk, s)
+    else
+      call walk_begin(wk, atm, x, y, vx, vy, s)
+    end if
+    walking = .true.
     do
       call walk_segment(wk, last)
       if (lev_t > 1) then

@@ -17,6 +17,7 @@
 !>       if (last) exit                     ! the end of the piece lies in this voxel
 !>       call walk_next(wk, atm)            ! cross into the next voxel
 !>     end do
+!>     call walk_extend(wk, s2)             ! the same path on through the next layer
 !>
 !> The walk is a digital differential analyser in path length: it keeps the distances to the
 !> next x and y faces, and after each segment takes the segment from both and sets the one it
@@ -30,7 +31,7 @@ module kumo_voxel_walk
   use kumo_atmosphere, only: atmosphere_t, column_xy
   implicit none
   private
-  public :: voxel_walk_t, walk_begin, walk_segment, walk_next
+  public :: voxel_walk_t, walk_begin, walk_segment, walk_next, walk_extend
 
   !> State of a walk through the voxel columns of one layer (set by walk_begin; no default
   !> values, so that starting a walk costs nothing beyond what it sets).
@@ -86,6 +87,19 @@ contains
       if (wk%iy < 1) wk%iy = atm%ny
     end if
   end subroutine walk_next
+
+  !> Go on along the same straight path into the next layer, for the path length s there. The
+  !> walk's last segment ended in the current voxel column on the boundary between the layers,
+  !> so the column stays and the paths to the faces ahead shrink by that segment: a line of
+  !> sight crosses the layers of the 3-D region without starting a walk (two divisions per
+  !> axis) in each.
+  pure subroutine walk_extend(wk, s)
+    type(voxel_walk_t), intent(inout) :: wk
+    real(wp), intent(in) :: s
+    wk%tx = wk%tx - wk%step
+    wk%ty = wk%ty - wk%step
+    wk%rem = s
+  end subroutine walk_extend
 
   !> Along one axis, for cell i (width d) holding coordinate x and direction cosine v: the step
   !> of i at a face (the sign of v), the path to the face ahead and the path across one cell

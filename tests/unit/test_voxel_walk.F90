@@ -6,7 +6,7 @@ module test_voxel_walk_suite
   use kumo_kinds, only: wp
   use kumo_testing, only: error_t, unittest_t, new_unittest, check, check_close
   use kumo_atmosphere, only: atmosphere_t
-  use kumo_voxel_walk, only: voxel_walk_t, walk_begin, walk_segment, walk_next
+  use kumo_voxel_walk, only: voxel_walk_t, walk_begin, walk_segment, walk_next, walk_extend
   implicit none
   private
   public :: collect_voxel_walk
@@ -19,7 +19,8 @@ contains
              new_unittest('backward_path', test_backward), &
              new_unittest('axis_parallel_path', test_axis), &
              new_unittest('path_inside_one_voxel', test_short), &
-             new_unittest('long_path_keeps_its_voxels', test_long)]
+             new_unittest('long_path_keeps_its_voxels', test_long), &
+             new_unittest('path_goes_on_through_layers', test_layers)]
   end function collect_voxel_walk
 
   !> A 3 x 2 grid of 100 m x 50 m voxels (lx = 300 m, ly = 100 m).
@@ -36,17 +37,25 @@ contains
   end function grid
 
   !> Walk s metres from (x0, y0) along (vx, vy) and check every segment; n_seg is the count.
-  subroutine check_walk(error, x0, y0, vx, vy, s, n_seg)
+  !> With `pieces`, the path is walked as consecutive pieces of these lengths (layers; they
+  !> add up to s), each after the first by walk_extend.
+  subroutine check_walk(error, x0, y0, vx, vy, s, n_seg, pieces)
     type(error_t), allocatable, intent(out) :: error
     real(wp), intent(in) :: x0, y0, vx, vy, s
     integer, intent(out) :: n_seg
+    real(wp), intent(in), optional :: pieces(:)
     type(atmosphere_t) :: atm
     type(voxel_walk_t) :: wk
     real(wp) :: t, tm, xm, ym
     logical :: last
-    integer :: ix, iy
+    integer :: ix, iy, ip
     atm = grid()
-    call walk_begin(wk, atm, x0, y0, vx, vy, s)
+    ip = 1
+    if (present(pieces)) then
+      call walk_begin(wk, atm, x0, y0, vx, vy, pieces(1))
+    else
+      call walk_begin(wk, atm, x0, y0, vx, vy, s)
+    end if
     t = 0.0_wp
     n_seg = 0
     do
@@ -63,7 +72,13 @@ contains
       call check(error, wk%ix == ix .and. wk%iy == iy, 'segment lies in the voxel the walk names')
       if (allocated(error)) return
       t = t + wk%step
-      if (last) exit
+      if (last) then
+        if (.not. present(pieces)) exit
+        if (ip == size(pieces)) exit
+        ip = ip + 1
+        call walk_extend(wk, pieces(ip))
+        cycle
+      end if
       call walk_next(wk, atm)
       call check(error, n_seg < 100000, 'walk ends')
       if (allocated(error)) return
@@ -117,6 +132,19 @@ contains
     if (allocated(error)) return
     call check(error, n == 1 + 360 + 960, 'one segment per voxel entered')
   end subroutine test_long
+
+  !> A line of sight through several layers: the walk of the first goes on through the others
+  !> (walk_extend) and names the same voxels as one walk of the whole path, with one more
+  !> segment at each layer boundary (none of which lies on a face here).
+  subroutine test_layers(error)
+    type(error_t), allocatable, intent(out) :: error
+    integer :: n
+    real(wp), parameter :: PIECES(7) = [101.3_wp, 77.7_wp, 211.9_wp, 3.1_wp, 150.5_wp, &
+                                        298.6_wp, 156.9_wp]
+    call check_walk(error, 30.0_wp, 20.0_wp, 0.6_wp, 0.8_wp, sum(PIECES), n, PIECES)
+    if (allocated(error)) return
+    call check(error, n == 1 + 6 + 16 + 6, 'one segment per voxel entered and per boundary')
+  end subroutine test_layers
 end module test_voxel_walk_suite
 
 program test_voxel_walk

@@ -32,7 +32,7 @@ module kumo_transport
   use kumo_truncation, only: trunc_sample_mu
   use kumo_local_estimate, only: detectors_t, le_particle, le_surface, ddis_factor, &
                                  ddis_direction, le_boundary_emission
-  use kumo_voxel_walk, only: voxel_walk_t, walk_begin, walk_segment, walk_next
+  use kumo_voxel_walk, only: voxel_walk_t, walk_begin, walk_segment, walk_next, walk_extend
   use kumo_atmosphere, only: atmosphere_t, column_of, column_xy, voxel_ext, voxel_omg, &
                              LAYER_CLEAR, LAYER_ABSORBING, LAYER_SCATTERING, LAYER_3D
   use kumo_brdf, only: brdf_albedo, brdf_sample, lambert_direction
@@ -682,9 +682,12 @@ contains
     real(wp) :: dxf, dyf, dzf, d, smax, bdx, bdy, xlo, ylo, rux, ruy, ruz, e
     real(wp) :: xs, ys, sl  !! ABS_TRACK(_VOXELS): start and length of the straight path in this layer
     logical :: along        !! ABS_TRACK(_VOXELS): the voxels are scored along the path
+    type(voxel_walk_t) :: wk  !! ... by this voxel walk, which goes on from layer to layer
+    logical :: walking
 
     ev = 0
     along = est == ABS_TRACK .or. est == ABS_TRACK_VOXELS
+    walking = .false.
     ix = 0
     iy = 0
     ! path length per unit of x, y and z travelled (unused along an axis the photon does not
@@ -776,7 +779,7 @@ contains
           end if
           call wrap(x, atm%lx)
           call wrap(y, atm%ly)
-          if (along) call absorb_path(atm, lay, tal, iz, xs, ys, ux, uy, sl, w, est == ABS_TRACK)
+          if (along) call absorb_path(atm, lay, tal, iz, xs, ys, ux, uy, sl, w, est == ABS_TRACK, wk, walking)
           ev = EV_COLLISION
           return
         end if
@@ -805,7 +808,7 @@ contains
             z = atm%z(iz - 1)
           end if
           if (along) then
-            call absorb_path(atm, lay, tal, iz, xs, ys, ux, uy, sl, w, est == ABS_TRACK)
+            call absorb_path(atm, lay, tal, iz, xs, ys, ux, uy, sl, w, est == ABS_TRACK, wk, walking)
             xs = x
             ys = y
             sl = 0.0_wp
@@ -928,14 +931,17 @@ contains
   !> sight take too (kumo_voxel_walk). Given the path, this is the expectation of what the collision
   !> score would deposit in each voxel before the photon collides or leaves. With `layers` the
   !> layer is scored too (ABS_TRACK); without, only the voxels (ABS_TRACK_VOXELS).
-  subroutine absorb_path(atm, lay, tal, iz, x, y, ux, uy, s, w, layers)
+  subroutine absorb_path(atm, lay, tal, iz, x, y, ux, uy, s, w, layers, wk, walking)
     type(atmosphere_t), intent(in) :: atm
     type(tally_layout_t), intent(in) :: lay
     type(tally_t), intent(inout) :: tal
     integer, intent(in) :: iz
     real(wp), intent(in) :: x, y, ux, uy, s, w
     logical, intent(in) :: layers
-    type(voxel_walk_t) :: wk
+    !> the voxel walk of the flight, and whether it ended at (x, y) in the layer before: then it
+    !> goes on (walk_extend) instead of starting again, as on lines of sight
+    type(voxel_walk_t), intent(inout) :: wk
+    logical, intent(inout) :: walking
     real(wp) :: a, dep, ka
     integer :: kr
     logical :: last, uniform
@@ -947,8 +953,14 @@ contains
     if (uniform) ka = voxel_ext(atm, 1, 1, kr)*(1.0_wp - voxel_omg(atm, 1, 1, kr))
     if (uniform .and. .not. lay%do_voxel) then
       a = w*(ka*s)
+      walking = .false.
     else
-      call walk_begin(wk, atm, x, y, ux, uy, s)
+      if (walking) then
+        call walk_extend(wk, s)
+      else
+        call walk_begin(wk, atm, x, y, ux, uy, s)
+      end if
+      walking = .true.
       a = 0.0_wp
       do
         call walk_segment(wk, last)

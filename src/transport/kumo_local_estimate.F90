@@ -36,7 +36,7 @@ module kumo_local_estimate
   use kumo_truncation, only: trunc_eval, trunc_sample_mu
   use kumo_atmosphere, only: atmosphere_t, column_of, sigma_trunc_3d, voxel_ext, LAYER_CLEAR, &
                              LAYER_3D
-  use kumo_voxel_walk, only: voxel_walk_t, walk_begin, walk_segment, walk_next, walk_extend
+  use kumo_voxel_walk, only: voxel_walk_t, walk_segment, walk_next, walk_layer
   use kumo_camera, only: camera_t, camera_project
   use kumo_tally, only: tally_layout_t, tally_t, score_radiance, score_radiance_map, score_camera, &
                         score_radiance_map_block
@@ -748,12 +748,7 @@ contains
     logical, intent(inout) :: walking
     real(wp) :: sig
     logical :: last
-    if (walking) then
-      call walk_extend(wk, s)
-    else
-      call walk_begin(wk, atm, x, y, vx, vy, s)
-    end if
-    walking = .true.
+    call walk_layer(wk, atm, x, y, vx, vy, s, walking)
     do
       call walk_segment(wk, last)
       if (lev_t > 1) then

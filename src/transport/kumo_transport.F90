@@ -32,7 +32,7 @@ module kumo_transport
   use kumo_truncation, only: trunc_sample_mu
   use kumo_local_estimate, only: detectors_t, le_particle, le_surface, ddis_factor, &
                                  ddis_direction, le_boundary_emission
-  use kumo_voxel_walk, only: voxel_walk_t, walk_begin, walk_segment, walk_next, walk_extend
+  use kumo_voxel_walk, only: voxel_walk_t, walk_segment, walk_next, walk_layer
   use kumo_atmosphere, only: atmosphere_t, column_of, column_xy, voxel_ext, voxel_omg, &
                              LAYER_CLEAR, LAYER_ABSORBING, LAYER_SCATTERING, LAYER_3D
   use kumo_brdf, only: brdf_albedo, brdf_sample, lambert_direction
@@ -955,12 +955,7 @@ contains
       a = w*(ka*s)
       walking = .false.
     else
-      if (walking) then
-        call walk_extend(wk, s)
-      else
-        call walk_begin(wk, atm, x, y, ux, uy, s)
-      end if
-      walking = .true.
+      call walk_layer(wk, atm, x, y, ux, uy, s, walking)
       a = 0.0_wp
       do
         call walk_segment(wk, last)

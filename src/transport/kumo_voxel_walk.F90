@@ -31,7 +31,7 @@ module kumo_voxel_walk
   use kumo_atmosphere, only: atmosphere_t, column_xy
   implicit none
   private
-  public :: voxel_walk_t, walk_begin, walk_segment, walk_next, walk_extend
+  public :: voxel_walk_t, walk_begin, walk_segment, walk_next, walk_extend, walk_layer
 
   !> State of a walk through the voxel columns of one layer (set by walk_begin; no default
   !> values, so that starting a walk costs nothing beyond what it sets).
@@ -100,6 +100,21 @@ contains
     wk%ty = wk%ty - wk%step
     wk%rem = s
   end subroutine walk_extend
+
+  !> A walk of length s through one layer: on from the walk of the layer before when that
+  !> ended here (`walking`), else a new one from (x, y); `walking` is true on return.
+  pure subroutine walk_layer(wk, atm, x, y, vx, vy, s, walking)
+    type(voxel_walk_t), intent(inout) :: wk
+    type(atmosphere_t), intent(in) :: atm
+    real(wp), intent(in) :: x, y, vx, vy, s
+    logical, intent(inout) :: walking
+    if (walking) then
+      call walk_extend(wk, s)
+    else
+      call walk_begin(wk, atm, x, y, vx, vy, s)
+    end if
+    walking = .true.
+  end subroutine walk_layer
 
   !> Along one axis, for cell i (width d) holding coordinate x and direction cosine v: the step
   !> of i at a face (the sign of v), the path to the face ahead and the path across one cell

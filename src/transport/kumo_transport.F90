@@ -678,7 +678,7 @@ contains
     real(wp), intent(in) :: inv_cf  !! 1/(collision-forcing factor)
     integer, intent(in) :: est      !! absorption estimator (ABS_*): what is scored on the way
     integer, intent(out) :: ev, ix, iy, kr
-    integer :: s, jx, jy, bx, by, nbx, nby, off, ixlo, ixhi, iylo, iyhi, face
+    integer :: s, jx, jy, bx, by, nbx, nby, off, ixlo, ixhi, iylo, iyhi
     real(wp) :: dxf, dyf, dzf, d, smax, bdx, bdy, xlo, ylo, rux, ruy, ruz, e
     real(wp) :: xs, ys, sl  !! ABS_TRACK(_VOXELS): start and length of the straight path in this layer
     logical :: along        !! ABS_TRACK(_VOXELS): the voxels are scored along the path
@@ -779,7 +779,8 @@ contains
           end if
           call wrap(x, atm%lx)
           call wrap(y, atm%ly)
-          if (along) call absorb_path(atm, lay, tal, iz, xs, ys, ux, uy, sl, w, est == ABS_TRACK, wk, walking)
+          if (along) call absorb_path(atm, lay, tal, iz, xs, ys, ux, uy, sl, w, est == ABS_TRACK, &
+                                      wk, walking)
           ev = EV_COLLISION
           return
         end if
@@ -788,13 +789,6 @@ contains
         tau = tau - smax*d
         sl = sl + d
         if (dzf <= dxf .and. dzf <= dyf) then
-          face = 3
-        else if (dxf <= dyf) then
-          face = 1
-        else
-          face = 2
-        end if
-        if (face == 3) then
           ! a level: tally it; leave the region, or go on in the next layer
           x = x + ux*d
           y = y + uy*d
@@ -808,7 +802,8 @@ contains
             z = atm%z(iz - 1)
           end if
           if (along) then
-            call absorb_path(atm, lay, tal, iz, xs, ys, ux, uy, sl, w, est == ABS_TRACK, wk, walking)
+            call absorb_path(atm, lay, tal, iz, xs, ys, ux, uy, sl, w, est == ABS_TRACK, wk, &
+                             walking)
             xs = x
             ys = y
             sl = 0.0_wp
@@ -818,7 +813,7 @@ contains
           dzf = (atm%z(iz) - atm%z(iz - 1))*ruz
           kr = iz - atm%k3_lo + 1
           if (atm%sv%sl_of_layer(kr) /= s) cycle superlayer
-        else if (face == 1) then
+        else if (dxf <= dyf) then
           ! an x face: the next block in x, across the periodic boundary if need be
           y = y + uy*d
           z = z + uz*d
@@ -939,7 +934,7 @@ contains
     real(wp), intent(in) :: x, y, ux, uy, s, w
     logical, intent(in) :: layers
     !> the voxel walk of the flight, and whether it ended at (x, y) in the layer before: then it
-    !> goes on (walk_extend) instead of starting again, as on lines of sight
+    !> goes on (walk_layer) instead of starting again, as on lines of sight
     type(voxel_walk_t), intent(inout) :: wk
     logical, intent(inout) :: walking
     real(wp) :: a, dep, ka

@@ -17,9 +17,9 @@ module kumo_atmosphere
   use, intrinsic :: iso_c_binding, only: c_ptr, c_f_pointer, c_loc
   use kumo_kinds, only: wp, vp, i8
   use, intrinsic :: iso_fortran_env, only: i1 => int8
-  use kumo_error, only: error_t, set_error, str
+  use kumo_error, only: error_t, set_error, str, add_context
   use kumo_phase, only: phase_t
-  use kumo_truncation, only: truncation_t
+  use kumo_truncation, only: truncation_t, truncation_init
   use kumo_supervoxel, only: supervoxel_grid_t, supervoxel_options_t, build_supervoxels, &
                              supervoxel_majorants, supervoxel_copy_layout
   implicit none
@@ -37,6 +37,8 @@ module kumo_atmosphere
   !> voxel's extinction and albedo are then its layer's (clear3), which voxel_ext and voxel_omg
   !> return; every reader of the two arrays goes through them.
   real(vp), parameter :: VOXEL_CLEAR = -1.0_vp
+  !> Similarity-scaled truncation has one level: no scattering counts as "into the peak"
+  real(wp), parameter :: SIM_PF_PEAK = huge(1.0_wp)
 
   abstract interface
     !> Storage for the voxel arrays of an atmosphere, handed in by the caller (atmosphere_begin's
@@ -62,6 +64,9 @@ module kumo_atmosphere
     logical :: use_1d_layers = .true.        !! .false.: every layer goes through the 3-D tracer
     logical :: use_absorbing_layers = .true. !! .false.: absorbing layers collide like others
     type(supervoxel_options_t) :: sv
+    !> > 0: similarity-scaled truncation of forward peaks at this angle [deg] (see
+    !> atmosphere_begin); 0: the optics as given
+    real(wp) :: similarity_deg = 0.0_wp
   end type atmosphere_options_t
 
   type :: atmosphere_t
@@ -131,6 +136,11 @@ module kumo_atmosphere
     !> changed; where clear_known the voxels without components hold VOXEL_CLEAR
     real(vp), allocatable :: clear_last(:, :)
     logical, allocatable :: clear_known(:)
+    !> Similarity-scaled truncation (atmosphere_options_t%similarity_deg): the optics are
+    !> those of the truncated medium, and photons scatter with the normalised truncated phase
+    !> functions of level 2 of `sim`
+    logical :: similar = .false.
+    type(truncation_t) :: sim
     ! Truncation of forward peaks (set by atmosphere_set_truncation; off by default)
     logical :: truncated = .false.           !! truncation levels > 1 exist
     type(truncation_t) :: trunc              !! delta fractions per level and phase function
@@ -231,6 +241,7 @@ contains
     procedure(voxel_storage_i), optional :: storage  !! the caller's storage for the voxels
     integer :: nz, k, ic, nc1, klo, khi, ncomp, na1, kr
     real(wp) :: e, s
+    real(wp), allocatable :: x1(:, :), a1(:, :)
     real(vp), allocatable :: bg_sca(:)
     integer, allocatable :: bg_iph(:)
     logical :: with_blend
@@ -262,12 +273,30 @@ contains
     atm%ly = ly
     atm%ncomp1 = nc1
     call move_alloc(phases, atm%phases)
+    x1 = ext1d
+    a1 = ssa1d
+    if (opts%similarity_deg > 0.0_wp) then
+      ! Similarity-scaled truncation: the delta part f of each phase function's forward peak
+      ! (delta-flat within similarity_deg) leaves the extinction, tau' = tau (1 - omega f),
+      ! omega' = omega (1 - f)/(1 - omega f), and photons scatter with the normalised rest
+      call truncation_init(atm%sim, atm%phases, opts%similarity_deg, 2, SIM_PF_PEAK, error)
+      if (allocated(error)) then
+        call add_context(error, 'atmosphere: similarity_theta_deg')
+        return
+      end if
+      atm%similar = .true.
+      do ic = 1, nc1
+        do k = 1, nz
+          call similarity_scale(atm%sim%f(2, iph1d(k, ic)), x1(k, ic), a1(k, ic))
+        end do
+      end do
+    end if
 
     ! 1-D layers: totals and cumulative scattering fractions
     allocate (atm%ext1(nz), atm%omg1(nz), atm%csca1(max(nc1, 1), nz), atm%iph1(max(nc1, 1), nz))
     atm%iph1 = 1
     do k = 1, nz
-      call mix(ext1d(k, :), ssa1d(k, :), atm%ext1(k), atm%omg1(k), atm%csca1(1:nc1, k))
+      call mix(x1(k, :), a1(k, :), atm%ext1(k), atm%omg1(k), atm%csca1(1:nc1, k))
       atm%iph1(1:nc1, k) = iph1d(k, :)
     end do
 
@@ -313,7 +342,7 @@ contains
 
     ! 1-D components that are empty throughout the region (e.g. no molecules given in cloud
     ! layers) are left out of the voxels: no choice of scatterer, no storage for them.
-    atm%act1 = pack([(ic, ic=1, nc1)], [(any(ext1d(klo:khi, ic) > 0.0_wp), ic=1, nc1)])
+    atm%act1 = pack([(ic, ic=1, nc1)], [(any(x1(klo:khi, ic) > 0.0_wp), ic=1, nc1)])
     na1 = size(atm%act1)
     ncomp = na1 + atm%nc3
     atm%ncomp = ncomp
@@ -334,9 +363,9 @@ contains
       bg_sca = 0.0_vp
       bg_iph = 1
       do ic = 1, na1
-        e = e + ext1d(k, atm%act1(ic))
-        s = s + ext1d(k, atm%act1(ic))*ssa1d(k, atm%act1(ic))
-        if (ic < ncomp) bg_sca(ic) = real(ext1d(k, atm%act1(ic))*ssa1d(k, atm%act1(ic)), vp)
+        e = e + x1(k, atm%act1(ic))
+        s = s + x1(k, atm%act1(ic))*a1(k, atm%act1(ic))
+        if (ic < ncomp) bg_sca(ic) = real(x1(k, atm%act1(ic))*a1(k, atm%act1(ic)), vp)
         bg_iph(ic) = iph1d(k, atm%act1(ic))
       end do
       atm%ext3(:, :, kr) = real(e, vp)
@@ -360,21 +389,42 @@ contains
     real(wp), intent(in) :: ext(:, :), ssa(:, :)   !! (nx, ny)
     integer, intent(in) :: iph(:, :)               !! (nx, ny)
     real(wp), intent(in), optional :: wph(:, :)    !! (nx, ny) in [0, 1]
-    integer :: kr, icc, ix, iy
-    real(wp) :: sca
+    integer :: kr, icc, ix, iy, np
+    real(wp) :: sca, e, a, f, w
     if (.not. atm%voxel_writer) return
     kr = atm%kf_lo + kf - 1 - atm%k3_lo + 1
     icc = size(atm%act1) + ic
     do iy = 1, atm%ny
       do ix = 1, atm%nx
-        sca = ext(ix, iy)*ssa(ix, iy)
-        atm%ext3(ix, iy, kr) = real(atm%ext3(ix, iy, kr) + ext(ix, iy), vp)
+        e = ext(ix, iy)
+        a = ssa(ix, iy)
+        if (atm%similar) then
+          ! the blend's delta part is the weighted sum of its tables'; the normalised rest
+          ! takes table iph + 1 with weight w (1 - f(iph + 1))/(1 - f)
+          ! (an index outside the tables is reported by atmosphere_end)
+          np = size(atm%sim%f, 2)
+          f = 0.0_wp
+          if (iph(ix, iy) >= 1 .and. iph(ix, iy) <= np) f = atm%sim%f(2, iph(ix, iy))
+          w = 0.0_wp
+          if (present(wph)) w = wph(ix, iy)
+          if (w > 0.0_wp .and. w <= 1.0_wp .and. iph(ix, iy) >= 1 .and. iph(ix, iy) < np) then
+            f = (1.0_wp - w)*f + w*atm%sim%f(2, iph(ix, iy) + 1)
+            if (associated(atm%wph3)) atm%wph3(icc, ix, iy, kr) = &
+              real(w*(1.0_wp - atm%sim%f(2, iph(ix, iy) + 1))/(1.0_wp - f), vp)
+          else if (associated(atm%wph3)) then
+            atm%wph3(icc, ix, iy, kr) = real(w, vp)
+          end if
+          call similarity_scale(f, e, a)
+        end if
+        sca = e*a
+        atm%ext3(ix, iy, kr) = real(atm%ext3(ix, iy, kr) + e, vp)
         atm%omg3(ix, iy, kr) = real(atm%omg3(ix, iy, kr) + sca, vp)
         if (icc < atm%ncomp) atm%csca3(icc, ix, iy, kr) = real(sca, vp)
         atm%iph3(icc, ix, iy, kr) = iph(ix, iy)
       end do
     end do
-    if (present(wph) .and. associated(atm%wph3)) atm%wph3(icc, :, :, kr) = real(wph, vp)
+    if (present(wph) .and. associated(atm%wph3) .and. .not. atm%similar) &
+      atm%wph3(icc, :, :, kr) = real(wph, vp)
   end subroutine atmosphere_put_layer
 
   !> Last step: albedo and cumulative scattering fractions from the sums, checks of the phase
@@ -1352,6 +1402,18 @@ contains
       late = n_late > 0
     end subroutine scan_blend
   end subroutine index_checks
+
+  !> Similarity transform of one component's optics for a delta fraction f of its phase
+  !> function: extinction e (1 - a f), albedo a (1 - f)/(1 - a f). Absorption e (1 - a) is kept.
+  pure subroutine similarity_scale(f, e, a)
+    real(wp), intent(in) :: f
+    real(wp), intent(inout) :: e, a
+    real(wp) :: r
+    if (f <= 0.0_wp .or. e <= 0.0_wp) return
+    r = 1.0_wp - a*f
+    e = e*r
+    a = a*(1.0_wp - f)/r
+  end subroutine similarity_scale
 
   pure subroutine mix(ext, ssa, ext_tot, omega, csca)
     real(wp), intent(in) :: ext(:), ssa(:)

@@ -243,6 +243,20 @@ contains
       call spectral_checks(cfg, error)
       if (allocated(error)) return
     end if
+    if (cfg%vr%similarity_theta_deg > 0.0_wp) then
+      ! the scaled medium has the fluxes and absorption of the original one, not its radiances
+      call require(cfg%cam%n == 0, '&kumo_vr: ', 'similarity_theta_deg', &
+                   cfg%vr%similarity_theta_deg, 'is for fluxes and absorption: the scaled '// &
+                   'medium does not give radiances; remove the cameras or set it to 0', error)
+      if (allocated(cfg%rad%mu)) call require(size(cfg%rad%mu) == 0, '&kumo_vr: ', &
+        'similarity_theta_deg', cfg%vr%similarity_theta_deg, 'is for fluxes and absorption: '// &
+        'the scaled medium does not give radiances; remove &kumo_radiance or set it to 0', error)
+      call require(.not. cfg%spectral%enabled .and. .not. cfg%thermal%enabled, '&kumo_vr: ', &
+                   'similarity_theta_deg', cfg%vr%similarity_theta_deg, 'is available for '// &
+                   'monochromatic solar runs only (not with &kumo_spectral or &kumo_thermal '// &
+                   'yet); set it to 0', error)
+      if (allocated(error)) return
+    end if
     call require(.not. cfg%thermal%enabled .or. cfg%vr%absorption_estimator == 'collision', &
                  '&kumo_vr: ', 'absorption_estimator', cfg%vr%absorption_estimator, 'is for '// &
                  'solar runs only: with &kumo_thermal the net-exchange tallies score absorption '// &
@@ -468,6 +482,8 @@ contains
            'kumo_vr.ddis_eps = '//str(cfg%vr%ddis_eps)//nl
     ! echoed only when changed, so that the configuration attribute of other runs stays as it was
     if (.not. cfg%vr%use_exact_thermal) text = text//'kumo_vr.use_exact_thermal = F'//nl
+    if (cfg%vr%similarity_theta_deg > 0.0_wp) text = text// &
+      'kumo_vr.similarity_theta_deg = '//str(cfg%vr%similarity_theta_deg)//nl
     if (cfg%vr%absorption_estimator /= 'collision') text = text// &
       'kumo_vr.absorption_estimator = '//trim(cfg%vr%absorption_estimator)//nl
     if (allocated(cfg%rad%mu)) text = text// &

@@ -295,6 +295,12 @@ contains
     aopts%sv%fsupg = cfg%vr%sv_fsupg
     aopts%sv%fsupi = cfg%vr%sv_fsupi
     aopts%sv%max_layers = cfg%vr%sv_max_layers
+    aopts%similarity_deg = cfg%vr%similarity_theta_deg
+    if (aopts%similarity_deg > 0.0_wp) scene%notes = scene%notes//'similarity-scaled '// &
+      'truncation of forward peaks within '//str(cfg%vr%similarity_theta_deg)//' degrees '// &
+      '(&kumo_vr similarity_theta_deg): the delta part f of each phase function leaves the '// &
+      'extinction, tau'' = tau (1 - omega f), omega'' = omega (1 - f)/(1 - omega f); fluxes '// &
+      'and absorption carry its small bias (docs/performance.md)'//new_line('a')
     if (cfg%cloud%enabled .and. cfg%spectral%enabled) then
       ! a broadband run: the cloud's optics per band, its atmosphere rebuilt per g-point
       spec%node = shared

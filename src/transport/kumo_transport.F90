@@ -461,7 +461,12 @@ contains
     call roulette(scn%vr, lay, tal, rng, p%w)
     if (p%w <= 0.0_wp) return
     p%order = p%order + 1
-    mu = phase_sample_mu(scn%atm%phases(iph), rng_uniform(rng))
+    if (scn%atm%similar) then
+      ! similarity-scaled optics: the normalised truncated phase function
+      mu = trunc_sample_mu(scn%atm%sim, scn%atm%phases(iph), iph, 2, rng_uniform(rng))
+    else
+      mu = phase_sample_mu(scn%atm%phases(iph), rng_uniform(rng))
+    end if
     call sample_azimuth(rng, cphi, sphi)
     call rotate_direction(p%ux, p%uy, p%uz, mu, cphi, sphi)
     call nudge_uz(tal, p)
@@ -517,6 +522,8 @@ contains
       split = .false.
       if (atm%truncated) then
         mu = trunc_sample_mu(atm%trunc, atm%phases(iph), iph, p%lev, rng_uniform(rng))
+      else if (atm%similar) then
+        mu = trunc_sample_mu(atm%sim, atm%phases(iph), iph, 2, rng_uniform(rng))
       else
         mu = phase_sample_mu(atm%phases(iph), rng_uniform(rng))
       end if

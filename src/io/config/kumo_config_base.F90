@@ -201,6 +201,8 @@ module kumo_config_base
     real(wp) :: ddis_eps = 0.1_wp                  !! detector directional importance sampling
     logical :: use_exact_thermal = .true.          !! non-scattering thermal columns solved exactly
     character(len=16) :: absorption_estimator = 'collision'  !! one of ABS_ESTIMATOR_NAMES (kumo_vr)
+    !> similarity-scaled truncation of forward peaks for fluxes and absorption [deg] (0 = off)
+    real(wp) :: similarity_theta_deg = 0.0_wp
   end type vr_cfg_t
 
   !> &kumo_radiance: radiances by local estimation at levels, in chosen directions.

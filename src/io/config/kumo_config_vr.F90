@@ -36,14 +36,15 @@ contains
     logical :: use_supervoxels, use_1d_layers, use_absorbing_layers, stratify_source, &
                use_exact_thermal
     character(len=16) :: vr_preset, absorption_estimator
-    real(wp) :: zeta_min, trunc_theta_max_deg, trunc_peak, cf_tau_min, diffusion, ddis_eps
+    real(wp) :: zeta_min, trunc_theta_max_deg, trunc_peak, cf_tau_min, diffusion, ddis_eps, &
+                similarity_theta_deg
     integer :: trunc_levels, diffusion_max
     character(len=512) :: msg
     character(len=*), parameter :: CTX = '&kumo_vr: '
     namelist /kumo_vr/ rr_threshold, rr_weight, use_supervoxels, sv_fsupg, sv_fsupi, &
       sv_max_layers, use_1d_layers, use_absorbing_layers, use_exact_thermal, vr_preset, zeta_min, &
       trunc_theta_max_deg, trunc_levels, trunc_peak, cf_tau_min, diffusion, diffusion_max, &
-      ddis_eps, stratify_source, absorption_estimator
+      ddis_eps, stratify_source, absorption_estimator, similarity_theta_deg
     rr_threshold = cfg%rr_threshold
     rr_weight = cfg%rr_weight
     use_supervoxels = cfg%use_supervoxels
@@ -64,6 +65,7 @@ contains
     diffusion_max = cfg%diffusion_max
     ddis_eps = UNSET
     absorption_estimator = cfg%absorption_estimator
+    similarity_theta_deg = cfg%similarity_theta_deg
     rewind (unit)
     msg = ''
     read (unit, nml=kumo_vr, iostat=ios, iomsg=msg)
@@ -94,6 +96,8 @@ contains
                  'must be within [0, 1e6] (0 = no numerical diffusion)', error)
     call require(within(ddis_eps, 0.0_wp, 0.9_wp), CTX, 'ddis_eps', ddis_eps, &
                  'must be within [0, 0.9] (0 = no directional importance sampling)', error)
+    call require(within(similarity_theta_deg, 0.0_wp, 60.0_wp), CTX, 'similarity_theta_deg', &
+                 similarity_theta_deg, 'must be within [0, 60] (0 = off)', error)
     call require(diffusion_max >= 0 .and. diffusion_max <= 1000, CTX, 'diffusion_max', &
                  diffusion_max, 'must be within 0..1000 [columns]', error)
     if (allocated(error)) return
@@ -109,6 +113,7 @@ contains
     cfg%diffusion = diffusion
     cfg%diffusion_max = diffusion_max
     cfg%ddis_eps = ddis_eps
+    cfg%similarity_theta_deg = similarity_theta_deg
     call require(within(rr_weight, SMALL, BIG), CTX, 'rr_weight', rr_weight, 'must be > 0', error)
     call require(within(rr_threshold, 0.0_wp, rr_weight), CTX, 'rr_threshold', rr_threshold, &
                  'must be within [0, rr_weight = '//str(rr_weight)//']', error)

@@ -25,6 +25,7 @@ module kumo_atmosphere
   implicit none
   private
   public :: atmosphere_t, atmosphere_options_t, atmosphere_init, atmosphere_set_truncation
+  public :: similarity_blend_weight, similarity_f, similarity_scale
   public :: atmosphere_begin, atmosphere_put_layer, atmosphere_end, atmosphere_swap_background
   public :: column_of, column_xy, sigma_trunc_3d, voxel_ext, voxel_omg, voxel_layer, VOXEL_CLEAR
   public :: atmosphere_release, voxel_storage_i, voxel_sync_i
@@ -389,8 +390,8 @@ contains
     real(wp), intent(in) :: ext(:, :), ssa(:, :)   !! (nx, ny)
     integer, intent(in) :: iph(:, :)               !! (nx, ny)
     real(wp), intent(in), optional :: wph(:, :)    !! (nx, ny) in [0, 1]
-    integer :: kr, icc, ix, iy, np
-    real(wp) :: sca, e, a, f, w
+    integer :: kr, icc, ix, iy
+    real(wp) :: sca, e, a, w
     if (.not. atm%voxel_writer) return
     kr = atm%kf_lo + kf - 1 - atm%k3_lo + 1
     icc = size(atm%act1) + ic
@@ -399,22 +400,9 @@ contains
         e = ext(ix, iy)
         a = ssa(ix, iy)
         if (atm%similar) then
-          ! the blend's delta part is the weighted sum of its tables'; the normalised rest
-          ! takes table iph + 1 with weight w (1 - f(iph + 1))/(1 - f)
-          ! (an index outside the tables is reported by atmosphere_end)
-          np = size(atm%sim%f, 2)
-          f = 0.0_wp
-          if (iph(ix, iy) >= 1 .and. iph(ix, iy) <= np) f = atm%sim%f(2, iph(ix, iy))
           w = 0.0_wp
           if (present(wph)) w = wph(ix, iy)
-          if (w > 0.0_wp .and. w <= 1.0_wp .and. iph(ix, iy) >= 1 .and. iph(ix, iy) < np) then
-            f = (1.0_wp - w)*f + w*atm%sim%f(2, iph(ix, iy) + 1)
-            if (associated(atm%wph3)) atm%wph3(icc, ix, iy, kr) = &
-              real(w*(1.0_wp - atm%sim%f(2, iph(ix, iy) + 1))/(1.0_wp - f), vp)
-          else if (associated(atm%wph3)) then
-            atm%wph3(icc, ix, iy, kr) = real(w, vp)
-          end if
-          call similarity_scale(f, e, a)
+          call similarity_scale(similarity_f(atm%sim, iph(ix, iy), w), e, a)
         end if
         sca = e*a
         atm%ext3(ix, iy, kr) = real(atm%ext3(ix, iy, kr) + e, vp)
@@ -423,8 +411,7 @@ contains
         atm%iph3(icc, ix, iy, kr) = iph(ix, iy)
       end do
     end do
-    if (present(wph) .and. associated(atm%wph3) .and. .not. atm%similar) &
-      atm%wph3(icc, :, :, kr) = real(wph, vp)
+    if (present(wph) .and. associated(atm%wph3)) atm%wph3(icc, :, :, kr) = real(wph, vp)
   end subroutine atmosphere_put_layer
 
   !> Last step: albedo and cumulative scattering fractions from the sums, checks of the phase
@@ -574,7 +561,7 @@ contains
     real(wp) :: e, s
     real(vp) :: clr_e, clr_w, no_csca(1, 1, 1)
     real(vp), allocatable :: bg_sca(:), clr_c(:)
-    real(wp), allocatable :: acc_bg(:)
+    real(wp), allocatable :: acc_bg(:), x1(:, :), a1(:, :)
     logical :: band, bad_index, bad_weight, bad_blend, blended
     done = .false.
     nc1 = atm%ncomp1
@@ -596,8 +583,19 @@ contains
       if (.not. (present(ciph) .and. present(cwph))) return
     end if
     done = .true.
+    ! the 1-D components as atmosphere_begin takes them (similarity-scaled if the build was)
+    x1 = ext1d
+    a1 = ssa1d
+    if (atm%similar) then
+      do ic = 1, nc1
+        do k = 1, atm%nz
+          call similarity_scale(similarity_f(atm%sim, atm%iph1(ic, k), 0.0_wp), x1(k, ic), &
+                                a1(k, ic))
+        end do
+      end do
+    end if
     do k = 1, atm%nz
-      call mix(ext1d(k, :), ssa1d(k, :), atm%ext1(k), atm%omg1(k), atm%csca1(1:nc1, k))
+      call mix(x1(k, :), a1(k, :), atm%ext1(k), atm%omg1(k), atm%csca1(1:nc1, k))
       atm%layer_class(k) = class_of_layer(atm, k, opts)
     end do
     if (atm%n3 == 0) return
@@ -678,9 +676,9 @@ contains
         s = 0.0_wp
         bg_sca = 0.0_vp
         do ic = 1, na1
-          e = e + ext1d(k, atm%act1(ic))
-          s = s + ext1d(k, atm%act1(ic))*ssa1d(k, atm%act1(ic))
-          if (ic < nc) bg_sca(ic) = real(ext1d(k, atm%act1(ic))*ssa1d(k, atm%act1(ic)), vp)
+          e = e + x1(k, atm%act1(ic))
+          s = s + x1(k, atm%act1(ic))*a1(k, atm%act1(ic))
+          if (ic < nc) bg_sca(ic) = real(x1(k, atm%act1(ic))*a1(k, atm%act1(ic)), vp)
         end do
         ! the running sums of the background's scattering, the same in every voxel of the layer
         acc_bg(0) = 0.0_wp
@@ -780,10 +778,36 @@ contains
             n = n + 1
             atm%cloud_c(1:atm%nc3, n) = cext(ix, iy, kf, :)
             atm%cloud_c(atm%nc3 + 1:2*atm%nc3, n) = cssa(ix, iy, kf, :)
+            if (atm%similar) call scale_cloudy(ix, iy, kf, kr, n)
           end do
         end do
       end do
     end subroutine gather_cloudy
+
+    !> Similarity-scaled truncation of the components of listed voxel n, (ix, iy) of layer kr,
+    !> as atmosphere_put_layer scales them: with the band's phase indices and blend weights at
+    !> a new band, else with those the voxels hold.
+    subroutine scale_cloudy(ix, iy, kf, kr, n)
+      integer, intent(in) :: ix, iy, kf, kr, n
+      integer :: j, ip
+      real(wp) :: w
+      do j = 1, atm%nc3
+        if (band) then
+          ip = ciph(ix, iy, kf, j)
+          w = cwph(ix, iy, kf, j)
+        else
+          if (associated(atm%iph3)) then
+            ip = atm%iph3(na1 + j, ix, iy, kr)
+          else
+            ip = atm%iph3_const(na1 + j)
+          end if
+          w = 0.0_wp
+          if (associated(atm%wph3)) w = atm%wph3(na1 + j, ix, iy, kr)
+        end if
+        call similarity_scale(similarity_f(atm%sim, ip, w), atm%cloud_c(j, n), &
+                              atm%cloud_c(atm%nc3 + j, n))
+      end do
+    end subroutine scale_cloudy
 
     !> The voxels of layer kr (its arrays as dummies, so that the compiler keeps their
     !> addresses in registers instead of reloading them after every store): VOXEL_CLEAR and the
@@ -1405,6 +1429,30 @@ contains
 
   !> Similarity transform of one component's optics for a delta fraction f of its phase
   !> function: extinction e (1 - a f), albedo a (1 - f)/(1 - a f). Absorption e (1 - a) is kept.
+  !> Delta fraction of phase function iph at the one level of similarity-scaled truncation
+  !> `sim`, or of the blend (1 - w) P(iph) + w P(iph + 1): the weighted sum of its tables'. An
+  !> index or weight that atmosphere_end will reject gives 0.
+  pure real(wp) function similarity_f(sim, iph, w) result(f)
+    type(truncation_t), intent(in) :: sim
+    integer, intent(in) :: iph
+    real(wp), intent(in) :: w
+    integer :: np
+    np = size(sim%f, 2)
+    f = 0.0_wp
+    if (iph < 1 .or. iph > np) return
+    f = sim%f(2, iph)
+    if (w > 0.0_wp .and. w <= 1.0_wp .and. iph < np) f = (1.0_wp - w)*f + w*sim%f(2, iph + 1)
+  end function similarity_f
+
+  !> The weight of table iph + 1 in the normalised rest of a scaled blend with weight w:
+  !> w (1 - f(iph + 1))/(1 - f), f the blend's delta fraction (the voxels keep w).
+  pure real(wp) function similarity_blend_weight(sim, iph, w) result(ws)
+    type(truncation_t), intent(in) :: sim
+    integer, intent(in) :: iph
+    real(wp), intent(in) :: w
+    ws = w*(1.0_wp - sim%f(2, iph + 1))/(1.0_wp - similarity_f(sim, iph, w))
+  end function similarity_blend_weight
+
   pure subroutine similarity_scale(f, e, a)
     real(wp), intent(in) :: f
     real(wp), intent(inout) :: e, a

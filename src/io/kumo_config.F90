@@ -251,10 +251,9 @@ contains
       if (allocated(cfg%rad%mu)) call require(size(cfg%rad%mu) == 0, '&kumo_vr: ', &
         'similarity_theta_deg', cfg%vr%similarity_theta_deg, 'is for fluxes and absorption: '// &
         'the scaled medium does not give radiances; remove &kumo_radiance or set it to 0', error)
-      call require(.not. cfg%spectral%enabled .and. .not. cfg%thermal%enabled, '&kumo_vr: ', &
-                   'similarity_theta_deg', cfg%vr%similarity_theta_deg, 'is available for '// &
-                   'monochromatic solar runs only (not with &kumo_spectral or &kumo_thermal '// &
-                   'yet); set it to 0', error)
+      call require(.not. cfg%thermal%enabled, '&kumo_vr: ', 'similarity_theta_deg', &
+                   cfg%vr%similarity_theta_deg, 'is for solar runs only (not with '// &
+                   '&kumo_thermal yet); set it to 0', error)
       if (allocated(error)) return
     end if
     call require(.not. cfg%thermal%enabled .or. cfg%vr%absorption_estimator == 'collision', &

@@ -22,7 +22,8 @@ module kumo_scene_setup
   use kumo_atmosphere, only: atmosphere_t, atmosphere_options_t, atmosphere_init, &
                              atmosphere_begin, atmosphere_end, atmosphere_swap_background, &
                              atmosphere_set_truncation, atmosphere_put_layer, LAYER_CLEAR, &
-                             LAYER_ABSORBING, LAYER_SCATTERING, voxel_storage_i, voxel_sync_i
+                             LAYER_ABSORBING, LAYER_SCATTERING, voxel_storage_i, voxel_sync_i, &
+                             similarity_f, similarity_scale
   use kumo_std_atmosphere, only: std_atmosphere_profile
   use kumo_gas_optics, only: gas_kdist_t, gas_default_vmr, gas_index
   use kumo_rrtmgp_file, only: read_rrtmgp_kdist
@@ -300,7 +301,8 @@ contains
       'truncation of forward peaks within '//str(cfg%vr%similarity_theta_deg)//' degrees '// &
       '(&kumo_vr similarity_theta_deg): the delta part f of each phase function leaves the '// &
       'extinction, tau'' = tau (1 - omega f), omega'' = omega (1 - f)/(1 - omega f); fluxes '// &
-      'and absorption carry its small bias (docs/performance.md)'//new_line('a')
+      'and absorption carry its small bias (docs/performance.md), and the direct beam holds '// &
+      'the light of the cut peaks too'//new_line('a')
     if (cfg%cloud%enabled .and. cfg%spectral%enabled) then
       ! a broadband run: the cloud's optics per band, its atmosphere rebuilt per g-point
       spec%node = shared
@@ -784,8 +786,9 @@ contains
     character(len=:), allocatable :: state_note
     integer :: nz, nc, ng, k, g, iray, ic, nadd
     type(bundle_t) :: b
-    real(wp) :: mu0, sca, acc, tsfc
+    real(wp) :: mu0, sca, acc, tsfc, a
     logical :: lw
+    type(truncation_t) :: tr
 
     nz = cfg%atm%nz
     nc = size(ext1d, 2)
@@ -923,6 +926,21 @@ contains
                      '''collision'' (the default)')
       return
     end if
+    if (lw .and. cfg%vr%similarity_theta_deg > 0.0_wp) then
+      call set_error(error, '&kumo_vr: similarity_theta_deg = '// &
+                     str(cfg%vr%similarity_theta_deg)//' is for solar runs only; '// &
+                     cfg%spectral%kdist_path//' is a longwave k-distribution: set it to 0')
+      return
+    end if
+    if (cfg%vr%similarity_theta_deg > 0.0_wp) then
+      ! the namelist's components of the 1-D layers, similarity-scaled as kumo_atmosphere
+      ! scales them (the per-g-point mixtures below; Rayleigh and gas have no forward peak)
+      call truncation_init(tr, phases, cfg%vr%similarity_theta_deg, 2, huge(1.0_wp), error)
+      if (allocated(error)) then
+        call add_context(error, '&kumo_vr: similarity_theta_deg')
+        return
+      end if
+    end if
     spec%longwave = lw
     if (.not. lw) then
       call spectral_plan_init(energy, spec%plan, error, floor_share=cfg%spectral%floor_share)
@@ -950,6 +968,13 @@ contains
       do k = 1, nz
         e(1:nc) = ext1d(k, :)
         s(1:nc) = ext1d(k, :)*ssa1d(k, :)
+        if (cfg%vr%similarity_theta_deg > 0.0_wp) then
+          do ic = 1, nc
+            a = ssa1d(k, ic)
+            call similarity_scale(similarity_f(tr, phase1d(k, ic), 0.0_wp), e(ic), a)
+            s(ic) = e(ic)*a
+          end do
+        end if
         if (.not. lw) then
           e(nc + 1) = tau_ray(k, g)/dz(k)
           s(nc + 1) = e(nc + 1)

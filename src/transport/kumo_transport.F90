@@ -34,6 +34,7 @@ module kumo_transport
                                  ddis_direction, le_boundary_emission
   use kumo_voxel_walk, only: voxel_walk_t, walk_segment, walk_next, walk_layer
   use kumo_atmosphere, only: atmosphere_t, column_of, column_xy, voxel_ext, voxel_omg, &
+                             similarity_blend_weight, &
                              LAYER_CLEAR, LAYER_ABSORBING, LAYER_SCATTERING, LAYER_3D
   use kumo_brdf, only: brdf_albedo, brdf_sample, lambert_direction
   use kumo_tally, only: tally_layout_t, tally_t, ANOM_UZ_NUDGED, ANOM_EVENT_CAP, &
@@ -428,6 +429,8 @@ contains
           ! probability w, which samples (1 - w) P(iph) + w P(iph + 1) exactly
           wb = atm%wph3(ic, ix, iy, kr)
           if (wb > 0.0_wp) then
+            ! similarity-scaled: the weight of table iph + 1 in the blend's normalised rest
+            if (atm%similar) wb = similarity_blend_weight(atm%sim, iph, wb)
             if (rng_uniform(rng) < wb) iph = iph + 1
           end if
         end if

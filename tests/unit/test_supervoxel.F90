@@ -10,8 +10,9 @@ module test_supervoxel_suite
   use kumo_atmosphere, only: atmosphere_t, atmosphere_options_t, atmosphere_init, &
                              atmosphere_begin, atmosphere_put_layer, atmosphere_end, &
                              atmosphere_swap_background, voxel_ext, voxel_omg, VOXEL_CLEAR, &
+                             similarity_blend_weight, &
                              LAYER_CLEAR, LAYER_ABSORBING, LAYER_SCATTERING, LAYER_3D
-  use kumo_phase, only: phase_t, new_phase_isotropic
+  use kumo_phase, only: phase_t, new_phase_isotropic, new_phase_hg
   implicit none
   private
   public :: collect_supervoxel
@@ -28,6 +29,7 @@ contains
              new_unittest('layer_classes', test_classes), &
              new_unittest('component_mixing', test_mixing), &
              new_unittest('voxels_put_by_layer_with_blends', test_put_layers), &
+             new_unittest('similarity_scales_each_component_and_blend', test_similarity), &
              new_unittest('kept_blocks_new_majorants', test_kept_layout), &
              new_unittest('carried_column_sums_merge_alike', test_columns_merge), &
              new_unittest('swapped_background_equals_a_new_build', test_swap_background), &
@@ -374,6 +376,75 @@ contains
     end subroutine one_layer
   end subroutine test_put_layers
 
+  !> Similarity-scaled truncation (opts%similarity_deg): each component's extinction becomes
+  !> e (1 - a f) and its albedo a (1 - f)/(1 - a f) before the voxels are mixed, f the delta
+  !> fraction of its phase function (of a blend, the weighted sum), and a blend's weight of the
+  !> second table in the normalised rest is w (1 - f2)/(1 - f) (the voxel keeps w); components without a forward peak (isotropic)
+  !> and the 1-D layers' isotropic background are unchanged, an HG 1-D component is scaled.
+  subroutine test_similarity(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(atmosphere_t) :: atm
+    type(atmosphere_options_t) :: opts
+    type(phase_t), allocatable :: ph(:)
+    type(error_t), allocatable :: err
+    real(wp) :: ext1(3, 2), ssa1(3, 2), e(2, 1), s(2, 1), w(2, 1), f2, f3, fb, eb, ab, eh, ah
+    integer :: iph1(3, 2), ip(2, 1)
+    ph = [new_phase_isotropic(), new_phase_hg(0.8_wp, err), new_phase_hg(0.9_wp, err)]
+    call check(error, .not. allocated(err), 'HG phase functions')
+    if (allocated(error)) return
+    ext1(:, 1) = [1.0e-5_wp, 2.0e-5_wp, 0.0_wp]   ! isotropic background
+    ext1(:, 2) = [0.0_wp, 0.0_wp, 5.0e-3_wp]      ! an HG 1-D layer above the region
+    ssa1 = 0.95_wp
+    iph1(:, 1) = 1
+    iph1(:, 2) = 2
+    opts%similarity_deg = 20.0_wp
+    call atmosphere_begin(atm, [0.0_wp, 100.0_wp, 200.0_wp, 300.0_wp], 20.0_wp, 10.0_wp, ext1, &
+                          ssa1, iph1, ph, opts, error, k3_lo=1, nx=2, ny=1, n3f=2, nc3=1, &
+                          blend=.true.)
+    if (allocated(error)) return
+    call check(error, atm%similar, 'the atmosphere is scaled')
+    if (allocated(error)) return
+    f2 = atm%sim%f(2, 2)
+    f3 = atm%sim%f(2, 3)
+    call check(error, f2 > 0.1_wp .and. f3 > f2 .and. atm%sim%f(2, 1) == 0.0_wp, &
+               'delta fractions of HG 0.8 and 0.9 at 20 degrees, none for isotropic')
+    if (allocated(error)) return
+    ! column 1 blends tables 2 and 3 (w = 0.25), column 2 is table 3 alone
+    e(:, 1) = [1.0e-2_wp, 2.0e-2_wp]
+    s(:, 1) = [0.9_wp, 0.99_wp]
+    ip(:, 1) = [2, 3]
+    w(:, 1) = [0.25_wp, 0.0_wp]
+    call atmosphere_put_layer(atm, 1, 1, e, s, ip, w)
+    call atmosphere_put_layer(atm, 1, 2, e, s, ip, w)
+    call atmosphere_end(atm, opts, error)
+    if (allocated(error)) return
+    fb = 0.75_wp*f2 + 0.25_wp*f3
+    eb = 1.0e-2_wp*(1.0_wp - 0.9_wp*fb)
+    ab = 0.9_wp*(1.0_wp - fb)/(1.0_wp - 0.9_wp*fb)
+    call check_close(error, real(atm%ext3(1, 1, 1), wp), 1.0e-5_wp + eb, rel_tol=1.0e-6_wp, &
+                     label='extinction of the blended voxel')
+    call check_close(error, real(atm%omg3(1, 1, 1), wp), (0.95e-5_wp + eb*ab)/(1.0e-5_wp + eb), &
+                     rel_tol=1.0e-6_wp, label='albedo of the blended voxel')
+    call check_close(error, real(atm%wph3(2, 1, 1, 1), wp), 0.25_wp, rel_tol=1.0e-7_wp, &
+                     label='the voxel keeps the blend weight')
+    call check_close(error, similarity_blend_weight(atm%sim, 2, 0.25_wp), &
+                     0.25_wp*(1.0_wp - f3)/(1.0_wp - fb), rel_tol=1.0e-12_wp, &
+                     label='weight of the second table in the scaled blend')
+    eh = 2.0e-2_wp*(1.0_wp - 0.99_wp*f3)
+    call check_close(error, real(atm%ext3(2, 1, 2), wp), 2.0e-5_wp + eh, rel_tol=1.0e-6_wp, &
+                     label='extinction of the voxel of table 3')
+    ! absorption is kept: e (1 - a) before and after
+    call check_close(error, eb*(1.0_wp - ab), 1.0e-2_wp*0.1_wp, rel_tol=1.0e-12_wp, &
+                     label='absorption of the scaled component')
+    ! 1-D layers: the isotropic background as given, the HG layer above the region scaled
+    eh = 5.0e-3_wp*(1.0_wp - 0.95_wp*f2)
+    ah = 0.95_wp*(1.0_wp - f2)/(1.0_wp - 0.95_wp*f2)
+    call check_close(error, atm%ext1(3), eh, rel_tol=1.0e-12_wp, label='scaled 1-D layer')
+    call check_close(error, atm%omg1(3), ah, rel_tol=1.0e-12_wp, label='its albedo')
+    call check_close(error, atm%ext1(1), 1.0e-5_wp, rel_tol=1.0e-12_wp, &
+                     label='isotropic 1-D background unchanged')
+  end subroutine test_similarity
+
   !> A broadband run switches the gas of a g-point by atmosphere_swap_background: the voxels,
   !> layers and majorants must equal, to the last bit, those of a new build with the new
   !> background. The field has voxels without components (most of a cloud field), voxels with
@@ -381,19 +452,46 @@ contains
   !> layer whose background loses its scattering.
   subroutine test_swap_background(error)
     type(error_t), allocatable, intent(out) :: error
-    call swap_background_case(error, 2, .false.)
-    if (allocated(error)) return
-    call swap_background_case(error, 1, .false.)
-    if (allocated(error)) return
-    ! a layer full of voxels with components: its blocks take the other layers' clear values
-    ! one by one (clear_part)
-    call swap_background_case(error, 1, .true.)
+    logical :: sim
+    integer :: i
+    ! each case also with similarity-scaled truncation (forward-peaked phase functions, 1-D
+    ! components and blends scaled as a build scales them)
+    do i = 1, 2
+      sim = i == 2
+      call swap_background_case(error, 2, .false., sim)
+      if (allocated(error)) return
+      call swap_background_case(error, 1, .false., sim)
+      if (allocated(error)) return
+      ! a layer full of voxels with components: its blocks take the other layers' clear values
+      ! one by one (clear_part)
+      call swap_background_case(error, 1, .true., sim)
+      if (allocated(error)) return
+    end do
   end subroutine test_swap_background
 
-  subroutine swap_background_case(error, nc3, full)
+  !> n phase functions: isotropic, or (`sim`) Henyey-Greenstein with g = 0.6 + 0.05 i, which
+  !> similarity-scaled truncation at 20 degrees cuts.
+  function test_phases(n, sim) result(ph)
+    integer, intent(in) :: n
+    logical, intent(in) :: sim
+    type(phase_t), allocatable :: ph(:)
+    type(error_t), allocatable :: err
+    integer :: i
+    allocate (ph(n))
+    do i = 1, n
+      if (sim) then
+        ph(i) = new_phase_hg(0.6_wp + 0.05_wp*i, err)
+      else
+        ph(i) = new_phase_isotropic()
+      end if
+    end do
+  end function test_phases
+
+  subroutine swap_background_case(error, nc3, full, sim)
     type(error_t), allocatable, intent(out) :: error
     integer, intent(in) :: nc3
     logical, intent(in) :: full   !! the first layer of the field has components in every voxel
+    logical, intent(in) :: sim    !! similarity-scaled truncation at 20 degrees
     integer, parameter :: NX = 7, NY = 5, NF = 3, NZ = 5
     type(atmosphere_t) :: swapped, built
     type(atmosphere_options_t) :: opts
@@ -404,6 +502,7 @@ contains
     integer :: iph(NX, NY, NF, nc3), iph1(NZ, 2), i, j, k, c
     logical :: done
     z = [(200.0_wp*k, k=0, NZ)]
+    if (sim) opts%similarity_deg = 20.0_wp
     ssa1(:, 1) = 1.0_wp     ! molecules
     ssa1(:, 2) = 0.0_wp     ! gas absorption
     iph1(:, 1) = 1
@@ -435,6 +534,8 @@ contains
     call check(error, count(all(cext == 0.0_wp, dim=4)) > NX*NY, 'the field has clear voxels')
     if (allocated(error)) return
     call build(swapped, ext_a)
+    if (allocated(error)) return
+    call check(error, swapped%similar .eqv. sim, 'similarity-scaled as asked')
     if (allocated(error)) return
     layout = swapped%sv
     call atmosphere_swap_background(swapped, ext_b, ssa1, cext, cssa, opts, layout, done)
@@ -479,7 +580,7 @@ contains
       type(atmosphere_t), intent(inout) :: atm
       real(wp), intent(in) :: ext1(:, :)
       type(supervoxel_grid_t), intent(in), optional :: sv_layout
-      ph = [(new_phase_isotropic(), i=1, 4)]
+      ph = test_phases(4, sim)
       call atmosphere_begin(atm, z, 700.0_wp, 500.0_wp, ext1, ssa1, iph1, ph, opts, error, &
                             k3_lo=2, nx=NX, ny=NY, n3f=NF, nc3=nc3, blend=.true.)
       if (allocated(error)) return
@@ -502,15 +603,22 @@ contains
   !> bit, and leaves it to a new build whenever that would store the voxels otherwise or fail.
   subroutine test_swap_band(error)
     type(error_t), allocatable, intent(out) :: error
-    call swap_band_case(error, 2)
-    if (allocated(error)) return
-    ! one component: the band's largest component extinctions per block are found anew
-    call swap_band_case(error, 1)
+    logical :: sim
+    integer :: i
+    do i = 1, 2
+      sim = i == 2   ! and with similarity-scaled truncation
+      call swap_band_case(error, 2, sim)
+      if (allocated(error)) return
+      ! one component: the band's largest component extinctions per block are found anew
+      call swap_band_case(error, 1, sim)
+      if (allocated(error)) return
+    end do
   end subroutine test_swap_band
 
-  subroutine swap_band_case(error, nc3)
+  subroutine swap_band_case(error, nc3, sim)
     type(error_t), allocatable, intent(out) :: error
     integer, intent(in) :: nc3
+    logical, intent(in) :: sim
     integer, parameter :: NX = 6, NY = 5, NF = 3, NZ = 5, NP = 7
     type(atmosphere_t) :: swapped, built
     type(atmosphere_options_t) :: opts
@@ -524,6 +632,7 @@ contains
     logical :: done
     logical, allocatable :: u_b(:)
     z = [(250.0_wp*k, k=0, NZ)]
+    if (sim) opts%similarity_deg = 20.0_wp
     ssa1(:, 1) = 1.0_wp
     ssa1(:, 2) = 0.0_wp
     iph1 = 1
@@ -727,7 +836,7 @@ contains
       integer, intent(in) :: iph(:, :, :, :)
       real(vp), intent(in) :: wph(:, :, :, :)
       type(supervoxel_grid_t), intent(in), optional :: sv_layout
-      ph = [(new_phase_isotropic(), i=1, NP)]
+      ph = test_phases(NP, sim)
       call atmosphere_begin(atm, z, 600.0_wp, 500.0_wp, ext1, ssa1, iph1, ph, opts, error, &
                             k3_lo=2, nx=NX, ny=NY, n3f=NF, nc3=nc3, blend=.true.)
       if (allocated(error)) return

@@ -80,7 +80,7 @@ contains
              new_unittest('sw_3d_homogeneous_vs_disort', test_sw_3d), &
              new_unittest('lw_3d_homogeneous_vs_disort', test_lw_3d), &
              new_unittest('lw_3d_voxel_temperatures_refused', test_lw_3d_temperatures), &
-             new_unittest('lw_track_estimator_refused', test_lw_track_refused), &
+             new_unittest('lw_track_and_similarity_refused', test_lw_track_refused), &
              new_unittest('sw_liquid_cloud_file_vs_disort', test_sw_liquid), &
              new_unittest('lw_liquid_cloud_file_vs_disort', test_lw_liquid), &
              new_unittest('sw_liquid_band_mie_cached', test_sw_liquid_mie), &
@@ -583,6 +583,16 @@ contains
     call read_config('broadband_lw_track.nml', cfg, err)
     if (.not. allocated(err)) call simulate(cfg, set, summary, err)
     call check_error_words(error, err, [character(len=32) :: 'absorption_estimator', &
+                           'solar runs only', 'longwave'])
+    if (allocated(error)) return
+    ! similarity-scaled truncation is for solar runs too
+    if (allocated(err)) deallocate (err)
+    call write_nml('broadband_lw_similarity.nml', c, '', '', 2, n_photons=100, &
+                   groups='&kumo_vr'//new_line('a')//'  similarity_theta_deg = 20'// &
+                   new_line('a')//'/')
+    call read_config('broadband_lw_similarity.nml', cfg, err)
+    if (.not. allocated(err)) call simulate(cfg, set, summary, err)
+    call check_error_words(error, err, [character(len=32) :: 'similarity_theta_deg', &
                            'solar runs only', 'longwave'])
   end subroutine test_lw_track_refused
 

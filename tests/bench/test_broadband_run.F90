@@ -414,36 +414,35 @@ contains
   !> every flux and heating rate within 4 sigma.
   subroutine test_sw_cloudy(error)
     type(error_t), allocatable, intent(out) :: error
-    type(case_t) :: c
-    type(result_set_t) :: set
-    type(run_summary_t) :: summary
-    call read_case('us1976_cloud', c, error, 'sw_cloudy_reference.txt')
-    if (allocated(error)) return
-    call write_nml('broadband_sw_cloudy.nml', c, '  floor_share = 0.2', '', 40)
-    call run('broadband_sw_cloudy.nml', set, summary, error)
-    if (allocated(error)) return
-    call compare(set, summary, c, error, huge(1), 1.0_dp)
+    call sw_cloudy('broadband_sw_cloudy', '', error)
   end subroutine test_sw_cloudy
 
-  !> The cloudy column of test_sw_cloudy with similarity-scaled truncation at 20 degrees
-  !> (&kumo_vr similarity_theta_deg): up and whole down fluxes at every level and the heating
-  !> rate of every layer against the same discrete-ordinates references of the original optics
-  !> (the scaling's bias is far below the Monte Carlo error here). The direct flux is not
-  !> compared: in the scaled medium it holds the light of the cut forward peak too.
+  !> The same column with similarity-scaled truncation at 20 degrees (&kumo_vr
+  !> similarity_theta_deg): up and whole down fluxes at every level and the heating rate of
+  !> every layer against the same discrete-ordinates references of the original optics (the
+  !> scaling's bias is far below the Monte Carlo error here). The direct flux is not compared:
+  !> in the scaled medium it holds the light of the cut forward peak too.
   subroutine test_sw_cloudy_similarity(error)
+    type(error_t), allocatable, intent(out) :: error
+    call sw_cloudy('broadband_sw_cloudy_sim', '&kumo_vr'//new_line('a')// &
+                   '  similarity_theta_deg = 20'//new_line('a')//'/', error)
+  end subroutine test_sw_cloudy_similarity
+
+  !> Run the cloudy column of sw_cloudy_reference.txt (with `groups` added to the namelist,
+  !> compared by its whole downward flux when there are any) against the reference.
+  subroutine sw_cloudy(stem, groups, error)
+    character(len=*), intent(in) :: stem, groups
     type(error_t), allocatable, intent(out) :: error
     type(case_t) :: c
     type(result_set_t) :: set
     type(run_summary_t) :: summary
     call read_case('us1976_cloud', c, error, 'sw_cloudy_reference.txt')
     if (allocated(error)) return
-    call write_nml('broadband_sw_cloudy_sim.nml', c, '  floor_share = 0.2', '', 40, &
-                   groups='&kumo_vr'//new_line('a')//'  similarity_theta_deg = 20'// &
-                   new_line('a')//'/')
-    call run('broadband_sw_cloudy_sim.nml', set, summary, error)
+    call write_nml(stem//'.nml', c, '  floor_share = 0.2', '', 40, groups=groups)
+    call run(stem//'.nml', set, summary, error)
     if (allocated(error)) return
-    call compare(set, summary, c, error, huge(1), 1.0_dp, total_down=.true.)
-  end subroutine test_sw_cloudy_similarity
+    call compare(set, summary, c, error, huge(1), 1.0_dp, total_down=len(groups) > 0)
+  end subroutine sw_cloudy
 
   !> Longwave, U.S. Standard column, clear: the exact sum over g-points (no photons; standard
   !> errors 0) against the reference within its error plus 1e-6 of the surface emission.

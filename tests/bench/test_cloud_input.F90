@@ -325,27 +325,8 @@ contains
   !> in the text of the file, so a misread moment shows here too.
   subroutine test_mie_slab_disort(error)
     type(error_t), allocatable, intent(out) :: error
-    real(dp), parameter :: SZA(2) = [0.0_dp, 60.0_dp]
-    real(dp), parameter :: R_REF(2) = [0.2421156_dp, 0.4012363_dp]
-    real(dp), parameter :: T_REF(2) = [0.4968688_dp, 0.3010482_dp]
-    integer, parameter :: TABLE = 14
     type(result_set_t) :: set
-    real(dp) :: r, sr, t, st
-    integer :: i
-    call write_mie_slab(TABLE, error)
-    if (allocated(error)) return
-    do i = 1, 2
-      call run_namelist('cloud_mie_slab.nml', run_groups(10000, 20, 20 + i, 'sza_deg = '// &
-                        str(SZA(i)), 'cloud_mie_slab.nc')//'&kumo_cloud cloud_file = '// &
-                        '''cloud_mie_slab.prp'', cloud_format = ''prp'' /', set, error)
-      if (allocated(error)) return
-      call get_scalar(set, 'reflectance', r, sr, error)
-      call get_scalar(set, 'transmittance', t, st, error)
-      if (allocated(error)) return
-      call check_sigma(error, r, R_REF(i), sr, K, 'R at SZA '//str(SZA(i)))
-      call check_sigma(error, t, T_REF(i), st, K, 'T at SZA '//str(SZA(i)))
-      if (allocated(error)) return
-    end do
+    call mie_slab_vs_disort('cloud_mie_slab', 20, '', 'R', 'T', set, error)
   end subroutine test_mie_slab_disort
 
   !> The slab of test_mie_slab_disort with similarity-scaled truncation at 20 degrees
@@ -355,29 +336,12 @@ contains
   !> far fewer collisions than in the original medium (tau' = tau (1 - omega f), f = 0.45).
   subroutine test_mie_slab_similarity(error)
     type(error_t), allocatable, intent(out) :: error
-    real(dp), parameter :: SZA(2) = [0.0_dp, 60.0_dp]
-    real(dp), parameter :: R_REF(2) = [0.2421156_dp, 0.4012363_dp]
-    real(dp), parameter :: T_REF(2) = [0.4968688_dp, 0.3010482_dp]
-    integer, parameter :: TABLE = 14
-    character(len=*), parameter :: SIM = '&kumo_vr similarity_theta_deg = 20 /'
     type(result_set_t) :: set
-    real(dp) :: r, sr, t, st, ev_plain, ev_sim
-    integer :: i
-    call write_mie_slab(TABLE, error)
+    real(dp) :: ev_plain, ev_sim
+    call mie_slab_vs_disort('cloud_mie_slab_sim', 40, new_line('a')// &
+                            '&kumo_vr similarity_theta_deg = 20 /', 'scaled R', 'scaled T', set, &
+                            error)
     if (allocated(error)) return
-    do i = 1, 2
-      call run_namelist('cloud_mie_slab_sim.nml', run_groups(10000, 20, 40 + i, 'sza_deg = '// &
-                        str(SZA(i)), 'cloud_mie_slab_sim.nc')//'&kumo_cloud cloud_file = '// &
-                        '''cloud_mie_slab.prp'', cloud_format = ''prp'' /'//new_line('a')//SIM, &
-                        set, error)
-      if (allocated(error)) return
-      call get_scalar(set, 'reflectance', r, sr, error)
-      call get_scalar(set, 'transmittance', t, st, error)
-      if (allocated(error)) return
-      call check_sigma(error, r, R_REF(i), sr, K, 'scaled R at SZA '//str(SZA(i)))
-      call check_sigma(error, t, T_REF(i), st, K, 'scaled T at SZA '//str(SZA(i)))
-      if (allocated(error)) return
-    end do
     ev_sim = num_attr(set, 'events_per_photon')
     call run_namelist('cloud_mie_slab_plain.nml', run_groups(2000, 4, 43, 'sza_deg = 60', &
                       'cloud_mie_slab_plain.nc')//'&kumo_cloud cloud_file = '// &
@@ -387,6 +351,35 @@ contains
     call check(error, ev_sim < 0.75_dp*ev_plain, 'collisions per photon: '//str(ev_sim)// &
                ' scaled against '//str(ev_plain)//' in the original medium; expected < 0.75 x')
   end subroutine test_mie_slab_similarity
+
+  !> The Mie slab (write_mie_slab, table 14) at SZA 0 and 60 (seeds seed0 + 1, + 2; `extra`
+  !> added to the namelist): R and T within K sigma of the discrete-ordinates references.
+  !> `set` is the run at SZA 60.
+  subroutine mie_slab_vs_disort(stem, seed0, extra, r_label, t_label, set, error)
+    character(len=*), intent(in) :: stem, extra, r_label, t_label
+    integer, intent(in) :: seed0
+    type(result_set_t), intent(out) :: set
+    type(error_t), allocatable, intent(out) :: error
+    real(dp), parameter :: SZA(2) = [0.0_dp, 60.0_dp]
+    real(dp), parameter :: R_REF(2) = [0.2421156_dp, 0.4012363_dp]
+    real(dp), parameter :: T_REF(2) = [0.4968688_dp, 0.3010482_dp]
+    real(dp) :: r, sr, t, st
+    integer :: i
+    call write_mie_slab(14, error)
+    if (allocated(error)) return
+    do i = 1, 2
+      call run_namelist(stem//'.nml', run_groups(10000, 20, seed0 + i, 'sza_deg = '// &
+                        str(SZA(i)), stem//'.nc')//'&kumo_cloud cloud_file = '// &
+                        '''cloud_mie_slab.prp'', cloud_format = ''prp'' /'//extra, set, error)
+      if (allocated(error)) return
+      call get_scalar(set, 'reflectance', r, sr, error)
+      call get_scalar(set, 'transmittance', t, st, error)
+      if (allocated(error)) return
+      call check_sigma(error, r, R_REF(i), sr, K, r_label//' at SZA '//str(SZA(i)))
+      call check_sigma(error, t, T_REF(i), st, K, t_label//' at SZA '//str(SZA(i)))
+      if (allocated(error)) return
+    end do
+  end subroutine mie_slab_vs_disort
 
   !> A numeric attribute of a result set (-1 if absent).
   real(dp) function num_attr(set, name) result(v)

@@ -1427,8 +1427,6 @@ contains
     end subroutine scan_blend
   end subroutine index_checks
 
-  !> Similarity transform of one component's optics for a delta fraction f of its phase
-  !> function: extinction e (1 - a f), albedo a (1 - f)/(1 - a f). Absorption e (1 - a) is kept.
   !> Delta fraction of phase function iph at the one level of similarity-scaled truncation
   !> `sim`, or of the blend (1 - w) P(iph) + w P(iph + 1): the weighted sum of its tables'. An
   !> index or weight that atmosphere_end will reject gives 0.
@@ -1453,6 +1451,8 @@ contains
     ws = w*(1.0_wp - sim%f(2, iph + 1))/(1.0_wp - similarity_f(sim, iph, w))
   end function similarity_blend_weight
 
+  !> Similarity transform of one component's optics for a delta fraction f of its phase
+  !> function: extinction e (1 - a f), albedo a (1 - f)/(1 - a f). Absorption e (1 - a) is kept.
   pure subroutine similarity_scale(f, e, a)
     real(wp), intent(in) :: f
     real(wp), intent(inout) :: e, a

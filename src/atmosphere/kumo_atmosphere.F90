@@ -142,6 +142,9 @@ module kumo_atmosphere
     !> functions of level 2 of `sim`
     logical :: similar = .false.
     type(truncation_t) :: sim
+    !> what `sim` was formed from (similarity_key): a new build over the same phase functions
+    !> and angle takes it over instead of forming it again (broadband runs rebuild per g-point)
+    real(wp), allocatable :: sim_key(:)
     ! Truncation of forward peaks (set by atmosphere_set_truncation; off by default)
     logical :: truncated = .false.           !! truncation levels > 1 exist
     type(truncation_t) :: trunc              !! delta fractions per level and phase function
@@ -245,9 +248,15 @@ contains
     real(wp), allocatable :: x1(:, :), a1(:, :)
     real(vp), allocatable :: bg_sca(:)
     integer, allocatable :: bg_iph(:)
-    logical :: with_blend
+    logical :: with_blend, reuse
     type(atmosphere_t) :: fresh
+    type(truncation_t) :: prev_sim
+    real(wp), allocatable :: prev_key(:), key(:)
 
+    if (atm%similar .and. allocated(atm%sim_key)) then
+      prev_sim = atm%sim
+      prev_key = atm%sim_key
+    end if
     call atmosphere_release(atm)
     atm = fresh
     nz = size(z) - 1
@@ -280,11 +289,21 @@ contains
       ! Similarity-scaled truncation: the delta part f of each phase function's forward peak
       ! (delta-flat within similarity_deg) leaves the extinction, tau' = tau (1 - omega f),
       ! omega' = omega (1 - f)/(1 - omega f), and photons scatter with the normalised rest
-      call truncation_init(atm%sim, atm%phases, opts%similarity_deg, 2, SIM_PF_PEAK, error)
-      if (allocated(error)) then
-        call add_context(error, 'atmosphere: similarity_theta_deg')
-        return
+      key = similarity_key(atm%phases, opts%similarity_deg)
+      reuse = .false.
+      if (allocated(prev_key)) then
+        if (size(prev_key) == size(key)) reuse = all(prev_key == key)
       end if
+      if (reuse) then
+        atm%sim = prev_sim
+      else
+        call truncation_init(atm%sim, atm%phases, opts%similarity_deg, 2, SIM_PF_PEAK, error)
+        if (allocated(error)) then
+          call add_context(error, 'atmosphere: similarity_theta_deg')
+          return
+        end if
+      end if
+      call move_alloc(key, atm%sim_key)
       atm%similar = .true.
       do ic = 1, nc1
         do k = 1, nz
@@ -1426,6 +1445,28 @@ contains
       late = n_late > 0
     end subroutine scan_blend
   end subroutine index_checks
+
+  !> What the truncation tables of similarity-scaled truncation depend on: the angle and, per
+  !> phase function, its kind, asymmetry parameter, normalisation, table size and forward value.
+  pure function similarity_key(phases, theta_deg) result(key)
+    type(phase_t), intent(in) :: phases(:)
+    real(wp), intent(in) :: theta_deg
+    real(wp) :: key(1 + 5*size(phases))
+    integer :: i, j
+    key(1) = theta_deg
+    do i = 1, size(phases)
+      j = 1 + 5*(i - 1)
+      key(j + 1) = real(phases(i)%kind, wp)
+      key(j + 2) = phases(i)%g
+      key(j + 3) = phases(i)%norm_factor
+      key(j + 4) = 0.0_wp
+      key(j + 5) = 0.0_wp
+      if (allocated(phases(i)%p_tab)) then
+        key(j + 4) = real(size(phases(i)%p_tab), wp)
+        if (size(phases(i)%p_tab) > 0) key(j + 5) = phases(i)%p_tab(size(phases(i)%p_tab))
+      end if
+    end do
+  end function similarity_key
 
   !> Delta fraction of phase function iph at the one level of similarity-scaled truncation
   !> `sim`, or of the blend (1 - w) P(iph) + w P(iph + 1): the weighted sum of its tables'. An

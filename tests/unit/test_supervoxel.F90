@@ -443,6 +443,21 @@ contains
     call check_close(error, atm%omg1(3), ah, rel_tol=1.0e-12_wp, label='its albedo')
     call check_close(error, atm%ext1(1), 1.0e-5_wp, rel_tol=1.0e-12_wp, &
                      label='isotropic 1-D background unchanged')
+    if (allocated(error)) return
+    ! a new build takes the tables over only when they were formed from the same phase functions
+    ph = [new_phase_isotropic(), new_phase_hg(0.7_wp, err), new_phase_hg(0.9_wp, err)]
+    call atmosphere_begin(atm, [0.0_wp, 100.0_wp, 200.0_wp, 300.0_wp], 20.0_wp, 10.0_wp, ext1, &
+                          ssa1, iph1, ph, opts, error)
+    if (allocated(error)) return
+    call check(error, atm%sim%f(2, 2) < f2 .and. atm%sim%f(2, 3) == f3, &
+               'other phase functions, other tables (HG 0.7 cuts less than 0.8)')
+    if (allocated(error)) return
+    ph = [new_phase_isotropic(), new_phase_hg(0.8_wp, err), new_phase_hg(0.9_wp, err)]
+    call atmosphere_begin(atm, [0.0_wp, 100.0_wp, 200.0_wp, 300.0_wp], 20.0_wp, 10.0_wp, ext1, &
+                          ssa1, iph1, ph, opts, error)
+    if (allocated(error)) return
+    call check(error, atm%sim%f(2, 2) == f2 .and. atm%sim%f(2, 3) == f3, &
+               'the first phase functions again, the first tables again')
   end subroutine test_similarity
 
   !> A broadband run switches the gas of a g-point by atmosphere_swap_background: the voxels,

@@ -25,7 +25,7 @@ module kumo_atmosphere
   implicit none
   private
   public :: atmosphere_t, atmosphere_options_t, atmosphere_init, atmosphere_set_truncation
-  public :: similarity_blend_weight, similarity_f, similarity_scale
+  public :: similarity_blend_weight, similarity_tables, similarity_scale_1d
   public :: atmosphere_begin, atmosphere_put_layer, atmosphere_end, atmosphere_swap_background
   public :: column_of, column_xy, sigma_trunc_3d, voxel_ext, voxel_omg, voxel_layer, VOXEL_CLEAR
   public :: atmosphere_release, voxel_storage_i, voxel_sync_i
@@ -297,19 +297,12 @@ contains
       if (reuse) then
         atm%sim = prev_sim
       else
-        call truncation_init(atm%sim, atm%phases, opts%similarity_deg, 2, SIM_PF_PEAK, error)
-        if (allocated(error)) then
-          call add_context(error, 'atmosphere: similarity_theta_deg')
-          return
-        end if
+        call similarity_tables(atm%phases, opts%similarity_deg, atm%sim, error)
+        if (allocated(error)) return
       end if
       call move_alloc(key, atm%sim_key)
       atm%similar = .true.
-      do ic = 1, nc1
-        do k = 1, nz
-          call similarity_scale(atm%sim%f(2, iph1d(k, ic)), x1(k, ic), a1(k, ic))
-        end do
-      end do
+      call similarity_scale_1d(atm%sim, iph1d, x1, a1)
     end if
 
     ! 1-D layers: totals and cumulative scattering fractions
@@ -605,14 +598,7 @@ contains
     ! the 1-D components as atmosphere_begin takes them (similarity-scaled if the build was)
     x1 = ext1d
     a1 = ssa1d
-    if (atm%similar) then
-      do ic = 1, nc1
-        do k = 1, atm%nz
-          call similarity_scale(similarity_f(atm%sim, atm%iph1(ic, k), 0.0_wp), x1(k, ic), &
-                                a1(k, ic))
-        end do
-      end do
-    end if
+    if (atm%similar) call similarity_scale_1d(atm%sim, transpose(atm%iph1(1:nc1, :)), x1, a1)
     do k = 1, atm%nz
       call mix(x1(k, :), a1(k, :), atm%ext1(k), atm%omg1(k), atm%csca1(1:nc1, k))
       atm%layer_class(k) = class_of_layer(atm, k, opts)
@@ -1445,6 +1431,31 @@ contains
       late = n_late > 0
     end subroutine scan_blend
   end subroutine index_checks
+
+  !> The truncation tables of similarity-scaled truncation at theta_deg: one truncated level
+  !> (level 2), at which no scattering counts as "into the peak".
+  subroutine similarity_tables(phases, theta_deg, sim, error)
+    type(phase_t), intent(in) :: phases(:)
+    real(wp), intent(in) :: theta_deg
+    type(truncation_t), intent(out) :: sim
+    type(error_t), allocatable, intent(out) :: error
+    call truncation_init(sim, phases, theta_deg, 2, SIM_PF_PEAK, error)
+    if (allocated(error)) call add_context(error, 'similarity_theta_deg')
+  end subroutine similarity_tables
+
+  !> The 1-D components ext, ssa (nz, ncomp1; phase indices iph alike) similarity-scaled in
+  !> place with the tables `sim`, as every build and switch of g-point takes them.
+  pure subroutine similarity_scale_1d(sim, iph, ext, ssa)
+    type(truncation_t), intent(in) :: sim
+    integer, intent(in) :: iph(:, :)
+    real(wp), intent(inout) :: ext(:, :), ssa(:, :)
+    integer :: k, ic
+    do ic = 1, size(ext, 2)
+      do k = 1, size(ext, 1)
+        call similarity_scale(similarity_f(sim, iph(k, ic), 0.0_wp), ext(k, ic), ssa(k, ic))
+      end do
+    end do
+  end subroutine similarity_scale_1d
 
   !> What the truncation tables of similarity-scaled truncation depend on: the angle and, per
   !> phase function, its kind, asymmetry parameter, normalisation, table size and forward value.

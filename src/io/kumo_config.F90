@@ -227,7 +227,7 @@ contains
   subroutine consolidate(cfg, error)
     type(config_t), intent(inout) :: cfg
     type(error_t), allocatable, intent(out) :: error
-    integer :: np
+    integer :: np, n_rad
     if (cfg%cloud%enabled .and. cfg%cloud%req%format == 'mcarats') then
       call complete_mcarats(cfg%atm, cfg%cloud)
     end if
@@ -245,12 +245,12 @@ contains
     end if
     if (cfg%vr%similarity_theta_deg > 0.0_wp) then
       ! the scaled medium has the fluxes and absorption of the original one, not its radiances
-      call require(cfg%cam%n == 0, '&kumo_vr: ', 'similarity_theta_deg', &
+      n_rad = cfg%cam%n
+      if (allocated(cfg%rad%mu)) n_rad = n_rad + size(cfg%rad%mu)
+      call require(n_rad == 0, '&kumo_vr: ', 'similarity_theta_deg', &
                    cfg%vr%similarity_theta_deg, 'is for fluxes and absorption: the scaled '// &
-                   'medium does not give radiances; remove the cameras or set it to 0', error)
-      if (allocated(cfg%rad%mu)) call require(size(cfg%rad%mu) == 0, '&kumo_vr: ', &
-        'similarity_theta_deg', cfg%vr%similarity_theta_deg, 'is for fluxes and absorption: '// &
-        'the scaled medium does not give radiances; remove &kumo_radiance or set it to 0', error)
+                   'medium does not give radiances; remove &kumo_radiance and the cameras or '// &
+                   'set it to 0', error)
       call require(.not. cfg%thermal%enabled, '&kumo_vr: ', 'similarity_theta_deg', &
                    cfg%vr%similarity_theta_deg, 'is for solar runs only (not with '// &
                    '&kumo_thermal yet); set it to 0', error)

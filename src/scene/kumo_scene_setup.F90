@@ -23,7 +23,7 @@ module kumo_scene_setup
                              atmosphere_begin, atmosphere_end, atmosphere_swap_background, &
                              atmosphere_set_truncation, atmosphere_put_layer, LAYER_CLEAR, &
                              LAYER_ABSORBING, LAYER_SCATTERING, voxel_storage_i, voxel_sync_i, &
-                             similarity_f, similarity_scale
+                             similarity_tables, similarity_scale_1d
   use kumo_std_atmosphere, only: std_atmosphere_profile
   use kumo_gas_optics, only: gas_kdist_t, gas_default_vmr, gas_index
   use kumo_rrtmgp_file, only: read_rrtmgp_kdist
@@ -786,7 +786,8 @@ contains
     character(len=:), allocatable :: state_note
     integer :: nz, nc, ng, k, g, iray, ic, nadd
     type(bundle_t) :: b
-    real(wp) :: mu0, sca, acc, tsfc, a
+    real(wp) :: mu0, sca, acc, tsfc
+    real(wp), allocatable :: x1(:, :), a1(:, :)
     logical :: lw
     type(truncation_t) :: tr
 
@@ -932,14 +933,18 @@ contains
                      cfg%spectral%kdist_path//' is a longwave k-distribution: set it to 0')
       return
     end if
+    ! the namelist's components of the 1-D layers for the per-g-point mixtures below,
+    ! similarity-scaled as kumo_atmosphere scales them (Rayleigh and gas have no forward peak);
+    ! ext1d and ssa1d stay as given for the 3-D builds, which scale them themselves
+    x1 = ext1d
+    a1 = ssa1d
     if (cfg%vr%similarity_theta_deg > 0.0_wp) then
-      ! the namelist's components of the 1-D layers, similarity-scaled as kumo_atmosphere
-      ! scales them (the per-g-point mixtures below; Rayleigh and gas have no forward peak)
-      call truncation_init(tr, phases, cfg%vr%similarity_theta_deg, 2, huge(1.0_wp), error)
+      call similarity_tables(phases, cfg%vr%similarity_theta_deg, tr, error)
       if (allocated(error)) then
-        call add_context(error, '&kumo_vr: similarity_theta_deg')
+        call add_context(error, '&kumo_vr')
         return
       end if
+      call similarity_scale_1d(tr, phase1d, x1, a1)
     end if
     spec%longwave = lw
     if (.not. lw) then
@@ -966,15 +971,8 @@ contains
               spec%layer_class(nz, ng), e(nc + nadd), s(nc + nadd))
     do g = 1, ng
       do k = 1, nz
-        e(1:nc) = ext1d(k, :)
-        s(1:nc) = ext1d(k, :)*ssa1d(k, :)
-        if (cfg%vr%similarity_theta_deg > 0.0_wp) then
-          do ic = 1, nc
-            a = ssa1d(k, ic)
-            call similarity_scale(similarity_f(tr, phase1d(k, ic), 0.0_wp), e(ic), a)
-            s(ic) = e(ic)*a
-          end do
-        end if
+        e(1:nc) = x1(k, :)
+        s(1:nc) = x1(k, :)*a1(k, :)
         if (.not. lw) then
           e(nc + 1) = tau_ray(k, g)/dz(k)
           s(nc + 1) = e(nc + 1)

@@ -75,6 +75,9 @@ module kumo_scene_setup
   !> Radiance directions within this angle [deg] of the exact backscatter direction get a
   !> warning when forward peaks are truncated in a 3-D scene (setup_estimators)
   real(wp), parameter :: HOTSPOT_WARN_DEG = 5.0_wp
+  !> Similarity-scaled truncation beyond this angle [deg] warns: the bias of the scaled fluxes
+  !> grows quickly with the angle (docs/performance.md, similarity-scaled truncation for fluxes)
+  real(wp), parameter :: SIMILARITY_WARN_DEG = 30.0_wp
 
   !> A broadband run (&kumo_spectral): the g-point sampling plan and the optics of the 1-D
   !> layers for every g-point (setup_spectral), which spectral_set_gpoint puts into the
@@ -303,6 +306,11 @@ contains
       'extinction, tau'' = tau (1 - omega f), omega'' = omega (1 - f)/(1 - omega f); fluxes '// &
       'and absorption carry its small bias (docs/performance.md), and the direct beam holds '// &
       'the light of the cut peaks too'//new_line('a')
+    if (aopts%similarity_deg > SIMILARITY_WARN_DEG) scene%warnings = scene%warnings// &
+      'similarity_theta_deg = '//str(cfg%vr%similarity_theta_deg)//' is beyond '// &
+      str(nint(SIMILARITY_WARN_DEG))//' degrees, where the bias of the scaled fluxes grows '// &
+      'with the angle (reflectance of cloud slabs +0.08 to +0.6 % at 40 degrees and up to '// &
+      '+2 % at 60, docs/performance.md); 20 keeps it near 0.1 % or below. '
     if (cfg%cloud%enabled .and. cfg%spectral%enabled) then
       ! a broadband run: the cloud's optics per band, its atmosphere rebuilt per g-point
       spec%node = shared

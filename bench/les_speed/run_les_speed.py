@@ -33,8 +33,10 @@ machine's load falls on both alike; the 1-minute load average is logged with eve
     python3 bench/les_speed/run_les_speed.py --old OLD_KUMO --new NEW_KUMO
         [--old-vr 'key=value,...'] [--new-vr 'key=value,...'] [--rounds 3]
         [--scale 1.0] [--workloads stcu_flux,les05_flux,stcu_rad_standard,stcu_rad_unbiased]
-        [--shared DIR] [--label NAME] [--out DIR]
+        [--shared DIR] [--label NAME] [--out DIR] [--no-rad-maps]
 
+--no-rad-maps writes radiance_maps = .false. in &kumo_radiance of both sides' radiance runs
+(domain-mean radiances only; per-column maps keep the fixed roulette threshold zeta_min).
 --old-vr / --new-vr add settings to &kumo_vr of that side's runs (after the preset, so they
 override it), e.g. --new-vr "sv_fsupg=4,sv_fsupi=1.5" with --new the same program as --old.
 Values are written as given, except that a bare word is quoted (absorption_estimator=track
@@ -71,6 +73,8 @@ SIZES = {"stcu_flux": (4096, 100), "les05_flux": (3600, 100),
          "stcu_rad_standard": (4096, 50), "stcu_rad_unbiased": (4096, 50),
          "les05_rad_standard": (3600, 40), "les05_rad_unbiased": (3600, 40)}
 DIRS = [("nadir", 1.0, 0.0), ("fwd60", 0.5, 0.0), ("hotspot", 0.5, 180.0)]
+# extra &kumo_radiance settings of both sides (--no-rad-maps)
+RAD_EXTRA = ""
 
 
 def load1():
@@ -112,7 +116,7 @@ def stcu_namelist(prp, npb, nb, seed, out, preset, extra, radiance):
     if radiance:
         mus = ", ".join(f"{d[1]}" for d in DIRS)
         phis = ", ".join(f"{d[2]}" for d in DIRS)
-        text += f"&kumo_radiance rad_mu = {mus}, rad_phi_deg = {phis} /\n"
+        text += f"&kumo_radiance rad_mu = {mus}, rad_phi_deg = {phis}{RAD_EXTRA} /\n"
     return text + vr_text(preset, extra)
 
 
@@ -124,7 +128,7 @@ def les05_namelist(base_text, npb, nb, seed, out, extra, preset=""):
     if preset:
         mus = ", ".join(f"{d[1]}" for d in DIRS)
         phis = ", ".join(f"{d[2]}" for d in DIRS)
-        text += f"&kumo_radiance rad_mu = {mus}, rad_phi_deg = {phis} /\n"
+        text += f"&kumo_radiance rad_mu = {mus}, rad_phi_deg = {phis}{RAD_EXTRA} /\n"
     return text + vr_text(preset, extra)
 
 
@@ -180,8 +184,13 @@ def main():
     ap.add_argument("--label", default="", help="suffix of the output files")
     ap.add_argument("--out", default=os.path.join(os.path.dirname(HERE), "results"))
     ap.add_argument("--les05-sza", type=int, default=0, choices=[0, 60])
+    ap.add_argument("--no-rad-maps", action="store_true",
+                    help="radiance workloads without per-column radiance maps (domain means only)")
     ap.add_argument("--keep", default="", help="keep the scratch folder here")
     a = ap.parse_args()
+    global RAD_EXTRA
+    if a.no_rad_maps:
+        RAD_EXTRA = ", radiance_maps = .false."
     exe = {"old": os.path.abspath(a.old), "new": os.path.abspath(a.new)}
     vr = {"old": a.old_vr, "new": a.new_vr}
     workloads = [w.strip() for w in a.workloads.split(",") if w.strip()]

@@ -78,6 +78,8 @@ module kumo_scene_setup
   !> Similarity-scaled truncation beyond this angle [deg] warns: the bias of the scaled fluxes
   !> grows quickly with the angle (docs/performance.md, similarity-scaled truncation for fluxes)
   real(wp), parameter :: SIMILARITY_WARN_DEG = 30.0_wp
+  !> Collision forcing to a column optical depth beyond this warns (setup_estimators)
+  real(wp), parameter :: CF_WARN_TAU = 100.0_wp
 
   !> A broadband run (&kumo_spectral): the g-point sampling plan and the optics of the 1-D
   !> layers for every g-point (setup_spectral), which spectral_set_gpoint puts into the
@@ -1625,6 +1627,13 @@ contains
     end if
 
     scene%vr%cf_factor = collision_forcing(scene%atm, scene%mu0, cfg%vr%cf_tau_min)
+    ! forcing raises the column's optical depth along the sun's path to cf_tau_min, so a photon
+    ! makes about that many collisions on each crossing: a large value is a runaway cost
+    if (scene%vr%cf_factor > 1.0_wp .and. cfg%vr%cf_tau_min > CF_WARN_TAU) &
+      scene%warnings = scene%warnings//'collision forcing to cf_tau_min = '// &
+        str(cfg%vr%cf_tau_min)//' (factor '//str(scene%vr%cf_factor)//' on the extinction): '// &
+        'a photon makes about '//str(cfg%vr%cf_tau_min)//' collisions on each crossing of '// &
+        'the atmosphere and the time per photon grows in proportion; the presets use 1 to 3. '
     ! Truncation biases radiances near the exact backscatter (hot-spot) direction of a 3-D
     ! field: the delta part sends forward-scattered light straight back along the sun's own
     ! path, which overstates how well the way out repeats the way in (measured on the I3RC LES:

@@ -151,6 +151,11 @@ module kumo_atmosphere
     real(wp), allocatable :: ext1_lev(:, :)  !! (nz, n_levels) truncated extinction of 1-D layers
   end type atmosphere_t
 
+  !> Largest extinction accepted [m-1]: a mean free path of 1 um. No atmosphere is that dense,
+  !> and far denser media (1e13 m-1 over a 1 km column) make free paths shorter than the
+  !> spacing of double-precision heights, so photons would stop moving: refused, not traced.
+  real(wp), parameter :: EXT_MAX = 1.0e6_wp
+
 contains
 
   !> Build the atmosphere from per-component optics.
@@ -311,6 +316,13 @@ contains
     do k = 1, nz
       call mix(x1(k, :), a1(k, :), atm%ext1(k), atm%omg1(k), atm%csca1(1:nc1, k))
       atm%iph1(1:nc1, k) = iph1d(k, :)
+    end do
+    do k = 1, nz
+      if (atm%ext1(k) > EXT_MAX) then
+        call set_error(error, 'atmosphere: layer '//str(k)//' has an extinction of '// &
+                       str(atm%ext1(k))//too_dense())
+        return
+      end if
     end do
 
     atm%nc3 = 0
@@ -489,6 +501,13 @@ contains
     else
       call build_supervoxels(atm%ext3, atm%dx, atm%dy, atm%z(klo:khi) - atm%z(klo - 1:khi - 1), &
                              opts%sv, atm%sv)
+    end if
+    if (size(atm%sv%maj) > 0) then
+      if (maxval(atm%sv%maj) > EXT_MAX) then
+        call set_error(error, 'atmosphere: a voxel has an extinction of '// &
+                       str(maxval(atm%sv%maj))//too_dense())
+        return
+      end if
     end if
     call set_uniform3(atm)
 
@@ -1538,5 +1557,13 @@ contains
     end do
     if (size(csca) > 0) csca(size(csca)) = 1.0_wp
   end subroutine mix
+
+  !> The end of the message for an extinction beyond EXT_MAX.
+  pure function too_dense() result(msg)
+    character(len=:), allocatable :: msg
+    msg = ' m-1, more than '//str(EXT_MAX)//' m-1 (a mean free path below 1 um): no atmosphere'// &
+          ' is that dense, and photon positions could not resolve such steps; check the units'// &
+          ' of the extinction (m-1)'
+  end function too_dense
 
 end module kumo_atmosphere

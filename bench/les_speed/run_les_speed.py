@@ -73,8 +73,6 @@ SIZES = {"stcu_flux": (4096, 100), "les05_flux": (3600, 100),
          "stcu_rad_standard": (4096, 50), "stcu_rad_unbiased": (4096, 50),
          "les05_rad_standard": (3600, 40), "les05_rad_unbiased": (3600, 40)}
 DIRS = [("nadir", 1.0, 0.0), ("fwd60", 0.5, 0.0), ("hotspot", 0.5, 180.0)]
-# extra &kumo_radiance settings of both sides (--no-rad-maps)
-RAD_EXTRA = ""
 
 
 def load1():
@@ -105,7 +103,7 @@ def quote_word(kv):
         return f"{key.strip()} = '{v}'"
 
 
-def stcu_namelist(prp, npb, nb, seed, out, preset, extra, radiance):
+def stcu_namelist(prp, npb, nb, seed, out, preset, extra, radiance, rad_extra=""):
     text = (f"&kumo_control n_photons_per_batch = {npb}, n_batches = {nb}, seed = {seed}, "
             "verbose = 0 /\n"
             f"&kumo_cloud cloud_file = '{prp}', cloud_format = 'prp' /\n"
@@ -116,11 +114,11 @@ def stcu_namelist(prp, npb, nb, seed, out, preset, extra, radiance):
     if radiance:
         mus = ", ".join(f"{d[1]}" for d in DIRS)
         phis = ", ".join(f"{d[2]}" for d in DIRS)
-        text += f"&kumo_radiance rad_mu = {mus}, rad_phi_deg = {phis}{RAD_EXTRA} /\n"
+        text += f"&kumo_radiance rad_mu = {mus}, rad_phi_deg = {phis}{rad_extra} /\n"
     return text + vr_text(preset, extra)
 
 
-def les05_namelist(base_text, npb, nb, seed, out, extra, preset=""):
+def les05_namelist(base_text, npb, nb, seed, out, extra, preset="", rad_extra=""):
     text = re.sub(r"&kumo_control[^/]*/",
                   f"&kumo_control n_photons_per_batch = {npb}, n_batches = {nb}, "
                   f"seed = {seed}, verbose = 0 /", base_text)
@@ -128,7 +126,7 @@ def les05_namelist(base_text, npb, nb, seed, out, extra, preset=""):
     if preset:
         mus = ", ".join(f"{d[1]}" for d in DIRS)
         phis = ", ".join(f"{d[2]}" for d in DIRS)
-        text += f"&kumo_radiance rad_mu = {mus}, rad_phi_deg = {phis}{RAD_EXTRA} /\n"
+        text += f"&kumo_radiance rad_mu = {mus}, rad_phi_deg = {phis}{rad_extra} /\n"
     return text + vr_text(preset, extra)
 
 
@@ -188,9 +186,8 @@ def main():
                     help="radiance workloads without per-column radiance maps (domain means only)")
     ap.add_argument("--keep", default="", help="keep the scratch folder here")
     a = ap.parse_args()
-    global RAD_EXTRA
-    if a.no_rad_maps:
-        RAD_EXTRA = ", radiance_maps = .false."
+    # extra &kumo_radiance settings of both sides
+    rad_extra = ", radiance_maps = .false." if a.no_rad_maps else ""
     exe = {"old": os.path.abspath(a.old), "new": os.path.abspath(a.new)}
     vr = {"old": a.old_vr, "new": a.new_vr}
     workloads = [w.strip() for w in a.workloads.split(",") if w.strip()]
@@ -227,9 +224,11 @@ def main():
                 out = f"{w}_{side}_{s}.nc"
                 preset = w.split("_")[-1] if "_rad_" in w else ""
                 if w.startswith("les05"):
-                    text = les05_namelist(les05_base, npb, nb, s, out, vr[side], preset)
+                    text = les05_namelist(les05_base, npb, nb, s, out, vr[side], preset,
+                                          rad_extra)
                 else:
-                    text = stcu_namelist(prp, npb, nb, s, out, preset, vr[side], "_rad_" in w)
+                    text = stcu_namelist(prp, npb, nb, s, out, preset, vr[side], "_rad_" in w,
+                                         rad_extra)
                 nml = os.path.join(work, f"{w}_{side}_{s}.nml")
                 with open(nml, "w") as f:
                     f.write(text)

@@ -316,8 +316,6 @@ contains
     do k = 1, nz
       call mix(x1(k, :), a1(k, :), atm%ext1(k), atm%omg1(k), atm%csca1(1:nc1, k))
       atm%iph1(1:nc1, k) = iph1d(k, :)
-    end do
-    do k = 1, nz
       if (atm%ext1(k) > EXT_MAX) then
         call set_error(error, 'atmosphere: layer '//str(k)//' has an extinction of '// &
                        str(atm%ext1(k))//too_dense())

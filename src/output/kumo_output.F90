@@ -18,7 +18,7 @@ module kumo_output
                           find_dim
   use kumo_config, only: config_t, config_echo
   use kumo_parallel, only: PAR_IS_MPI
-  use kumo_vr, only: roulette_balance_warning
+  use kumo_vr, only: roulette_balance_warning, few_batches_warning
   implicit none
   private
   public :: run_summary_t, build_results, log_summary, log_memory, peak_resident_bytes
@@ -312,7 +312,7 @@ contains
                                                           real(cfg%control%p3d_orders, dp))
       ! a significant roulette weight balance (kumo_vr) joins the scene's warnings: log and file
       block
-        character(len=:), allocatable :: warn, rr_warn
+        character(len=:), allocatable :: warn, rr_warn, nb_warn
         real(dp) :: bal(1), bal_err(1)
         bal = stats_mean(st, lay%i_rr + 1, lay%i_rr + 1)
         bal_err = stats_stderr(st, lay%i_rr + 1, lay%i_rr + 1)
@@ -327,6 +327,14 @@ contains
           write (error_unit, '(a)') 'kumo: warning: '//trim(rr_warn)
           if (len_trim(warn) > 0) warn = trim(warn)//' '
           warn = warn//rr_warn
+        end if
+        ! error bars from few batches are themselves uncertain (checked on the batches run, so
+        ! that rounds of target_rel_error and resumed checkpoints count)
+        nb_warn = few_batches_warning(st%n_batches)
+        if (len(nb_warn) > 0) then
+          write (error_unit, '(a)') 'kumo: warning: '//trim(nb_warn)
+          if (len_trim(warn) > 0) warn = trim(warn)//' '
+          warn = warn//nb_warn
         end if
         if (len(warn) > 0) call add_attr(set, 'warnings', warn)
       end block

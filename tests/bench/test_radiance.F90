@@ -624,7 +624,7 @@ contains
     character(len=:), allocatable :: text
     logical :: found
     cfg = hg_slab(2.0_wp, 100_i8)
-    cfg%control%n_batches = 2
+    cfg%control%n_batches = 10   ! fewer batches would warn of their error bars
     call run_config(cfg, res, error)
     if (allocated(error)) return
     call get_attr(res, 'warnings', text, found)

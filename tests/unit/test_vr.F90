@@ -6,7 +6,7 @@ module test_kumo_vr
   use kumo_constants, only: PI
   use kumo_error, only: error_t
   use kumo_vr, only: roulette_balance_warning, student_t_quantile, RR_BALANCE_MIN, &
-                     RR_BALANCE_TAIL, absorption_estimator_code, ABS_COLLISION, ABS_TRACK, &
+                     RR_BALANCE_TAIL, few_batches_warning, FEW_BATCHES, absorption_estimator_code, ABS_COLLISION, ABS_TRACK, &
                      ABS_TENTATIVE
   use kumo_testing, only: unittest_t, new_unittest, check, check_close
   implicit none
@@ -20,6 +20,7 @@ contains
     tests = [new_unittest('t_quantile_closed_forms', test_closed_forms), &
              new_unittest('t_quantile_tables', test_tables), &
              new_unittest('roulette_balance_rule', test_balance_rule), &
+             new_unittest('few_batches_rule', test_few_batches), &
              new_unittest('absorption_estimator_names', test_estimator_names)]
   end function collect_vr
 
@@ -89,6 +90,28 @@ contains
     call check(error, len(roulette_balance_warning(-0.1_dp, 0.0_dp, 1_i8)) == 0, &
                'warning from a single batch (no standard error)')
   end subroutine test_balance_rule
+
+  !> Fewer than FEW_BATCHES batches warn, giving the Student factor of a 95 % interval (t for
+  !> 3 degrees of freedom 3.182, Abramowitz and Stegun 1964, table 26.10) and the relative
+  !> uncertainty of the standard error, 1/sqrt(2 nu); FEW_BATCHES batches do not.
+  subroutine test_few_batches(error)
+    type(error_t), allocatable, intent(out) :: error
+    character(len=:), allocatable :: text
+    text = few_batches_warning(4_i8)
+    call check(error, index(text, '3.18 standard errors') > 0, 'no t factor 3.18 for 4 batches: "'// &
+               text//'"')
+    if (allocated(error)) return
+    call check(error, index(text, 'about 41 %') > 0, 'no 41 % for 4 batches: "'//text//'"')
+    if (allocated(error)) return
+    call check(error, index(few_batches_warning(2_i8), '12.71 standard errors') > 0, &
+               'no t factor 12.71 for 2 batches')
+    if (allocated(error)) return
+    call check(error, len(few_batches_warning(FEW_BATCHES - 1_i8)) > 0, &
+               'no warning one batch below FEW_BATCHES')
+    if (allocated(error)) return
+    call check(error, len(few_batches_warning(FEW_BATCHES)) == 0, 'a warning at FEW_BATCHES batches')
+    call check(error, len(few_batches_warning(1000_i8)) == 0, 'a warning at 1000 batches')
+  end subroutine test_few_batches
 
   !> Names are read case-insensitively with leading blanks; unknown ones give -1.
   subroutine test_estimator_names(error)

@@ -49,7 +49,7 @@ module kumo_camera
   use kumo_error, only: error_t, set_error, str
   implicit none
   private
-  public :: camera_t, camera_init, camera_project, camera_pixel_direction
+  public :: camera_t, camera_init, camera_project, camera_pixel_direction, camera_half_angle
   public :: CAMERA_PINHOLE, CAMERA_ORTHOGRAPHIC, MAX_IMAGE_SHIFTS, MAX_CAMERA_OFFSET
 
   integer, parameter :: CAMERA_PINHOLE = 1       !! perspective camera at a point
@@ -147,6 +147,15 @@ contains
 
     call image_shift_range(cam, lx, ly, ztop)
   end subroutine camera_init
+
+  !> Largest angle [rad] between the look direction and the direction through any point of
+  !> the image: the half diagonal of a pinhole camera's field of view, 0 for an orthographic
+  !> camera (every pixel looks along L).
+  pure real(wp) function camera_half_angle(cam) result(a)
+    type(camera_t), intent(in) :: cam
+    a = 0.0_wp
+    if (cam%kind == CAMERA_PINHOLE) a = atan(sqrt(cam%half_x**2 + cam%half_y**2))
+  end function camera_half_angle
 
   !> Input checks of `camera_init`; the message names the argument and its bound.
   subroutine validate(kind, pos, look_zenith_deg, look_azimuth_deg, roll_deg, fov_deg, width, &

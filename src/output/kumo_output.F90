@@ -19,6 +19,7 @@ module kumo_output
   use kumo_config, only: config_t, config_echo
   use kumo_parallel, only: PAR_IS_MPI
   use kumo_vr, only: roulette_balance_warning, few_batches_warning
+  use kumo_exact_column, only: exact_thermal_possible
   implicit none
   private
   public :: run_summary_t, build_results, log_summary, log_memory, peak_resident_bytes
@@ -329,8 +330,11 @@ contains
           warn = warn//rr_warn
         end if
         ! error bars from few batches are themselves uncertain (checked on the batches run, so
-        ! that rounds of target_rel_error and resumed checkpoints count)
-        nb_warn = few_batches_warning(st%n_batches)
+        ! that rounds of target_rel_error and resumed checkpoints count); a column solved
+        ! exactly has no statistical error to doubt
+        nb_warn = ''
+        if (.not. (scene%exact_thermal .and. exact_thermal_possible(scene))) &
+          nb_warn = few_batches_warning(st%n_batches)
         if (len(nb_warn) > 0) then
           write (error_unit, '(a)') 'kumo: warning: '//trim(nb_warn)
           if (len_trim(warn) > 0) warn = trim(warn)//' '

@@ -1662,8 +1662,9 @@ contains
         if (len(list) > 0) scene%warnings = scene%warnings//'radiance direction(s) '//list// &
           ' are closer to the horizon than |rad_mu| = '//str(TRUNC_GRAZING_MU)//', where '// &
           'truncated radiances are biased (plane-parallel Henyey-Greenstein slabs against '// &
-          'DISORT at |mu| = 0.2: up to +1.2 % with the standard preset, which stays within '// &
-          '0.55 % from |mu| = 0.5 up; docs/radiances.md); vr_preset = "unbiased" has no '// &
+          'DISORT at |mu| 0.2 to 0.4: -1.5 to +1.2 % with the standard preset, +1.9 % near '// &
+          'the sun''s direction at the surface, against within 0.55 % from |mu| = 0.5 up; '// &
+          'docs/radiances.md); vr_preset = "unbiased" has no '// &
           'such bias, and trunc_theta_max_deg = 15 none measurable, at about twice the time '// &
           'to a given error. '
       end block
@@ -1707,7 +1708,8 @@ contains
                   acos(max(-1.0_wp, min(1.0_wp, l(3)))) - acos(-TRUNC_GRAZING_MU)) <= half) &
             scene%warnings = scene%warnings//'camera '//str(i)//' sees directions closer '// &
               'to the horizon than |mu| = '//str(TRUNC_GRAZING_MU)//', where truncated '// &
-              'radiances are biased (up to +1.2 % at |mu| = 0.2 with the standard preset; '// &
+              'radiances are biased (-1.5 to +1.9 % at |mu| 0.2 to 0.4 with the standard '// &
+              'preset; '// &
               'docs/radiances.md); vr_preset = "unbiased" has no such bias, and '// &
               'trunc_theta_max_deg = 15 none measurable. '
         end associate

@@ -311,9 +311,9 @@ contains
       call add_attr(set, 'mode_3d', trim(cfg%control%mode_3d))
       if (cfg%control%mode_3d == 'p3d') call add_num_attr(set, 'p3d_orders', &
                                                           real(cfg%control%p3d_orders, dp))
-      ! a significant roulette weight balance (kumo_vr) joins the scene's warnings: log and file
+      ! warnings about the finished run (kumo_vr) join the scene's: log and file
       block
-        character(len=:), allocatable :: warn, rr_warn, nb_warn
+        character(len=:), allocatable :: warn, rr_warn
         real(dp) :: bal(1), bal_err(1)
         bal = stats_mean(st, lay%i_rr + 1, lay%i_rr + 1)
         bal_err = stats_stderr(st, lay%i_rr + 1, lay%i_rr + 1)
@@ -324,22 +324,12 @@ contains
           'balance also holds the expected-value absorption scores minus the weight lost at '// &
           'collisions)'
         warn = scene%warnings
-        if (len(rr_warn) > 0) then
-          write (error_unit, '(a)') 'kumo: warning: '//trim(rr_warn)
-          if (len_trim(warn) > 0) warn = trim(warn)//' '
-          warn = warn//rr_warn
-        end if
+        call append_warning(warn, rr_warn)
         ! error bars from few batches are themselves uncertain (checked on the batches run, so
         ! that rounds of target_rel_error and resumed checkpoints count); a column solved
         ! exactly has no statistical error to doubt
-        nb_warn = ''
         if (.not. (scene%exact_thermal .and. exact_thermal_possible(scene))) &
-          nb_warn = few_batches_warning(st%n_batches)
-        if (len(nb_warn) > 0) then
-          write (error_unit, '(a)') 'kumo: warning: '//trim(nb_warn)
-          if (len_trim(warn) > 0) warn = trim(warn)//' '
-          warn = warn//nb_warn
-        end if
+          call append_warning(warn, few_batches_warning(st%n_batches))
         if (len(warn) > 0) call add_attr(set, 'warnings', warn)
       end block
       if (len(scene%notes) > 0) call add_attr(set, 'scene_notes', scene%notes)
@@ -585,6 +575,17 @@ contains
       end do
     end function sv_text
   end subroutine build_results
+
+  !> A warning about the finished run (empty text: none) goes to standard error and is appended
+  !> to the warnings text of the output file.
+  subroutine append_warning(warn, text)
+    character(len=:), allocatable, intent(inout) :: warn
+    character(len=*), intent(in) :: text
+    if (len(text) == 0) return
+    write (error_unit, '(a)') 'kumo: warning: '//trim(text)
+    if (len_trim(warn) > 0) warn = trim(warn)//' '
+    warn = warn//text
+  end subroutine append_warning
 
   !> Print the headline numbers, their standard errors and the anomaly counts.
   subroutine log_summary(set, summary, path)

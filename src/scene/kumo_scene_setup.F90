@@ -1642,7 +1642,9 @@ contains
         str(cfg%vr%cf_tau_min)//' (factor '//str(scene%vr%cf_factor)//' on the extinction): '// &
         'a photon makes about '//str(cfg%vr%cf_tau_min)//' collisions on each crossing of '// &
         'the atmosphere and the time per photon grows in proportion; the presets use 1 to 3. '
-    ! Truncation is an approximation: its bias grows with the angle and towards grazing views
+    ! Truncation is an approximation: its bias grows with the angle and towards grazing views.
+    ! A camera pixel sees light travelling against its view direction L; the pixels of a camera
+    ! look up to camera_half_angle away from L.
     if (scene%atm%truncated) then
       if (cfg%vr%trunc_theta_max_deg > TRUNC_WARN_DEG) scene%warnings = scene%warnings// &
         'trunc_theta_max_deg = '//str(cfg%vr%trunc_theta_max_deg)//' is beyond '// &
@@ -1650,29 +1652,42 @@ contains
         'truncated radiances grows quickly with the angle (plane-parallel Henyey-Greenstein '// &
         'slabs against DISORT: up to 2.7 % at 40 degrees, 4.8 % at 50, 7 % at 60, 15 % at 89; '// &
         'docs/radiances.md); the standard preset''s 30 keeps it near 1 % or below. '
-      block
-        character(len=:), allocatable :: list
-        list = ''
-        do i = 1, size(scene%det%uz)
-          if (abs(scene%det%uz(i)) >= TRUNC_GRAZING_MU .or. &
-              cfg%vr%trunc_theta_max_deg <= TRUNC_GRAZING_DEG) cycle
-          if (len(list) > 0) list = list//', '
-          list = list//str(i)
-        end do
-        if (len(list) > 0) scene%warnings = scene%warnings//'radiance direction(s) '//list// &
-          ' are closer to the horizon than |rad_mu| = '//str(TRUNC_GRAZING_MU)//', where '// &
-          'truncated radiances are biased (plane-parallel Henyey-Greenstein slabs against '// &
-          'DISORT at |mu| 0.2 to 0.4: -1.5 to +1.2 % with the standard preset, +1.9 % near '// &
-          'the sun''s direction at the surface, against within 0.55 % from |mu| = 0.5 up; '// &
-          'docs/radiances.md); vr_preset = "unbiased" has no '// &
-          'such bias, and trunc_theta_max_deg = 15 none measurable, at about twice the time '// &
-          'to a given error. '
-      end block
+      if (cfg%vr%trunc_theta_max_deg > TRUNC_GRAZING_DEG) then
+        block
+          character(len=:), allocatable :: list
+          real(wp) :: zen
+          list = ''
+          do i = 1, size(scene%det%uz)
+            if (abs(scene%det%uz(i)) >= TRUNC_GRAZING_MU) cycle
+            if (len(list) > 0) list = list//', '
+            list = list//str(i)
+          end do
+          if (len(list) > 0) scene%warnings = scene%warnings//'radiance direction(s) '//list// &
+            ' are closer to the horizon than |rad_mu| = '//str(TRUNC_GRAZING_MU)//', where '// &
+            'truncated radiances are biased (plane-parallel Henyey-Greenstein slabs against '// &
+            'DISORT at |mu| 0.2 to 0.4: -1.5 to +1.2 % with the standard preset, +1.9 % near '// &
+            'the sun''s direction at the surface, against within 0.55 % from |mu| = 0.5 up; '// &
+            'docs/radiances.md); vr_preset = "unbiased" has no such bias, and '// &
+            'trunc_theta_max_deg = 15 none measurable, at about twice the time to a given error. '
+          ! a camera reaches |mu| < TRUNC_GRAZING_MU when its cone about L meets the zenith
+          ! angles between acos(TRUNC_GRAZING_MU) and acos(-TRUNC_GRAZING_MU)
+          do i = 1, size(cams)
+            zen = acos(max(-1.0_wp, min(1.0_wp, cams(i)%look(3))))
+            if (max(acos(TRUNC_GRAZING_MU) - zen, zen - acos(-TRUNC_GRAZING_MU)) <= &
+                camera_half_angle(cams(i))) scene%warnings = scene%warnings//'camera '// &
+              str(i)//' sees directions closer to the horizon than |mu| = '// &
+              str(TRUNC_GRAZING_MU)//', where truncated radiances are biased (-1.5 to +1.9 % '// &
+              'at |mu| 0.2 to 0.4 with the standard preset; docs/radiances.md); vr_preset = '// &
+              '"unbiased" has no such bias, and trunc_theta_max_deg = 15 none measurable. '
+          end do
+        end block
+      end if
     end if
     ! Truncation biases radiances near the exact backscatter (hot-spot) direction of a 3-D
     ! field: the delta part sends forward-scattered light straight back along the sun's own
     ! path, which overstates how well the way out repeats the way in (measured on the I3RC LES:
-    ! +1.9 % at the hot spot, within 0.3 % from 5 degrees away; docs/radiances.md)
+    ! +1.9 % at the hot spot, within 0.3 % from 5 degrees away; docs/radiances.md). A camera
+    ! holds the hot spot when a pixel looks along the sun's beam.
     if (scene%atm%truncated .and. scene%atm%n3 > 0 .and. &
         .not. (scene%src%em%on .and. scene%src%em%solar_power <= 0.0_wp)) then
       do i = 1, size(scene%det%ux)
@@ -1686,33 +1701,15 @@ contains
             'the bias below 0.5 %. '
         end if
       end do
-    end if
-    ! the same two biases in camera images: a pixel sees light travelling against its view
-    ! direction, so the hot spot is where a pixel looks along the sun's beam, and a grazing
-    ! pixel looks within acos(TRUNC_GRAZING_MU) of the horizon
-    if (scene%atm%truncated) then
       do i = 1, size(cams)
-        associate (half => camera_half_angle(cams(i)), l => cams(i)%look)
-          if (scene%atm%n3 > 0 .and. &
-              .not. (scene%src%em%on .and. scene%src%em%solar_power <= 0.0_wp)) then
-            if (acos(max(-1.0_wp, min(1.0_wp, l(1)*scene%src%ux + l(2)*scene%src%uy + &
-                                               l(3)*scene%src%uz))) <= &
-                half + HOTSPOT_WARN_DEG*DEG2RAD) scene%warnings = scene%warnings// &
-              'camera '//str(i)//' sees within '//str(nint(HOTSPOT_WARN_DEG))//' degrees of '// &
-              'the exact backscatter (hot-spot) direction, where the truncation of forward '// &
-              'peaks biases 3-D radiances high by up to about 2 % (docs/radiances.md); '// &
-              'vr_preset = "unbiased" or trunc_theta_max_deg = 8 keeps the bias below 0.5 %. '
-          end if
-          if (cfg%vr%trunc_theta_max_deg > TRUNC_GRAZING_DEG .and. &
-              max(0.0_wp, acos(TRUNC_GRAZING_MU) - acos(max(-1.0_wp, min(1.0_wp, l(3)))), &
-                  acos(max(-1.0_wp, min(1.0_wp, l(3)))) - acos(-TRUNC_GRAZING_MU)) <= half) &
-            scene%warnings = scene%warnings//'camera '//str(i)//' sees directions closer '// &
-              'to the horizon than |mu| = '//str(TRUNC_GRAZING_MU)//', where truncated '// &
-              'radiances are biased (-1.5 to +1.9 % at |mu| 0.2 to 0.4 with the standard '// &
-              'preset; '// &
-              'docs/radiances.md); vr_preset = "unbiased" has no such bias, and '// &
-              'trunc_theta_max_deg = 15 none measurable. '
-        end associate
+        if (acos(max(-1.0_wp, min(1.0_wp, dot_product(cams(i)%look, &
+                 [scene%src%ux, scene%src%uy, scene%src%uz])))) <= &
+            camera_half_angle(cams(i)) + HOTSPOT_WARN_DEG*DEG2RAD) &
+          scene%warnings = scene%warnings//'camera '//str(i)//' sees within '// &
+            str(nint(HOTSPOT_WARN_DEG))//' degrees of the exact backscatter (hot-spot) '// &
+            'direction, where the truncation of forward peaks biases 3-D radiances high by up '// &
+            'to about 2 % (docs/radiances.md); vr_preset = "unbiased" or '// &
+            'trunc_theta_max_deg = 8 keeps the bias below 0.5 %. '
       end do
     end if
     do i = 1, size(cams)

@@ -27,6 +27,7 @@ module kumo_atmosphere
   public :: atmosphere_t, atmosphere_options_t, atmosphere_init, atmosphere_set_truncation
   public :: similarity_blend_weight, similarity_tables, similarity_scale_1d
   public :: atmosphere_begin, atmosphere_put_layer, atmosphere_end, atmosphere_swap_background
+  public :: EXT_MAX
   public :: column_of, column_xy, sigma_trunc_3d, voxel_ext, voxel_omg, voxel_layer, VOXEL_CLEAR
   public :: atmosphere_release, voxel_storage_i, voxel_sync_i
   public :: LAYER_CLEAR, LAYER_ABSORBING, LAYER_SCATTERING, LAYER_3D, LAYER_CLASS_NAMES
@@ -571,6 +572,7 @@ contains
   !> `same_clear` says that the voxels whose components are all absent are those of the last
   !> swap, with the same phase indices and blend weights (a cloud file's voxels without water
   !> in every band): a new band then keeps the list of the others and writes only theirs.
+  !> A voxel beyond EXT_MAX also gives `done` .false., so that the build refuses it.
   subroutine atmosphere_swap_background(atm, ext1d, ssa1d, cext, cssa, opts, sv_layout, done, &
                                         sync, part, nparts, new_band, ciph, cwph, checked, &
                                         uniform3, uniform3_known, same_clear)
@@ -660,6 +662,11 @@ contains
       end if
     end if
     call swap_majorants()
+    ! a voxel denser than a build accepts (another band's cloud under the gas): the build
+    ! that the caller then makes refuses it with atmosphere_end's message
+    if (size(atm%sv%maj) > 0) then
+      if (maxval(atm%sv%maj) > EXT_MAX) done = .false.
+    end if
 
   contains
 

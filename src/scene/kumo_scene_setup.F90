@@ -19,7 +19,7 @@ module kumo_scene_setup
   use kumo_phase, only: phase_t, new_phase_isotropic, new_phase_rayleigh, new_phase_hg, &
                         phase_from_table, new_phase_rayleigh_depol, PHASE_ISOTROPIC, &
                         PHASE_RAYLEIGH, PHASE_HG, PHASE_TABLE
-  use kumo_atmosphere, only: atmosphere_t, atmosphere_options_t, atmosphere_init, &
+  use kumo_atmosphere, only: atmosphere_t, atmosphere_options_t, atmosphere_init, EXT_MAX, &
                              atmosphere_begin, atmosphere_end, atmosphere_swap_background, &
                              atmosphere_set_truncation, atmosphere_put_layer, LAYER_CLEAR, &
                              LAYER_ABSORBING, LAYER_SCATTERING, voxel_storage_i, voxel_sync_i, &
@@ -531,6 +531,7 @@ contains
   !> The voxels emit from their own temperatures when the scene file or the cloud file gives
   !> them (`cloud_t`), else from the level temperatures.
   subroutine setup_thermal(cfg, scene, error, cloud_t)
+    real(wp), parameter :: T_COLD = 100.0_wp   !! [K] colder warns (cold_warning)
     type(config_t), intent(in) :: cfg
     type(scene_t), intent(inout) :: scene
     type(error_t), allocatable, intent(out) :: error
@@ -583,6 +584,7 @@ contains
         what = 'Planck radiances given (planck_levels)'
       end if
     end associate
+    if (has_band) call cold_warning()
     solar_power = 0.0_wp
     if (cfg%thermal%include_sun) solar_power = cfg%source%solar_flux*scene%mu0
     ! a surface temperature map: Planck radiance per pixel
@@ -596,6 +598,11 @@ contains
         return
       end if
       bsm = scale*band_radiance(band, tmap)
+      if (any(tmap > 0.0_wp .and. tmap < T_COLD)) scene%warnings = scene%warnings// &
+        'the surface temperature map '//trim(cfg%thermal%t_surface_file)//' has '// &
+        str(count(tmap > 0.0_wp .and. tmap < T_COLD))//' pixel(s) between 0 and '// &
+        str(nint(T_COLD))//' K (down to '//str(minval(tmap, mask=tmap > 0.0_wp))//' K): '// &
+        'temperatures are in K, not degrees Celsius. '
       what = what//new_line('a')//'  surface temperature map '//trim(cfg%thermal%t_surface_file)// &
              ': '//str(size(tmap, 1))//' x '//str(size(tmap, 2))//' pixels, '// &
              str(minval(tmap))//' to '//str(maxval(tmap))//' K'
@@ -671,6 +678,28 @@ contains
     end associate
 
   contains
+
+    !> A warning naming the temperatures of &kumo_thermal between 0 and T_COLD: colder than any
+    !> layer or surface of the Earth's atmosphere (its coldest, the summer polar mesopause, is
+    !> near 130 K), so most likely given in degrees Celsius (0 K stays silent: it switches the
+    !> emission off).
+    subroutine cold_warning()
+      character(len=:), allocatable :: list
+      integer :: i
+      list = ''
+      associate (th => cfg%thermal)
+        do i = 1, size(th%t_levels)
+          if (th%t_levels(i) > 0.0_wp .and. th%t_levels(i) < T_COLD) &
+            list = list//', t_levels('//str(i)//') = '//str(th%t_levels(i))
+        end do
+        if (th%t_surface > 0.0_wp .and. th%t_surface < T_COLD) &
+          list = list//', t_surface = '//str(th%t_surface)
+        if (th%t_top > 0.0_wp .and. th%t_top < T_COLD) list = list//', t_top = '//str(th%t_top)
+      end associate
+      if (len(list) > 0) scene%warnings = scene%warnings//'&kumo_thermal temperatures between '// &
+        '0 and '//str(nint(T_COLD))//' K ('//list(3:)//'): colder than any layer or surface '// &
+        'of the Earth''s atmosphere; temperatures are in K, not degrees Celsius. '
+    end subroutine cold_warning
 
     !> The voxels' writer has formed their Planck radiances (or failed): rank 0's error, or its
     !> note on them (temperature range), on every rank. Every rank calls it; all node leaders
@@ -801,7 +830,7 @@ contains
     real(wp), allocatable :: z(:), zmid(:), dz(:), plev(:), tlev(:), play(:), tlay(:), rho(:), &
                              vmr(:, :), tau_abs(:, :), tau_ray(:, :), energy(:), e(:), s(:), &
                              pmid(:), h2o(:)
-    character(len=:), allocatable :: state_note
+    character(len=:), allocatable :: state_note, gas_warn
     integer :: nz, nc, ng, k, g, iray, ic, nadd
     type(bundle_t) :: b
     real(wp) :: mu0, sca, acc, tsfc
@@ -890,6 +919,8 @@ contains
       if (allocated(error)) then
         if (index(error%message, '&kumo_spectral') /= 1) call add_context(error, '&kumo_spectral kdist_file')
       else
+        call b%put(gas_column_warnings(z, plev, play, tlay, h2o, kd%temp_ref(1), &
+                                       kd%temp_ref(kd%n_temp), maxval(kd%press_ref)))
         call b%put(kd%longwave)
         call b%put(col%gpt_band)
         call b%put(col%band_wavenumber)
@@ -906,6 +937,8 @@ contains
     end if
     call b%share(error)
     if (allocated(error)) return
+    call b%get(gas_warn)
+    scene%warnings = scene%warnings//gas_warn
     call b%get(lw)
     call b%get(spec%gpt_band)
     call b%get(spec%band_wn)
@@ -1020,6 +1053,19 @@ contains
         end if
       end do
     end do
+    ! the atmosphere of every g-point is checked as atmosphere_begin checks the one it builds
+    if (maxval(spec%ext1) > EXT_MAX) then
+      block
+        integer :: at(2)
+        at = maxloc(spec%ext1)
+        call set_error(error, '&kumo_spectral: g-point '//str(at(2))//', layer '//str(at(1))// &
+                       ' has an extinction of '//str(spec%ext1(at(1), at(2)))//' m-1 (gas '// &
+                       'absorption optical depth '//str(tau_abs(at(1), at(2)))//' over '// &
+                       str(dz(at(1)))//' m), more than '//str(EXT_MAX)//' m-1: check the '// &
+                       'units of the profile (h2o_vmr in mol/mol, pressures in Pa, z_levels in m)')
+      end block
+      return
+    end if
     ! what a 3-D scene needs to rebuild its atmosphere per g-point (setup_scene decides)
     spec%z = z
     spec%lx = cfg%atm%lx
@@ -1072,6 +1118,69 @@ contains
                     new_line('a')//scene%notes
     end if
   end subroutine setup_spectral
+
+  !> Warnings on the gas column of a broadband run (levels z(0:nz) [m], level pressures
+  !> plev(0:nz) [Pa], layer pressures play and temperatures tlay, water vapour h2o [mol/mol of
+  !> dry air]) that no error catches but that point to a wrong unit or profile: vapour above
+  !> SUPERSAT times saturation over liquid water at the layer's temperature and pressure
+  !> (Bolton 1980, Mon. Wea. Rev. 108, 1046, eq. 10; no layer of an Earth atmosphere holds that
+  !> much); a bottom pressure off the U.S. Standard Atmosphere 1976 at that height by more than
+  !> a factor 2 (hPa for Pa); layers outside the k-distribution's tables (temperatures tmin..tmax
+  !> K, pressures up to pmax Pa), where the optical depths are extrapolated.
+  function gas_column_warnings(z, plev, play, tlay, h2o, tmin, tmax, pmax) result(text)
+    real(wp), intent(in) :: z(0:), plev(0:), play(:), tlay(:), h2o(:), tmin, tmax, pmax
+    character(len=:), allocatable :: text
+    real(wp), parameter :: SUPERSAT = 1.5_wp
+    character(len=:), allocatable :: list
+    real(wp) :: es, worst, p0(1), t0(1), r0(1)
+    integer :: k, n
+    type(error_t), allocatable :: err
+    text = ''
+    ! vapour beyond saturation
+    list = ''
+    n = 0
+    worst = 0.0_wp
+    do k = 1, size(play)
+      es = 611.2_wp*exp(17.67_wp*(tlay(k) - 273.15_wp)/(tlay(k) - 29.65_wp))
+      if (.not. (es < play(k))) cycle        ! boiling: any amount of vapour
+      if (h2o(k) <= SUPERSAT*es/(play(k) - es)) cycle
+      n = n + 1
+      worst = max(worst, h2o(k)/(es/(play(k) - es)))
+      if (n <= 6) list = list//merge(', ', '  ', n > 1)//str(k)
+    end do
+    if (n > 6) list = list//', ...'
+    if (n > 0) text = text//'the water vapour of '//str(n)//' layer(s) ('//trim(adjustl(list))// &
+      ') exceeds '//str(SUPERSAT)//' times saturation over '// &
+      'liquid water at the layer''s temperature and pressure (up to '// &
+      str(anint(worst*10.0_wp)/10.0_wp)//' times): '// &
+      'h2o_vmr is in mol/mol of dry air (not kg/kg, g/kg or ppmv) and follows the layers '// &
+      'from the surface up. '
+    ! the bottom pressure against the standard atmosphere at that height
+    if (z(0) >= -5000.0_wp .and. z(0) <= 86000.0_wp) then
+      call std_atmosphere_profile('us1976', z(0:0), p0, t0, r0, err)
+      if (.not. allocated(err)) then
+        if (plev(0) > 2.0_wp*p0(1) .or. plev(0) < 0.5_wp*p0(1)) text = text// &
+          'the pressure at the bottom of the column ('//str(plev(0))//' Pa at '//str(z(0))// &
+          ' m) is '//str(anint(1000.0_wp*plev(0)/p0(1))/1000.0_wp)//' times the U.S. Standard Atmosphere''s there ('// &
+          str(p0(1))//' Pa): pressures are in Pa (not hPa), and z_levels are heights above '// &
+          'sea level; the gas optics and the air density of the heating rates follow them. '
+      end if
+    end if
+    ! outside the k-distribution's tables
+    list = ''
+    n = 0
+    do k = 1, size(play)
+      if (tlay(k) >= tmin .and. tlay(k) <= tmax .and. play(k) <= pmax) cycle
+      n = n + 1
+      if (n <= 6) list = list//merge(', ', '  ', n > 1)//str(k)//' ('//str(tlay(k))//' K, '// &
+                         str(play(k))//' Pa)'
+    end do
+    if (n > 6) list = list//', ...'
+    if (n > 0) text = text//str(n)//' layer(s) lie outside the k-distribution''s tables ('// &
+      str(tmin)//' to '//str(tmax)//' K, up to '//str(anint(pmax))//' Pa): '// &
+      trim(adjustl(list))//'; their gas optical depths are extrapolated linearly '// &
+      'beyond the tables (RRTMGP itself refuses such layers). '
+  end function gas_column_warnings
 
   !> The gas state of a &kumo_cloud file's layers for a broadband run (&kumo_spectral gas_state
   !> = 'cloud_file'): rank 0 reads the column means of temperature, pressure and water vapour

@@ -89,7 +89,8 @@ contains
              new_unittest('sw_single_gpoint_vs_disort', test_single_gpoint), &
              new_unittest('lw_gas_constants', test_gas_constants), &
              new_unittest('cloud_file_without_water_refused', test_cloud_optics_refused), &
-             new_unittest('bad_inputs', test_bad_inputs)]
+             new_unittest('bad_inputs', test_bad_inputs), &
+             new_unittest('gas_column_warnings', test_gas_warnings)]
   end function collect_broadband_run
 
   !> One column of the reference file: its sounding as written (levels: p, T; layers: p, T,
@@ -1018,6 +1019,83 @@ contains
                            'scene file'])
   end subroutine test_cloud_optics_refused
 
+  !> Gas columns that no error catches but that point to a wrong unit warn (and say why): water
+  !> vapour far beyond saturation (one mixing ratio for every layer), level pressures in hPa,
+  !> a layer hotter than the k-distribution's tables; the reference's own columns do not.
+  subroutine test_gas_warnings(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(case_t) :: c
+    integer :: k
+    character(len=:), allocatable :: plev, play
+    call read_case('us1976', c, error)
+    if (allocated(error)) return
+    call warns('', [character(len=40) :: ''], &
+               [character(len=40) :: 'saturation', 'Standard Atmosphere', 'tables'])
+    call warns('  h2o_vmr = 35*0.02', [character(len=40) :: 'water vapour of', &
+               'times saturation', 'not kg/kg, g/kg or ppmv'], &
+               [character(len=40) :: 'Standard Atmosphere', 'tables'])
+    call read_case('rfmip_site0', c, error)
+    if (allocated(error)) return
+    call warns('', [character(len=40) :: ''], &
+               [character(len=40) :: 'saturation', 'Standard Atmosphere', 'tables'])
+    ! the sounding's pressures in hPa: the same shape, a hundredth of the air
+    plev = '  p_levels = '
+    do k = 0, c%nz
+      plev = plev//hpa(c%lev(k, 1))//merge(', ', '  ', k < c%nz)
+    end do
+    play = '  p_layers = '
+    do k = 1, c%nz
+      play = play//hpa(c%lay(k, 1))//merge(', ', '  ', k < c%nz)
+    end do
+    call warns(plev//new_line('a')//play, [character(len=40) :: 'pressure at the bottom', &
+               'not hPa'], [character(len=40) :: 'k-distribution''s tables'])
+    call warns('  t_layers(1) = 380.0', [character(len=40) :: '1 layer(s) lie outside', &
+               'extrapolated'], [character(len=40) :: 'Standard Atmosphere'])
+  contains
+    !> A pressure of the case (Pa, as text or number) as its value in hPa, as text.
+    function hpa(p) result(text)
+      class(*), intent(in) :: p
+      character(len=24) :: text
+      real(dp) :: x
+      select type (p)
+      type is (character(len=*))
+        read (p, *) x
+      type is (real(dp))
+        x = p
+      end select
+      write (text, '(es23.16)') x/100.0_dp
+    end function hpa
+    !> The namelist of c with `lines` in &kumo_spectral runs; its warnings attribute holds
+    !> every word of `has` (blank: none asked) and none of `hasnt`.
+    subroutine warns(lines, has, hasnt)
+      character(len=*), intent(in) :: lines, has(:), hasnt(:)
+      type(result_set_t) :: set
+      type(run_summary_t) :: summary
+      character(len=:), allocatable :: text
+      integer :: i
+      if (allocated(error)) return
+      call write_nml('gas_warn.nml', c, lines, '', 10, n_photons=100)
+      call run('gas_warn.nml', set, summary, error)
+      if (allocated(error)) return
+      text = ''
+      if (allocated(set%attrs)) then
+        do i = 1, size(set%attrs)
+          if (trim(set%attrs(i)%name) == 'warnings' .and. allocated(set%attrs(i)%value)) &
+            text = set%attrs(i)%value
+        end do
+      end if
+      do i = 1, size(has)
+        if (len_trim(has(i)) > 0) call check(error, index(text, trim(has(i))) > 0, &
+                                              'no "'//trim(has(i))//'" in the warnings "'// &
+                                              text//'" of a case with'//lines)
+      end do
+      do i = 1, size(hasnt)
+        call check(error, index(text, trim(hasnt(i))) == 0, '"'//trim(hasnt(i))//'" in the '// &
+                   'warnings "'//text//'" of a case with'//lines)
+      end do
+    end subroutine warns
+  end subroutine test_gas_warnings
+
   subroutine test_bad_inputs(error)
     type(error_t), allocatable, intent(out) :: error
     type(case_t) :: c
@@ -1048,6 +1126,32 @@ contains
                 [character(len=32) :: 'gas_vmr', 'one value for each of the 2'])
     call expect('  gas_names = ''co2''  gas_vmr = 2.0', '', [character(len=32) :: 'gas_vmr(1) = 2', &
                 'between 0 and 1'])
+    ! water vapour in g/kg, ozone in ppmv
+    call expect('  h2o_vmr(1) = 10.6', '', [character(len=32) :: 'h2o_vmr(1) = 10.6', &
+                'between 0 and 1', 'not g/kg or ppmv'])
+    call expect('  o3_vmr = 35*0.03  o3_vmr(20) = 8.0', '', [character(len=32) :: 'o3_vmr(20) = 8', &
+                'between 0 and 1'])
+    ! a layer of 1 cm holding half the air: its gas extinction at the strongest g-points is
+    ! beyond what the photon positions resolve, refused as a dense 1-D layer is
+    block
+      integer :: u
+      type(config_t) :: cfg
+      type(result_set_t) :: set
+      type(run_summary_t) :: summary
+      type(error_t), allocatable :: err
+      open (newunit=u, file='broadband_dense.nml', status='replace', action='write')
+      write (u, '(a)') '&kumo_control n_photons_per_batch = 100, n_batches = 10 /', &
+        '&kumo_atmosphere nz = 1, z_levels = 0.0, 0.01, ext1d = 0.0, ssa1d = 0.0 /', &
+        '&kumo_surface albedo = 0.02 /', &
+        '&kumo_spectral kdist_file = '''//rrtmgp_dir//'/rrtmgp-gas-lw-g128.nc'',', &
+        '  t_surface = 288.0, p_levels = 101325.0, 50000.0, t_levels = 288.0, 260.0,', &
+        '  h2o_vmr = 0.01 /'
+      close (u)
+      call read_config('broadband_dense.nml', cfg, err)
+      if (.not. allocated(err)) call simulate(cfg, set, summary, err)
+      call check_error_words(error, err, [character(len=32) :: 'g-point', 'layer 1', &
+                             'more than 1000000 m-1', 'h2o_vmr in mol/mol'])
+    end block
   contains
     !> The us1976 namelist with `lines` added to &kumo_spectral and `source_lines` to
     !> &kumo_source fails (read_config or simulate) with a message holding `words`.

@@ -9,7 +9,7 @@ module test_supervoxel_suite
                              supervoxel_majorants, merge_ok, columns_merge_ok
   use kumo_atmosphere, only: atmosphere_t, atmosphere_options_t, atmosphere_init, &
                              atmosphere_begin, atmosphere_put_layer, atmosphere_end, &
-                             atmosphere_swap_background, voxel_ext, voxel_omg, VOXEL_CLEAR, &
+                             atmosphere_swap_background, EXT_MAX, voxel_ext, voxel_omg, VOXEL_CLEAR, &
                              similarity_blend_weight, &
                              LAYER_CLEAR, LAYER_ABSORBING, LAYER_SCATTERING, LAYER_3D
   use kumo_phase, only: phase_t, new_phase_isotropic, new_phase_hg
@@ -590,6 +590,11 @@ contains
     call check(error, same_voxel_optics(swapped, built) .and. &
                all(swapped%csca3 == built%csca3) .and. all(swapped%sv%maj == built%sv%maj), &
                'after a second swap the voxels and majorants equal a new build')
+    if (allocated(error)) return
+    ! a gas beyond EXT_MAX in the region: the swap declines, so that a build refuses it
+    ext_b(3, 2) = 2.0_wp*EXT_MAX
+    call atmosphere_swap_background(swapped, ext_b, ssa1, cext, cssa, opts, layout, done)
+    call check(error, .not. done, 'a swap to voxels denser than EXT_MAX is declined')
   contains
     subroutine build(atm, ext1, sv_layout)
       type(atmosphere_t), intent(inout) :: atm

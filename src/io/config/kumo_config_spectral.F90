@@ -140,6 +140,11 @@ contains
     if (count(o3_vmr /= UNSET) > 0) call level_values('o3_vmr', o3_vmr, nz, &
                                                      'volume mixing ratios (layers 1..nz)', 0.0_wp, cfg%o3_vmr)
     if (allocated(error)) return
+    ! a volume mixing ratio is at most 1 mol/mol (RRTMGP's own bound): larger values are
+    ! another unit (g/kg, ppmv), which would give the gas optics a column of pure vapour
+    call at_most_one('h2o_vmr', cfg%h2o_vmr)
+    if (allocated(cfg%o3_vmr)) call at_most_one('o3_vmr', cfg%o3_vmr)
+    if (allocated(error)) return
     cfg%kdist_file = kdist_file
     cfg%kdist_path = resolve_path(kdist_file, nml_path)
     cfg%profile = profile
@@ -204,6 +209,18 @@ contains
       end do
       if (.not. allocated(error)) out = given(1:n)
     end subroutine level_values
+    !> Each value of a volume mixing ratio profile at most 1 mol/mol; the error names the first
+    !> that is not and the units it may have been given in.
+    subroutine at_most_one(name, v)
+      character(len=*), intent(in) :: name
+      real(wp), intent(in) :: v(:)
+      integer :: j
+      if (allocated(error)) return
+      j = findloc(v > 1.0_wp, .true., dim=1)
+      if (j > 0) call require(.false., CTX, name//'('//str(j)//')', v(j), 'must be a volume '// &
+                              'mixing ratio between 0 and 1 [mol/mol of dry air], not g/kg or '// &
+                              'ppmv (largest value '//str(maxval(v))//')', error)
+    end subroutine at_most_one
     !> Read one assignment of &kumo_spectral (or write the namelist), for check_read.
     subroutine probe(text, out_unit, ios, msg)
       character(len=*), intent(in) :: text

@@ -919,8 +919,13 @@ contains
       if (allocated(error)) then
         if (index(error%message, '&kumo_spectral') /= 1) call add_context(error, '&kumo_spectral kdist_file')
       else
-        call b%put(gas_column_warnings(z, plev, play, tlay, h2o, kd%temp_ref(1), &
-                                       kd%temp_ref(kd%n_temp), maxval(kd%press_ref)))
+        if (kd%longwave) then
+          call b%put(gas_column_warnings(z, plev, play, tlay, h2o, kd%temp_ref(1), &
+                                         kd%temp_ref(kd%n_temp), maxval(kd%press_ref), tsfc))
+        else
+          call b%put(gas_column_warnings(z, plev, play, tlay, h2o, kd%temp_ref(1), &
+                                         kd%temp_ref(kd%n_temp), maxval(kd%press_ref)))
+        end if
         call b%put(kd%longwave)
         call b%put(col%gpt_band)
         call b%put(col%band_wavenumber)
@@ -1126,9 +1131,11 @@ contains
   !> (Bolton 1980, Mon. Wea. Rev. 108, 1046, eq. 10; no layer of an Earth atmosphere holds that
   !> much); a bottom pressure off the U.S. Standard Atmosphere 1976 at that height by more than
   !> a factor 2 (hPa for Pa); layers outside the k-distribution's tables (temperatures tmin..tmax
-  !> K, pressures up to pmax Pa), where the optical depths are extrapolated.
-  function gas_column_warnings(z, plev, play, tlay, h2o, tmin, tmax, pmax) result(text)
+  !> K, pressures up to pmax Pa), where the optical depths are extrapolated; with `tsfc`
+  !> (longwave), a surface temperature outside the tables, whose Planck radiance is extrapolated.
+  function gas_column_warnings(z, plev, play, tlay, h2o, tmin, tmax, pmax, tsfc) result(text)
     real(wp), intent(in) :: z(0:), plev(0:), play(:), tlay(:), h2o(:), tmin, tmax, pmax
+    real(wp), intent(in), optional :: tsfc
     character(len=:), allocatable :: text
     real(wp), parameter :: SUPERSAT = 1.5_wp
     character(len=:), allocatable :: list
@@ -1180,6 +1187,15 @@ contains
       str(tmin)//' to '//str(tmax)//' K, up to '//str(anint(pmax))//' Pa): '// &
       trim(adjustl(list))//'; their gas optical depths are extrapolated linearly '// &
       'beyond the tables (RRTMGP itself refuses such layers). '
+    if (present(tsfc)) then
+      if (tsfc < tmin .or. tsfc > tmax) then
+        text = text//'the surface temperature '//str(tsfc)//' K lies outside the '// &
+               'k-distribution''s tables ('//str(tmin)//' to '//str(tmax)//' K): its Planck '// &
+               'radiance is extrapolated linearly (to 0 far below)'
+        if (tsfc < 100.0_wp) text = text//'; temperatures are in K, not degrees Celsius'
+        text = text//'. '
+      end if
+    end if
   end function gas_column_warnings
 
   !> The gas state of a &kumo_cloud file's layers for a broadband run (&kumo_spectral gas_state

@@ -1051,6 +1051,11 @@ contains
                'not hPa'], [character(len=40) :: 'k-distribution''s tables'])
     call warns('  t_layers(1) = 380.0', [character(len=40) :: '1 layer(s) lie outside', &
                'extrapolated'], [character(len=40) :: 'Standard Atmosphere'])
+    ! a longwave surface temperature in degrees Celsius
+    call read_case('us1976', c, error, 'lw_gpoint_reference.txt')
+    if (allocated(error)) return
+    call warns('  t_surface = 15.0', [character(len=40) :: 'surface temperature 15 K', &
+               'not degrees Celsius'], [character(len=40) :: 'saturation', 'layer(s)'])
   contains
     !> A pressure of the case (Pa, as text or number) as its value in hPa, as text.
     function hpa(p) result(text)

@@ -5,6 +5,8 @@ Each Monte Carlo estimate must lie within K_SIGMA of its own standard error from
 value (plus round-off where kumo's estimate is exact in every batch).
 """
 
+import warnings
+
 import numpy as np
 import pytest
 import xarray as xr
@@ -105,6 +107,28 @@ def test_errors_carry_kumos_message(exe, tmp_path):
         kumo.check(case, tmp_path, exe=exe)
     with pytest.raises(kumo.KumoError, match="not an executable file"):
         kumo.run(small_case(), tmp_path, exe=tmp_path / "no_kumo")
+
+
+def test_warnings_reach_python(exe, tmp_path):
+    """kumo's warnings (its standard error and the output's warnings attribute) are issued as
+    KumoWarning: a run of 4 batches warns that its error bars are uncertain; 10 do not."""
+    with pytest.warns(kumo.KumoWarning, match=r"standard errors rest on 4 batches") as record:
+        ds = kumo.run(small_case(control={"n_photons_per_batch": 500, "n_batches": 4}),
+                      tmp_path / "four", exe=exe)
+    assert str(record[0].message) in ds.attrs["warnings"]
+    assert record[0].filename == __file__          # reported where the caller called run
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", kumo.KumoWarning)
+        ds = kumo.run(small_case(control={"n_photons_per_batch": 200, "n_batches": 10}),
+                      tmp_path / "ten", exe=exe)
+    assert "warnings" not in ds.attrs
+
+
+def test_warning_lines():
+    """kumo_warnings takes every warning of a log, with lines that continue one."""
+    log = ("kumo: warning: first one\nkumo: warning: second,\n  continued\n"
+           "kumo error: not a warning\n")
+    assert kumo.kumo_warnings(log) == ["first one", "second, continued"]
 
 
 def test_mpi_run_matches_serial(exe, tmp_path):

@@ -8,6 +8,8 @@ import os
 import re
 import shutil
 import subprocess
+import sys
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -33,6 +35,27 @@ class KumoError(RuntimeError):
         self.stdout = stdout
         self.stderr = stderr
         self.command = list(command)
+
+
+class KumoWarning(UserWarning):
+    """A warning of kumo's run (``kumo: warning: ...`` on its standard error, and the output's
+    ``warnings`` attribute): a setting that biases a result beyond its standard error, or an
+    input that looks like another unit. :func:`run_kumo` and :func:`run` issue one per warning,
+    with kumo's text, so that a Python caller sees what the command line shows."""
+
+
+WARNING_PREFIX = "kumo: warning: "
+
+
+def kumo_warnings(stderr: str) -> list:
+    """The warnings of a kumo run's standard error, one text each (without the prefix)."""
+    found = []
+    for line in stderr.splitlines():
+        if line.startswith(WARNING_PREFIX):
+            found.append(line[len(WARNING_PREFIX):].strip())
+        elif found and line.strip() and not line.startswith("kumo"):
+            found[-1] += " " + line.strip()        # a warning continued on the next line
+    return found
 
 
 @dataclass
@@ -165,7 +188,8 @@ def run_kumo(case, workdir=None, *, name: str = "case", exe=None, np: int = 1, m
     relative output file name lands there. ``np`` > 1 runs ``mpirun -np np`` (an MPI build of
     kumo is required); ``args`` are extra kumo options (e.g. ``["--check"]``); ``env`` adds
     environment variables. Raises :class:`KumoError` with kumo's message when it exits with a
-    non-zero status, and ``subprocess.TimeoutExpired`` after ``timeout`` seconds.
+    non-zero status, and ``subprocess.TimeoutExpired`` after ``timeout`` seconds; issues each
+    warning of the run as a :class:`KumoWarning`.
     """
     workdir = (Path(workdir) if workdir is not None else Path.cwd()).resolve()
     workdir.mkdir(parents=True, exist_ok=True)
@@ -188,8 +212,20 @@ def run_kumo(case, workdir=None, *, name: str = "case", exe=None, np: int = 1, m
     if proc.returncode != 0:
         raise KumoError(_kumo_message(proc.stderr, proc.returncode), proc.returncode,
                         proc.stdout, proc.stderr, command)
+    for text in kumo_warnings(proc.stderr):
+        warnings.warn(text, KumoWarning, stacklevel=_caller_level())
     out = None if "--check" in args or "-c" in args else output_path(nml, workdir)
     return Completed(command, proc.returncode, proc.stdout, proc.stderr, out)
+
+
+def _caller_level() -> int:
+    """The stack level of the first frame outside this package, for warnings.warn."""
+    level, frame = 1, sys._getframe(1)
+    here = os.path.dirname(os.path.abspath(__file__))
+    while frame is not None and os.path.dirname(os.path.abspath(frame.f_code.co_filename)) == here:
+        level += 1
+        frame = frame.f_back
+    return level
 
 
 def run(case, workdir=None, **kwargs):

@@ -48,6 +48,7 @@ module kumo_scene_setup
                     absorption_estimator_code
   use kumo_scene, only: scene_t
   use kumo_config, only: config_t, resolve_path, read_config
+  use kumo_config_spectral, only: kdist_location
   use kumo_cloud_input, only: cloud_input_t, cloud_request_t, CLOUD_WATER, CLOUD_EXT_REFF, &
                               CLOUD_MCARATS
   use kumo_cloud_share, only: read_cloud_on_root, mie_table_put, mie_table_get
@@ -1632,30 +1633,6 @@ contains
     call par_node_window(2, nbytes, base, writer)
   end subroutine node_table
 
-  !> Where the k-distribution is: `path` (kdist_file resolved against the namelist's folder)
-  !> if it exists; otherwise, for a bare file name, the folder scripts/fetch-rrtmgp.sh fills
-  !> ($KUMO_DATA_DIR, else $XDG_CACHE_HOME/kumo/rrtmgp, else $HOME/.cache/kumo/rrtmgp) if the
-  !> file is there; else `path` (whose reading then fails with the name the user gave).
-  function kdist_location(name, path) result(loc)
-    character(len=*), intent(in) :: name, path
-    character(len=:), allocatable :: loc, dir
-    logical :: there
-    loc = path
-    inquire (file=path, exist=there)
-    if (there .or. index(name, '/') > 0) return
-    dir = env_text('KUMO_DATA_DIR')
-    if (len(dir) == 0) then
-      dir = env_text('XDG_CACHE_HOME')
-      if (len(dir) == 0) then
-        dir = env_text('HOME')
-        if (len(dir) == 0) return
-        dir = dir//'/.cache'
-      end if
-      dir = dir//'/kumo/rrtmgp'
-    end if
-    inquire (file=dir//'/'//trim(name), exist=there)
-    if (there) loc = dir//'/'//trim(name)
-  end function kdist_location
 
   !> The RRTMGP cloud-optics file of a broadband run with a cloud file: &kumo_spectral
   !> cloud_optics_file if given (found like the k-distribution, kdist_location), otherwise
@@ -1687,19 +1664,6 @@ contains
     path = kd(1:index(kd, '/', back=.true.))//'kumo-band-mie-'//merge('lw', 'sw', longwave)//'.nc'
   end function band_mie_default_cache
 
-  !> The value of an environment variable ('' if unset).
-  function env_text(var) result(val)
-    character(len=*), intent(in) :: var
-    character(len=:), allocatable :: val
-    integer :: n, st
-    call get_environment_variable(var, length=n, status=st)
-    if (st /= 0 .or. n == 0) then
-      val = ''
-      return
-    end if
-    allocate (character(len=n) :: val)
-    call get_environment_variable(var, val)
-  end function env_text
 
   !> The namelist's path ('' when the configuration was not read from a file).
   function cfg_path(cfg) result(path)

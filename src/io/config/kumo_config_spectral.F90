@@ -11,7 +11,7 @@ module kumo_config_spectral
   use kumo_std_atmosphere, only: std_atmosphere_kind_from_name
   implicit none
   private
-  public :: read_spectral
+  public :: read_spectral, kdist_location
 
 contains
 
@@ -146,7 +146,9 @@ contains
     if (allocated(cfg%o3_vmr)) call at_most_one('o3_vmr', cfg%o3_vmr)
     if (allocated(error)) return
     cfg%kdist_file = kdist_file
-    cfg%kdist_path = resolve_path(kdist_file, nml_path)
+    ! where the run will read it (a bare name may be in the folder scripts/fetch-rrtmgp.sh
+    ! fills), so that --check, the checkpoints' list of inputs and messages name that file
+    cfg%kdist_path = kdist_location(kdist_file, resolve_path(kdist_file, nml_path))
     cfg%profile = profile
     cfg%tsi = tsi
     cfg%floor_share = floor_share
@@ -178,8 +180,8 @@ contains
     cfg%gas_names = gas_names(1:ng)
     cfg%gas_vmr = gas_vmr(1:ng)
     cfg%cloud_optics_file = cloud_optics_file
-    if (len_trim(cloud_optics_file) > 0) cfg%cloud_optics_path = resolve_path(cloud_optics_file, &
-                                                                             nml_path)
+    if (len_trim(cloud_optics_file) > 0) cfg%cloud_optics_path = &
+      kdist_location(cloud_optics_file, resolve_path(cloud_optics_file, nml_path))
   contains
     !> n values of `name`, without gaps, each finite and >= lo.
     subroutine level_values(name, given, n, what, lo, out)
@@ -234,4 +236,43 @@ contains
       end if
     end subroutine probe
   end subroutine read_spectral
+
+  !> Where the k-distribution is: `path` (kdist_file resolved against the namelist's folder)
+  !> if it exists; otherwise, for a bare file name, the folder scripts/fetch-rrtmgp.sh fills
+  !> ($KUMO_DATA_DIR, else $XDG_CACHE_HOME/kumo/rrtmgp, else $HOME/.cache/kumo/rrtmgp) if the
+  !> file is there; else `path` (whose reading then fails with the name the user gave).
+  function kdist_location(name, path) result(loc)
+    character(len=*), intent(in) :: name, path
+    character(len=:), allocatable :: loc, dir
+    logical :: there
+    loc = path
+    inquire (file=path, exist=there)
+    if (there .or. index(name, '/') > 0) return
+    dir = env_text('KUMO_DATA_DIR')
+    if (len(dir) == 0) then
+      dir = env_text('XDG_CACHE_HOME')
+      if (len(dir) == 0) then
+        dir = env_text('HOME')
+        if (len(dir) == 0) return
+        dir = dir//'/.cache'
+      end if
+      dir = dir//'/kumo/rrtmgp'
+    end if
+    inquire (file=dir//'/'//trim(name), exist=there)
+    if (there) loc = dir//'/'//trim(name)
+  end function kdist_location
+
+  !> The value of an environment variable ('' if unset).
+  function env_text(var) result(val)
+    character(len=*), intent(in) :: var
+    character(len=:), allocatable :: val
+    integer :: n, st
+    call get_environment_variable(var, length=n, status=st)
+    if (st /= 0 .or. n == 0) then
+      val = ''
+      return
+    end if
+    allocate (character(len=n) :: val)
+    call get_environment_variable(var, val)
+  end function env_text
 end module kumo_config_spectral

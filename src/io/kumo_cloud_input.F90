@@ -109,7 +109,13 @@ module kumo_cloud_input
     type(mcarats_phase_t) :: mca_phase         !! CLOUD_MCARATS: its tables (npf = 0: none)
     character(len=:), allocatable :: notes     !! how the file was read, for the run log
     character(len=:), allocatable :: missing   !! what the file does not give
+    !> water contents beyond any cloud's (WATER_CONTENT_MAX), for the run's warnings
+    character(len=:), allocatable :: warnings
   end type cloud_input_t
+
+  !> [g m-3] liquid or ice water content beyond which a voxel warns: more than any cloud holds
+  !> (the densest convective cores hold a few g m-3), so most likely another unit
+  real(wp), parameter :: WATER_CONTENT_MAX = 10.0_wp
 
   character(len=1), parameter :: NL = new_line('a')
 
@@ -161,6 +167,23 @@ contains
     case default
       call set_error(error, 'cloud_format "'//trim(req%format)//'" is unknown')
     end select
+    cloud%warnings = ''
+    if (allocated(error)) return
+    call dense_water(cloud%lwc, 'liquid')
+    call dense_water(cloud%iwc, 'ice')
+  contains
+    !> A warning when the water content `w` [g m-3] of some voxels exceeds WATER_CONTENT_MAX.
+    subroutine dense_water(w, what)
+      real(vp), allocatable, intent(in) :: w(:, :, :)
+      character(len=*), intent(in) :: what
+      integer :: n
+      if (.not. allocated(w)) return
+      n = count(w > WATER_CONTENT_MAX)
+      if (n > 0) cloud%warnings = cloud%warnings//req%path//': '//str(n)//' voxel value(s) '// &
+        'of '//what//' water content exceed '//str(WATER_CONTENT_MAX)//' g m-3 (up to '// &
+        str(real(maxval(w), wp))//' g m-3), more than clouds hold: check the units of '// &
+        'the file''s variable (g/kg or kg/kg, g m-3 or kg m-3) or its units attribute. '
+    end subroutine dense_water
   end subroutine read_cloud_input
 
   subroutine from_les(req, grid, cloud, error, part)

@@ -140,6 +140,10 @@ contains
     end if
     notes = 'cloud file '//ccfg%req%path//' ('//trim(c%format)//'): '//c%notes//NL
     warnings = ''
+    if (allocated(c%warnings)) warnings = c%warnings
+    if (c%has_ice) then
+      if (allocated(c_ice%warnings)) warnings = warnings//c_ice%warnings
+    end if
     if (allocated(c%missing)) then
       if (len(c%missing) > 0) notes = notes//'the file does not give '//c%missing// &
                                     '; taken from the namelist'//NL

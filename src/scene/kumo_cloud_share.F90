@@ -153,6 +153,7 @@ contains
     call put_opt(b, c%t_profile)
     call put_opt(b, c%h2o_profile)
     call put_opt(b, c%notes)
+    call put_opt(b, c%warnings)
     if (grid_only) return
     ! fields: a new component of cloud_input_t takes one line here and one in cloud_input_get
     call put_vox(b, c%lwc)
@@ -195,6 +196,7 @@ contains
     call get_opt(b, c%t_profile)
     call get_opt(b, c%h2o_profile)
     call get_opt(b, c%notes)
+    call get_opt(b, c%warnings)
     if (grid_only) return
     ! fields, as in cloud_input_put
     call get_vox(b, c%lwc)

@@ -334,6 +334,7 @@ contains
       spec%cloud_on = .true.
       spec%aopts = aopts
       scene%notes = scene%notes//cloud_notes
+      scene%warnings = scene%warnings//cloud_warnings
       if (spec%longwave) scene%notes = scene%notes//'  longwave emission of the cloud voxels: '// &
         'the Planck sources of their layers (temperatures of the &kumo_spectral profile; the '// &
         'cloud file''s temperatures are not used)'//new_line('a')

@@ -129,6 +129,10 @@ contains
     ! the fields: read on rank 0 and shared (read_cloud_on_root), one error on every rank
     call read_fields(error)
     if (allocated(error)) return
+    if (allocated(sc%liq%warnings)) warnings = warnings//sc%liq%warnings
+    if (sc%has_ice) then
+      if (allocated(sc%ice%warnings)) warnings = warnings//sc%ice%warnings
+    end if
     sc%nx = sc%liq%nx
     sc%ny = sc%liq%ny
     sc%nz = sc%liq%nz

@@ -89,6 +89,10 @@ module kumo_scene_setup
   real(wp), parameter :: TRUNC_GRAZING_MU = 0.5_wp
   !> ... for truncation angles above this [deg]: at 15 degrees no bias was measurable
   real(wp), parameter :: TRUNC_GRAZING_DEG = 15.0_wp
+  !> [K] temperatures between 0 and this warn: colder than any layer or surface of the Earth's
+  !> atmosphere (its coldest, the summer polar mesopause, is near 130 K), so most likely given
+  !> in degrees Celsius
+  real(wp), parameter :: T_COLD = 100.0_wp
 
   !> A broadband run (&kumo_spectral): the g-point sampling plan and the optics of the 1-D
   !> layers for every g-point (setup_spectral), which spectral_set_gpoint puts into the
@@ -533,7 +537,6 @@ contains
   !> The voxels emit from their own temperatures when the scene file or the cloud file gives
   !> them (`cloud_t`), else from the level temperatures.
   subroutine setup_thermal(cfg, scene, error, cloud_t)
-    real(wp), parameter :: T_COLD = 100.0_wp   !! [K] colder warns (cold_warning)
     type(config_t), intent(in) :: cfg
     type(scene_t), intent(inout) :: scene
     type(error_t), allocatable, intent(out) :: error
@@ -681,10 +684,8 @@ contains
 
   contains
 
-    !> A warning naming the temperatures of &kumo_thermal between 0 and T_COLD: colder than any
-    !> layer or surface of the Earth's atmosphere (its coldest, the summer polar mesopause, is
-    !> near 130 K), so most likely given in degrees Celsius (0 K stays silent: it switches the
-    !> emission off).
+    !> A warning naming the temperatures of &kumo_thermal between 0 and T_COLD (0 K stays
+    !> silent: it switches the emission off).
     subroutine cold_warning()
       character(len=:), allocatable :: list
       integer :: i
@@ -921,13 +922,9 @@ contains
       if (allocated(error)) then
         if (index(error%message, '&kumo_spectral') /= 1) call add_context(error, '&kumo_spectral kdist_file')
       else
-        if (kd%longwave) then
-          call b%put(gas_column_warnings(z, plev, play, tlay, h2o, kd%temp_ref(1), &
-                                         kd%temp_ref(kd%n_temp), maxval(kd%press_ref), tsfc))
-        else
-          call b%put(gas_column_warnings(z, plev, play, tlay, h2o, kd%temp_ref(1), &
-                                         kd%temp_ref(kd%n_temp), maxval(kd%press_ref)))
-        end if
+        call b%put(gas_column_warnings(z, plev, play, tlay, h2o, kd%temp_ref(1), &
+                                       kd%temp_ref(kd%n_temp), maxval(kd%press_ref), tsfc, &
+                                       kd%longwave))
         call b%put(kd%longwave)
         call b%put(col%gpt_band)
         call b%put(col%band_wavenumber)
@@ -1133,15 +1130,16 @@ contains
   !> (Bolton 1980, Mon. Wea. Rev. 108, 1046, eq. 10; no layer of an Earth atmosphere holds that
   !> much); a bottom pressure off the U.S. Standard Atmosphere 1976 at that height by more than
   !> a factor 2 (hPa for Pa); layers outside the k-distribution's tables (temperatures tmin..tmax
-  !> K, pressures up to pmax Pa), where the optical depths are extrapolated; with `tsfc`
-  !> (longwave), a surface temperature outside the tables, whose Planck radiance is extrapolated.
-  function gas_column_warnings(z, plev, play, tlay, h2o, tmin, tmax, pmax, tsfc) result(text)
-    real(wp), intent(in) :: z(0:), plev(0:), play(:), tlay(:), h2o(:), tmin, tmax, pmax
-    real(wp), intent(in), optional :: tsfc
+  !> K, pressures up to pmax Pa), where the optical depths are extrapolated; in the `longwave`,
+  !> a surface temperature `tsfc` outside the tables, whose Planck radiance is extrapolated.
+  function gas_column_warnings(z, plev, play, tlay, h2o, tmin, tmax, pmax, tsfc, longwave) &
+    result(text)
+    real(wp), intent(in) :: z(0:), plev(0:), play(:), tlay(:), h2o(:), tmin, tmax, pmax, tsfc
+    logical, intent(in) :: longwave
     character(len=:), allocatable :: text
     real(wp), parameter :: SUPERSAT = 1.5_wp
     character(len=:), allocatable :: list
-    real(wp) :: es, worst, p0(1), t0(1), r0(1)
+    real(wp) :: es, qs, worst, p0(1), t0(1), r0(1)
     integer :: k, n
     type(error_t), allocatable :: err
     text = ''
@@ -1152,9 +1150,10 @@ contains
     do k = 1, size(play)
       es = 611.2_wp*exp(17.67_wp*(tlay(k) - 273.15_wp)/(tlay(k) - 29.65_wp))
       if (.not. (es < play(k))) cycle        ! boiling: any amount of vapour
-      if (h2o(k) <= SUPERSAT*es/(play(k) - es)) cycle
+      qs = es/(play(k) - es)                 ! saturation mixing ratio of dry air
+      if (h2o(k) <= SUPERSAT*qs) cycle
       n = n + 1
-      worst = max(worst, h2o(k)/(es/(play(k) - es)))
+      worst = max(worst, h2o(k)/qs)
       if (n <= 6) list = list//merge(', ', '  ', n > 1)//str(k)
     end do
     if (n > 6) list = list//', ...'
@@ -1170,8 +1169,8 @@ contains
       if (.not. allocated(err)) then
         if (plev(0) > 2.0_wp*p0(1) .or. plev(0) < 0.5_wp*p0(1)) text = text// &
           'the pressure at the bottom of the column ('//str(plev(0))//' Pa at '//str(z(0))// &
-          ' m) is '//str(anint(1000.0_wp*plev(0)/p0(1))/1000.0_wp)//' times the U.S. Standard Atmosphere''s there ('// &
-          str(p0(1))//' Pa): pressures are in Pa (not hPa), and z_levels are heights above '// &
+          ' m) is '//str(anint(1000.0_wp*plev(0)/p0(1))/1000.0_wp)//' times the U.S. '// &
+          'Standard Atmosphere''s there ('//str(p0(1))//' Pa): pressures are in Pa (not hPa), and z_levels are heights above '// &
           'sea level; the gas optics and the air density of the heating rates follow them. '
       end if
     end if
@@ -1189,14 +1188,12 @@ contains
       str(tmin)//' to '//str(tmax)//' K, up to '//str(anint(pmax))//' Pa): '// &
       trim(adjustl(list))//'; their gas optical depths are extrapolated linearly '// &
       'beyond the tables (RRTMGP itself refuses such layers). '
-    if (present(tsfc)) then
-      if (tsfc < tmin .or. tsfc > tmax) then
-        text = text//'the surface temperature '//str(tsfc)//' K lies outside the '// &
-               'k-distribution''s tables ('//str(tmin)//' to '//str(tmax)//' K): its Planck '// &
-               'radiance is extrapolated linearly (to 0 far below)'
-        if (tsfc < 100.0_wp) text = text//'; temperatures are in K, not degrees Celsius'
-        text = text//'. '
-      end if
+    if (longwave .and. (tsfc < tmin .or. tsfc > tmax)) then
+      text = text//'the surface temperature '//str(tsfc)//' K lies outside the '// &
+             'k-distribution''s tables ('//str(tmin)//' to '//str(tmax)//' K): its Planck '// &
+             'radiance is extrapolated linearly (to 0 far below)'
+      if (tsfc < T_COLD) text = text//'; temperatures are in K, not degrees Celsius'
+      text = text//'. '
     end if
   end function gas_column_warnings
 
@@ -1634,7 +1631,6 @@ contains
     call par_node_window(2, nbytes, base, writer)
   end subroutine node_table
 
-
   !> The RRTMGP cloud-optics file of a broadband run with a cloud file: &kumo_spectral
   !> cloud_optics_file if given (found like the k-distribution, kdist_location), otherwise
   !> cloudysky_sw.nc or cloudysky_lw.nc (by the kind of the k-distribution, `longwave`) in
@@ -1664,7 +1660,6 @@ contains
     kd = kdist_location(cfg%spectral%kdist_file, cfg%spectral%kdist_path)
     path = kd(1:index(kd, '/', back=.true.))//'kumo-band-mie-'//merge('lw', 'sw', longwave)//'.nc'
   end function band_mie_default_cache
-
 
   !> The namelist's path ('' when the configuration was not read from a file).
   function cfg_path(cfg) result(path)

@@ -48,14 +48,10 @@ WARNING_PREFIX = "kumo: warning: "
 
 
 def kumo_warnings(stderr: str) -> list:
-    """The warnings of a kumo run's standard error, one text each (without the prefix)."""
-    found = []
-    for line in stderr.splitlines():
-        if line.startswith(WARNING_PREFIX):
-            found.append(line[len(WARNING_PREFIX):].strip())
-        elif found and line.strip() and not line.startswith("kumo"):
-            found[-1] += " " + line.strip()        # a warning continued on the next line
-    return found
+    """The warnings of a kumo run's standard error (kumo writes each on one line), one text
+    each, without the prefix."""
+    return [line[len(WARNING_PREFIX):].strip() for line in stderr.splitlines()
+            if line.startswith(WARNING_PREFIX)]
 
 
 @dataclass

@@ -46,4 +46,6 @@ def test_kumo_reads_the_arrays_as_written(exe, tmp_path):
     assert "kumo_atmosphere.ext1d(:,2) = 0.0005, 0.0006" in echo
     assert "kumo_atmosphere.ssa1d(:,2) = 0.5, 0.25" in echo
     assert "kumo_surface.albedo = 0.25" in echo
+    # the scene set up: (1e-4 + 5e-4) * 500 m + (2e-4 + 6e-4) * 500 m
+    assert "vertical optical depth: 0.7\n" in echo
     assert not (tmp_path / "out.nc").exists()      # --check runs nothing

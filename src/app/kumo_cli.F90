@@ -105,7 +105,8 @@ contains
       '                         options, and exit'//NL// &
       '  -c, --check CASE.nml   read and validate CASE.nml, check that the input files it names'//NL// &
       '                         can be read and that the output file can be written, print the'//NL// &
-      '                         configuration; run nothing'//NL// &
+      '                         configuration, then set the scene up as a run does (its notes,'//NL// &
+      '                         warnings, grid and column optical depths); trace no photon'//NL// &
       '  --resume               continue from the checkpoint <output>.ckpt that an earlier'//NL// &
       '                         run of the same case wrote (&kumo_control'//NL// &
       '                         checkpoint_interval); without one, start from the beginning'//NL// &
@@ -164,7 +165,7 @@ contains
         if (exists) then
           call check_input('&kumo_cloud mie_cache', cache, files, problems)
         else
-          files = files//'  &kumo_cloud mie_cache = '//cache//': not there yet, the run creates it'//NL
+          files = files//'  &kumo_cloud mie_cache = '//cache//': not there yet, the set-up creates it'//NL
         end if
       end if
     end if

@@ -9,7 +9,7 @@
 program kumo_main
   use, intrinsic :: iso_fortran_env, only: error_unit, output_unit
   use kumo_error, only: error_t
-  use kumo_driver, only: run_case
+  use kumo_driver, only: run_case, check_setup
   use kumo_parallel, only: par_init, par_finalize, par_is_root, par_fail, par_stop, &
                            par_bcast_int
   use kumo_cli, only: cli_t, parse_command_line, help_text, version_text, check_case, &
@@ -42,12 +42,15 @@ program kumo_main
       if (allocated(error)) then
         write (error_unit, '(a)') 'kumo error: '//error%message
         status = 1
-      else
-        write (output_unit, '(a)') 'kumo --check: '//cli%path//' is valid; nothing was run'
       end if
     end if
     call par_bcast_int(status)
     if (status(1) /= 0) call par_stop(1)
+    ! the files are there: set the scene up as a run would, on every rank, and trace nothing
+    call check_setup(cli%path, error)
+    if (allocated(error)) call par_fail(error%message, 1)
+    if (par_is_root()) write (output_unit, '(a)') 'kumo --check: '//cli%path// &
+      ' is valid; its scene was set up, nothing was traced'
   case default   ! CLI_RUN
     call run_case(cli%path, error, resume=cli%resume)
     ! possibly found on one rank only: par_fail prints it and ends every rank

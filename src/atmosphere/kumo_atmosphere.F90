@@ -29,7 +29,7 @@ module kumo_atmosphere
   public :: atmosphere_begin, atmosphere_put_layer, atmosphere_end, atmosphere_swap_background
   public :: EXT_MAX
   public :: column_of, column_xy, sigma_trunc_3d, voxel_ext, voxel_omg, voxel_layer, VOXEL_CLEAR
-  public :: atmosphere_release, voxel_storage_i, voxel_sync_i
+  public :: atmosphere_release, voxel_storage_i, voxel_sync_i, atmosphere_column_tau
   public :: LAYER_CLEAR, LAYER_ABSORBING, LAYER_SCATTERING, LAYER_3D, LAYER_CLASS_NAMES
 
   integer, parameter :: LAYER_CLEAR = 0, LAYER_ABSORBING = 1, LAYER_SCATTERING = 2, LAYER_3D = 3
@@ -1340,6 +1340,46 @@ contains
     w = atm%omg3(ix, iy, kr)
     w = merge(atm%clear3(2, kr), w, w < 0.0_vp)
   end function voxel_omg
+
+  !> Vertical optical depth (total extinction from the surface to the top) of the columns of the
+  !> 3-D region, or of the one column of a 1-D atmosphere: the smallest, the mean and the largest,
+  !> and the column (ix_max, iy_max) of the largest. Untruncated, as ext1 and ext3 hold it.
+  subroutine atmosphere_column_tau(atm, tau_min, tau_mean, tau_max, ix_max, iy_max)
+    type(atmosphere_t), intent(in) :: atm
+    real(wp), intent(out) :: tau_min, tau_mean, tau_max
+    integer, intent(out) :: ix_max, iy_max
+    real(wp), allocatable :: tau(:, :)
+    real(vp), allocatable :: e(:, :), w(:, :)
+    real(wp) :: tau1
+    integer :: k, kr, loc(2)
+
+    tau1 = 0.0_wp   ! the 1-D layers, the same in every column
+    do k = 1, atm%nz
+      if (atm%n3 > 0 .and. k >= atm%k3_lo .and. k <= atm%k3_hi) cycle
+      tau1 = tau1 + atm%ext1(k)*(atm%z(k) - atm%z(k - 1))
+    end do
+    if (atm%n3 <= 0) then
+      tau_min = tau1
+      tau_mean = tau1
+      tau_max = tau1
+      ix_max = 1
+      iy_max = 1
+      return
+    end if
+    allocate (tau(atm%nx, atm%ny), e(atm%nx, atm%ny), w(atm%nx, atm%ny))
+    tau = tau1
+    do kr = 1, atm%n3
+      k = atm%k3_lo + kr - 1
+      call voxel_layer(atm, kr, e, w)
+      tau = tau + real(e, wp)*(atm%z(k) - atm%z(k - 1))
+    end do
+    tau_min = minval(tau)
+    tau_max = maxval(tau)
+    tau_mean = sum(tau)/real(size(tau), wp)
+    loc = maxloc(tau)
+    ix_max = loc(1)
+    iy_max = loc(2)
+  end subroutine atmosphere_column_tau
 
   !> Truncated extinction of voxel (ix, iy, kr) at truncation level `lev` [m-1].
   pure function sigma_trunc_3d(atm, ix, iy, kr, lev) result(sig)

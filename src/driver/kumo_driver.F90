@@ -32,9 +32,10 @@ module kumo_driver
   use kumo_spectral, only: spectral_begin_batch
   use kumo_output, only: run_summary_t, build_results, log_summary, log_memory, peak_resident_bytes
   use kumo_vr, only: runaway_cost_check
+  use kumo_atmosphere, only: atmosphere_column_tau
   implicit none
   private
-  public :: run_case, simulate, scene_t, setup_scene, run_summary_t, checkpoint_plan_t
+  public :: run_case, simulate, scene_t, setup_scene, run_summary_t, checkpoint_plan_t, check_setup
 
   !> Progress on rank 0 (standard error), for runs longer than a few seconds: the first line
   !> after PROGRESS_FIRST seconds, then one every PROGRESS_EVERY seconds.
@@ -105,6 +106,130 @@ contains
     end if
   end subroutine run_case
 
+  !> `kumo --check` after the files were checked: set the scene up on every rank exactly as a
+  !> run does (every input file read, optics formed, every set-up rule and warning applied) and
+  !> report it on rank 0 (notes and the scene's summary on standard output, warnings on
+  !> standard error), without tracing a photon. Missing Mie caches are written, as a run would.
+  subroutine check_setup(path, error)
+    character(len=*), intent(in) :: path
+    type(error_t), allocatable, intent(out) :: error
+    type(config_t) :: cfg
+    type(scene_t) :: scene
+    type(spectral_scene_t) :: spec
+    character(len=:), allocatable :: raw_text
+    real(dp) :: t0
+    logical :: exact
+
+    if (par_is_root()) call read_text(path, raw_text, error)
+    call share_error(error)
+    if (allocated(error)) return
+    call par_bcast_text(raw_text)
+    call load_config(path, cfg, error, text=raw_text)
+    if (allocated(error)) return
+    t0 = par_wtime()
+    call prepare_scene(cfg, scene, spec, exact, error)
+    if (allocated(error)) return
+    if (par_is_root()) then
+      call announce_scene(scene, spec, .true.)
+      t0 = par_wtime() - t0
+      if (t0 < 0.01_dp) then
+        write (output_unit, '(a)') 'scene set up in under 0.01 s; no photon was traced'
+      else
+        write (output_unit, '(a)') 'scene set up in '//str(round_sig(t0, 2))// &
+          ' s; no photon was traced'
+      end if
+    end if
+  end subroutine check_setup
+
+  !> The scene of a run, set up on every rank (setup_scene), with the checks of work that grows
+  !> without bound with the geometry (kumo_vr, refused or warned about); `exact`: a
+  !> non-scattering thermal column, every batch from the exact solution and no photons.
+  subroutine prepare_scene(cfg, scene, spec, exact, error)
+    type(config_t), intent(in) :: cfg
+    type(scene_t), intent(out) :: scene
+    type(spectral_scene_t), intent(out) :: spec
+    logical, intent(out) :: exact
+    type(error_t), allocatable, intent(out) :: error
+    character(len=:), allocatable :: cost_warnings
+    real(wp), allocatable :: dmu(:), dphi(:)
+
+    exact = .false.
+    call setup_scene(cfg, scene, error, spec, per_node=cfg%control%one_scene_per_node)
+    if (allocated(error)) return
+    allocate (dmu(0), dphi(0))
+    if (allocated(cfg%rad%mu)) dmu = cfg%rad%mu
+    if (allocated(cfg%rad%phi_deg)) dphi = cfg%rad%phi_deg
+    if (size(dphi) < size(dmu)) dphi = [dphi, spread(0.0_wp, 1, size(dmu) - size(dphi))]
+    call runaway_cost_check(scene%atm, dmu, dphi, [scene%src%ux, scene%src%uy, scene%src%uz], &
+                            scene%n_3d > 0, cost_warnings, error)
+    if (allocated(error)) return
+    scene%warnings = scene%warnings//cost_warnings
+    exact = scene%exact_thermal .and. exact_thermal_possible(scene)
+    if (exact) scene%notes = scene%notes//'thermal emission of a non-scattering column: solved '// &
+      'exactly (exponential integrals), no photons traced; standard errors are 0'//new_line('a')
+  end subroutine prepare_scene
+
+  !> Rank 0's report of a scene set up: its notes and summary on standard output (`log`), its
+  !> warnings on standard error (always).
+  subroutine announce_scene(scene, spec, log)
+    type(scene_t), intent(in) :: scene
+    type(spectral_scene_t), intent(in) :: spec
+    logical, intent(in) :: log
+    if (log) then
+      write (output_unit, '(a)', advance='no') scene%notes
+      write (output_unit, '(a)') scene_summary(scene, spec)
+      flush (output_unit)
+    end if
+    if (len(scene%warnings) > 0) write (error_unit, '(a)') 'kumo: warning: '//scene%warnings
+  end subroutine announce_scene
+
+  !> Two lines that let a user see at a glance whether the scene is the one meant: the grid, and
+  !> the vertical optical depth of its columns (smallest, mean, largest: a file in the wrong
+  !> units shows here as optical depths a thousand times too small or too large).
+  function scene_summary(scene, spec) result(text)
+    type(scene_t), intent(in) :: scene
+    type(spectral_scene_t), intent(in) :: spec
+    character(len=:), allocatable :: text
+    real(wp) :: tmin, tmean, tmax
+    integer :: ix, iy
+    associate (atm => scene%atm)
+      text = 'scene: '//str(atm%nz)//trim(merge(' layers', ' layer ', atm%nz > 1))// &
+             ' from '//str(round_sig(atm%z(0), 6))//' to '//str(round_sig(atm%z(atm%nz), 6))//' m'
+      if (atm%n3 > 0) then
+        text = text//'; 3-D region '//str(atm%nx)//' x '//str(atm%ny)//' columns of '// &
+               str(round_sig(atm%dx, 6))//' m x '//str(round_sig(atm%dy, 6))//' m, layers '// &
+               str(atm%k3_lo)//' to '//str(atm%k3_hi)
+      else
+        text = text//', plane-parallel'
+      end if
+      if (spec%on) then
+        text = text//new_line('a')//'  broadband: '//str(spec%n_gpt)//' g-points, each with '// &
+               'its own optical depths'
+        return
+      end if
+      call atmosphere_column_tau(atm, tmin, tmean, tmax, ix, iy)
+      if (atm%n3 > 0 .and. (atm%nx > 1 .or. atm%ny > 1)) then
+        text = text//new_line('a')//'  vertical optical depth of the columns: smallest '// &
+               str(round_sig(tmin, 4))//', mean '//str(round_sig(tmean, 4))//', largest '// &
+               str(round_sig(tmax, 4))//' (column '//str(ix)//', '//str(iy)//')'
+      else
+        text = text//new_line('a')//'  vertical optical depth: '//str(round_sig(tmax, 4))
+      end if
+      if (atm%similar) text = text//', of the similarity-scaled medium'
+    end associate
+  end function scene_summary
+
+  !> x rounded to n significant digits, for the log.
+  pure real(wp) function round_sig(x, n) result(r)
+    real(wp), intent(in) :: x
+    integer, intent(in) :: n
+    real(wp) :: scale
+    r = x
+    if (.not. (abs(x) > 0.0_wp .and. abs(x) < huge(x))) return   ! 0, Inf, NaN as they are
+    scale = 10.0_wp**(n - 1 - floor(log10(abs(x))))
+    r = anint(x*scale)/scale
+  end function round_sig
+
   !> Run the batches of a configuration on all ranks and gather the results on rank 0.
   !>
   !> Batch b (seed, stream b) belongs to slot mod(b - 1, n_slots), and slot s is run by rank
@@ -143,21 +268,8 @@ contains
     t0 = par_wtime()
     rank = par_rank()
     nranks = par_size()
-    call setup_scene(cfg, scene, error, spec, per_node=cfg%control%one_scene_per_node)
+    call prepare_scene(cfg, scene, spec, exact, error)
     if (allocated(error)) return
-    ! work that grows without bound with the geometry is refused or warned about (kumo_vr)
-    block
-      character(len=:), allocatable :: cost_warnings
-      real(wp), allocatable :: dmu(:), dphi(:)
-      allocate (dmu(0), dphi(0))
-      if (allocated(cfg%rad%mu)) dmu = cfg%rad%mu
-      if (allocated(cfg%rad%phi_deg)) dphi = cfg%rad%phi_deg
-      if (size(dphi) < size(dmu)) dphi = [dphi, spread(0.0_wp, 1, size(dmu) - size(dphi))]
-      call runaway_cost_check(scene%atm, dmu, dphi, [scene%src%ux, scene%src%uy, scene%src%uz], &
-                              scene%n_3d > 0, cost_warnings, error)
-      if (allocated(error)) return
-      scene%warnings = scene%warnings//cost_warnings
-    end block
     summary%setup_time = par_wtime() - t0
 
     maps = cfg%output%column_fluxes .and. scene%atm%n3 > 0 .and. &
@@ -175,16 +287,7 @@ contains
                      voxel, scene%det%n_dir, scene%det%levels, rad_maps, cam_npix, &
                      [scene%atm%k3_lo - 1, scene%atm%k3_hi], thermal=scene%src%em%on, &
                      map_nx=scene%atm%nx, rad_map_blocks=scene%det%diff_scale > 0.0_wp)
-    ! a non-scattering thermal column: every batch from the exact solution, no photons
-    exact = scene%exact_thermal .and. exact_thermal_possible(scene)
-    if (exact) scene%notes = scene%notes//'thermal emission of a non-scattering column: solved '// &
-      'exactly (exponential integrals), no photons traced; standard errors are 0'//new_line('a')
-    if (par_is_root() .and. len(scene%notes) > 0 .and. cfg%control%verbose >= 1) then
-      write (output_unit, '(a)', advance='no') scene%notes
-      flush (output_unit)
-    end if
-    if (par_is_root() .and. len(scene%warnings) > 0) write (error_unit, '(a)') &
-      'kumo: warning: '//scene%warnings
+    if (par_is_root()) call announce_scene(scene, spec, cfg%control%verbose >= 1)
     call tally_reset(tal, lay)
     call test_failure_hook(cfg, rank, error)
     if (allocated(error)) return

@@ -83,6 +83,12 @@ case $what in
       }
       [[ -s ${nml%.nml}.nc ]] || fail "$nml: no output"
     done
+    # kumo --check reports the column optical depths of the I3RC step cloud as published
+    # (case 2: min 6.480, mean 19.509, max 51.525; examples/i3rc/README.md)
+    "$kumo" --check case2_exp1_f3d.nml >check_case2.log 2>&1 || fail "kumo --check failed on case 2"
+    grep -q "optical depth of the columns: smallest 6.48, mean 19.51, largest 51.53" \
+      check_case2.log || fail "kumo --check: case 2 column optical depths not as published: \
+$(grep -A1 '^scene:' check_case2.log)"
     # the I3RC products (T and Id at the cloud base) can be extracted from every output
     python3 "$repo/examples/i3rc/plot_i3rc.py" --quiet --no-plot "${nmls[@]/%.nml/.nc}" ||
       fail "plot_i3rc.py could not extract the I3RC products"

@@ -3,13 +3,21 @@
 # line tests (--help, --version, --check, unknown options). No run may print a STOP line.
 # Variables: KUMO (program), ARGS (arguments, separated by |), RC (expected exit status),
 # optional OUT_REGEX / ERR_REGEX (must match stdout / stderr), NML (copied into the working
-# directory first), ABSENT (a file that must not exist afterwards), LAUNCH (a launcher and its
-# arguments, separated by |, e.g. mpiexec|-n|2).
+# directory first), CDL (netCDF in CDL text, made into <name>.nc there with ncgen), ABSENT (a
+# file that must not exist afterwards), LAUNCH (a launcher and its arguments, separated by |,
+# e.g. mpiexec|-n|2).
 string(REPLACE "|" ";" ARGS "${ARGS}")
 string(REPLACE "|" ";" LAUNCH "${LAUNCH}")
 if(NML)
   get_filename_component(name ${NML} NAME)
   configure_file(${NML} ${name} COPYONLY)
+endif()
+if(CDL)
+  get_filename_component(stem ${CDL} NAME_WE)
+  execute_process(COMMAND ncgen -o ${stem}.nc ${CDL} RESULT_VARIABLE rc_gen)
+  if(NOT rc_gen EQUAL 0)
+    message(FATAL_ERROR "ncgen failed on ${CDL}")
+  endif()
 endif()
 if(ABSENT)
   file(REMOVE ${ABSENT})

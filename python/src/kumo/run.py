@@ -238,10 +238,12 @@ def run(case, workdir=None, **kwargs):
 
 
 def check(case, workdir=None, **kwargs) -> str:
-    """``kumo --check``: validate ``case`` and the files it names, run nothing.
+    """``kumo --check``: validate ``case`` and the files it names, set its scene up, trace
+    nothing.
 
-    Returns the configuration echo (every setting with its effective value); raises
-    :class:`KumoError` listing every problem found.
+    Returns the configuration echo (every setting with its effective value) and the scene's
+    summary (grid, optical depths of the columns); the set-up's warnings are issued as
+    :class:`KumoWarning`; raises :class:`KumoError` listing every problem found.
     """
     kwargs = dict(kwargs)
     kwargs["args"] = ["--check", *kwargs.get("args", ())]

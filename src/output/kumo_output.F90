@@ -11,7 +11,7 @@ module kumo_output
   use kumo_emission, only: emission_voxel_power
   use kumo_atmosphere, only: LAYER_CLASS_NAMES
   use kumo_tally, only: tally_layout_t, stats_t, stats_mean, stats_stderr, N_ANOMALIES, &
-                        ANOMALY_NAMES
+                        ANOMALY_NAMES, ANOM_EVENT_CAP, ANOM_STEP_CAP
   use kumo_scene, only: scene_t
   use kumo_results, only: result_set_t, add_dim, add_var, take_var, defer_var, keep_sums, &
                           materialize_vars, var_has_stderr, add_attr, add_num_attr, find_var, &
@@ -330,6 +330,20 @@ contains
         ! exactly has no statistical error to doubt
         if (.not. (scene%exact_thermal .and. exact_thermal_possible(scene))) &
           call append_warning(warn, few_batches_warning(st%n_batches))
+        ! photons stopped at a loop cap took their weight with them: every energy-budget
+        ! result is low by about weight_lost, which the error bars do not cover
+        bal = stats_mean(st, lay%i_lost + 1, lay%i_lost + 1)
+        if (summary%anomalies(ANOM_EVENT_CAP) + summary%anomalies(ANOM_STEP_CAP) > 0) &
+          call append_warning(warn, str(summary%anomalies(ANOM_EVENT_CAP) + &
+            summary%anomalies(ANOM_STEP_CAP))//' photon(s) were stopped at a loop cap ('// &
+            str(summary%anomalies(ANOM_EVENT_CAP))//' at max_events = '// &
+            str(cfg%control%max_events)//' events, '//str(summary%anomalies(ANOM_STEP_CAP))// &
+            ' at the step cap) and their weight was lost: weight_lost = '//str(bal(1))// &
+            ' (a fraction of the source, as the fluxes), by which the reflectance, '// &
+            'transmittance and absorptances are low (not covered by their error bars); raise '// &
+            'max_events in '// &
+            '&kumo_control for very thick conservative media, or report the case if the '// &
+            'step cap was reached. ')
         if (len(warn) > 0) call add_attr(set, 'warnings', warn)
       end block
       if (len(scene%notes) > 0) call add_attr(set, 'scene_notes', scene%notes)

@@ -23,7 +23,7 @@ module kumo_scene_setup
                              atmosphere_begin, atmosphere_end, atmosphere_swap_background, &
                              atmosphere_set_truncation, atmosphere_put_layer, LAYER_CLEAR, &
                              LAYER_ABSORBING, LAYER_SCATTERING, voxel_storage_i, voxel_sync_i, &
-                             similarity_tables, similarity_scale_1d
+                             similarity_tables, similarity_scale_1d, voxel_layer
   use kumo_std_atmosphere, only: std_atmosphere_profile
   use kumo_gas_optics, only: gas_kdist_t, gas_default_vmr, gas_index
   use kumo_rrtmgp_file, only: read_rrtmgp_kdist
@@ -95,6 +95,11 @@ module kumo_scene_setup
   !> atmosphere (its coldest, the summer polar mesopause, is near 130 K), so most likely given
   !> in degrees Celsius
   real(wp), parameter :: T_COLD = 100.0_wp
+  !> [m-1] layers and voxels that scatter more than this warn: a mean free path under 10 cm,
+  !> ten times the densest clouds (about 1 m-1: 2 g m-3 of 5 um droplets, 3 LWC/(2 rho reff));
+  !> extinction in km-1 behind an m-1 label is 1000 times too dense, and a photon in such a
+  !> conservative voxel makes about (its optical size)^2 events (dense_scattering_warning)
+  real(wp), parameter :: SCAT_WARN = 10.0_wp
 
   !> A broadband run (&kumo_spectral): the g-point sampling plan and the optics of the 1-D
   !> layers for every g-point (setup_spectral), which spectral_set_gpoint puts into the
@@ -449,6 +454,8 @@ contains
       if (allocated(error)) return
     end if
 
+    if (.not. spectral_run()) scene%warnings = scene%warnings//dense_scattering_warning(scene%atm)
+
     ! the beam first: BRDF tables store the albedo at its mu0 = -uz exactly (every direct-beam
     ! photon arrives at that angle, bit for bit)
     scene%src = solar_source(cfg%source%sza_deg, cfg%source%phi0_deg)
@@ -531,7 +538,62 @@ contains
           'exactly (exponential integrals), no photons traced; standard errors are 0'//new_line('a')
       end if
     end if
+  contains
+
+    logical function spectral_run()
+      spectral_run = .false.
+      if (present(spec)) spectral_run = spec%on
+    end function spectral_run
   end subroutine setup_scene
+
+  !> The warning for layers and voxels of `atm` whose scattering coefficient (extinction times
+  !> albedo) exceeds SCAT_WARN, naming how many, the largest and where; empty when none does.
+  function dense_scattering_warning(atm) result(text)
+    type(atmosphere_t), intent(in) :: atm
+    character(len=:), allocatable :: text
+    real(vp), allocatable :: e(:, :), w(:, :)
+    real(wp) :: top, s
+    integer(i8) :: n
+    integer :: k, kr, loc(2)
+    character(len=:), allocatable :: where
+
+    text = ''
+    n = 0
+    top = 0.0_wp
+    where = ''
+    do k = 1, atm%nz
+      if (atm%n3 > 0 .and. k >= atm%k3_lo .and. k <= atm%k3_hi) cycle
+      s = atm%ext1(k)*atm%omg1(k)
+      if (s <= SCAT_WARN) cycle
+      n = n + 1
+      if (s > top) then
+        top = s
+        where = 'layer '//str(k)
+      end if
+    end do
+    if (atm%n3 > 0) then
+      allocate (e(atm%nx, atm%ny), w(atm%nx, atm%ny))
+      do kr = 1, atm%n3
+        call voxel_layer(atm, kr, e, w)
+        e = e*w
+        n = n + count(e > real(SCAT_WARN, vp))
+        if (maxval(e) > top .and. maxval(e) > SCAT_WARN) then
+          top = maxval(e)
+          loc = maxloc(e)
+          where = 'voxel ('//str(loc(1))//', '//str(loc(2))//') of layer '// &
+                  str(atm%k3_lo + kr - 1)
+        end if
+      end do
+    end if
+    if (n == 0) return
+    s = 10.0_wp**(3 - floor(log10(top)))   ! four significant digits (voxels hold 4-byte reals)
+    top = anint(top*s)/s
+    text = str(n)//' layer(s) or voxel(s) scatter more than '//str(SCAT_WARN)//' m-1 (the '// &
+           'largest '//str(top)//' m-1, '//where//'): a mean free path under 10 cm, ten times '// &
+           'the densest clouds; check the units of the extinction (m-1; values in km-1 are '// &
+           '1000 times too large), and expect a photon to make about (optical size)^2 '// &
+           'scattering events in such a conservative region. '
+  end function dense_scattering_warning
 
   !> Thermal emission: the Planck radiances of the levels, the surface and the top (from the
   !> temperatures and the spectral interval, or given), the emission table, and an isotropic

@@ -37,8 +37,8 @@ module kumo_scene_setup
                          MAX_IMAGE_SHIFTS, camera_half_angle
   use kumo_local_estimate, only: detectors_init
   use kumo_local_estimate, only: detectors_bounds
-  use kumo_surface, only: surface_init, surface_init_brdf, surface_init_brdf_map
-  use kumo_brdf, only: brdf_params_t, BRDF_NPAR
+  use kumo_surface, only: surface_t, surface_init, surface_init_brdf, surface_init_brdf_map
+  use kumo_brdf, only: brdf_params_t, BRDF_NPAR, BRDF_NAMES, brdf_albedo_quad
   use kumo_source, only: solar_source, source_stratify
   use kumo_emission, only: emission_t, emission_init, emission_bind, emission_detach, &
                            emission_voxel_power_add, voxel_abs_t, voxel_abs_init
@@ -490,6 +490,8 @@ contains
     end if
     if (allocated(error)) return
 
+    scene%warnings = scene%warnings//brdf_clamp_warning(scene%sfc, -scene%src%uz)
+
     if (cfg%vr%stratify_source) then
       ! entry cells: the 3-D region's columns, or else the surface map's pixels
       if (scene%atm%n3 > 0) then
@@ -545,6 +547,50 @@ contains
       if (present(spec)) spectral_run = spec%on
     end function spectral_run
   end subroutine setup_scene
+
+  !> The warning for BRDF parameters whose directional albedo exceeds 1 (RPV with small k, LSRT
+  !> with large kernel weights): kumo scales such a BRDF down to albedo 1 at those incidence
+  !> angles, so the surface is not the model given. Said when the sun's incidence (mu0) is among
+  !> them or they reach mu_in = BRDF_CLAMP_MU (isotropic diffuse light brings a fraction mu^2
+  !> of its irradiance from below mu: 1 % below 0.1); empty otherwise.
+  function brdf_clamp_warning(sfc, mu0) result(text)
+    type(surface_t), intent(in) :: sfc
+    real(wp), intent(in) :: mu0
+    character(len=:), allocatable :: text
+    real(wp), parameter :: BRDF_CLAMP_MU = 0.1_wp
+    real(wp) :: mu_top, a_sun
+    integer :: i, n
+    text = ''
+    if (.not. allocated(sfc%tabs)) return
+    n = 0
+    mu_top = 0.0_wp
+    do i = 1, size(sfc%tabs)
+      if (sfc%tabs(i)%n_clamped <= 0) cycle
+      if (sfc%tabs(i)%mu_clamped < BRDF_CLAMP_MU .and. sfc%tabs(i)%mu_clamped < mu0) cycle
+      n = n + 1
+      mu_top = max(mu_top, sfc%tabs(i)%mu_clamped)
+    end do
+    if (n == 0) return
+    if (size(sfc%tabs) == 1) then
+      a_sun = brdf_albedo_quad(sfc%tabs(1)%p, mu0)
+      text = 'the '//trim(BRDF_NAMES(sfc%tabs(1)%p%kind))//' BRDF''s directional albedo '// &
+             'exceeds 1 for incidence cosines up to about '//str(round4(mu_top))
+      if (a_sun > 1.0_wp) text = text//', the sun''s mu0 = '//str(round4(mu0))//' among them '// &
+        '(albedo '//str(round4(a_sun))//')'
+    else
+      text = str(n)//' of the '//str(size(sfc%tabs))//' BRDF parameter sets of the surface '// &
+             'map have a directional albedo above 1 for incidence cosines up to about '// &
+             str(round4(mu_top))
+    end if
+    text = text//': a surface that reflects more than it receives; kumo scales the BRDF down '// &
+           'to albedo 1 at those angles, so the surface is not the model given (check the '// &
+           'parameters, docs/namelist.md). '
+  contains
+    pure real(wp) function round4(x)
+      real(wp), intent(in) :: x
+      round4 = anint(x*1.0e4_wp)/1.0e4_wp
+    end function round4
+  end function brdf_clamp_warning
 
   !> The warning for layers and voxels of `atm` whose scattering coefficient (extinction times
   !> albedo) exceeds SCAT_WARN, naming how many, the largest and where; empty when none does.

@@ -66,11 +66,7 @@ contains
     type(checkpoint_plan_t) :: plan
     character(len=:), allocatable :: raw_text, nml_text
 
-    if (par_is_root()) call read_text(path, raw_text, error)
-    call share_error(error)
-    if (allocated(error)) return
-    call par_bcast_text(raw_text)
-    call load_config(path, cfg, error, text=raw_text)
+    call read_case(path, cfg, raw_text, error)
     if (allocated(error)) return
     nml_text = trim_lines(raw_text)   ! the namelist attribute of the output
     if (par_is_root()) then
@@ -106,6 +102,19 @@ contains
     end if
   end subroutine run_case
 
+  !> The namelist file `path`, read once on rank 0 and its text broadcast, parsed by every rank.
+  subroutine read_case(path, cfg, raw_text, error)
+    character(len=*), intent(in) :: path
+    type(config_t), intent(out) :: cfg
+    character(len=:), allocatable, intent(out) :: raw_text
+    type(error_t), allocatable, intent(out) :: error
+    if (par_is_root()) call read_text(path, raw_text, error)
+    call share_error(error)
+    if (allocated(error)) return
+    call par_bcast_text(raw_text)
+    call load_config(path, cfg, error, text=raw_text)
+  end subroutine read_case
+
   !> `kumo --check` after the files were checked: set the scene up on every rank exactly as a
   !> run does (every input file read, optics formed, every set-up rule and warning applied) and
   !> report it on rank 0 (notes and the scene's summary on standard output, warnings on
@@ -120,11 +129,7 @@ contains
     real(dp) :: t0
     logical :: exact
 
-    if (par_is_root()) call read_text(path, raw_text, error)
-    call share_error(error)
-    if (allocated(error)) return
-    call par_bcast_text(raw_text)
-    call load_config(path, cfg, error, text=raw_text)
+    call read_case(path, cfg, raw_text, error)
     if (allocated(error)) return
     t0 = par_wtime()
     call prepare_scene(cfg, scene, spec, exact, error)

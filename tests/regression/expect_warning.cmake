@@ -4,14 +4,9 @@
 # WARN=0 neither may match it.
 # Variables: KUMO (program), NML (namelist), REGEX, OUT (output file the namelist writes), WARN,
 # optional CDL (netCDF files in CDL text, turned into <name>.nc with ncgen before the run).
+include(${CMAKE_CURRENT_LIST_DIR}/ncgen.cmake)
 file(REMOVE ${OUT})
-foreach(cdl IN LISTS CDL)
-  get_filename_component(stem ${cdl} NAME_WE)
-  execute_process(COMMAND ncgen -o ${stem}.nc ${cdl} RESULT_VARIABLE rc_gen)
-  if(NOT rc_gen EQUAL 0)
-    message(FATAL_ERROR "ncgen failed on ${cdl}")
-  endif()
-endforeach()
+kumo_ncgen(${CDL})
 get_filename_component(name ${NML} NAME)
 configure_file(${NML} ${name} COPYONLY)
 execute_process(COMMAND ${KUMO} ${name} RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)

@@ -19,7 +19,11 @@ the sun, Lambert or RPV surfaces, radiances, a camera, every preset and 3-D mode
   ranks are added in another order); a standard error, formed from the sums of x and x^2,
   within the rounding of those sums as well (1e-15 mean^2 / stderr).
 
-    python3 bench/fuzz_inputs.py --kumo build/kumo --cases 300 --seed 1 [--mpi 2]
+    python3 bench/fuzz_inputs.py --kumo build/kumo --cases 300 --seed 1 [--mpi 2] [--clouds]
+
+With ``--clouds`` the cases are LES cloud files (liquid water 0 to 3 g m-3, effective radii 0 to
+60 um, inside and outside the Mie tables) at wavelengths from 0.55 to 10.8 um, over the same
+checks.
 
 Needs numpy and netCDF4. The cases and outputs stay in ``--workdir`` (default
 ``fuzz_runs/``); the last line counts the cases that failed a check. Results: docs/verification.md.
@@ -116,6 +120,48 @@ def draw_case(rng):
     return "\n".join(lines) + "\n", scene
 
 
+def draw_cloud_case(rng):
+    """A namelist over an LES cloud file and the file's fields: 2-4 x 2-3 columns of 1 m to
+    1 km, 1-5 layers of 5-500 m from 0-500 m up, liquid water 0 to 3 g m-3 and effective radii
+    0 to 60 um (outside the Mie tables at both ends), wavelengths 0.55 to 10.8 um."""
+    nx, ny, nz = rng.choice([2, 4]), rng.choice([2, 3]), rng.choice([1, 2, 5])
+    dx = rng.choice([1.0, 50.0, 1000.0])
+    z0, dz = rng.choice([0.0, 10.0, 500.0]), rng.choice([5.0, 50.0, 500.0])
+    shape = (nz, ny, nx)
+    n = nz * ny * nx
+    fields = {
+        "x": dx * (np.arange(nx) + 0.5), "y": dx * (np.arange(ny) + 0.5),
+        "z_edges": z0 + dz * np.arange(nz + 1),
+        "lwc": np.array([rng.choice([0.0, 0.0, 1e-6, 0.1, 1.0, 3.0]) for _ in range(n)]).reshape(shape),
+        "reff": np.array([rng.choice([0.0, 1.0, 5.0, 12.0, 30.0, 60.0]) for _ in range(n)]).reshape(shape)}
+    lines = [f"&kumo_control n_photons_per_batch = {rng.choice([100, 1000])}, n_batches = 10, "
+             f"seed = {rng.randint(1, 99)}, mode_3d = '{rng.choice(['f3d', 'ica'])}' /",
+             f"&kumo_cloud cloud_file = 'cloud.nc', cloud_format = 'les', "
+             f"n_reff = {rng.choice([2, 4, 10])}, reff_min_um = {fmt(rng.choice([2.0, 5.0]))}, "
+             f"reff_max_um = {fmt(rng.choice([20.0, 30.0]))} /",
+             f"&kumo_surface albedo = {fmt(rng.choice([0.0, 0.2, 1.0]))} /",
+             f"&kumo_source sza_deg = {fmt(rng.choice([0.0, 60.0, 85.0]))}, solar_flux = 1.0, "
+             f"wavelength_um = {fmt(rng.choice([0.55, 0.86, 1.6, 2.13, 3.7, 10.8]))} /"]
+    if rng.random() < 0.5:
+        lines.append("&kumo_radiance rad_mu = 1.0, 0.5 /")
+        lines.append(f"&kumo_vr vr_preset = '{rng.choice(['unbiased', 'standard'])}' /")
+    lines.append("&kumo_output file = 'out.nc' /")
+    return "\n".join(lines) + "\n", fields
+
+
+def write_cloud(path, fields):
+    with netCDF4.Dataset(path, "w") as f:
+        nz, ny, nx = fields["lwc"].shape
+        for name, size in (("x", nx), ("y", ny), ("z", nz), ("z_edges", nz + 1)):
+            f.createDimension(name, size)
+        for name, dims, units in (("x", ("x",), "m"), ("y", ("y",), "m"),
+                                  ("z_edges", ("z_edges",), "m"), ("lwc", ("z", "y", "x"), "g m-3"),
+                                  ("reff", ("z", "y", "x"), "um")):
+            v = f.createVariable(name, "f8" if len(dims) == 1 else "f4", dims)
+            v.units = units
+            v[:] = fields[name]
+
+
 def write_scene(path, scene):
     ext, ssa = scene
     with netCDF4.Dataset(path, "w") as f:
@@ -165,19 +211,25 @@ def main():
     ap.add_argument("--workdir", default="fuzz_runs")
     ap.add_argument("--timeout", type=float, default=60.0, help="seconds per run")
     ap.add_argument("--mpi", type=int, default=0, help="also run on this many ranks, compare")
+    ap.add_argument("--clouds", action="store_true",
+                    help="cases over LES cloud files (kumo's Mie optics) instead of layers and scene files")
     args = ap.parse_args()
     kumo = os.path.abspath(args.kumo)
     env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
     failed = refused = slow = 0
     for i in range(args.cases):
         seed = args.seed + i
-        text, scene = draw_case(random.Random(seed))
         case_dir = os.path.join(args.workdir, f"case{seed}")
         os.makedirs(case_dir, exist_ok=True)
+        if args.clouds:
+            text, fields = draw_cloud_case(random.Random(seed))
+            write_cloud(os.path.join(case_dir, "cloud.nc"), fields)
+        else:
+            text, scene = draw_case(random.Random(seed))
+            if scene is not None:
+                write_scene(os.path.join(case_dir, "scene.nc"), scene)
         with open(os.path.join(case_dir, "case.nml"), "w") as f:
             f.write(text)
-        if scene is not None:
-            write_scene(os.path.join(case_dir, "scene.nc"), scene)
         done = run([kumo, "case.nml"], case_dir, args.timeout)
         if done is None:
             slow += 1

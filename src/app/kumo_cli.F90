@@ -165,7 +165,8 @@ contains
         if (exists) then
           call check_input('&kumo_cloud mie_cache', cache, files, problems)
         else
-          files = files//'  &kumo_cloud mie_cache = '//cache//': not there yet, the set-up creates it'//NL
+          files = files//'  &kumo_cloud mie_cache = '//cache// &
+                  ': not there yet, the set-up creates it'//NL
         end if
       end if
     end if

@@ -70,30 +70,40 @@ contains
   end function str_int64
 
   !> Plain decimal form for moderate magnitudes, scientific form otherwise; 10 significant
-  !> digits at most, trailing zeros removed (0.01 -> '0.01', 2.5e-7 -> '2.5E-07').
-  pure function str_real(x) result(s)
+  !> digits at most, or `digits` (x rounded to them, for logs), trailing zeros removed
+  !> (0.01 -> '0.01', 2.5e-7 -> '2.5E-07', str(27.3456, 3) -> '27.3').
+  pure function str_real(x, digits) result(s)
     real(real64), intent(in) :: x
+    integer, intent(in), optional :: digits
     character(len=:), allocatable :: s
     character(len=40) :: buf
     integer :: ie, nd
-    if (ieee_is_nan(x)) then
+    real(real64) :: v, scale
+    v = x
+    if (present(digits)) then
+      if (abs(x) >= 1.0e-290_real64 .and. abs(x) <= huge(x)) then   ! scale stays finite
+        scale = 10.0_real64**(digits - 1 - floor(log10(abs(x))))
+        v = anint(x*scale)/scale
+      end if
+    end if
+    if (ieee_is_nan(v)) then
       s = 'NaN'
       return
     end if
-    if (x == 0.0_real64) then
+    if (v == 0.0_real64) then
       s = '0'
       return
     end if
-    if (abs(x) >= 1.0e-4_real64 .and. abs(x) < 1.0e9_real64) then
-      nd = max(0, 9 - int(floor(log10(abs(x)))))
-      write (buf, '(f40.'//str_int(nd)//')') x
+    if (abs(v) >= 1.0e-4_real64 .and. abs(v) < 1.0e9_real64) then
+      nd = max(0, 9 - int(floor(log10(abs(v)))))
+      write (buf, '(f40.'//str_int(nd)//')') v
       s = trim(adjustl(buf))
       call strip_zeros(s)
-    else if (abs(x) > huge(x)) then
-      s = merge(' Inf', '-Inf', x > 0.0_real64)
+    else if (abs(v) > huge(v)) then
+      s = merge(' Inf', '-Inf', v > 0.0_real64)
       s = trim(adjustl(s))
     else
-      write (buf, '(es18.9e3)') x
+      write (buf, '(es18.9e3)') v
       s = trim(adjustl(buf))
       ie = index(s, 'E')
       read (s(ie + 1:), *) nd

@@ -140,7 +140,7 @@ contains
       if (t0 < 0.01_dp) then
         write (output_unit, '(a)') 'scene set up in under 0.01 s; no photon was traced'
       else
-        write (output_unit, '(a)') 'scene set up in '//str(round_sig(t0, 2))// &
+        write (output_unit, '(a)') 'scene set up in '//str(t0, 2)// &
           ' s; no photon was traced'
       end if
     end if
@@ -199,10 +199,10 @@ contains
     integer :: ix, iy
     associate (atm => scene%atm)
       text = 'scene: '//str(atm%nz)//trim(merge(' layers', ' layer ', atm%nz > 1))// &
-             ' from '//str(round_sig(atm%z(0), 6))//' to '//str(round_sig(atm%z(atm%nz), 6))//' m'
+             ' from '//str(atm%z(0), 6)//' to '//str(atm%z(atm%nz), 6)//' m'
       if (atm%n3 > 0) then
         text = text//'; 3-D region '//str(atm%nx)//' x '//str(atm%ny)//' columns of '// &
-               str(round_sig(atm%dx, 6))//' m x '//str(round_sig(atm%dy, 6))//' m, layers '// &
+               str(atm%dx, 6)//' m x '//str(atm%dy, 6)//' m, layers '// &
                str(atm%k3_lo)//' to '//str(atm%k3_hi)
       else
         text = text//', plane-parallel'
@@ -215,25 +215,14 @@ contains
       call atmosphere_column_tau(atm, tmin, tmean, tmax, ix, iy)
       if (atm%n3 > 0 .and. (atm%nx > 1 .or. atm%ny > 1)) then
         text = text//new_line('a')//'  vertical optical depth of the columns: smallest '// &
-               str(round_sig(tmin, 4))//', mean '//str(round_sig(tmean, 4))//', largest '// &
-               str(round_sig(tmax, 4))//' (column '//str(ix)//', '//str(iy)//')'
+               str(tmin, 4)//', mean '//str(tmean, 4)//', largest '// &
+               str(tmax, 4)//' (column '//str(ix)//', '//str(iy)//')'
       else
-        text = text//new_line('a')//'  vertical optical depth: '//str(round_sig(tmax, 4))
+        text = text//new_line('a')//'  vertical optical depth: '//str(tmax, 4)
       end if
       if (atm%similar) text = text//', of the similarity-scaled medium'
     end associate
   end function scene_summary
-
-  !> x rounded to n significant digits, for the log.
-  pure real(wp) function round_sig(x, n) result(r)
-    real(wp), intent(in) :: x
-    integer, intent(in) :: n
-    real(wp) :: scale
-    r = x
-    if (.not. (abs(x) > 0.0_wp .and. abs(x) < huge(x))) return   ! 0, Inf, NaN as they are
-    scale = 10.0_wp**(n - 1 - floor(log10(abs(x))))
-    r = anint(x*scale)/scale
-  end function round_sig
 
   !> Run the batches of a configuration on all ranks and gather the results on rank 0.
   !>

@@ -18,7 +18,7 @@ module kumo_output
                           find_dim
   use kumo_config, only: config_t, config_echo
   use kumo_parallel, only: PAR_IS_MPI
-  use kumo_vr, only: roulette_balance_warning, few_batches_warning
+  use kumo_vr, only: roulette_balance_warning, few_batches_warning, loop_cap_warning
   use kumo_exact_column, only: exact_thermal_possible
   implicit none
   private
@@ -314,7 +314,7 @@ contains
       ! warnings about the finished run (kumo_vr) join the scene's: log and file
       block
         character(len=:), allocatable :: warn, rr_warn
-        real(dp) :: bal(1), bal_err(1)
+        real(dp) :: bal(1), bal_err(1), lost(1)
         bal = stats_mean(st, lay%i_rr + 1, lay%i_rr + 1)
         bal_err = stats_stderr(st, lay%i_rr + 1, lay%i_rr + 1)
         rr_warn = roulette_balance_warning(bal(1), bal_err(1), st%n_batches)
@@ -330,20 +330,10 @@ contains
         ! exactly has no statistical error to doubt
         if (.not. (scene%exact_thermal .and. exact_thermal_possible(scene))) &
           call append_warning(warn, few_batches_warning(st%n_batches))
-        ! photons stopped at a loop cap took their weight with them: every energy-budget
-        ! result is low by about weight_lost, which the error bars do not cover
-        bal = stats_mean(st, lay%i_lost + 1, lay%i_lost + 1)
-        if (summary%anomalies(ANOM_EVENT_CAP) + summary%anomalies(ANOM_STEP_CAP) > 0) &
-          call append_warning(warn, str(summary%anomalies(ANOM_EVENT_CAP) + &
-            summary%anomalies(ANOM_STEP_CAP))//' photon(s) were stopped at a loop cap ('// &
-            str(summary%anomalies(ANOM_EVENT_CAP))//' at max_events = '// &
-            str(cfg%control%max_events)//' events, '//str(summary%anomalies(ANOM_STEP_CAP))// &
-            ' at the step cap) and their weight was lost: weight_lost = '//str(bal(1))// &
-            ' (a fraction of the source, as the fluxes), by which the reflectance, '// &
-            'transmittance and absorptances are low (not covered by their error bars); raise '// &
-            'max_events in '// &
-            '&kumo_control for very thick conservative media, or report the case if the '// &
-            'step cap was reached. ')
+        lost = stats_mean(st, lay%i_lost + 1, lay%i_lost + 1)
+        call append_warning(warn, loop_cap_warning(summary%anomalies(ANOM_EVENT_CAP), &
+                                                   summary%anomalies(ANOM_STEP_CAP), &
+                                                   cfg%control%max_events, lost(1)))
         if (len(warn) > 0) call add_attr(set, 'warnings', warn)
       end block
       if (len(scene%notes) > 0) call add_attr(set, 'scene_notes', scene%notes)

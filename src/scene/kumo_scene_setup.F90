@@ -574,22 +574,17 @@ contains
     if (size(sfc%tabs) == 1) then
       a_sun = brdf_albedo_quad(sfc%tabs(1)%p, mu0)
       text = 'the '//trim(BRDF_NAMES(sfc%tabs(1)%p%kind))//' BRDF''s directional albedo '// &
-             'exceeds 1 for incidence cosines up to about '//str(round4(mu_top))
-      if (a_sun > 1.0_wp) text = text//', the sun''s mu0 = '//str(round4(mu0))//' among them '// &
-        '(albedo '//str(round4(a_sun))//')'
+             'exceeds 1 for incidence cosines up to about '//str(mu_top, 4)
+      if (a_sun > 1.0_wp) text = text//', the sun''s mu0 = '//str(mu0, 4)//' among them '// &
+        '(albedo '//str(a_sun, 4)//')'
     else
       text = str(n)//' of the '//str(size(sfc%tabs))//' BRDF parameter sets of the surface '// &
              'map have a directional albedo above 1 for incidence cosines up to about '// &
-             str(round4(mu_top))
+             str(mu_top, 4)
     end if
     text = text//': a surface that reflects more than it receives; kumo scales the BRDF down '// &
            'to albedo 1 at those angles, so the surface is not the model given (check the '// &
            'parameters, docs/namelist.md). '
-  contains
-    pure real(wp) function round4(x)
-      real(wp), intent(in) :: x
-      round4 = anint(x*1.0e4_wp)/1.0e4_wp
-    end function round4
   end function brdf_clamp_warning
 
   !> The warning for layers and voxels of `atm` whose scattering coefficient (extinction times
@@ -623,8 +618,9 @@ contains
         call voxel_layer(atm, kr, e, w)
         e = e*w
         n = n + count(e > real(SCAT_WARN, vp))
-        if (maxval(e) > top .and. maxval(e) > SCAT_WARN) then
-          top = maxval(e)
+        s = maxval(e)
+        if (s > top .and. s > SCAT_WARN) then
+          top = s
           loc = maxloc(e)
           where = 'voxel ('//str(loc(1))//', '//str(loc(2))//') of layer '// &
                   str(atm%k3_lo + kr - 1)
@@ -632,10 +628,8 @@ contains
       end do
     end if
     if (n == 0) return
-    s = 10.0_wp**(3 - floor(log10(top)))   ! four significant digits (voxels hold 4-byte reals)
-    top = anint(top*s)/s
     text = str(n)//' layer(s) or voxel(s) scatter more than '//str(SCAT_WARN)//' m-1 (the '// &
-           'largest '//str(top)//' m-1, '//where//'): a mean free path under 10 cm, ten times '// &
+           'largest '//str(top, 4)//' m-1, '//where//'): a mean free path under 10 cm, ten times '// &
            'the densest clouds; check the units of the extinction (m-1; values in km-1 are '// &
            '1000 times too large), and expect a photon to make about (optical size)^2 '// &
            'scattering events in such a conservative region. '
@@ -1280,8 +1274,9 @@ contains
         if (plev(0) > 2.0_wp*p0(1) .or. plev(0) < 0.5_wp*p0(1)) text = text// &
           'the pressure at the bottom of the column ('//str(plev(0))//' Pa at '//str(z(0))// &
           ' m) is '//str(anint(1000.0_wp*plev(0)/p0(1))/1000.0_wp)//' times the U.S. '// &
-          'Standard Atmosphere''s there ('//str(p0(1))//' Pa): pressures are in Pa (not hPa), and z_levels are heights above '// &
-          'sea level; the gas optics and the air density of the heating rates follow them. '
+          'Standard Atmosphere''s there ('//str(p0(1))//' Pa): pressures are in Pa (not hPa), '// &
+          'and z_levels are heights above sea level; the gas optics and the air density of the '// &
+          'heating rates follow them. '
       end if
     end if
     ! outside the k-distribution's tables

@@ -39,7 +39,7 @@ module kumo_vr
   public :: vr_t, roulette, collision_forcing, ddis_phases, spiky_without_vr, &
             SPIKY_PEAK, DDIS_PEAK, DDIS_CONE_DEG
   public :: roulette_balance_warning, student_t_quantile, RR_BALANCE_MIN, RR_BALANCE_TAIL
-  public :: few_batches_warning, FEW_BATCHES
+  public :: few_batches_warning, FEW_BATCHES, loop_cap_warning
   public :: runaway_cost_check, los_crossings, LOS_CROSSINGS_WARN, LOS_CROSSINGS_MAX, &
             FLIGHT_CROSSINGS_WARN
   public :: ABS_COLLISION, ABS_TRACK, ABS_TENTATIVE, ABS_TRACK_VOXELS, ABS_ESTIMATOR_NAMES, &
@@ -242,6 +242,24 @@ contains
            trim(buf)//' standard errors instead of +- 1.96; run at least '//str(FEW_BATCHES)// &
            ' batches (the same photons in more, smaller batches) for error bars to compare with. '
   end function few_batches_warning
+
+  !> A warning when photons of a finished run were stopped at a loop cap: `n_events` at the
+  !> event cap `max_events`, `n_steps` at the step cap. Their weight went to weight_lost
+  !> (`lost`, a fraction of the source like the fluxes), by which every energy-budget result is
+  !> low, beyond what its error bar covers. Empty text when none was stopped.
+  function loop_cap_warning(n_events, n_steps, max_events, lost) result(text)
+    integer(i8), intent(in) :: n_events, n_steps, max_events
+    real(dp), intent(in) :: lost
+    character(len=:), allocatable :: text
+    text = ''
+    if (n_events + n_steps <= 0_i8) return
+    text = str(n_events + n_steps)//' photon(s) were stopped at a loop cap ('//str(n_events)// &
+           ' at max_events = '//str(max_events)//' events, '//str(n_steps)//' at the step '// &
+           'cap) and their weight was lost: weight_lost = '//str(lost)//' (a fraction of the '// &
+           'source, as the fluxes), by which the reflectance, transmittance and absorptances '// &
+           'are low (not covered by their error bars); raise max_events in &kumo_control for '// &
+           'very thick conservative media, or report the case if the step cap was reached. '
+  end function loop_cap_warning
 
   !> The t with P(|T| > t) = p for Student's T with nu degrees of freedom, by bisection on the
   !> closed forms of Abramowitz and Stegun (1964), eqs. 26.7.3 (odd nu) and 26.7.4 (even nu).

@@ -95,6 +95,14 @@ contains
     call check(error, str(3.0e99_dp) == '3E+99', 'str(3e99) = "'//str(3.0e99_dp)//'"')
     call check(error, str(0.0_dp) == '0', 'str(0.) = "'//str(0.0_dp)//'"')
     call check(error, str(1.0_dp/3.0_dp) == '0.3333333333', 'str(1/3) = "'//str(1.0_dp/3.0_dp)//'"')
+    ! rounded to a number of significant digits, for logs
+    call check(error, str(27.3456_dp, 3) == '27.3', 'str(27.3456, 3) = "'//str(27.3456_dp, 3)//'"')
+    call check(error, str(0.0040825769_dp, 4) == '0.004083', &
+               'str(0.0040825769, 4) = "'//str(0.0040825769_dp, 4)//'"')
+    call check(error, str(43.20000076_dp, 4) == '43.2', 'str(43.20000076, 4) = "'//str(43.20000076_dp, 4)//'"')
+    call check(error, str(12345678.0_dp, 2) == '12000000', 'str(12345678, 2) = "'//str(12345678.0_dp, 2)//'"')
+    call check(error, str(-9.9996e-7_dp, 4) == '-1E-06', 'str(-9.9996e-7, 4) = "'//str(-9.9996e-7_dp, 4)//'"')
+    call check(error, str(0.0_dp, 4) == '0', 'str(0, 4) = "'//str(0.0_dp, 4)//'"')
     call check(error, str(-42) == '-42', 'str(-42)')
     call check(error, to_lower('HG Table') == 'hg table', 'to_lower')
   end subroutine test_str

@@ -1235,15 +1235,22 @@ contains
   !> much); a bottom pressure off the U.S. Standard Atmosphere 1976 at that height by more than
   !> a factor 2 (hPa for Pa); layers outside the k-distribution's tables (temperatures tmin..tmax
   !> K, pressures up to pmax Pa), where the optical depths are extrapolated; in the `longwave`,
-  !> a surface temperature `tsfc` outside the tables, whose Planck radiance is extrapolated.
+  !> a surface temperature `tsfc` outside the tables, whose Planck radiance is extrapolated;
+  !> layers whose thickness by z differs by more than HYPSO_TOL from that of the hypsometric
+  !> equation with their pressures and temperatures, dz = R_d T_v / g0 ln(p_bottom / p_top)
+  !> (heights in km, or a sounding of another place or time than the grid's).
   function gas_column_warnings(z, plev, play, tlay, h2o, tmin, tmax, pmax, tsfc, longwave) &
     result(text)
     real(wp), intent(in) :: z(0:), plev(0:), play(:), tlay(:), h2o(:), tmin, tmax, pmax, tsfc
     logical, intent(in) :: longwave
     character(len=:), allocatable :: text
     real(wp), parameter :: SUPERSAT = 1.5_wp
+    real(wp), parameter :: HYPSO_TOL = 0.1_wp
+    real(wp), parameter :: R_DRY = 287.047_wp       !! gas constant of dry air [J kg-1 K-1]
+    real(wp), parameter :: EPS_W = 18.0153_wp/28.9644_wp   !! M_w / M_d
+    real(wp), parameter :: G_STD = 9.80665_wp       !! standard gravity [m s-2]
     character(len=:), allocatable :: list
-    real(wp) :: es, qs, worst, p0(1), t0(1), r0(1)
+    real(wp) :: es, qs, worst, p0(1), t0(1), r0(1), dzh, ratio
     integer :: k, n
     type(error_t), allocatable :: err
     text = ''
@@ -1293,6 +1300,28 @@ contains
       str(tmin)//' to '//str(tmax)//' K, up to '//str(anint(pmax))//' Pa): '// &
       trim(adjustl(list))//'; their gas optical depths are extrapolated linearly '// &
       'beyond the tables (RRTMGP itself refuses such layers). '
+    ! heights against pressures: the hypsometric thickness of each layer
+    list = ''
+    n = 0
+    worst = 1.0_wp
+    do k = 1, size(play)
+      ! virtual temperature with h2o in mol/mol of dry air: T (1 + x) / (1 + x M_w / M_d)
+      dzh = R_DRY*tlay(k)*(1.0_wp + h2o(k))/(1.0_wp + EPS_W*h2o(k))/G_STD*log(plev(k - 1)/plev(k))
+      ratio = (z(k) - z(k - 1))/dzh
+      if (abs(ratio - 1.0_wp) <= HYPSO_TOL) cycle
+      n = n + 1
+      if (abs(log(ratio)) > abs(log(worst))) worst = ratio
+      if (n <= 6) list = list//merge(', ', '  ', n > 1)//str(k)//' ('//str(z(k) - z(k - 1), 4)// &
+                         ' m, '//str(dzh, 4)//' m)'
+    end do
+    if (n > 6) list = list//', ...'
+    if (n > 0) text = text//'the heights and pressures of '//str(n)//' layer(s) disagree: '// &
+      'their thickness by z_levels is '//str(worst, 3)//' times that of the hypsometric '// &
+      'equation with their pressures and temperatures, R_d T_v / g0 ln(p_bottom / p_top), '// &
+      'or further off (layer: thickness by z_levels, by the pressures: '//trim(adjustl(list))// &
+      '); z_levels are in m, and the sounding must be the grid''s: the gas optical depths '// &
+      'follow the pressures, the clouds and voxels the heights, and the air density of the '// &
+      'heating rates both. '
     if (longwave .and. (tsfc < tmin .or. tsfc > tmax)) then
       text = text//'the surface temperature '//str(tsfc)//' K lies outside the '// &
              'k-distribution''s tables ('//str(tmin)//' to '//str(tmax)//' K): its Planck '// &

@@ -1030,14 +1030,14 @@ contains
     call read_case('us1976', c, error)
     if (allocated(error)) return
     call warns('', [character(len=40) :: ''], &
-               [character(len=40) :: 'saturation', 'Standard Atmosphere', 'tables'])
+               [character(len=40) :: 'saturation', 'Standard Atmosphere', 'tables', 'hypsometric'])
     call warns('  h2o_vmr = 35*0.02', [character(len=40) :: 'water vapour of', &
                'times saturation', 'not kg/kg, g/kg or ppmv'], &
                [character(len=40) :: 'Standard Atmosphere', 'tables'])
     call read_case('rfmip_site0', c, error)
     if (allocated(error)) return
     call warns('', [character(len=40) :: ''], &
-               [character(len=40) :: 'saturation', 'Standard Atmosphere', 'tables'])
+               [character(len=40) :: 'saturation', 'Standard Atmosphere', 'tables', 'hypsometric'])
     ! the sounding's pressures in hPa: the same shape, a hundredth of the air
     plev = '  p_levels = '
     do k = 0, c%nz
@@ -1049,6 +1049,19 @@ contains
     end do
     call warns(plev//new_line('a')//play, [character(len=40) :: 'pressure at the bottom', &
                'not hPa'], [character(len=40) :: 'k-distribution''s tables'])
+    ! a sounding of another place than the heights: ln p falls half as fast with height, so each
+    ! layer is half as thick by its pressures as by z_levels
+    plev = '  p_levels = '
+    do k = 0, c%nz
+      plev = plev//flatter(c%lev(k, 1))//merge(', ', '  ', k < c%nz)
+    end do
+    play = '  p_layers = '
+    do k = 1, c%nz
+      play = play//flatter(c%lay(k, 1))//merge(', ', '  ', k < c%nz)
+    end do
+    call warns(plev//new_line('a')//play, [character(len=40) :: 'heights and pressures of', &
+               'is 2 times that of the hypsometric', 'z_levels are in m'], &
+               [character(len=40) :: 'Standard Atmosphere'])
     call warns('  t_layers(1) = 380.0', [character(len=40) :: '1 layer(s) lie outside', &
                'extrapolated'], [character(len=40) :: 'Standard Atmosphere'])
     ! a longwave surface temperature in degrees Celsius
@@ -1070,6 +1083,20 @@ contains
       end select
       write (text, '(es23.16)') x/100.0_dp
     end function hpa
+    !> A pressure of the case (Pa, as text or number) moved to p0 (p / p0)^(1/2), p0 that of the
+    !> bottom level, as text.
+    function flatter(p) result(text)
+      class(*), intent(in) :: p
+      character(len=24) :: text
+      real(dp) :: x
+      select type (p)
+      type is (character(len=*))
+        read (p, *) x
+      type is (real(dp))
+        x = p
+      end select
+      write (text, '(es23.16)') c%lev(0, 1)*sqrt(x/c%lev(0, 1))
+    end function flatter
     !> The namelist of c with `lines` in &kumo_spectral runs; its warnings attribute holds
     !> every word of `has` (blank: none asked) and none of `hasnt`.
     subroutine warns(lines, has, hasnt)

@@ -33,23 +33,17 @@ module kumo_driver
   use kumo_output, only: run_summary_t, build_results, log_summary, log_memory, peak_resident_bytes
   use kumo_vr, only: runaway_cost_check
   use kumo_atmosphere, only: atmosphere_column_tau
+  use kumo_progress, only: progress_t, progress_start, progress_batch_begin, progress_batch_done
   implicit none
   private
   public :: run_case, simulate, scene_t, setup_scene, run_summary_t, checkpoint_plan_t, check_setup
 
   !> Progress on rank 0 (standard error), for runs longer than a few seconds: the first line
-  !> after PROGRESS_FIRST seconds, then one every PROGRESS_EVERY seconds.
+  !> after PROGRESS_FIRST seconds, then one every PROGRESS_EVERY seconds (kumo_progress).
   real(dp), parameter :: PROGRESS_FIRST = 5.0_dp, PROGRESS_EVERY = 15.0_dp
   !> Entries of the sums moved per message when the slots are folded (8 MiB): the receiving
   !> rank adds each piece as it arrives.
   integer, parameter :: FOLD_PIECE = 1048576
-  type :: progress_t
-    logical :: on = .false.
-    real(dp) :: t0 = 0.0_dp          !! start of tracing [s]
-    real(dp) :: next = 0.0_dp        !! time of the next line [s]
-    real(dp) :: rel = -1.0_dp        !! relative error of the target after the last round
-    integer :: n0 = 0                !! batches done before this run (resumed from a checkpoint)
-  end type progress_t
 
 contains
 
@@ -317,11 +311,22 @@ contains
     checkpoints = plan%interval > 0.0_dp
     n_ckpt = 0
     kill_after = env_int('KUMO_TEST_KILL_AFTER_CHECKPOINT')
-    pg%on = par_is_root() .and. cfg%control%verbose >= 1
-    pg%t0 = par_wtime()
-    pg%next = pg%t0 + PROGRESS_FIRST
-    pg%n0 = n_done
-    t_ckpt = pg%t0
+    block
+      real(dp) :: first, every
+      integer :: ms
+      first = PROGRESS_FIRST
+      every = PROGRESS_EVERY
+      ! test hook: lines every KUMO_TEST_PROGRESS_MS milliseconds
+      ms = env_int('KUMO_TEST_PROGRESS_MS')
+      if (ms > 0) then
+        first = 1.0e-3_dp*ms
+        every = first
+      end if
+      call progress_start(pg, par_is_root() .and. cfg%control%verbose >= 1, n_done, nphot, &
+                          nranks, cfg%control%target_rel_error, cfg%control%target_output, &
+                          first, every)
+    end block
+    t_ckpt = par_wtime()
     do
       allocate (tmp(3, ib_next + nb_round - 1))
       tmp = 0.0_dp
@@ -344,8 +349,10 @@ contains
             if (mine) then
               call rng_init(rng, cfg%control%seed, int(ib, i8))
               call tally_reset(tal, lay)
+              if (pg%on) call progress_batch_begin(pg, ib, ib_last)
             end if
-            call trace_spectral_batch(spec, scene, lay, rng, nphot, tal, tal_g, error, active=mine)
+            call trace_spectral_batch(spec, scene, lay, rng, nphot, tal, tal_g, error, &
+                                      active=mine, pg=pg)
             if (allocated(error)) return
             if (mine) call batch_done()
           end do
@@ -360,14 +367,15 @@ contains
         if (mod(s, nranks) == rank) then
           call rng_init(rng, cfg%control%seed, int(ib, i8))
           call tally_reset(tal, lay)
+          if (pg%on) call progress_batch_begin(pg, ib, ib_last)
           if (exact) then
             call exact_thermal_batch(scene, lay, nphot, tal, error)
             if (allocated(error)) return
           else if (spec%on) then
-            call trace_spectral_batch(spec, scene, lay, rng, nphot, tal, tal_g, error)
+            call trace_spectral_batch(spec, scene, lay, rng, nphot, tal, tal_g, error, pg=pg)
             if (allocated(error)) return
           else
-            call trace_batch(scene, lay, rng, nphot, tal)
+            call trace_batch(scene, lay, rng, nphot, tal, pg)
           end if
           call batch_done()
         end if
@@ -455,7 +463,7 @@ contains
     subroutine batch_done()
       call stats_add_batch(slot(s), lay, tal, nphot)
       rec(:, ib) = batch_budget(lay, tal)/real(nphot, dp)
-      if (pg%on) call report_progress(pg, cfg, ib, ib_last)
+      call progress_batch_done(pg, ib, ib_last)
     end subroutine batch_done
 
     !> A checkpoint of the batches up to ib (all done on every rank) when rank 0 says one is due.
@@ -483,7 +491,7 @@ contains
   !> When the ranks of a node share the voxels (spec%node), every rank of the node calls this
   !> together, `active` = .false. on a rank without a batch: each g-point that any of them
   !> traces is switched to by all.
-  subroutine trace_spectral_batch(spec, scene, lay, rng, nphot, tal, tal_g, error, active)
+  subroutine trace_spectral_batch(spec, scene, lay, rng, nphot, tal, tal_g, error, active, pg)
     type(spectral_scene_t), intent(inout) :: spec
     type(scene_t), intent(inout) :: scene
     type(tally_layout_t), intent(in) :: lay
@@ -492,6 +500,7 @@ contains
     type(tally_t), intent(inout) :: tal, tal_g
     type(error_t), allocatable, intent(out) :: error
     logical, intent(in), optional :: active
+    type(progress_t), intent(inout), optional :: pg   !! rank 0's progress, looked at while tracing
     type(error_t), allocatable :: err
     real(dp) :: f, rr_threshold, rr_weight
     integer :: g
@@ -540,7 +549,7 @@ contains
       scene%src%w_unit = f
       scene%vr%rr_threshold = rr_threshold*f
       scene%vr%rr_weight = rr_weight*f
-      call trace_batch(scene, lay, rng, spec%batch%count(g), tal)
+      call trace_batch(scene, lay, rng, spec%batch%count(g), tal, pg)
     end do
     scene%src%w_unit = 1.0_wp
     scene%vr%rr_threshold = rr_threshold
@@ -619,34 +628,5 @@ contains
       a(j + 1:j + k) = a(j + 1:j + k) + x(1:k)
     end do
   end subroutine add_sums
-
-  !> A progress line on standard error when it is due: batches done (rank 0 has reached batch
-  !> `n_done`; the other ranks run alongside), photons per second, and the time left (fixed batch count) or the
-  !> current relative error of the target output (target-error mode).
-  subroutine report_progress(pg, cfg, n_done, n_planned)
-    type(progress_t), intent(inout) :: pg
-    type(config_t), intent(in) :: cfg
-    integer, intent(in) :: n_done, n_planned
-    real(dp) :: t, rate
-    character(len=:), allocatable :: line
-    t = par_wtime()
-    if (t < pg%next .or. n_done <= pg%n0) return
-    pg%next = t + PROGRESS_EVERY
-    rate = real(n_done - pg%n0, dp)*real(cfg%control%n_photons_per_batch, dp)/ &
-           max(t - pg%t0, 1.0e-9_dp)
-    if (cfg%control%target_rel_error > 0.0_dp) then
-      line = 'kumo: '//str(n_done)//' batches, '//str(real(nint(rate), dp))//' photons/s'
-      if (pg%rel >= 0.0_dp) line = line//', '//trim(cfg%control%target_output)// &
-        ' relative error '//str(pg%rel)//' (target '//str(cfg%control%target_rel_error)//')'
-    else
-      line = 'kumo: '//str(min(n_done, n_planned))//' of '//str(n_planned)//' batches ('// &
-             str(nint(100.0_dp*min(n_done, n_planned)/n_planned))//' %), '// &
-             str(real(nint(rate), dp))//' photons/s, about '// &
-             str(nint(max(0.0_dp, (t - pg%t0)*real(n_planned - n_done, dp)/(n_done - pg%n0))))// &
-             ' s left'
-    end if
-    write (error_unit, '(a)') line
-    flush (error_unit)
-  end subroutine report_progress
 
 end module kumo_driver

@@ -49,6 +49,7 @@ module kumo_transport
                            EMIT_SOLAR, EMIT_TOP, EMIT_SURFACE, EMIT_LAYER, emission_t
   use kumo_vr, only: roulette, ABS_COLLISION, ABS_TRACK, ABS_TENTATIVE, ABS_TRACK_VOXELS
   use kumo_scene, only: scene_t
+  use kumo_progress, only: progress_t, progress_look
   implicit none
   private
   public :: trace_batch
@@ -87,19 +88,26 @@ module kumo_transport
 contains
 
   !> Trace `n_photons` photons of scene `scn`, adding into `tal` (which the caller has reset).
-  subroutine trace_batch(scn, lay, rng, n_photons, tal)
+  subroutine trace_batch(scn, lay, rng, n_photons, tal, pg)
     type(scene_t), intent(in) :: scn
     type(tally_layout_t), intent(in) :: lay
     type(rng_t), intent(inout) :: rng
     integer(i8), intent(in) :: n_photons
     type(tally_t), intent(inout) :: tal
+    !> rank 0's progress: the clock is looked at every pg%stride photons (kumo_progress)
+    type(progress_t), intent(inout), optional :: pg
     type(batch_t) :: bat
     type(launch_plan_t) :: plan
     type(photon_t) :: p
     type(pending_t) :: pend
-    integer(i8) :: ip
+    integer(i8) :: ip, look
     integer :: k
 
+    ! the photon at which to look at the clock next (never without progress lines)
+    look = huge(look)
+    if (present(pg)) then
+      if (pg%on) look = max(1_i8, pg%next_look - pg%base)
+    end if
     ! Horizontal positions matter only for a 3-D region, an albedo map, per-column maps or
     ! cameras; a plane-parallel scene skips their bookkeeping in the 1-D layers.
     bat%track_xy = scn%atm%n3 > 0 .or. .not. scn%sfc%uniform .or. lay%do_maps .or. &
@@ -134,7 +142,12 @@ contains
       end do history
       tal%work(1) = tal%work(1) + p%n_steps
       tal%work(2) = tal%work(2) + p%n_events
+      if (ip >= look) then
+        call progress_look(pg, pg%base + ip)
+        look = pg%next_look - pg%base
+      end if
     end do
+    if (look < huge(look)) pg%base = pg%base + n_photons
     ! layers whose net power is absorbed minus emitted: their emission, exact, per batch
     if (bat%thermal) then
       if (scn%src%em%any_abs) then

@@ -1028,7 +1028,7 @@ contains
       else
         call b%put(gas_column_warnings(z, plev, play, tlay, h2o, kd%temp_ref(1), &
                                        kd%temp_ref(kd%n_temp), maxval(kd%press_ref), tsfc, &
-                                       kd%longwave))
+                                       kd%longwave, len_trim(cfg%spectral%profile) == 0))
         call b%put(kd%longwave)
         call b%put(col%gpt_band)
         call b%put(col%band_wavenumber)
@@ -1236,16 +1236,20 @@ contains
   !> a factor 2 (hPa for Pa); layers outside the k-distribution's tables (temperatures tmin..tmax
   !> K, pressures up to pmax Pa), where the optical depths are extrapolated; in the `longwave`,
   !> a surface temperature `tsfc` outside the tables, whose Planck radiance is extrapolated;
-  !> layers whose thickness by z differs by more than HYPSO_TOL from that of the hypsometric
-  !> equation with their pressures and temperatures, dz = R_d T_v / g0 ln(p_bottom / p_top)
-  !> (heights in km, or a sounding of another place or time than the grid's).
-  function gas_column_warnings(z, plev, play, tlay, h2o, tmin, tmax, pmax, tsfc, longwave) &
-    result(text)
+  !> with a `sounding` (pressures not from a standard atmosphere at the heights), layers whose
+  !> thickness by z differs by more than HYPSO_TOL from that of the hypsometric equation with
+  !> their pressures and temperatures, dz = R_d T_v / g0 ln(p_bottom / p_top) (heights in km,
+  !> levels shifted by one, a sounding of another place than the grid's). The layer's one
+  !> temperature stands for its mean: 10-80 km of the U.S. Standard Atmosphere as one layer is
+  !> 1.11 times as thick by z as by the hypsometric equation at the mean of its level
+  !> temperatures, 0.89 times at the temperature of its mid-height; hence the wide tolerance.
+  function gas_column_warnings(z, plev, play, tlay, h2o, tmin, tmax, pmax, tsfc, longwave, &
+                               sounding) result(text)
     real(wp), intent(in) :: z(0:), plev(0:), play(:), tlay(:), h2o(:), tmin, tmax, pmax, tsfc
-    logical, intent(in) :: longwave
+    logical, intent(in) :: longwave, sounding
     character(len=:), allocatable :: text
     real(wp), parameter :: SUPERSAT = 1.5_wp
-    real(wp), parameter :: HYPSO_TOL = 0.1_wp
+    real(wp), parameter :: HYPSO_TOL = 0.25_wp
     real(wp), parameter :: R_DRY = 287.047_wp       !! gas constant of dry air [J kg-1 K-1]
     real(wp), parameter :: EPS_W = 18.0153_wp/28.9644_wp   !! M_w / M_d
     real(wp), parameter :: G_STD = 9.80665_wp       !! standard gravity [m s-2]
@@ -1304,7 +1308,7 @@ contains
     list = ''
     n = 0
     worst = 1.0_wp
-    do k = 1, size(play)
+    do k = 1, merge(size(play), 0, sounding)
       ! virtual temperature with h2o in mol/mol of dry air: T (1 + x) / (1 + x M_w / M_d)
       dzh = R_DRY*tlay(k)*(1.0_wp + h2o(k))/(1.0_wp + EPS_W*h2o(k))/G_STD*log(plev(k - 1)/plev(k))
       ratio = (z(k) - z(k - 1))/dzh

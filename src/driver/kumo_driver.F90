@@ -274,7 +274,8 @@ contains
     call layout_init(lay, scene%atm%nz, scene%atm%nx*scene%atm%ny, scene%atm%n3, map_levels, &
                      voxel, scene%det%n_dir, scene%det%levels, rad_maps, cam_npix, &
                      [scene%atm%k3_lo - 1, scene%atm%k3_hi], thermal=scene%src%em%on, &
-                     map_nx=scene%atm%nx, rad_map_blocks=scene%det%diff_scale > 0.0_wp)
+                     map_nx=scene%atm%nx, rad_map_blocks=scene%det%diff_scale > 0.0_wp, &
+                     weighted=spec%on)
     if (par_is_root()) call announce_scene(scene, spec, cfg%control%verbose >= 1)
     call tally_reset(tal, lay)
     call test_failure_hook(cfg, rank, error)

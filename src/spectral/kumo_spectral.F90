@@ -392,7 +392,9 @@ contains
                        str(sum(importance)) // '; need a finite total')
         return
       end if
-      plan%importance = importance
+      ! a g-point without energy is never drawn, whatever its importance: its photons would
+      ! carry no weight (and a batch of them alone would launch none)
+      plan%importance = merge(importance, 0.0_wp, energy > 0)
     end if
     plan%n_gpt = ng
     plan%energy = energy

@@ -63,6 +63,9 @@ module kumo_tally
     ! Thermal emission (sizes 0 without it): launched weight, net power (absorbed - emitted)
     ! of the layers, of the surface and of the voxels, by net exchange (kumo_emission)
     logical :: thermal = .false.
+    !> photons launched with weights whose sum varies from batch to batch (broadband runs): the
+    !> energy closure is relative to the weight that entered at the top
+    logical :: weighted = .false.
     integer :: i_src = 0       !! weight launched: buf(i_src + 1)
     integer :: i_net = 0       !! net power of layer k: buf(i_net + k), k = 1..nz
     integer :: i_snet = 0      !! net power of the surface: buf(i_snet + 1)
@@ -147,7 +150,8 @@ contains
   !> (the levels below and above the 3-D region) give the column budget when both have maps
   !> and voxel absorption is on.
   subroutine layout_init(lay, nz, ncol, n3, map_levels, do_voxel, n_rad_dir, rad_levels, &
-                         rad_maps, cam_npix, region_levels, thermal, map_nx, rad_map_blocks)
+                         rad_maps, cam_npix, region_levels, thermal, map_nx, rad_map_blocks, &
+                         weighted)
     type(tally_layout_t), intent(out) :: lay
     integer, intent(in) :: nz, ncol, n3
     integer, intent(in) :: map_levels(:)
@@ -161,6 +165,7 @@ contains
     !> come as blocks of columns (numerical diffusion): see tally_layout_t
     integer, intent(in), optional :: map_nx
     logical, intent(in), optional :: rad_map_blocks
+    logical, intent(in), optional :: weighted  !! see tally_layout_t%weighted
     integer :: i, pos
     lay%nz = nz
     lay%ncol = ncol
@@ -199,6 +204,7 @@ contains
     lay%i_fnet = pos
     pos = pos + nz + 1
     if (present(thermal)) lay%thermal = thermal
+    if (present(weighted)) lay%weighted = weighted
     lay%i_src = pos
     lay%i_net = pos
     lay%i_snet = pos
@@ -337,7 +343,13 @@ contains
     xd(lay%i_closure + 1) = xd(lay%i_up + nz + 1) + xd(lay%i_atm + 1) + xd(lay%i_sfc + 1) &
                             - xd(lay%i_rr + 1) + xd(lay%i_lost + 1)
     ! with emission, photons carry unequal launch weights: the closure is relative to them
-    if (lay%thermal) xd(lay%i_closure + 1) = xd(lay%i_closure + 1)/xd(lay%i_src + 1)
+    if (lay%thermal) then
+      xd(lay%i_closure + 1) = xd(lay%i_closure + 1)/xd(lay%i_src + 1)
+    else if (lay%weighted) then
+      ! broadband shortwave: a batch lets in mu0 TSI on average (with gpoint, the g-point's
+      ! share), exactly only when every g-point is drawn its expected number of times
+      xd(lay%i_closure + 1) = xd(lay%i_closure + 1)/xd(lay%i_dn + nz + 1)
+    end if
     xd(lay%i_fnet + 1:lay%i_fnet + nz + 1) = xd(lay%i_dn + 1:lay%i_dn + nz + 1) - &
                                              xd(lay%i_up + 1:lay%i_up + nz + 1)
     st%s1(1:lay%i_map_up) = st%s1(1:lay%i_map_up) + xd

@@ -87,6 +87,7 @@ contains
              new_unittest('sw_ica_columns_vs_disort', test_sw_ica_columns), &
              new_unittest('sw_les_gas_state_vs_disort', test_sw_les_state), &
              new_unittest('sw_single_gpoint_vs_disort', test_single_gpoint), &
+             new_unittest('lw_single_gpoint_few_photons', test_lw_single_gpoint), &
              new_unittest('lw_gas_constants', test_gas_constants), &
              new_unittest('cloud_file_without_water_refused', test_cloud_optics_refused), &
              new_unittest('bad_inputs', test_bad_inputs), &
@@ -932,7 +933,45 @@ contains
     write (*, '(a, i0, a, f0.3, a, f0.3, a, f0.3, a, f0.2, a)') '    g-point ', g, ': TOA up ', &
       set%vars(iu)%mean(nz + 1), ' +- ', set%vars(iu)%stderr(nz + 1), ' W m-2 (DISORT ', up(g, nz), &
       '); largest deviation of the up fluxes ', worst, ' sigma'
+    ! the closure is relative to what entered at the top, the g-point's share of mu0 TSI
+    call check_closure(set, error)
   end subroutine test_single_gpoint
+
+  !> One longwave g-point alone, traced (a scattering layer) with 200 photons per batch: every
+  !> photon is of that g-point, so every batch launches weight and the closure is 1 (the other
+  !> g-points, without energy, once drew photons of no weight, and a batch of them alone ended
+  !> the run on a closure of 0/0).
+  subroutine test_lw_single_gpoint(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(case_t) :: c
+    type(result_set_t) :: set
+    type(run_summary_t) :: summary
+    integer :: g
+    call read_case('us1976', c, error, 'lw_gpoint_reference.txt')
+    if (allocated(error)) return
+    do g = 1, 128, 9
+      call write_nml('lw_single_gpoint.nml', c, '  gpoint = '//str(g), '', 10, &
+                     '  ext1d(2,1) = 0.001'//new_line('a')//'  ssa1d(2,1) = 0.9', n_photons=200)
+      call run('lw_single_gpoint.nml', set, summary, error)
+      if (allocated(error)) then
+        error%message = 'gpoint = '//str(g)//': '//error%message
+        return
+      end if
+      call check_closure(set, error)
+      if (allocated(error)) return
+    end do
+  end subroutine test_lw_single_gpoint
+
+  !> energy_closure of a run is 1 to 1e-9.
+  subroutine check_closure(set, error)
+    type(result_set_t), intent(in) :: set
+    type(error_t), allocatable, intent(inout) :: error
+    integer :: ic
+    ic = var(set, 'energy_closure', error)
+    if (allocated(error)) return
+    call check(error, abs(set%vars(ic)%mean(1) - 1) < 1.0e-9_dp, 'energy closure '// &
+               str(set%vars(ic)%mean(1))//' is not 1')
+  end subroutine check_closure
 
   !> An LES netCDF file of 3 x 2 columns of 1 km and one layer from 2 to 3 km (edges given):
   !> liquid water [g m-3] and effective radius [um] the same everywhere, temperature t [K] and

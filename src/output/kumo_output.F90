@@ -120,8 +120,26 @@ contains
                  NORM//' (zero in expectation)', [lay%i_rr + 1])
       end if
       call put('weight_lost', 'weight of photons stopped at a loop cap'//NORM, [lay%i_lost + 1])
-      call put('energy_closure', 'reflectance + absorptance_atmosphere + absorptance_surface'// &
-               ' - roulette_weight_balance + weight_lost (1 to round-off)', [lay%i_closure + 1])
+      ! the closure's sum is relative to the weight the photons brought (kumo_tally): with
+      ! emission the power they were launched with, which in broadband longwave runs leaves out
+      ! the emission that each layer reabsorbs itself (photons are drawn by the power that
+      ! leaves a layer), so the sum itself is below 1 there
+      if (thermal) then
+        call put('energy_closure', '(reflectance + absorptance_atmosphere + '// &
+                 'absorptance_surface - roulette_weight_balance + weight_lost) divided by the '// &
+                 'share of source_power the photons were launched with (broadband longwave runs '// &
+                 'draw photons by the power that leaves each layer, not by its emission; 1 to '// &
+                 'round-off)', &
+                 [lay%i_closure + 1])
+      else if (lay%weighted) then
+        call put('energy_closure', '(reflectance + absorptance_atmosphere + '// &
+                 'absorptance_surface - roulette_weight_balance + weight_lost) divided by the '// &
+                 'downward flux at the top (a batch of g-points lets in mu0 TSI on average; 1 '// &
+                 'to round-off)', [lay%i_closure + 1])
+      else
+        call put('energy_closure', 'reflectance + absorptance_atmosphere + absorptance_surface'// &
+                 ' - roulette_weight_balance + weight_lost (1 to round-off)', [lay%i_closure + 1])
+      end if
 
       ! heating of the layers
       if (f_hor > 0.0_dp) then

@@ -1078,26 +1078,12 @@ contains
     call warns('', [character(len=40) :: ''], &
                [character(len=40) :: 'saturation', 'Standard Atmosphere', 'tables', 'hypsometric'])
     ! the sounding's pressures in hPa: the same shape, a hundredth of the air
-    plev = '  p_levels = '
-    do k = 0, c%nz
-      plev = plev//hpa(c%lev(k, 1))//merge(', ', '  ', k < c%nz)
-    end do
-    play = '  p_layers = '
-    do k = 1, c%nz
-      play = play//hpa(c%lay(k, 1))//merge(', ', '  ', k < c%nz)
-    end do
+    call pressure_lines(1)
     call warns(plev//new_line('a')//play, [character(len=40) :: 'pressure at the bottom', &
                'not hPa'], [character(len=40) :: 'k-distribution''s tables'])
     ! a sounding of another place than the heights: ln p falls half as fast with height, so each
     ! layer is half as thick by its pressures as by z_levels
-    plev = '  p_levels = '
-    do k = 0, c%nz
-      plev = plev//flatter(c%lev(k, 1))//merge(', ', '  ', k < c%nz)
-    end do
-    play = '  p_layers = '
-    do k = 1, c%nz
-      play = play//flatter(c%lay(k, 1))//merge(', ', '  ', k < c%nz)
-    end do
+    call pressure_lines(2)
     call warns(plev//new_line('a')//play, [character(len=40) :: 'heights and pressures of', &
                'is 2 times that of the hypsometric', 'z_levels are in m'], &
                [character(len=40) :: 'Standard Atmosphere'])
@@ -1109,9 +1095,23 @@ contains
     call warns('  t_surface = 15.0', [character(len=40) :: 'surface temperature 15 K', &
                'not degrees Celsius'], [character(len=40) :: 'saturation', 'layer(s)'])
   contains
-    !> A pressure of the case (Pa, as text or number) as its value in hPa, as text.
-    function hpa(p) result(text)
+    !> `plev` and `play`: the p_levels and p_layers lines of the case with every pressure
+    !> moved, `how` = 1 to its value in hPa, 2 to p0 (p / p0)^(1/2) (p0 that of the bottom).
+    subroutine pressure_lines(how)
+      integer, intent(in) :: how
+      plev = '  p_levels = '
+      do k = 0, c%nz
+        plev = plev//moved(c%lev(k, 1), how)//merge(', ', '  ', k < c%nz)
+      end do
+      play = '  p_layers = '
+      do k = 1, c%nz
+        play = play//moved(c%lay(k, 1), how)//merge(', ', '  ', k < c%nz)
+      end do
+    end subroutine pressure_lines
+    !> A pressure of the case (Pa, as text or number) moved as pressure_lines says, as text.
+    function moved(p, how) result(text)
       class(*), intent(in) :: p
+      integer, intent(in) :: how
       character(len=24) :: text
       real(dp) :: x
       select type (p)
@@ -1120,22 +1120,13 @@ contains
       type is (real(dp))
         x = p
       end select
-      write (text, '(es23.16)') x/100.0_dp
-    end function hpa
-    !> A pressure of the case (Pa, as text or number) moved to p0 (p / p0)^(1/2), p0 that of the
-    !> bottom level, as text.
-    function flatter(p) result(text)
-      class(*), intent(in) :: p
-      character(len=24) :: text
-      real(dp) :: x
-      select type (p)
-      type is (character(len=*))
-        read (p, *) x
-      type is (real(dp))
-        x = p
-      end select
-      write (text, '(es23.16)') c%lev(0, 1)*sqrt(x/c%lev(0, 1))
-    end function flatter
+      if (how == 1) then
+        x = x/100.0_dp
+      else
+        x = c%lev(0, 1)*sqrt(x/c%lev(0, 1))
+      end if
+      write (text, '(es23.16)') x
+    end function moved
     !> The namelist of c with `lines` in &kumo_spectral runs; its warnings attribute holds
     !> every word of `has` (blank: none asked) and none of `hasnt`.
     subroutine warns(lines, has, hasnt)

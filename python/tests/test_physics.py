@@ -5,6 +5,7 @@ Each Monte Carlo estimate must lie within K_SIGMA of its own standard error from
 value (plus round-off where kumo's estimate is exact in every batch).
 """
 
+import re
 import warnings
 
 import numpy as np
@@ -122,6 +123,26 @@ def test_warnings_reach_python(exe, tmp_path):
         ds = kumo.run(small_case(control={"n_photons_per_batch": 200, "n_batches": 10}),
                       tmp_path / "ten", exe=exe)
     assert "warnings" not in ds.attrs
+
+
+def test_progress_lines_reach_python(exe, tmp_path, capsys):
+    """kumo's progress lines come while it runs, from inside a batch too: to the callable given
+    as ``progress``, and not at all with ``progress=False`` (the test hook
+    KUMO_TEST_PROGRESS_MS gives them every 50 ms instead of after 5 s)."""
+    case = small_case(control={"n_photons_per_batch": 200000, "n_batches": 2, "seed": 3,
+                               "verbose": 1},
+                      atmosphere={"nz": 1, "z_levels": [0.0, 1000.0], "ext1d": [[0.01]],
+                                  "ssa1d": [[1.0]]})
+    lines = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", kumo.KumoWarning)     # 2 batches: a warning
+        done = kumo.run_kumo(case, tmp_path / "callback", exe=exe, progress=lines.append,
+                             env={"KUMO_TEST_PROGRESS_MS": "50"})
+        assert any(re.match(r"kumo: 0\.[1-9] of 2 batches \(\d+ %\)", line) for line in lines), lines
+        assert all(line in done.stderr for line in lines)
+        kumo.run_kumo(case, tmp_path / "quiet", exe=exe, progress=False,
+                      env={"KUMO_TEST_PROGRESS_MS": "50"})
+    assert "batches" not in capsys.readouterr().err
 
 
 def test_warning_lines():

@@ -9,6 +9,7 @@ import re
 import shutil
 import subprocess
 import sys
+import threading
 import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -45,6 +46,9 @@ class KumoWarning(UserWarning):
 
 
 WARNING_PREFIX = "kumo: warning: "
+#: kumo's progress lines on standard error (docs/user-guide.md, "Progress"), e.g.
+#: ``kumo: 0.4 of 2 batches (20 %), 450000 photons/s, about 3 s left``
+PROGRESS_LINE = re.compile(r"kumo: [0-9.]+ (of [0-9]+ )?batches")
 
 
 def kumo_warnings(stderr: str) -> list:
@@ -175,8 +179,44 @@ def output_path(namelist, workdir=".") -> Path:
     return path if path.is_absolute() else Path(workdir) / path
 
 
+def _communicate(command, cwd, env, timeout, progress):
+    """Run ``command``; return (returncode, stdout, stderr). kumo's progress lines go to
+    ``progress`` (a callable taking the line) as they come."""
+    proc = subprocess.Popen(command, cwd=cwd, env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    parts = {"stdout": [], "stderr": []}
+
+    def drain(stream, key):
+        for line in stream:
+            parts[key].append(line)
+            if key == "stderr" and progress is not None and PROGRESS_LINE.match(line):
+                progress(line.rstrip("\n"))
+        stream.close()
+
+    readers = [threading.Thread(target=drain, args=(proc.stdout, "stdout"), daemon=True),
+               threading.Thread(target=drain, args=(proc.stderr, "stderr"), daemon=True)]
+    for reader in readers:
+        reader.start()
+    try:
+        proc.wait(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait()
+        for reader in readers:
+            reader.join()
+        raise subprocess.TimeoutExpired(command, timeout, "".join(parts["stdout"]),
+                                        "".join(parts["stderr"])) from None
+    for reader in readers:
+        reader.join()
+    return proc.returncode, "".join(parts["stdout"]), "".join(parts["stderr"])
+
+
+def _print_progress(line: str) -> None:
+    print(line, file=sys.stderr, flush=True)
+
+
 def run_kumo(case, workdir=None, *, name: str = "case", exe=None, np: int = 1, mpiexec=None,
-             mpi_args=(), args=(), timeout=None, env=None) -> Completed:
+             mpi_args=(), args=(), timeout=None, env=None, progress=True) -> Completed:
     """Run the kumo program on ``case`` and return the finished process (no result reading).
 
     ``case`` is a mapping of namelist groups (written to ``<workdir>/<name>.nml``) or the path
@@ -185,7 +225,10 @@ def run_kumo(case, workdir=None, *, name: str = "case", exe=None, np: int = 1, m
     kumo is required); ``args`` are extra kumo options (e.g. ``["--check"]``); ``env`` adds
     environment variables. Raises :class:`KumoError` with kumo's message when it exits with a
     non-zero status, and ``subprocess.TimeoutExpired`` after ``timeout`` seconds; issues each
-    warning of the run as a :class:`KumoWarning`.
+    warning of the run as a :class:`KumoWarning`. kumo's progress lines (a run longer than
+    5 s: batches done, photons per second, time left) are printed on ``sys.stderr`` while it
+    runs, or passed to ``progress`` when it is a callable, or dropped with ``progress=False``;
+    they stay in ``stderr`` of the result either way.
     """
     workdir = (Path(workdir) if workdir is not None else Path.cwd()).resolve()
     workdir.mkdir(parents=True, exist_ok=True)
@@ -203,15 +246,19 @@ def run_kumo(case, workdir=None, *, name: str = "case", exe=None, np: int = 1, m
     elif int(np) < 1:
         raise ValueError(f"np = {np} must be >= 1")
     run_env = None if env is None else {**os.environ, **env}
-    proc = subprocess.run(command, cwd=workdir, capture_output=True, text=True, check=False,
-                          timeout=timeout, env=run_env)
-    if proc.returncode != 0:
-        raise KumoError(_kumo_message(proc.stderr, proc.returncode), proc.returncode,
-                        proc.stdout, proc.stderr, command)
-    for text in kumo_warnings(proc.stderr):
+    if progress is True:
+        progress = _print_progress
+    elif progress is False:
+        progress = None
+    elif not callable(progress):
+        raise TypeError(f"progress = {progress!r} must be True, False or a callable")
+    returncode, stdout, stderr = _communicate(command, workdir, run_env, timeout, progress)
+    if returncode != 0:
+        raise KumoError(_kumo_message(stderr, returncode), returncode, stdout, stderr, command)
+    for text in kumo_warnings(stderr):
         warnings.warn(text, KumoWarning, stacklevel=_caller_level())
     out = None if "--check" in args or "-c" in args else output_path(nml, workdir)
-    return Completed(command, proc.returncode, proc.stdout, proc.stderr, out)
+    return Completed(command, returncode, stdout, stderr, out)
 
 
 def _caller_level() -> int:

@@ -18,14 +18,18 @@ module kumo_progress
   implicit none
   private
   public :: progress_t, progress_start, progress_batch_begin, progress_batch_done, progress_look
+  public :: PROGRESS_FIRST, PROGRESS_EVERY
 
+  !> For runs longer than a few seconds: the first line after PROGRESS_FIRST seconds, then one
+  !> every PROGRESS_EVERY seconds.
+  real(dp), parameter :: PROGRESS_FIRST = 5.0_dp, PROGRESS_EVERY = 15.0_dp
   !> Seconds between two looks at the clock inside a batch.
   real(dp), parameter :: LOOK_EVERY = 0.25_dp
 
   type :: progress_t
     logical :: on = .false.
-    real(dp) :: first = 5.0_dp       !! seconds before the first line
-    real(dp) :: every = 15.0_dp      !! seconds between lines
+    real(dp) :: first = PROGRESS_FIRST   !! seconds before the first line
+    real(dp) :: every = PROGRESS_EVERY   !! seconds between lines
     real(dp) :: t0 = 0.0_dp          !! start of tracing [s]
     real(dp) :: next = 0.0_dp        !! time of the next line [s]
     real(dp) :: rel = -1.0_dp        !! relative error of the target after the last round
@@ -71,6 +75,7 @@ contains
   subroutine progress_batch_begin(pg, ib, n_planned)
     type(progress_t), intent(inout) :: pg
     integer, intent(in) :: ib, n_planned
+    if (.not. pg%on) return
     pg%ib = ib
     pg%n_planned = n_planned
     pg%base = 0
@@ -85,7 +90,7 @@ contains
     integer, intent(in) :: ib, n_planned
     if (.not. pg%on) return
     pg%n_planned = n_planned
-    call report(pg, real(ib - 1 + pg%n_ranks, dp))
+    call report(pg, real(ib - 1 + pg%n_ranks, dp), wall_clock())
   end subroutine progress_batch_done
 
   !> From inside rank 0's batch: `n` of its photons are traced. Sizes the stride to the next
@@ -109,18 +114,12 @@ contains
     call report(pg, real(pg%ib - 1, dp) + f*pg%n_ranks, t)
   end subroutine progress_look
 
-  !> A line when one is due, with `done` batches done (fractional inside a batch).
-  subroutine report(pg, done_in, now)
+  !> A line when one is due at time t, with `done_in` batches done (fractional inside a batch).
+  subroutine report(pg, done_in, t)
     type(progress_t), intent(inout) :: pg
-    real(dp), intent(in) :: done_in
-    real(dp), intent(in), optional :: now
-    real(dp) :: t, rate, done
+    real(dp), intent(in) :: done_in, t
+    real(dp) :: rate, done
     character(len=:), allocatable :: line
-    if (present(now)) then
-      t = now
-    else
-      t = wall_clock()
-    end if
     done = done_in
     if (pg%target <= 0.0_dp) done = min(done, real(pg%n_planned, dp))
     if (t < pg%next .or. done <= pg%n0) return

@@ -33,14 +33,12 @@ module kumo_driver
   use kumo_output, only: run_summary_t, build_results, log_summary, log_memory, peak_resident_bytes
   use kumo_vr, only: runaway_cost_check
   use kumo_atmosphere, only: atmosphere_column_tau
-  use kumo_progress, only: progress_t, progress_start, progress_batch_begin, progress_batch_done
+  use kumo_progress, only: progress_t, progress_start, progress_batch_begin, progress_batch_done, &
+                           PROGRESS_FIRST, PROGRESS_EVERY
   implicit none
   private
   public :: run_case, simulate, scene_t, setup_scene, run_summary_t, checkpoint_plan_t, check_setup
 
-  !> Progress on rank 0 (standard error), for runs longer than a few seconds: the first line
-  !> after PROGRESS_FIRST seconds, then one every PROGRESS_EVERY seconds (kumo_progress).
-  real(dp), parameter :: PROGRESS_FIRST = 5.0_dp, PROGRESS_EVERY = 15.0_dp
   !> Entries of the sums moved per message when the slots are folded (8 MiB): the receiving
   !> rank adds each piece as it arrives.
   integer, parameter :: FOLD_PIECE = 1048576
@@ -350,7 +348,7 @@ contains
             if (mine) then
               call rng_init(rng, cfg%control%seed, int(ib, i8))
               call tally_reset(tal, lay)
-              if (pg%on) call progress_batch_begin(pg, ib, ib_last)
+              call progress_batch_begin(pg, ib, ib_last)
             end if
             call trace_spectral_batch(spec, scene, lay, rng, nphot, tal, tal_g, error, &
                                       active=mine, pg=pg)
@@ -368,7 +366,7 @@ contains
         if (mod(s, nranks) == rank) then
           call rng_init(rng, cfg%control%seed, int(ib, i8))
           call tally_reset(tal, lay)
-          if (pg%on) call progress_batch_begin(pg, ib, ib_last)
+          call progress_batch_begin(pg, ib, ib_last)
           if (exact) then
             call exact_thermal_batch(scene, lay, nphot, tal, error)
             if (allocated(error)) return

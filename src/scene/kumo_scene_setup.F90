@@ -25,7 +25,9 @@ module kumo_scene_setup
                              LAYER_ABSORBING, LAYER_SCATTERING, voxel_storage_i, voxel_sync_i, &
                              similarity_tables, similarity_scale_1d, voxel_layer
   use kumo_std_atmosphere, only: std_atmosphere_profile
-  use kumo_gas_optics, only: gas_kdist_t, gas_default_vmr, gas_index
+  use kumo_gas_optics, only: gas_kdist_t, gas_default_vmr, gas_index, GRAVITY_STD, &
+                             MOLAR_MASS_DRY, MOLAR_MASS_H2O
+  use kumo_les_netcdf, only: R_DRY_AIR
   use kumo_rrtmgp_file, only: read_rrtmgp_kdist
   use kumo_spectral, only: spectral_column_t, spectral_sw_column, spectral_lw_column, &
                            spectral_plan_t, spectral_plan_init, spectral_batch_t
@@ -1250,9 +1252,6 @@ contains
     character(len=:), allocatable :: text
     real(wp), parameter :: SUPERSAT = 1.5_wp
     real(wp), parameter :: HYPSO_TOL = 0.25_wp
-    real(wp), parameter :: R_DRY = 287.047_wp       !! gas constant of dry air [J kg-1 K-1]
-    real(wp), parameter :: EPS_W = 18.0153_wp/28.9644_wp   !! M_w / M_d
-    real(wp), parameter :: G_STD = 9.80665_wp       !! standard gravity [m s-2]
     character(len=:), allocatable :: list
     real(wp) :: es, qs, worst, p0(1), t0(1), r0(1), dzh, ratio
     integer :: k, n
@@ -1310,7 +1309,8 @@ contains
     worst = 1.0_wp
     do k = 1, merge(size(play), 0, sounding)
       ! virtual temperature with h2o in mol/mol of dry air: T (1 + x) / (1 + x M_w / M_d)
-      dzh = R_DRY*tlay(k)*(1.0_wp + h2o(k))/(1.0_wp + EPS_W*h2o(k))/G_STD*log(plev(k - 1)/plev(k))
+      dzh = R_DRY_AIR*tlay(k)*(1.0_wp + h2o(k))/(1.0_wp + h2o(k)*MOLAR_MASS_H2O/MOLAR_MASS_DRY)/ &
+            GRAVITY_STD*log(plev(k - 1)/plev(k))
       ratio = (z(k) - z(k - 1))/dzh
       if (abs(ratio - 1.0_wp) <= HYPSO_TOL) cycle
       n = n + 1

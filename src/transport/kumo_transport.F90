@@ -102,12 +102,13 @@ contains
     type(pending_t) :: pend
     integer(i8) :: ip, look
     integer :: k
+    logical :: watch
 
     ! the photon at which to look at the clock next (never without progress lines)
+    watch = .false.
+    if (present(pg)) watch = pg%on
     look = huge(look)
-    if (present(pg)) then
-      if (pg%on) look = max(1_i8, pg%next_look - pg%base)
-    end if
+    if (watch) look = max(1_i8, pg%next_look - pg%base)
     ! Horizontal positions matter only for a 3-D region, an albedo map, per-column maps or
     ! cameras; a plane-parallel scene skips their bookkeeping in the 1-D layers.
     bat%track_xy = scn%atm%n3 > 0 .or. .not. scn%sfc%uniform .or. lay%do_maps .or. &
@@ -147,7 +148,7 @@ contains
         look = pg%next_look - pg%base
       end if
     end do
-    if (look < huge(look)) pg%base = pg%base + n_photons
+    if (watch) pg%base = pg%base + n_photons
     ! layers whose net power is absorbed minus emitted: their emission, exact, per batch
     if (bat%thermal) then
       if (scn%src%em%any_abs) then

@@ -33,7 +33,8 @@ the sun, Lambert or RPV surfaces, radiances, a camera, every preset and 3-D mode
   layer pressures at their levels), water vapour and ozone 0 to 1 mol/mol, CO2 0 to 1e-2, TSI
   1e-3 to 1e4 W m-2, floor shares 0 to 0.9, one g-point alone; gray layers, a scene file of
   gray voxels or an LES cloud file (liquid and ice, RRTMGP optics, the file's temperature,
-  pressure and water vapour); uniform, mapped or DSM surfaces;
+  pressure and water vapour); uniform, mapped or DSM surfaces; radiances in 1-3 directions
+  and a pinhole or orthographic camera now and then;
 * ``maps``: the layers above over an albedo map or a BRDF map (1-7 x 1-5 pixels of every kind,
   black, Lambert, DSM, RPV, LSRT, each pixel's parameters at the edges of their ranges, a
   wind speed for the slope variance, the other kinds' values missing or out of range), and in
@@ -388,8 +389,20 @@ def draw_broadband_case(rng):
         lines.append(draw_dsm_surface(rng, False)[0])
     lines.append(f"&kumo_source sza_deg = {fmt(rng.choice([0.0, 60.0, 89.0, 89.99]))}, "
                  f"phi0_deg = {fmt(rng.choice([0.0, 270.0]))} /")
-    if rng.random() < 0.05:    # not for broadband runs yet: refused
-        lines.append("&kumo_radiance rad_mu = 1.0 /")
+    if rng.random() < 0.4:
+        n_dir = rng.randint(1, 3)
+        lines.append("&kumo_radiance rad_mu = "
+                     + ", ".join(fmt(rng.choice([1.0, 0.5, 0.2, -0.5, -1.0])) for _ in range(n_dir))
+                     + ", rad_phi_deg = "
+                     + ", ".join(fmt(rng.choice([0.0, 90.0, 180.0])) for _ in range(n_dir)) + " /")
+    if rng.random() < 0.2:
+        lines.append(
+            "&kumo_camera n_cameras = 1, "
+            f"cam_kind(1) = '{rng.choice(['pinhole', 'orthographic'])}', cam_x(1) = 500.0, "
+            f"cam_y(1) = 500.0, cam_z(1) = {fmt(rng.choice([z[-1] + 10.0, 0.5 * z[-1]]))}, "
+            f"cam_look_zenith_deg(1) = {fmt(rng.choice([180.0, 120.0, 0.0]))}, "
+            f"cam_fov_deg(1) = {fmt(rng.choice([1.0, 60.0]))}, cam_width(1) = 1000.0, "
+            f"cam_npx(1) = {rng.choice([1, 4])}, cam_npy(1) = {rng.choice([1, 3])} /")
     lines.append(f"&kumo_vr vr_preset = '{rng.choice(['analog', 'unbiased', 'standard', 'quick'])}' /")
     lines.append("&kumo_output file = 'out.nc' /")
     return "\n".join(lines) + "\n", files

@@ -25,6 +25,7 @@ module kumo_atmosphere
   implicit none
   private
   public :: atmosphere_t, atmosphere_options_t, atmosphere_init, atmosphere_set_truncation
+  public :: atmosphere_refresh_truncation
   public :: similarity_blend_weight, similarity_tables, similarity_scale_1d
   public :: atmosphere_begin, atmosphere_put_layer, atmosphere_end, atmosphere_swap_background
   public :: EXT_MAX
@@ -1293,24 +1294,33 @@ contains
   subroutine atmosphere_set_truncation(atm, tr)
     type(atmosphere_t), intent(inout) :: atm
     type(truncation_t), intent(in) :: tr
-    integer :: k, l, ic, nc
-    real(wp) :: fbar, prev
     atm%trunc = tr
     atm%truncated = tr%n_levels > 1
+    if (allocated(atm%ext1_lev)) deallocate (atm%ext1_lev)
     allocate (atm%ext1_lev(atm%nz, tr%n_levels))
+    call atmosphere_refresh_truncation(atm)
+  end subroutine atmosphere_set_truncation
+
+  !> The truncated extinction of the 1-D layers again, after their optics changed (a broadband
+  !> run's switch to another g-point keeps the delta fractions, which belong to the phase
+  !> functions, but not the layers' mix of them).
+  subroutine atmosphere_refresh_truncation(atm)
+    type(atmosphere_t), intent(inout) :: atm
+    integer :: k, l, ic, nc
+    real(wp) :: fbar, prev
     nc = atm%ncomp1
-    do l = 1, tr%n_levels
+    do l = 1, atm%trunc%n_levels
       do k = 1, atm%nz
         fbar = 0.0_wp
         prev = 0.0_wp
         do ic = 1, nc
-          fbar = fbar + (atm%csca1(ic, k) - prev)*tr%f(l, atm%iph1(ic, k))
+          fbar = fbar + (atm%csca1(ic, k) - prev)*atm%trunc%f(l, atm%iph1(ic, k))
           prev = atm%csca1(ic, k)
         end do
         atm%ext1_lev(k, l) = atm%ext1(k)*(1.0_wp - atm%omg1(k)*fbar)
       end do
     end do
-  end subroutine atmosphere_set_truncation
+  end subroutine atmosphere_refresh_truncation
 
   !> Extinction of voxel (ix, iy) of 3-D layer kr [m-1]: its own, or its layer's where the voxel
   !> holds VOXEL_CLEAR (a voxel without voxel components after a background swap).

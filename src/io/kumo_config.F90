@@ -288,7 +288,7 @@ contains
     end if
   end subroutine consolidate
 
-  !> Broadband runs: what they do not combine with (yet), and F0 = the total solar irradiance
+  !> Broadband runs: what they do not combine with, and F0 = the total solar irradiance
   !> (the results are then in W m-2 with the usual normalisation by mu0 F0).
   subroutine spectral_checks(cfg, error)
     type(config_t), intent(inout) :: cfg
@@ -308,11 +308,6 @@ contains
                  str(cfg%source%wavelength_um)//' um)', error=error)
     call require(cfg%vr%use_1d_layers, CTX, 'spectral', rule='= .true. needs &kumo_vr '// &
                  'use_1d_layers = .true.', error=error)
-    call require(cfg%cam%n == 0, CTX, 'spectral', rule='= .true.: cameras are not available '// &
-                 'in broadband runs yet', error=error)
-    if (allocated(cfg%rad%mu)) call require(size(cfg%rad%mu) == 0, CTX, 'spectral', &
-                                            rule='= .true.: radiances are not available in '// &
-                                            'broadband runs yet', error=error)
     if (allocated(error)) return
     cfg%source%solar_flux = cfg%spectral%tsi
   end subroutine spectral_checks

@@ -323,7 +323,14 @@ contains
       call add_num_attr(set, 'events_per_photon', &
                         real(summary%events, dp)/real(max(1_i8, summary%n_photons), dp))
       call add_attr(set, 'layer_classes', classes())
-      call add_num_attr(set, 'collision_forcing_factor', real(scene%vr%cf_factor, dp))
+      if (cfg%spectral%enabled .and. scene%det%active .and. cfg%vr%cf_tau_min > 0.0_wp) then
+        ! broadband radiances: each g-point is forced by its own column
+        call add_attr(set, 'collision_forcing', 'per g-point: the factor cf_tau_min/(tau/mu0) '// &
+                      'of the g-point''s column optical depth tau, at least 1 (cf_tau_min = '// &
+                      str(cfg%vr%cf_tau_min)//')')
+      else
+        call add_num_attr(set, 'collision_forcing_factor', real(scene%vr%cf_factor, dp))
+      end if
       call add_num_attr(set, 'truncation_levels', real(atm%trunc%n_levels, dp))
       call add_attr(set, 'vr_preset', trim(cfg%vr%preset))
       call add_attr(set, 'mode_3d', trim(cfg%control%mode_3d))

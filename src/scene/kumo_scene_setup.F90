@@ -22,6 +22,7 @@ module kumo_scene_setup
   use kumo_atmosphere, only: atmosphere_t, atmosphere_options_t, atmosphere_init, EXT_MAX, &
                              atmosphere_begin, atmosphere_end, atmosphere_swap_background, &
                              atmosphere_set_truncation, atmosphere_put_layer, LAYER_CLEAR, &
+                             atmosphere_refresh_truncation, &
                              LAYER_ABSORBING, LAYER_SCATTERING, voxel_storage_i, voxel_sync_i, &
                              similarity_tables, similarity_scale_1d, voxel_layer
   use kumo_std_atmosphere, only: std_atmosphere_profile
@@ -168,6 +169,16 @@ module kumo_scene_setup
     !> alone forms at every g-point switch (node_voxels, node_table); the ranks of a node then
     !> switch together
     logical :: node = .false.
+    !> radiances and cameras (setup_scene, once the detectors exist): the truncation of the
+    !> forward peaks, which a switch puts back into an atmosphere built anew and refreshes in
+    !> the layers; collision forcing per g-point (cf, 0 until the first switch to it, from the
+    !> g-point's own column); the isotropic phase function of emission's local estimates
+    logical :: truncated = .false.
+    type(truncation_t) :: trunc
+    logical :: forcing = .false.
+    real(wp) :: cf_tau_min = 0.0_wp
+    real(wp), allocatable :: cf(:)
+    integer :: iph_iso = 0
   end type spectral_scene_t
 
 contains
@@ -511,6 +522,13 @@ contains
     end if
     if (present(spec)) then
       if (spec%longwave) then
+        if (allocated(cfg%rad%mu) .or. cfg%cam%n > 0) then
+          ! emission seen by the detectors: an isotropic phase function for its local
+          ! estimates, in every atmosphere a g-point switch builds
+          scene%atm%phases = [scene%atm%phases, new_phase_isotropic()]
+          if (allocated(spec%phases)) spec%phases = [spec%phases, new_phase_isotropic()]
+          spec%iph_iso = size(scene%atm%phases)
+        end if
         call setup_spectral_emission(cfg, scene, spec, error)
         if (allocated(error)) return
       end if
@@ -534,6 +552,16 @@ contains
     call setup_estimators(cfg, scene, error)
     if (allocated(error)) return
     if (present(spec)) then
+      if (spec%on .and. scene%det%active) then
+        ! what the detectors set up in the atmosphere of the set-up's g-point, for every other
+        spec%truncated = scene%atm%truncated
+        if (spec%truncated) spec%trunc = scene%atm%trunc
+        spec%forcing = cfg%vr%cf_tau_min > 0.0_wp
+        spec%cf_tau_min = cfg%vr%cf_tau_min
+        allocate (spec%cf(spec%n_gpt))
+        spec%cf = 0.0_wp
+        scene%src%em%iph_iso = spec%iph_iso
+      end if
       if (spec%longwave) then
         ! a longwave column that scatters at no g-point: exact sums over the g-points
         spec%exact = cfg%vr%use_exact_thermal .and. exact_thermal_possible(scene) .and. &
@@ -1558,6 +1586,20 @@ contains
     type(error_t), allocatable, intent(out) :: error
     call spectral_set_optics(spec, g, scene%atm, error)
     if (allocated(error)) return
+    if (spec%truncated) then
+      ! the delta fractions stay; an atmosphere built anew gets them back, the layers' mix of
+      ! them follows the g-point's optics
+      if (scene%atm%truncated .and. allocated(scene%atm%ext1_lev)) then
+        call atmosphere_refresh_truncation(scene%atm)
+      else
+        call atmosphere_set_truncation(scene%atm, spec%trunc)
+      end if
+    end if
+    if (spec%forcing) then
+      if (spec%cf(g) <= 0.0_wp) spec%cf(g) = collision_forcing(scene%atm, scene%mu0, &
+                                                               spec%cf_tau_min)
+      scene%vr%cf_factor = spec%cf(g)
+    end if
     if (.not. spec%longwave) return
     if (allocated(spec%em)) then
       scene%src%em = spec%em(g)
@@ -1565,6 +1607,7 @@ contains
     else
       call gpoint_emission(spec, g, scene, scene%src%em, error)
     end if
+    scene%src%em%iph_iso = spec%iph_iso
   end subroutine spectral_set_gpoint
 
   !> The optics of g-point g in the atmosphere (see spectral_set_gpoint).

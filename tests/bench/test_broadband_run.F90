@@ -29,6 +29,11 @@
 !> homogeneous) gives the 1-D references, shortwave and longwave; a longwave scene file with
 !> voxel temperatures is refused.
 !>
+!> Radiances (radiance_reference.txt of the same folder, made by
+!> bench/broadband/make_radiance_reference.py): the clear column's at the top and the surface in
+!> 11 shortwave and 6 longwave directions, shortwave with the standard preset and an orthographic
+!> camera, longwave exact and traced.
+!>
 !> Arguments: the folder of the k-distribution files (KUMO_RRTMGP_DIR) and the shortwave
 !> reference file (the other references are read from its folder). The namelists are written
 !> into the working directory.
@@ -64,6 +69,17 @@ module test_broadband_run_suite
     real(dp), allocatable :: heat(:, :)             !! (nz, 2) K/day and its error
   end type case_t
 
+  !> The standard preset's documented bias of truncated radiances for |mu| >= 0.5 (about 0.5 %,
+  !> docs/radiances.md), as a relative allowance
+  real(dp), parameter :: TRUNC_BOUND = 0.006_dp
+
+  !> Radiances of radiance_reference.txt [W m-2 sr-1]: level, direction (mu, azimuth relative
+  !> to the beam's), value and the reference's error.
+  type :: rad_ref_t
+    integer, allocatable :: lev(:)
+    real(dp), allocatable :: mu(:), phi(:), val(:), err(:)
+  end type rad_ref_t
+
 contains
 
   function collect_broadband_run() result(tests)
@@ -91,7 +107,10 @@ contains
              new_unittest('lw_gas_constants', test_gas_constants), &
              new_unittest('cloud_file_without_water_refused', test_cloud_optics_refused), &
              new_unittest('bad_inputs', test_bad_inputs), &
-             new_unittest('gas_column_warnings', test_gas_warnings)]
+             new_unittest('gas_column_warnings', test_gas_warnings), &
+             new_unittest('sw_radiances_camera_vs_disort', test_sw_radiances), &
+             new_unittest('lw_radiances_exact_vs_disort', test_lw_radiances_exact), &
+             new_unittest('lw_radiances_traced_vs_disort', test_lw_radiances_traced)]
   end function collect_broadband_run
 
   !> One column of the reference file: its sounding as written (levels: p, T; layers: p, T,
@@ -623,17 +642,23 @@ contains
                            'broadband longwave', 'broadband_lw_3d_t.nc'])
   end subroutine test_lw_3d_temperatures
 
-  subroutine homogeneous_3d(file, stem, n_batches, n_photons, error)
+  subroutine homogeneous_3d(file, stem, n_batches, n_photons, error, rad)
     character(len=*), intent(in) :: file, stem
     integer, intent(in) :: n_batches, n_photons
     type(error_t), allocatable, intent(out) :: error
+    !> radiances of the cloudy column to ask for and compare (the standard preset)
+    type(rad_ref_t), intent(in), optional :: rad
     type(case_t) :: c
     type(result_set_t) :: set
     type(run_summary_t) :: summary
     real(dp) :: ext(3, 2, 1, 1), ssa(3, 2, 1, 1)
     integer :: iph(3, 2, 1, 1), kc
+    character(len=:), allocatable :: extra
     call read_case('us1976_cloud', c, error, file)
     if (allocated(error)) return
+    extra = ''
+    if (present(rad)) extra = new_line('a')//radiance_groups(rad)//new_line('a')// &
+                              '&kumo_vr vr_preset = ''standard'' /'
     kc = nint(c%cloud(1))
     ext = c%cloud(2)/1000.0_dp                    ! layer 3 is 1 km thick
     ssa = c%cloud(3)
@@ -646,10 +671,14 @@ contains
                    '  ny = 2'//new_line('a')//'  nz3 = 1'//new_line('a')//'  k3d_bottom = '// &
                    str(kc)//new_line('a')//'  lx = 3000.0'//new_line('a')//'  ly = 2000.0', &
                    groups='&kumo_phase'//new_line('a')//'  phase_kind = ''hg'''//new_line('a')// &
-                   '  phase_g = '//str(c%cloud(4))//new_line('a')//'/', n_photons=n_photons)
+                   '  phase_g = '//str(c%cloud(4))//new_line('a')//'/'//extra, n_photons=n_photons)
     call run(stem//'.nml', set, summary, error)
     if (allocated(error)) return
-    call compare(set, summary, c, error, huge(1), 1.0_dp)
+    if (present(rad)) then
+      call compare_radiances(set, summary, rad, c%nz, 4.0_dp, TRUNC_BOUND, error)
+    else
+      call compare(set, summary, c, error, huge(1), 1.0_dp)
+    end if
   end subroutine homogeneous_3d
 
   !> A cloud file (an I3RC LWC file of 3 x 2 equal columns in layer 3) whose optics change
@@ -961,6 +990,202 @@ contains
       if (allocated(error)) return
     end do
   end subroutine test_lw_single_gpoint
+
+  !> Broadband shortwave radiances of the clear U.S. Standard column (standard preset, with
+  !> collision forcing per g-point), at the top and at the surface in the directions of
+  !> radiance_reference.txt, within 4 sigma plus the reference's error; and the one pixel of an
+  !> orthographic camera looking straight down from the top over the whole (periodic) domain of
+  !> 1 km, which sees the nadir radiance there.
+  subroutine test_sw_radiances(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(case_t) :: c
+    type(rad_ref_t) :: r
+    type(result_set_t) :: set
+    type(run_summary_t) :: summary
+    integer :: icam
+    real(dp) :: m, s
+    call read_case('us1976', c, error)
+    if (allocated(error)) return
+    call read_radiances('us1976', .false., r, error)
+    if (allocated(error)) return
+    call write_nml('sw_radiances.nml', c, '  floor_share = 0.2', '', 40, &
+                   groups=radiance_groups(r)//new_line('a')// &
+                   '&kumo_camera n_cameras = 1, cam_kind(1) = ''orthographic'', '// &
+                   'cam_x(1) = 500.0, cam_y(1) = 500.0, cam_z(1) = 80000.0, '// &
+                   'cam_look_zenith_deg(1) = 180.0, cam_width(1) = 1000.0, '// &
+                   'cam_npx(1) = 1, cam_npy(1) = 1 /'//new_line('a')// &
+                   '&kumo_vr vr_preset = ''standard'' /')
+    call run('sw_radiances.nml', set, summary, error)
+    if (allocated(error)) return
+    call compare_radiances(set, summary, r, c%nz, 4.0_dp, 0.0_dp, error)
+    if (allocated(error)) return
+    icam = var(set, 'camera1_radiance_wm2sr', error)
+    if (allocated(error)) return
+    m = set%vars(icam)%mean(1)
+    s = set%vars(icam)%stderr(1)
+    write (*, '(a, f0.4, a, f0.4, a, f0.4, a)') '    camera pixel ', m, ' +- ', s, &
+      ' W m-2 sr-1 (DISORT nadir at the top ', r%val(1), ')'
+    call check(error, r%lev(1) == c%nz .and. r%mu(1) == 1, 'the first reference direction '// &
+               'is not nadir at the top')
+    if (allocated(error)) return
+    call check_sigma(error, m, r%val(1), s, 4.0_dp, 'camera pixel looking down from the top', &
+                     abs_floor=r%err(1))
+  end subroutine test_sw_radiances
+
+  !> Broadband longwave radiances of the clear U.S. Standard column, which scatters nowhere: the
+  !> exact sum over g-points (standard error 0) within the reference's error plus 1e-6.
+  subroutine test_lw_radiances_exact(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(case_t) :: c
+    type(rad_ref_t) :: r
+    type(result_set_t) :: set
+    type(run_summary_t) :: summary
+    call read_case('us1976', c, error, 'lw_gpoint_reference.txt')
+    if (allocated(error)) return
+    call read_radiances('us1976', .true., r, error)
+    if (allocated(error)) return
+    call write_nml('lw_radiances_exact.nml', c, '', '', 3, groups=radiance_groups(r), n_photons=100)
+    call run('lw_radiances_exact.nml', set, summary, error)
+    if (allocated(error)) return
+    call compare_radiances(set, summary, r, c%nz, 0.0_dp, 1.0e-6_dp, error)
+  end subroutine test_lw_radiances_exact
+
+  !> The same longwave radiances traced with photons (use_exact_thermal = .false.): emission by
+  !> the layers seen through the isotropic local estimate of each g-point, the surface's through
+  !> its own; within 4.5 sigma plus the reference's error.
+  subroutine test_lw_radiances_traced(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(case_t) :: c
+    type(rad_ref_t) :: r
+    type(result_set_t) :: set
+    type(run_summary_t) :: summary
+    call read_case('us1976', c, error, 'lw_gpoint_reference.txt')
+    if (allocated(error)) return
+    call read_radiances('us1976', .true., r, error)
+    if (allocated(error)) return
+    call write_nml('lw_radiances_traced.nml', c, '  floor_share = 0.2', '', 200, &
+                   groups=radiance_groups(r)//new_line('a')//'&kumo_vr use_exact_thermal = '// &
+                   '.false. /', n_photons=40000)
+    call run('lw_radiances_traced.nml', set, summary, error)
+    if (allocated(error)) return
+    call compare_radiances(set, summary, r, c%nz, 4.5_dp, 0.0_dp, error)
+  end subroutine test_lw_radiances_traced
+
+  !> The radiances of one column and band of radiance_reference.txt (with `mu_min`, only the
+  !> directions with |mu| >= mu_min).
+  subroutine read_radiances(name, lw, r, error, mu_min)
+    character(len=*), intent(in) :: name
+    logical, intent(in) :: lw
+    type(rad_ref_t), intent(out) :: r
+    type(error_t), allocatable, intent(out) :: error
+    real(dp), intent(in), optional :: mu_min
+    character(len=512) :: line
+    character(len=32) :: key, w
+    real(dp) :: x(6)
+    integer :: u, ios, n
+    logical :: on
+    open (newunit=u, file=ref_dir//'radiance_reference.txt', status='old', action='read', &
+          iostat=ios)
+    call check(error, ios == 0, 'cannot open '//ref_dir//'radiance_reference.txt')
+    if (allocated(error)) return
+    allocate (r%lev(0), r%mu(0), r%phi(0), r%val(0), r%err(0))
+    on = .false.
+    do
+      read (u, '(a)', iostat=ios) line
+      if (ios /= 0) exit
+      if (len_trim(line) == 0 .or. line(1:1) == '#') cycle
+      read (line, *) key
+      if (trim(key) == 'case') then
+        read (line, *) key, w
+        on = trim(w) == name
+      end if
+      if (.not. on) cycle
+      if (trim(key) == 'sw_radiance' .and. .not. lw) then
+        read (line, *) key, x(1:6)
+        call add(x(1), x(2), x(3), x(5), x(6))
+      else if (trim(key) == 'lw_radiance' .and. lw) then
+        read (line, *) key, x(1:4)
+        call add(x(1), x(2), 0.0_dp, x(3), x(4))
+      end if
+    end do
+    close (u)
+    n = size(r%val)
+    call check(error, n > 0, 'no radiances of '//name//' in radiance_reference.txt')
+  contains
+    subroutine add(lev, mu, phi, val, err)
+      real(dp), intent(in) :: lev, mu, phi, val, err
+      if (present(mu_min)) then
+        if (abs(mu) < mu_min) return
+      end if
+      r%lev = [r%lev, nint(lev)]
+      r%mu = [r%mu, mu]
+      r%phi = [r%phi, phi]
+      r%val = [r%val, val]
+      r%err = [r%err, err]
+    end subroutine add
+  end subroutine read_radiances
+
+  !> &kumo_radiance with the reference's directions (each at every level: top and surface). The
+  !> reference's azimuths are relative to the beam's, which travels towards phi0_deg = 0.
+  function radiance_groups(r) result(text)
+    type(rad_ref_t), intent(in) :: r
+    character(len=:), allocatable :: text
+    character(len=32) :: buf
+    integer :: i
+    text = '&kumo_radiance'//new_line('a')//'  rad_mu = '
+    do i = 1, size(r%mu)
+      write (buf, '(f0.6)') r%mu(i)
+      text = text//trim(buf)//merge(', ', '  ', i < size(r%mu))
+    end do
+    text = text//new_line('a')//'  rad_phi_deg = '
+    do i = 1, size(r%mu)
+      write (buf, '(f0.6)') r%phi(i)
+      text = text//trim(buf)//merge(', ', '  ', i < size(r%mu))
+    end do
+    text = text//new_line('a')//'/'
+  end function radiance_groups
+
+  !> Every reference radiance against radiance_wm2sr of its direction and level (rad_levels
+  !> 0 and nz), within k sigma plus the reference's error plus `rel` of its value.
+  subroutine compare_radiances(set, summary, r, nz, k_sigma, rel, error)
+    type(result_set_t), intent(in) :: set
+    type(run_summary_t), intent(in) :: summary
+    type(rad_ref_t), intent(in) :: r
+    integer, intent(in) :: nz
+    real(dp), intent(in) :: k_sigma, rel
+    type(error_t), allocatable, intent(inout) :: error
+    integer :: ir, i, j, l
+    real(dp) :: m, s, worst
+    character(len=:), allocatable :: label, where
+    ir = var(set, 'radiance_wm2sr', error)
+    if (allocated(error)) return
+    ! radiance_wm2sr(rad_level, direction): levels 0 and nz, the level varying fastest
+    call check(error, size(set%vars(ir)%mean) == 2*size(r%val), 'radiance_wm2sr has '// &
+               str(size(set%vars(ir)%mean))//' values, not 2 levels x '//str(size(r%val)))
+    if (allocated(error)) return
+    worst = 0
+    where = ''
+    do i = 1, size(r%val)
+      l = merge(2, 1, r%lev(i) == nz)
+      j = (i - 1)*2 + l
+      m = set%vars(ir)%mean(j)
+      s = set%vars(ir)%stderr(j)
+      label = 'radiance at level '//str(r%lev(i))//', mu '//str(r%mu(i))//', azimuth '// &
+              str(r%phi(i))
+      call check_sigma(error, m, r%val(i), s, k_sigma, label, abs_floor=r%err(i) + &
+                       rel*abs(r%val(i)))
+      if (s > 0) then
+        if (abs(m - r%val(i))/s > worst) then
+          worst = abs(m - r%val(i))/s
+          where = label
+        end if
+      end if
+    end do
+    write (*, '(a, f0.4, a, f0.4, a, f0.4, a)') '    nadir at the top ', set%vars(ir)%mean(2), &
+      ' +- ', set%vars(ir)%stderr(2), ' W m-2 sr-1 (DISORT ', r%val(1), ')'
+    write (*, '(a, f0.2, a, f0.3, a)') '    largest deviation ', worst, ' sigma ('//where//'); ', &
+      summary%wall_time, ' s'
+  end subroutine compare_radiances
 
   !> energy_closure of a run is 1 to 1e-9.
   subroutine check_closure(set, error)

@@ -32,7 +32,9 @@
 !> Radiances (radiance_reference.txt of the same folder, made by
 !> bench/broadband/make_radiance_reference.py): the clear column's at the top and the surface in
 !> 11 shortwave and 6 longwave directions, shortwave with the standard preset and an orthographic
-!> camera, longwave exact and traced.
+!> camera, longwave exact and traced. The truncation of the radiance presets follows every
+!> g-point: the truncated extinction of the layers is that of the g-point's optics, and an
+!> atmosphere built anew at a switch (a scene file) has its truncation back.
 !>
 !> Arguments: the folder of the k-distribution files (KUMO_RRTMGP_DIR) and the shortwave
 !> reference file (the other references are read from its folder). The namelists are written
@@ -44,7 +46,8 @@ module test_broadband_run_suite
   use kumo_results, only: result_set_t
   use kumo_netcdf, only: write_scene_3d
   use kumo_driver, only: simulate, run_summary_t
-  use kumo_scene_setup, only: load_config
+  use kumo_scene_setup, only: load_config, setup_scene, spectral_scene_t, spectral_set_gpoint
+  use kumo_scene, only: scene_t
   use kumo_testing, only: error_t, unittest_t, new_unittest, check, check_sigma, check_error_words
   use netcdf, only: nf90_create, nf90_def_dim, nf90_def_var, nf90_put_att, nf90_enddef, &
                     nf90_put_var, nf90_close, nf90_strerror, NF90_CLOBBER, NF90_DOUBLE, NF90_NOERR
@@ -68,10 +71,6 @@ module test_broadband_run_suite
     real(dp), allocatable :: bb(:, :)               !! (0:nz, 5) up, dif, dir, their errors
     real(dp), allocatable :: heat(:, :)             !! (nz, 2) K/day and its error
   end type case_t
-
-  !> The standard preset's documented bias of truncated radiances for |mu| >= 0.5 (about 0.5 %,
-  !> docs/radiances.md), as a relative allowance
-  real(dp), parameter :: TRUNC_BOUND = 0.006_dp
 
   !> Radiances of radiance_reference.txt [W m-2 sr-1]: level, direction (mu, azimuth relative
   !> to the beam's), value and the reference's error.
@@ -110,7 +109,8 @@ contains
              new_unittest('gas_column_warnings', test_gas_warnings), &
              new_unittest('sw_radiances_camera_vs_disort', test_sw_radiances), &
              new_unittest('lw_radiances_exact_vs_disort', test_lw_radiances_exact), &
-             new_unittest('lw_radiances_traced_vs_disort', test_lw_radiances_traced)]
+             new_unittest('lw_radiances_traced_vs_disort', test_lw_radiances_traced), &
+             new_unittest('truncation_follows_gpoints', test_truncation_gpoints)]
   end function collect_broadband_run
 
   !> One column of the reference file: its sounding as written (levels: p, T; layers: p, T,
@@ -132,11 +132,7 @@ contains
     open (newunit=u, file=path, status='old', action='read', iostat=ios)
     call check(error, ios == 0, 'cannot open '//path)
     if (allocated(error)) return
-    do
-      read (u, '(a)', iostat=ios) line
-      if (ios /= 0) exit
-      if (len_trim(line) == 0 .or. line(1:1) == '#') cycle
-      read (line, *) key
+    do while (next_entry(u, line, key))
       if (trim(key) == 'case') then
         read (line, *) key, w(1), w(2), c%nz
         on = trim(w(1)) == name
@@ -176,6 +172,23 @@ contains
     close (u)
     call check(error, allocated(c%bb), 'no column '//name//' in '//path)
   end subroutine read_case
+
+  !> The next line of a reference file that is neither empty nor a comment, and its first word;
+  !> .false. at the end of the file.
+  logical function next_entry(u, line, key) result(found)
+    integer, intent(in) :: u
+    character(len=*), intent(out) :: line, key
+    integer :: ios
+    found = .false.
+    do
+      read (u, '(a)', iostat=ios) line
+      if (ios /= 0) return
+      if (len_trim(line) == 0 .or. line(1:1) == '#') cycle
+      read (line, *) key
+      found = .true.
+      return
+    end do
+  end function next_entry
 
   !> Write a namelist of column `c` (us1976: the standard atmosphere by name, levels as in the
   !> reference; else its sounding on 1 km layers) with `spectral_lines` added to &kumo_spectral,
@@ -642,44 +655,46 @@ contains
                            'broadband longwave', 'broadband_lw_3d_t.nc'])
   end subroutine test_lw_3d_temperatures
 
-  subroutine homogeneous_3d(file, stem, n_batches, n_photons, error, rad)
+  subroutine homogeneous_3d(file, stem, n_batches, n_photons, error)
     character(len=*), intent(in) :: file, stem
     integer, intent(in) :: n_batches, n_photons
     type(error_t), allocatable, intent(out) :: error
-    !> radiances of the cloudy column to ask for and compare (the standard preset)
-    type(rad_ref_t), intent(in), optional :: rad
     type(case_t) :: c
     type(result_set_t) :: set
     type(run_summary_t) :: summary
-    real(dp) :: ext(3, 2, 1, 1), ssa(3, 2, 1, 1)
-    integer :: iph(3, 2, 1, 1), kc
-    character(len=:), allocatable :: extra
     call read_case('us1976_cloud', c, error, file)
     if (allocated(error)) return
-    extra = ''
-    if (present(rad)) extra = new_line('a')//radiance_groups(rad)//new_line('a')// &
-                              '&kumo_vr vr_preset = ''standard'' /'
+    call homogeneous_scene(stem, c, '', n_batches, n_photons)
+    call run(stem//'.nml', set, summary, error)
+    if (allocated(error)) return
+    call compare(set, summary, c, error, huge(1), 1.0_dp)
+  end subroutine homogeneous_3d
+
+  !> Namelist `stem`.nml and scene file `stem`.nc of cloudy column `c` with its cloud layer as a
+  !> 3-D region of 3 x 2 equal voxels (nothing in the 1-D layers there); `groups` appended.
+  subroutine homogeneous_scene(stem, c, groups, n_batches, n_photons)
+    character(len=*), intent(in) :: stem, groups
+    type(case_t), intent(in) :: c
+    integer, intent(in) :: n_batches, n_photons
+    type(case_t) :: c1
+    type(error_t), allocatable :: err
+    real(dp) :: ext(3, 2, 1, 1), ssa(3, 2, 1, 1)
+    integer :: iph(3, 2, 1, 1), kc
+    c1 = c
     kc = nint(c%cloud(1))
     ext = c%cloud(2)/1000.0_dp                    ! layer 3 is 1 km thick
     ssa = c%cloud(3)
     iph = 1
-    call write_scene_3d(stem//'.nc', ext, ssa, iph, error)
-    if (allocated(error)) return
-    c%cloud(1) = 0                                ! not in the 1-D layers: in the voxels
-    call write_nml(stem//'.nml', c, '  floor_share = 0.2', '', n_batches, &
+    call write_scene_3d(stem//'.nc', ext, ssa, iph, err)
+    c1%cloud(1) = 0                               ! not in the 1-D layers: in the voxels
+    call write_nml(stem//'.nml', c1, '  floor_share = 0.2', '', n_batches, &
                    '  scene_file = '''//stem//'.nc'''//new_line('a')//'  nx = 3'//new_line('a')// &
                    '  ny = 2'//new_line('a')//'  nz3 = 1'//new_line('a')//'  k3d_bottom = '// &
                    str(kc)//new_line('a')//'  lx = 3000.0'//new_line('a')//'  ly = 2000.0', &
                    groups='&kumo_phase'//new_line('a')//'  phase_kind = ''hg'''//new_line('a')// &
-                   '  phase_g = '//str(c%cloud(4))//new_line('a')//'/'//extra, n_photons=n_photons)
-    call run(stem//'.nml', set, summary, error)
-    if (allocated(error)) return
-    if (present(rad)) then
-      call compare_radiances(set, summary, rad, c%nz, 4.0_dp, TRUNC_BOUND, error)
-    else
-      call compare(set, summary, c, error, huge(1), 1.0_dp)
-    end if
-  end subroutine homogeneous_3d
+                   '  phase_g = '//str(c%cloud(4))//new_line('a')//'/'//new_line('a')//groups, &
+                   n_photons=n_photons)
+  end subroutine homogeneous_scene
 
   !> A cloud file (an I3RC LWC file of 3 x 2 equal columns in layer 3) whose optics change
   !> from band to band: RRTMGP's liquid table (liquid_optics = 'rrtmgp'), against the summed
@@ -903,7 +918,7 @@ contains
     real(dp), allocatable :: f(:), up(:, :), dn(:, :)
     character(len=8192) :: line
     character(len=32) :: key, w(2)
-    integer :: u, ios, idx, g, k, nz, iu, idif, idir
+    integer :: u, idx, g, k, nz, iu, idif, idir
     logical :: on
     real(dp) :: src, floor, worst
     call read_case('us1976', c, error)
@@ -912,11 +927,7 @@ contains
     ! the per-g-point lines of the column
     open (newunit=u, file=reference_file, status='old', action='read')
     on = .false.
-    do
-      read (u, '(a)', iostat=ios) line
-      if (ios /= 0) exit
-      if (len_trim(line) == 0 .or. line(1:1) == '#') cycle
-      read (line, *) key
+    do while (next_entry(u, line, key))
       if (trim(key) == 'case') then
         read (line, *) key, w(1), w(2), k, k, g
         on = trim(w(1)) == 'us1976'
@@ -1036,18 +1047,8 @@ contains
   !> exact sum over g-points (standard error 0) within the reference's error plus 1e-6.
   subroutine test_lw_radiances_exact(error)
     type(error_t), allocatable, intent(out) :: error
-    type(case_t) :: c
-    type(rad_ref_t) :: r
-    type(result_set_t) :: set
-    type(run_summary_t) :: summary
-    call read_case('us1976', c, error, 'lw_gpoint_reference.txt')
-    if (allocated(error)) return
-    call read_radiances('us1976', .true., r, error)
-    if (allocated(error)) return
-    call write_nml('lw_radiances_exact.nml', c, '', '', 3, groups=radiance_groups(r), n_photons=100)
-    call run('lw_radiances_exact.nml', set, summary, error)
-    if (allocated(error)) return
-    call compare_radiances(set, summary, r, c%nz, 0.0_dp, 1.0e-6_dp, error)
+    call radiance_run('us1976', 'lw_gpoint_reference.txt', .true., 'lw_radiances_exact', '', 3, &
+                      100, '', 0.0_dp, 1.0e-6_dp, error)
   end subroutine test_lw_radiances_exact
 
   !> The same longwave radiances traced with photons (use_exact_thermal = .false.): emission by
@@ -1055,21 +1056,134 @@ contains
   !> its own; within 4.5 sigma plus the reference's error.
   subroutine test_lw_radiances_traced(error)
     type(error_t), allocatable, intent(out) :: error
+    call radiance_run('us1976', 'lw_gpoint_reference.txt', .true., 'lw_radiances_traced', &
+                      '  floor_share = 0.2', 200, 40000, '&kumo_vr use_exact_thermal = .false. /', &
+                      4.5_dp, 0.0_dp, error)
+  end subroutine test_lw_radiances_traced
+
+  !> The standard preset truncates the forward peak of the cloudy column's Henyey-Greenstein
+  !> cloud (g = 0.85); the local estimates see the layers through their truncated extinction
+  !> sigma (1 - omega f), f the scattering-weighted delta fraction of the layer's components
+  !> (seed text eq. 4.2.20). After a switch to each of several g-points that extinction must be
+  !> the g-point's own (the gas and Rayleigh of the set-up's g-point left in place would make
+  !> the cloud layer's differ by the g-point's gas), and each g-point is forced by its own
+  !> column; the same cloud as a scene file, whose atmosphere a switch builds anew, keeps its
+  !> truncation.
+  subroutine test_truncation_gpoints(error)
+    type(error_t), allocatable, intent(out) :: error
+    type(case_t) :: c
+    type(config_t) :: cfg
+    type(scene_t) :: scene
+    type(spectral_scene_t) :: spec
+    type(error_t), allocatable :: err
+    integer :: g, k, l, ic, it, nz
+    real(dp) :: fbar, prev, want, tau, seen(2)
+    character(len=:), allocatable :: groups
+    integer, parameter :: GPTS(4) = [1, 30, 72, 112]
+    call read_case('us1976_cloud', c, error, 'sw_cloudy_reference.txt')
+    if (allocated(error)) return
+    nz = c%nz
+    groups = '&kumo_radiance rad_mu = 1.0, 0.5 /'//new_line('a')//'&kumo_vr vr_preset = '// &
+             '''standard'' /'
+    call write_nml('trunc_gpoints.nml', c, '  floor_share = 0.2', '', 2, groups=groups, &
+                   n_photons=100)
+    call load_config('trunc_gpoints.nml', cfg, err)
+    if (.not. allocated(err)) call setup_scene(cfg, scene, err, spec)
+    if (allocated(err)) then
+      call check(error, .false., err%message)
+      return
+    end if
+    call check(error, spec%truncated .and. spec%forcing .and. scene%atm%truncated, &
+               'the standard preset set up no truncation or forcing for the broadband run')
+    if (allocated(error)) return
+    seen = 0
+    do it = 1, size(GPTS)
+      g = GPTS(it)
+      call spectral_set_gpoint(spec, g, scene, err)
+      if (allocated(err)) then
+        call check(error, .false., err%message)
+        return
+      end if
+      associate (atm => scene%atm)
+        tau = 0
+        do k = 1, nz
+          tau = tau + atm%ext1(k)*(atm%z(k) - atm%z(k - 1))
+          do l = 1, atm%trunc%n_levels
+            fbar = 0
+            prev = 0
+            do ic = 1, atm%ncomp1
+              fbar = fbar + (atm%csca1(ic, k) - prev)*atm%trunc%f(l, atm%iph1(ic, k))
+              prev = atm%csca1(ic, k)
+            end do
+            want = atm%ext1(k)*(1 - atm%omg1(k)*fbar)
+            call check(error, abs(atm%ext1_lev(k, l) - want) <= 1.0e-12_dp*atm%ext1(k), &
+                       'g-point '//str(g)//', layer '//str(k)//', level '//str(l)// &
+                       ': truncated extinction '//str(atm%ext1_lev(k, l))//' is not that of '// &
+                       'the g-point''s optics, '//str(want))
+            if (allocated(error)) return
+          end do
+        end do
+        if (g == 1) seen(1) = atm%ext1_lev(3, atm%trunc%n_levels)
+        if (g == 72) seen(2) = atm%ext1_lev(3, atm%trunc%n_levels)
+        want = max(1.0_dp, cfg%vr%cf_tau_min*scene%mu0/tau)
+        call check(error, abs(scene%vr%cf_factor - want) <= 1.0e-9_dp*want, 'g-point '// &
+                   str(g)//': collision forcing factor '//str(scene%vr%cf_factor)//', not '// &
+                   'that of its own column, '//str(want))
+        if (allocated(error)) return
+      end associate
+    end do
+    call check(error, abs(seen(1) - seen(2)) > 1.0e-6_dp*seen(1), 'the cloud layer''s '// &
+               'truncated extinction is the same at g-points 1 and 72: the test does not tell '// &
+               'the g-points apart')
+    if (allocated(error)) return
+    ! a scene file: the atmosphere is built anew at every switch
+    call homogeneous_scene('trunc_gpoints_3d', c, groups, 2, 100)
+    call load_config('trunc_gpoints_3d.nml', cfg, err)
+    if (.not. allocated(err)) call setup_scene(cfg, scene, err, spec)
+    if (allocated(err)) then
+      call check(error, .false., err%message)
+      return
+    end if
+    do it = 1, size(GPTS)
+      call spectral_set_gpoint(spec, GPTS(it), scene, err)
+      if (allocated(err)) then
+        call check(error, .false., err%message)
+        return
+      end if
+      call check(error, scene%atm%truncated .and. allocated(scene%atm%ext1_lev), 'g-point '// &
+                 str(GPTS(it))//': the atmosphere built anew lost its truncation')
+      if (allocated(error)) return
+      call check(error, all(scene%atm%trunc%f == spec%trunc%f), 'g-point '//str(GPTS(it))// &
+                 ': the delta fractions changed')
+      if (allocated(error)) return
+    end do
+  end subroutine test_truncation_gpoints
+
+  !> Run column `name` of reference file `file` (in the folder of the references) as namelist
+  !> `stem`.nml with the radiances of radiance_reference.txt (with `mu_min`, those with |mu| >=
+  !> mu_min) and `extra` groups, and compare them (compare_radiances).
+  subroutine radiance_run(name, file, lw, stem, spectral_lines, n_batches, n_photons, extra, &
+                          k_sigma, rel, error, mu_min)
+    character(len=*), intent(in) :: name, file, stem, spectral_lines, extra
+    logical, intent(in) :: lw
+    integer, intent(in) :: n_batches, n_photons
+    real(dp), intent(in) :: k_sigma, rel
+    type(error_t), allocatable, intent(out) :: error
+    real(dp), intent(in), optional :: mu_min
     type(case_t) :: c
     type(rad_ref_t) :: r
     type(result_set_t) :: set
     type(run_summary_t) :: summary
-    call read_case('us1976', c, error, 'lw_gpoint_reference.txt')
+    call read_case(name, c, error, file)
     if (allocated(error)) return
-    call read_radiances('us1976', .true., r, error)
+    call read_radiances(name, lw, r, error, mu_min)
     if (allocated(error)) return
-    call write_nml('lw_radiances_traced.nml', c, '  floor_share = 0.2', '', 200, &
-                   groups=radiance_groups(r)//new_line('a')//'&kumo_vr use_exact_thermal = '// &
-                   '.false. /', n_photons=40000)
-    call run('lw_radiances_traced.nml', set, summary, error)
+    call write_nml(stem//'.nml', c, spectral_lines, '', n_batches, &
+                   groups=radiance_groups(r)//new_line('a')//extra, n_photons=n_photons)
+    call run(stem//'.nml', set, summary, error)
     if (allocated(error)) return
-    call compare_radiances(set, summary, r, c%nz, 4.5_dp, 0.0_dp, error)
-  end subroutine test_lw_radiances_traced
+    call compare_radiances(set, summary, r, c%nz, k_sigma, rel, error)
+  end subroutine radiance_run
 
   !> The radiances of one column and band of radiance_reference.txt (with `mu_min`, only the
   !> directions with |mu| >= mu_min).
@@ -1090,11 +1204,7 @@ contains
     if (allocated(error)) return
     allocate (r%lev(0), r%mu(0), r%phi(0), r%val(0), r%err(0))
     on = .false.
-    do
-      read (u, '(a)', iostat=ios) line
-      if (ios /= 0) exit
-      if (len_trim(line) == 0 .or. line(1:1) == '#') cycle
-      read (line, *) key
+    do while (next_entry(u, line, key))
       if (trim(key) == 'case') then
         read (line, *) key, w
         on = trim(w) == name

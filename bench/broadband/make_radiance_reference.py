@@ -123,7 +123,11 @@ Cloudy column:
 7. sw_cloudy_reference.txt and lw_cloudy_reference.txt hold the column of the g-point files
    (k-distribution, gases, set-up, levels and layers identical).
 8. As 3, with the solver's truncated phase function for the beam too (the source its solution
-   satisfies), at 32, 16 and 64 streams (shortwave) and 64, 32 and 128 (longwave).
+   satisfies), at 32, 16 and 64 streams (shortwave) and 64, 32 and 128 (longwave); at twice the
+   streams the tolerances are ten times larger, as PythonicDISORT's round-off grows with them
+   (64 streams: 2.4e-8 (scale) in g-point 103, whose layers reach ssa = 1 - 1e-4, the same with
+   a finer t-grid; 128 longwave streams: 9.9e-7 at the grazing node mu = 3.5e-4 at the top, as
+   much as in the clear column).
 9. Shortwave: the exact minus the truncated single scattering of the beam along the line of
    sight equals PythonicDISORT's own TMS correction at the requested angles at the top
    (subroutines.interpolate with NT_cor "eval" minus "off") to 1e-10 (scale).
@@ -138,7 +142,8 @@ Cloudy column:
    its written accuracy estimate (the difference to half the streams).
 The script also prints how far PythonicDISORT's own interpolation in mu is from the result.
 
-Usage (about RUNTIME on one core; numpy and PythonicDISORT 1.8):
+Usage (about half an hour, 22 minutes of it for the cloudy shortwave at 64 streams; numpy and
+PythonicDISORT 1.8):
     python3 -m venv /tmp/venv && /tmp/venv/bin/pip install numpy "PythonicDISORT==1.8"
     /tmp/venv/bin/python bench/broadband/make_radiance_reference.py [output file]
 """
@@ -169,6 +174,7 @@ FLUX_FLOOR = 1.0e-4          # relative to the g-point's incoming flux (F_g mu0,
 NODE_TOL = 1.0e-8            # relative to F_g mu0 / pi
 NODE_TOL_CONSERVATIVE = 1.0e-3
 NODE_TOL_LW = 1.0e-6         # relative to the g-point's largest intensity
+NODE_TOL_DOUBLE = 10.0       # factor on the node tolerances at twice the streams (round-off)
 GRID_TOL = 1.0e-9
 CAP_CHECK = (1.0e-7, 1.0e-9)
 CAP_TOL = 1.0e-6
@@ -874,14 +880,18 @@ def run_sw_cloudy():
     err, d_double = stream_checks("shortwave cloudy", bb, rad[NQUAD_SW_CHECK].sum(0),
                                   rad[NQUAD_SW_DOUBLE].sum(0), NQUAD_SW, NQUAD_SW_CHECK,
                                   NQUAD_SW_DOUBLE)
-    e_plain = node_err[:, ~conservative].max()
-    e_cons = node_err[:, conservative].max() if conservative.any() else 0.0
+    e_plain = node_err[:, ~conservative].max(axis=1)
+    e_cons = node_err[:, conservative].max(axis=1)
+    worst = np.flatnonzero(~conservative)[np.argmax(node_err[:, ~conservative], axis=1)] + 1
+    tol_factor = np.array([1.0, 1.0, NODE_TOL_DOUBLE])
     check("shortwave cloudy line integral (with the solver's truncated phase function) at the "
           "quadrature angles = PythonicDISORT's intensity",
-          e_plain < NODE_TOL and e_cons < NODE_TOL_CONSERVATIVE,
-          f"max difference / (F_g mu0 / pi): {e_plain:.2e} in the {np.sum(~conservative)} "
-          f"g-points whose layers all have ssa < 1 - 1e-6, {e_cons:.2e} in the "
-          f"{np.sum(conservative)} others ({', '.join(str(q) for q in streams)} streams)")
+          np.all(e_plain < NODE_TOL * tol_factor) and np.all(e_cons < NODE_TOL_CONSERVATIVE),
+          "max difference / (F_g mu0 / pi) in the "
+          f"{np.sum(~conservative)} g-points whose layers all have ssa < 1 - 1e-6: "
+          + ", ".join(f"{e:.2e} (g-point {w}) at {q}" for e, w, q in zip(e_plain, worst, streams))
+          + f" streams; in the {np.sum(conservative)} others: "
+          + ", ".join(f"{e:.2e} at {q}" for e, q in zip(e_cons, streams)) + " streams")
     check("shortwave cloudy exact single scattering minus truncated = PythonicDISORT's TMS "
           "correction at the top", nt_err.max() < TMS_TOL,
           f"max difference {nt_err.max():.1e} of F_g mu0 / pi; exact single scattering changes "
@@ -932,8 +942,8 @@ def run_lw_cloudy():
     streams = (NQUAD_LW, NQUAD_LW_CHECK, NQUAD_LW_DOUBLE)
     rad = {nq: np.zeros((ng, nd)) for nq in streams}
     flux_int, flux_pd = np.zeros((ng, 2)), np.zeros((ng, 2))
-    node_rel = 0.0
-    for nq in streams:
+    node_rel = np.zeros(len(streams))
+    for i, nq in enumerate(streams):
         t0 = time.time()
         n = nq // 2
         mu_nodes = subroutines.Gauss_Legendre_quad(n)[0]
@@ -947,7 +957,7 @@ def run_lw_cloudy():
             rad[nq][g] = r[:nd]
             ref = np.concatenate([np.asarray(res["u"](0.0, 0.0))[:n],
                                   np.asarray(res["u"](res["tau_star"], 0.0))[n:]])
-            node_rel = max(node_rel, np.max(np.abs(r[k:] - ref)) / np.max(np.abs(ref)))
+            node_rel[i] = max(node_rel[i], np.max(np.abs(r[k:] - ref)) / np.max(np.abs(ref)))
             if nq == NQUAD_LW:
                 flux_int[g] = (2 * np.pi * np.sum(w_f * x_f * r[nd:nd + N_FLUX_CHECK]),
                                2 * np.pi * np.sum(w_f * x_f * r[nd + N_FLUX_CHECK:k]))
@@ -958,8 +968,9 @@ def run_lw_cloudy():
                                   rad[NQUAD_LW_DOUBLE].sum(0), NQUAD_LW, NQUAD_LW_CHECK,
                                   NQUAD_LW_DOUBLE)
     check("longwave cloudy line integral at the quadrature angles = PythonicDISORT's intensity",
-          node_rel < NODE_TOL_LW, f"max difference {node_rel:.2e} of the g-point's largest "
-          f"intensity ({', '.join(str(q) for q in streams)} streams, all g-points)")
+          np.all(node_rel < NODE_TOL_LW * np.array([1.0, 1.0, NODE_TOL_DOUBLE])),
+          "max difference of the g-point's largest intensity, all g-points: "
+          + ", ".join(f"{e:.2e} at {q}" for e, q in zip(node_rel, streams)) + " streams")
     floor = FLUX_FLOOR * np.pi * b_sfc
     rel = np.abs(flux_int - flux_pd) / np.maximum(flux_pd, floor[:, None])
     rel_file = np.abs(flux_int.sum(0) / [up_file, dn_file] - 1)
